@@ -1,0 +1,78 @@
+"""Errors a user can act on.
+
+Library code raises :class:`FleetrunError` for bad input or a domain problem; the CLI turns it
+into one ``Error: ...`` line on stderr and exit code 1, never a traceback.
+"""
+from __future__ import annotations
+
+
+class FleetrunError(Exception):
+    """A user-facing error that says where the problem is and what to do.
+
+    ``file``, ``sheet``, ``row`` (as Excel shows it), ``column`` and ``value`` locate the
+    problem; ``hint`` says what to do about it.
+    """
+
+    def __init__(self, message: str, *, file=None, sheet=None, row=None, column=None,
+                 value=None, hint: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.sheet = sheet
+        self.row = row
+        self.column = column
+        self.value = value
+        self.hint = hint
+
+    def location(self) -> str:
+        parts = []
+        if self.file is not None:
+            parts.append(str(self.file))
+        if self.sheet is not None:
+            cell = f"{self.sheet}!"
+            if self.column is not None and self.row is not None:
+                cell += f"{self.column}{self.row}"
+            elif self.row is not None:
+                cell += f"row {self.row}"
+            parts.append(cell)
+        elif self.row is not None:
+            parts.append(f"row {self.row}")
+        return ": ".join(parts)
+
+    def __str__(self) -> str:
+        text = self.message
+        loc = self.location()
+        if loc:
+            text = f"{loc}: {text}"
+        if self.hint:
+            text = f"{text}. {self.hint}" if not text.endswith(".") else f"{text} {self.hint}"
+        return text
+
+
+class InputError(FleetrunError):
+    """Bad input: a file, argument or value the user can fix."""
+
+
+class DomainError(FleetrunError):
+    """The input is well-formed but outside what the models can do."""
+
+
+def closest_names(name: str, valid, n: int = 1) -> list[str]:
+    """The valid names closest to ``name`` (case-insensitive), best first."""
+    import difflib
+
+    valid = list(valid)
+    lower = {v.lower(): v for v in valid}
+    hits = difflib.get_close_matches(name.lower(), list(lower), n=n, cutoff=0.4)
+    return [lower[h] for h in hits]
+
+
+def unknown_name_error(kind: str, name: str, valid, hint: str | None = None) -> InputError:
+    """An error for an unknown name that lists the valid ones and the closest match."""
+    valid = sorted(valid)
+    near = closest_names(name, valid)
+    msg = f"unknown {kind} '{name}'"
+    if near:
+        msg += f" (did you mean '{near[0]}'?)"
+    msg += f"; valid: {', '.join(valid)}"
+    return InputError(msg, hint=hint)
