@@ -1,0 +1,50 @@
+"""A vehicle type as the fleet workbook describes it (CONTRACT.md, sheet ``Vehicles``).
+
+This dataclass is the hand-over between the workbook reader (``fleetrun.fleet``), the
+drive-cycle simulation (``fleetrun.simulation``) and the diagnosis at vehicle level.
+Units are in the field names; EPA road-load coefficients stay in the units EPA publishes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    vehicle_id: str
+    vehicle_class: str
+    duty_class: str                      # "LD", "MD" or "HD"
+    configuration: str                   # canonical id, e.g. "LD_RWD"
+    count: float
+    annual_miles: float
+    fuel: str                            # "gasoline" or "diesel"
+    peak_engine_torque_Nm: float
+    transmission: str                    # "automatic" or "manual"
+    transmission_gear_ratios: tuple[float, ...]   # first gear first
+    final_drive_ratio: float
+    test_weight_kg: float
+    coastdown_A_lbf: float
+    coastdown_B_lbf_per_mph: float
+    coastdown_C_lbf_per_mph2: float
+    tire_size: str
+    torque_converter_ratio: float | None = None   # default 3.0 automatic, 1.0 manual
+    kim_torque_scale_Nm: float | None = None      # default peak x converter x first gear
+    low_gear_ratio: float | None = None           # dual (two-speed) axles only
+    rated_power_kW: float | None = None
+    rated_speed_rpm: float | None = None
+    engine_displacement_L: float | None = None
+    lubricant: str | None = None
+    extra: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def converter_ratio(self) -> float:
+        if self.torque_converter_ratio is not None:
+            return float(self.torque_converter_ratio)
+        return 3.0 if self.transmission == "automatic" else 1.0
+
+    @property
+    def kim_scale_Nm(self) -> float:
+        """Kim torque scale (thesis Sec. 5.2.1.A): peak x converter x first (max) gear ratio."""
+        if self.kim_torque_scale_Nm is not None:
+            return float(self.kim_torque_scale_Nm)
+        return float(self.peak_engine_torque_Nm) * self.converter_ratio * max(self.transmission_gear_ratios)
