@@ -1,0 +1,350 @@
+"""Drive cycles: the shipped EPA/regulatory speed schedules and user CSVs.
+
+A drive cycle is a speed trace ``speed_mps`` [m/s] against time ``time_s`` [s], with road grade
+``grade_pct`` [%] (rise/run x 100, positive uphill; zeros when the source has none).
+
+Shipped cycles live in ``inputs/cycles/<NAME>.csv`` (header ``time_s,speed_mps[,grade_pct]``);
+their sources, unit conversions and checked durations/distances are in
+``inputs/cycles/PROVENANCE.md``:
+
+- ``UDDS``, ``HWFET``, ``US06``, ``WLTC`` (class 3b) from fastsim 2.1.5 (NREL, Apache-2.0);
+- ``NYCC``, ``HD-UDDS`` (EPA UDDSHDV) from the EPA schedules embedded in zahner_potentiostat
+  1.1.2 (MIT), converted from mph.
+
+A user cycle is a CSV with ``time_s`` and exactly one speed column (``vehicle_speed_kph``,
+``vehicle_speed_mph``, ``vehicle_speed_mps``, ``speed_mps``, ``speed_kph`` or ``speed_mph``) and
+an optional ``grade_pct``; other columns are ignored, so a vehicle-level recording
+(CONTRACT.md, "Recordings") loads as its own drive cycle. Time steps may be uneven
+(:func:`resample` puts a cycle on an even grid). Errors are :class:`fleetrun.errors.InputError`
+with the file, the row as a spreadsheet shows it (header = row 1), the column and the value.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fleetrun.errors import InputError, unknown_name_error
+
+MILE_M = 1609.344          # international mile [m], exact
+MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
+KPH_TO_MPS = 1.0 / 3.6     # 1 km/h in m/s, exact
+
+# The first cycles `shipped_cycles()` lists, in this order (CONTRACT.md); others follow by name.
+PRIMARY_CYCLES = ("UDDS", "HWFET", "US06", "NYCC", "HD-UDDS")
+
+# Accepted speed columns -> factor to m/s.
+SPEED_COLUMNS = {
+    "vehicle_speed_kph": KPH_TO_MPS,
+    "vehicle_speed_mph": MPH_TO_MPS,
+    "vehicle_speed_mps": 1.0,
+    "speed_mps": 1.0,
+    "speed_kph": KPH_TO_MPS,
+    "speed_mph": MPH_TO_MPS,
+}
+TIME_COLUMN = "time_s"
+GRADE_COLUMN = "grade_pct"
+
+
+@dataclass(frozen=True, eq=False)
+class DriveCycle:
+    """A speed schedule.
+
+    ``time_s`` [s] strictly increasing (need not start at 0 or be evenly spaced),
+    ``speed_mps`` [m/s] >= 0, ``grade_pct`` [%]; all 1-D float arrays of the same length >= 2,
+    stored read-only.
+    """
+
+    name: str
+    time_s: np.ndarray
+    speed_mps: np.ndarray
+    grade_pct: np.ndarray
+
+    def __post_init__(self):
+        arrays = {}
+        for field_name in ("time_s", "speed_mps", "grade_pct"):
+            a = np.array(getattr(self, field_name), dtype=float)  # a private copy
+            if a.ndim != 1:
+                raise ValueError(f"DriveCycle.{field_name} must be 1-D, got shape {a.shape}")
+            a.setflags(write=False)
+            arrays[field_name] = a
+        n = {len(a) for a in arrays.values()}
+        if len(n) != 1:
+            raise ValueError("DriveCycle arrays must have the same length: "
+                             + ", ".join(f"{k}={len(v)}" for k, v in arrays.items()))
+        for k, v in arrays.items():
+            object.__setattr__(self, k, v)
+
+    @property
+    def duration_s(self) -> float:
+        """Last time minus first time [s]."""
+        return float(self.time_s[-1] - self.time_s[0])
+
+    @property
+    def distance_m(self) -> float:
+        """Distance driven [m]: trapezoidal integral of speed over time.
+
+        For the 1 Hz EPA schedules, which start and end at rest, this equals the plain sum of
+        speed x 1 s that EPA's published distances use.
+        """
+        dt = np.diff(self.time_s)
+        return float(np.sum(0.5 * (self.speed_mps[1:] + self.speed_mps[:-1]) * dt))
+
+    @property
+    def miles(self) -> float:
+        """Distance driven [mi] (international mile, 1609.344 m)."""
+        return self.distance_m / MILE_M
+
+    @property
+    def max_speed_mps(self) -> float:
+        """Highest speed [m/s]."""
+        return float(np.max(self.speed_mps))
+
+    @property
+    def mean_speed_mps(self) -> float:
+        """Average speed including stops [m/s]: distance / duration (EPA's 'average speed')."""
+        return self.distance_m / self.duration_s if self.duration_s > 0 else 0.0
+
+    def __repr__(self) -> str:
+        return (f"DriveCycle({self.name!r}, {len(self.time_s)} points, "
+                f"{self.duration_s:g} s, {self.miles:.3f} mi)")
+
+
+# ----------------------------------------------------------------------------- shipped cycles
+
+def _cycles_dir() -> Path:
+    from fleetrun.resources import inputs_dir
+
+    return inputs_dir() / "cycles"
+
+
+def _norm(name: str) -> str:
+    """Case-insensitive, '-' and '_' interchangeable."""
+    return name.strip().upper().replace("_", "-")
+
+
+def _shipped_files() -> dict[str, Path]:
+    try:
+        folder = _cycles_dir()
+    except FileNotFoundError:
+        return {}
+    if not folder.is_dir():
+        return {}
+    return {p.stem: p for p in folder.glob("*.csv")}
+
+
+def shipped_cycles() -> list[str]:
+    """Names of the shipped cycles: UDDS, HWFET, US06, NYCC, HD-UDDS first, then the others
+    in alphabetical order."""
+    names = list(_shipped_files())
+    first = [n for n in PRIMARY_CYCLES if n in names]
+    rest = sorted((n for n in names if n not in PRIMARY_CYCLES), key=str.upper)
+    return first + rest
+
+
+def _looks_like_path(text: str) -> bool:
+    return (os.sep in text or (os.altsep and os.altsep in text) or "/" in text
+            or Path(text).suffix != "")
+
+
+def load_cycle(name_or_path) -> DriveCycle:
+    """A shipped cycle by name (case-insensitive, '-'/'_' interchangeable) or a CSV file.
+
+    A :class:`pathlib.Path`, or a string that contains a path separator or has a file
+    extension, is read as a file; any other string is looked up among :func:`shipped_cycles`
+    (and, failing that, read as a file if one of that name exists).
+    """
+    if isinstance(name_or_path, DriveCycle):
+        return name_or_path
+    if isinstance(name_or_path, os.PathLike):
+        return read_cycle_csv(Path(name_or_path))
+    if not isinstance(name_or_path, str):
+        raise InputError(f"a drive cycle is a shipped name or a CSV path, "
+                         f"not {type(name_or_path).__name__}", value=name_or_path)
+    text = name_or_path.strip()
+    if not text:
+        raise unknown_name_error("drive cycle", name_or_path, shipped_cycles(),
+                                 hint="Give a shipped cycle name or the path of a CSV file")
+    if _looks_like_path(text):
+        return read_cycle_csv(Path(text))
+    files = _shipped_files()
+    by_norm = {_norm(n): n for n in files}
+    if _norm(text) in by_norm:
+        name = by_norm[_norm(text)]
+        return read_cycle_csv(files[name], name=name)
+    if Path(text).is_file():
+        return read_cycle_csv(Path(text))
+    raise unknown_name_error(
+        "drive cycle", text, shipped_cycles(),
+        hint="Names are case-insensitive; or give the path of a CSV file with time_s and "
+             "one speed column (e.g. speed_mps)")
+
+
+# ----------------------------------------------------------------------------- CSV reading
+
+def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
+    """Read and validate a drive-cycle CSV (see the module docstring for the columns).
+
+    ``name`` defaults to the file stem. Raises :class:`InputError` naming the file, row
+    (header = row 1), column and offending value.
+    """
+    import pandas as pd
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError("drive-cycle file not found", file=path,
+                         hint="Check the path, or run `fleetrun cycles` for the shipped names")
+    if path.is_dir():
+        raise InputError("is a folder, not a CSV file", file=path,
+                         hint="Give the path of a .csv file")
+    if path.suffix.lower() != ".csv":
+        raise InputError(f"not a CSV file (extension '{path.suffix}')", file=path,
+                         hint="Save the drive cycle as .csv with a header row "
+                              "time_s,speed_mps[,grade_pct]")
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
+                         encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError("not a text CSV file (cannot decode as UTF-8)", file=path,
+                         hint="Save the drive cycle as a UTF-8 CSV") from None
+    except pd.errors.EmptyDataError:
+        raise InputError("the file is empty", file=path,
+                         hint="Give a header row time_s,speed_mps and at least two data rows"
+                         ) from None
+    except pd.errors.ParserError as exc:
+        raise InputError(f"not a readable CSV ({str(exc).strip()})", file=path,
+                         hint="Check that every row has the same number of comma-separated "
+                              "fields as the header") from None
+    df.columns = [str(c).strip() for c in df.columns]
+
+    # Row numbers as a spreadsheet shows them: header row 1, first data row 2.
+    rows = np.arange(len(df)) + 2
+    # drop fully blank lines at the end of the file; blank lines inside are errors
+    blank = np.array([all(_cell_text(v) == "" for v in rec) for rec in df.itertuples(index=False)],
+                     dtype=bool) if len(df) else np.zeros(0, dtype=bool)
+    keep = len(df)
+    while keep > 0 and blank[keep - 1]:
+        keep -= 1
+    df, rows, blank = df.iloc[:keep], rows[:keep], blank[:keep]
+    if blank.any():
+        r = int(rows[np.argmax(blank)])
+        raise InputError("empty row inside the data", file=path, row=r,
+                         hint="Delete the empty row")
+
+    if TIME_COLUMN not in df.columns:
+        raise InputError(f"no '{TIME_COLUMN}' column (found: {', '.join(df.columns)})",
+                         file=path, row=1, column=TIME_COLUMN,
+                         hint="The header needs time_s and one speed column, "
+                              "e.g. time_s,speed_mps")
+    speed_cols = [c for c in df.columns if c in SPEED_COLUMNS]
+    if not speed_cols:
+        raise InputError(f"no speed column (found: {', '.join(df.columns)})", file=path, row=1,
+                         hint="Add exactly one of " + ", ".join(SPEED_COLUMNS))
+    if len(speed_cols) > 1:
+        raise InputError(f"more than one speed column ({', '.join(speed_cols)}); "
+                         "which one to use is ambiguous", file=path, row=1,
+                         column=speed_cols[1],
+                         hint="Keep exactly one of " + ", ".join(SPEED_COLUMNS))
+    speed_col = speed_cols[0]
+
+    if len(df) < 2:
+        raise InputError(f"a drive cycle needs at least 2 data rows, found {len(df)}",
+                         file=path, hint="Give the speed at two or more times")
+
+    t = _numeric(df, TIME_COLUMN, rows, path)
+    v = _numeric(df, speed_col, rows, path) * SPEED_COLUMNS[speed_col]
+    g = (_numeric(df, GRADE_COLUMN, rows, path) if GRADE_COLUMN in df.columns
+         else np.zeros(len(df)))
+
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(
+            f"time must strictly increase: {TIME_COLUMN} = {_cell_text(df[TIME_COLUMN].iloc[i])} "
+            f"follows {_cell_text(df[TIME_COLUMN].iloc[i - 1])} in row {int(rows[i - 1])}",
+            file=path, row=int(rows[i]), column=TIME_COLUMN,
+            value=_cell_text(df[TIME_COLUMN].iloc[i]),
+            hint="Sort the rows by time and remove repeated times")
+    neg = np.flatnonzero(v < 0)
+    if neg.size:
+        i = int(neg[0])
+        raise InputError(f"negative speed in column '{speed_col}': {_cell_text(df[speed_col].iloc[i])}",
+                         file=path, row=int(rows[i]), column=speed_col,
+                         value=_cell_text(df[speed_col].iloc[i]),
+                         hint="Speeds must be >= 0; replace reversing or sensor noise by 0")
+    return DriveCycle(name=name or path.stem, time_s=t, speed_mps=v, grade_pct=g)
+
+
+def _cell_text(value) -> str:
+    """A cell as stripped text; a missing cell (short row) is ''."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    return str(value).strip()
+
+
+def _numeric(df, column: str, rows, path) -> np.ndarray:
+    """Column ``column`` as finite floats, or an InputError at the first bad cell."""
+    text = [_cell_text(v) for v in df[column]]
+    out = np.empty(len(text))
+    for i, s in enumerate(text):
+        if s == "":
+            raise InputError(f"empty cell in column '{column}'", file=path, row=int(rows[i]),
+                             column=column, value="",
+                             hint="Fill in a number")
+        try:
+            x = float(s)
+        except ValueError:
+            raise InputError(f"not a number in column '{column}': '{s}'", file=path,
+                             row=int(rows[i]), column=column, value=s,
+                             hint="Use plain numbers with '.' as decimal separator") from None
+        if math.isnan(x):
+            raise InputError(f"NaN in column '{column}'", file=path, row=int(rows[i]),
+                             column=column, value=s, hint="Replace the NaN by a number")
+        if math.isinf(x):
+            raise InputError(f"infinite value in column '{column}': '{s}'", file=path,
+                             row=int(rows[i]), column=column, value=s,
+                             hint="Replace it by a finite number")
+        out[i] = x
+    return out
+
+
+# ----------------------------------------------------------------------------- resampling
+
+def resample(cycle: DriveCycle, dt_s: float = 1.0) -> DriveCycle:
+    """``cycle`` on an even time grid ``t0, t0 + dt_s, ...`` [s], linear interpolation.
+
+    The grid ends at the last grid point not after the cycle's end (to within 1e-9 s), so a
+    final stretch shorter than ``dt_s`` is dropped; speed and grade are interpolated linearly.
+    """
+    dt_s = float(dt_s)
+    if not math.isfinite(dt_s) or dt_s <= 0:
+        raise InputError(f"resampling step must be a positive number of seconds, got {dt_s:g}",
+                         value=dt_s, hint="Use e.g. dt_s=1.0")
+    t0, t1 = float(cycle.time_s[0]), float(cycle.time_s[-1])
+    n = int(math.floor((t1 - t0) / dt_s + 1e-9)) + 1
+    if n < 2:
+        raise InputError(f"resampling step {dt_s:g} s is longer than the cycle "
+                         f"({t1 - t0:g} s)", value=dt_s, hint="Use a shorter step")
+    t = t0 + dt_s * np.arange(n)
+    t[-1] = min(t[-1], t1)  # guard the last point against rounding past the end
+    v = np.interp(t, cycle.time_s, cycle.speed_mps)
+    g = np.interp(t, cycle.time_s, cycle.grade_pct)
+    return DriveCycle(name=cycle.name, time_s=t, speed_mps=v, grade_pct=g)
+
+
+def cycle_summary(cycle: DriveCycle) -> dict:
+    """Name, duration [s], distance [mi, km], max and mean speed [mph, km/h] of a cycle."""
+    return {
+        "name": cycle.name,
+        "duration_s": cycle.duration_s,
+        "distance_mi": cycle.miles,
+        "distance_km": cycle.distance_m / 1000.0,
+        "max_speed_mph": cycle.max_speed_mps / MPH_TO_MPS,
+        "mean_speed_mph": cycle.mean_speed_mps / MPH_TO_MPS,
+        "max_speed_kph": cycle.max_speed_mps * 3.6,
+        "mean_speed_kph": cycle.mean_speed_mps * 3.6,
+    }
