@@ -1,0 +1,142 @@
+"""Turning one workbook cell into a typed value, or a one-line reason why not.
+
+Each parser returns the value or raises :class:`CellProblem` whose text completes a message
+like ``Vehicles!H4 peak_engine_torque_Nm: 'abc' is not a number``.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import re
+
+
+class CellProblem(ValueError):
+    """The cell's value cannot be used; ``str()`` says why, quoting the value."""
+
+
+def show(value) -> str:
+    """A cell value as the message quotes it: ``'abc'``, ``-3``, ``2024-01-05``."""
+    if isinstance(value, str):
+        text = value if len(value) <= 40 else value[:37] + "..."
+        return repr(text)
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    if isinstance(value, (_dt.datetime, _dt.date)):
+        return value.isoformat()
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+def is_blank(value) -> bool:
+    return value is None or (isinstance(value, str) and not value.strip())
+
+
+def parse_text(value) -> str:
+    if isinstance(value, bool):
+        raise CellProblem(f"{show(value)} is not text")
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))  # an id typed as 101 arrives as 101.0 from some writers
+    if isinstance(value, (_dt.datetime, _dt.date, _dt.time)):
+        raise CellProblem(f"{show(value)} is a date, not text (format the column as Text)")
+    return str(value).strip()
+
+
+def parse_number(value) -> float:
+    if isinstance(value, bool):
+        raise CellProblem(f"{show(value)} is not a number")
+    if isinstance(value, (_dt.datetime, _dt.date, _dt.time)):
+        raise CellProblem(f"{show(value)} is a date, not a number (format the column as Number)")
+    if isinstance(value, (int, float)):
+        number = float(value)
+    else:
+        text = str(value).strip()
+        try:
+            number = float(text)
+        except ValueError:
+            raise CellProblem(f"{show(value)} is not a number") from None
+    if not math.isfinite(number):
+        raise CellProblem(f"{show(value)} is not a finite number")
+    return number
+
+
+def parse_integer(value) -> int:
+    number = parse_number(value)
+    if not number.is_integer():
+        raise CellProblem(f"{show(value)} is not a whole number")
+    return int(number)
+
+
+def parse_choice(value, choices) -> str:
+    text = parse_text(value)
+    lower = {c.lower(): c for c in choices}
+    key = text.lower().replace("-", "_")
+    for candidate in (text.lower(), key):
+        if candidate in lower:
+            return lower[candidate]
+    raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
+
+
+_RATIO_SPLIT = re.compile(r"[,;\s]+")
+
+
+def parse_ratios(value) -> tuple[float, ...]:
+    """A comma list of gear ratios, first gear first (one ratio may arrive as a number)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        parts = [value]
+    else:
+        text = parse_text(value)
+        parts = [p for p in _RATIO_SPLIT.split(text) if p]
+    if not parts:
+        raise CellProblem(f"{show(value)} has no gear ratios")
+    ratios = []
+    for part in parts:
+        try:
+            ratio = parse_number(part)
+        except CellProblem:
+            raise CellProblem(f"{show(value)} is not a comma list of numbers "
+                              f"({show(part)} is not a number)") from None
+        if ratio <= 0:
+            raise CellProblem(f"{show(value)} has a gear ratio {show(ratio)} that is not positive")
+        ratios.append(ratio)
+    return tuple(ratios)
+
+
+def parse_cycle_mix(value) -> dict[str, float]:
+    """``UDDS:0.55,HWFET:0.45`` -> {"UDDS": 0.55, "HWFET": 0.45} (order kept)."""
+    text = parse_text(value)
+    mix: dict[str, float] = {}
+    for item in (p.strip() for p in re.split(r"[,;]", text)):
+        if not item:
+            continue
+        name, sep, share_text = item.rpartition(":")
+        name = name.strip()
+        if not sep or not name:
+            raise CellProblem(f"{show(value)} is not a list like UDDS:0.55,HWFET:0.45 "
+                              f"({show(item)} has no ':share')")
+        try:
+            share = parse_number(share_text)
+        except CellProblem:
+            raise CellProblem(f"{show(value)}: share {show(share_text.strip())} of {name} "
+                              "is not a number") from None
+        if share < 0:
+            raise CellProblem(f"{show(value)}: share of {name} is negative")
+        if name.upper() in (k.upper() for k in mix):
+            raise CellProblem(f"{show(value)} names {name} twice")
+        mix[name] = share
+    if not mix:
+        raise CellProblem(f"{show(value)} names no drive cycle")
+    return mix
+
+
+TIRE_PATTERNS = (
+    # P235/75R15, LT265/70R17, 215/55ZR17 94V, 295/75R22.5, 445/50R22.5
+    re.compile(r"^(P|LT|ST|T)?\s*\d{3}\s*/\s*\d{2,3}\s*(Z?R|-|D|B)\s*\d{2}(\.\d)?\b", re.I),
+    # 11R22.5, 11R24.5, 10.00R20
+    re.compile(r"^\d{1,2}(\.\d{1,2})?\s*R\s*\d{2}(\.\d)?\b", re.I),
+)
+
+
+def parse_tire_size(value) -> str:
+    text = parse_text(value)
+    if not any(p.match(text) for p in TIRE_PATTERNS):
+        raise CellProblem(f"{show(value)} is not a tire size like P235/75R15 or 295/75R22.5")
+    return text

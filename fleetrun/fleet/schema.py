@@ -1,0 +1,115 @@
+"""The fleet workbook's sheets and columns (CONTRACT.md, "Fleet workbook").
+
+One list of :class:`Column` per sheet is shared by the reader (what to check), the template
+writer (headers, drop-downs, notes) and the docs, so the three cannot drift apart.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+VEHICLES_SHEET = "Vehicles"
+SCENARIOS_SHEET = "Scenarios"
+
+CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "HD_TANDEM",
+                  "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL")
+DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
+DUTY_CLASSES = ("LD", "MD", "HD")
+FUELS = ("gasoline", "diesel")
+TRANSMISSIONS = ("automatic", "manual")
+
+
+@dataclass(frozen=True)
+class Column:
+    name: str
+    kind: str                 # "text", "number", "choice", "ratios", "cycle_mix", "integer"
+    required: bool
+    note: str
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None         # values below are errors (inclusive unless strict)
+    strictly_positive: bool = False
+    example: tuple = ()                  # two example values for the template
+
+
+VEHICLE_COLUMNS: tuple[Column, ...] = (
+    Column("vehicle_id", "text", True, "unique id of this vehicle type", example=("LD-CAR-01", "HD-TRACTOR-01")),
+    Column("vehicle_class", "text", True, "label the reports aggregate by", example=("Passenger car", "Class 8 tractor")),
+    Column("duty_class", "choice", True, "LD, MD or HD", choices=DUTY_CLASSES, example=("LD", "HD")),
+    Column("configuration", "choice", True, "differential configuration", choices=CONFIGURATIONS,
+           example=("LD_FWD", "HD_TANDEM")),
+    Column("count", "number", True, "vehicles of this type", minimum=0, example=(125000, 4200)),
+    Column("annual_miles", "number", True, "miles per vehicle per year", minimum=0, example=(11500, 85000)),
+    Column("fuel", "choice", True, "gasoline or diesel", choices=FUELS, example=("gasoline", "diesel")),
+    Column("peak_engine_torque_Nm", "number", True, "peak engine torque [N m]", strictly_positive=True,
+           example=(250, 2500)),
+    Column("transmission", "choice", True, "automatic or manual", choices=TRANSMISSIONS,
+           example=("automatic", "manual")),
+    Column("transmission_gear_ratios", "ratios", True, "comma list, first gear first",
+           example=("4.62,3.04,2.06,1.66,1.26,1.00,0.85,0.69",
+                    "12.8,9.25,6.76,4.9,3.58,2.61,1.89,1.38,1.00,0.73")),
+    Column("final_drive_ratio", "number", True, "differential gear ratio", strictly_positive=True,
+           example=(3.21, 3.55)),
+    Column("test_weight_kg", "number", True, "test (loaded) weight [kg]", strictly_positive=True,
+           example=(1588, 29000)),
+    Column("coastdown_A_lbf", "number", True, "EPA target coefficient A [lbf]", minimum=0,
+           example=(29.5, 240.0)),
+    Column("coastdown_B_lbf_per_mph", "number", True, "EPA target coefficient B [lbf/mph]",
+           example=(0.115, 1.5)),
+    Column("coastdown_C_lbf_per_mph2", "number", True, "EPA target coefficient C [lbf/mph^2]", minimum=0,
+           example=(0.0185, 0.12)),
+    Column("tire_size", "text", True, "e.g. P235/75R15 or 295/75R22.5", example=("P215/55R17", "295/75R22.5")),
+    Column("torque_converter_ratio", "number", False, "default 3.0 automatic, 1.0 manual", minimum=1.0),
+    Column("kim_torque_scale_Nm", "number", False, "overrides peak x converter x first gear",
+           strictly_positive=True),
+    Column("low_gear_ratio", "number", False, "two-speed (dual) axles only: low ratio",
+           strictly_positive=True),
+    Column("rated_power_kW", "number", False, "rated engine power [kW]", strictly_positive=True,
+           example=(150, 336)),
+    Column("rated_speed_rpm", "number", False, "rated engine speed [rpm]", strictly_positive=True,
+           example=(6100, 1800)),
+    Column("engine_displacement_L", "number", False, "engine displacement [L]", strictly_positive=True,
+           example=(2.5, 12.8)),
+    Column("lubricant", "text", False, "axle lubricant name (default: the configuration's)"),
+)
+
+SCENARIO_COLUMNS: tuple[Column, ...] = (
+    Column("scenario_id", "text", True, "unique id of this scenario", example=("baseline", "hot_summer")),
+    Column("description", "text", False, "free text for the reports",
+           example=("Average year, mixed driving", "Heat wave: 38 C ambient")),
+    Column("ambient_temp_C", "number", True, "ambient temperature [C]", example=(20, 38)),
+    Column("cycle_mix", "cycle_mix", True, "CYCLE:share list, shares of annual miles, sum 1",
+           example=("UDDS:0.55,HWFET:0.45", "UDDS:0.5,HWFET:0.4,US06:0.1")),
+    Column("budget_years", "integer", True, "years forecast (2 = a biennium)", strictly_positive=True,
+           example=(2, 2)),
+    Column("vmt_growth_pct_per_year", "number", True, "growth of annual miles [% per year]",
+           example=(1.0, 1.0)),
+    Column("state_tax_gasoline_usd_per_gal", "number", True, "state gasoline tax [$/gal]", minimum=0,
+           example=(0.20, 0.20)),
+    Column("state_tax_diesel_usd_per_gal", "number", True, "state diesel tax [$/gal]", minimum=0,
+           example=(0.20, 0.20)),
+    Column("federal_tax_gasoline_usd_per_gal", "number", True, "federal gasoline tax [$/gal]", minimum=0,
+           example=(0.184, 0.184)),
+    Column("federal_tax_diesel_usd_per_gal", "number", True, "federal diesel tax [$/gal]", minimum=0,
+           example=(0.244, 0.244)),
+)
+
+# Plausibility: values outside these ranges are warned about, not refused (analysts model
+# unusual vehicles on purpose). Keyed by duty class; (low, high).
+PLAUSIBLE_VEHICLE = {
+    "test_weight_kg": {"LD": (600, 4500), "MD": (3500, 15000), "HD": (6000, 40000)},
+    "peak_engine_torque_Nm": {"LD": (50, 1100), "MD": (200, 1600), "HD": (500, 3500)},
+    "annual_miles": {"LD": (500, 50000), "MD": (1000, 100000), "HD": (1000, 200000)},
+    "final_drive_ratio": {"LD": (2.0, 6.0), "MD": (2.5, 8.0), "HD": (2.0, 8.0)},
+}
+PLAUSIBLE_SCENARIO = {
+    "ambient_temp_C": (-40.0, 50.0),
+    "budget_years": (1, 10),
+    "vmt_growth_pct_per_year": (-10.0, 10.0),
+    "state_tax_gasoline_usd_per_gal": (0.0, 1.0),
+    "state_tax_diesel_usd_per_gal": (0.0, 1.0),
+    "federal_tax_gasoline_usd_per_gal": (0.0, 1.0),
+    "federal_tax_diesel_usd_per_gal": (0.0, 1.0),
+}
+
+
+def columns_by_name(columns) -> dict[str, Column]:
+    return {c.name: c for c in columns}

@@ -1,0 +1,108 @@
+"""Write a blank fleet workbook: the two sheets with headers, drop-downs and two example rows.
+
+``write_template(path)`` is what ``fleetrun template -o new.xlsx`` runs. The columns, notes
+and drop-down choices come from :mod:`fleetrun.fleet.schema`, the same lists the reader checks.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from openpyxl import Workbook
+from openpyxl.comments import Comment
+from openpyxl.styles import Alignment, Font, PatternFill
+from openpyxl.utils import get_column_letter
+from openpyxl.worksheet.datavalidation import DataValidation
+
+from fleetrun.fleet.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
+                                   VEHICLES_SHEET, Column)
+
+HEADER_FILL = PatternFill("solid", fgColor="1F4E78")
+OPTIONAL_FILL = PatternFill("solid", fgColor="5B7FA6")
+HEADER_FONT = Font(bold=True, color="FFFFFF")
+VALIDATED_ROWS = 5000     # drop-downs cover this many data rows
+
+INSTRUCTIONS = [
+    ("fleetrun fleet workbook", None),
+    ("", None),
+    ("Vehicles: one row per vehicle type; header in row 1 (do not rename the headers).", None),
+    ("Dark headers are required; lighter headers are optional (leave the cell empty).", None),
+    ("configuration, duty_class, fuel and transmission have drop-down lists.", None),
+    ("transmission_gear_ratios: comma list, first gear first, e.g. 4.62,3.04,2.06,1.66,1.26,1.00", None),
+    ("coastdown_A/B/C: the EPA Test Car List target coefficients (lbf, lbf/mph, lbf/mph^2).", None),
+    ("low_gear_ratio: only for HD_DUAL, HD_TANDEM_DUAL and HD_TAG_DUAL (two-speed axles).", None),
+    ("", None),
+    ("Scenarios: one row per scenario.", None),
+    ("cycle_mix: CYCLE:share list, shares of each vehicle's annual miles adding up to 1,", None),
+    ("   e.g. UDDS:0.55,HWFET:0.45. `fleetrun cycles` lists the drive cycles; a CSV path works too.", None),
+    ("budget_years: 2 = a biennium. Year y uses annual_miles x (1 + growth/100)^(y - 1).", None),
+    ("Tax rates in US dollars per gallon.", None),
+    ("", None),
+    ("Check the workbook with:  fleetrun validate FLEET.xlsx", None),
+    ("Run it with:              fleetrun run FLEET.xlsx --out results/", None),
+    ("", None),
+    ("Columns", None),
+]
+
+
+def write_template(path: Path) -> None:
+    """Write the template workbook to ``path`` (atomically)."""
+    from fleetrun.fleet.outputs import atomic_file
+
+    workbook = build_template()
+    with atomic_file(Path(path)) as temporary:
+        workbook.save(temporary)
+
+
+def build_template() -> Workbook:
+    workbook = Workbook()
+    instructions = workbook.active
+    instructions.title = "Instructions"
+    _fill_sheet(workbook.create_sheet(VEHICLES_SHEET), VEHICLE_COLUMNS)
+    _fill_sheet(workbook.create_sheet(SCENARIOS_SHEET), SCENARIO_COLUMNS)
+    _fill_instructions(instructions)
+    workbook.active = 1
+    return workbook
+
+
+def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
+    for index, column in enumerate(columns, start=1):
+        cell = ws.cell(row=1, column=index, value=column.name)
+        cell.font = HEADER_FONT
+        cell.fill = HEADER_FILL if column.required else OPTIONAL_FILL
+        cell.alignment = Alignment(horizontal="center")
+        cell.comment = Comment(("required: " if column.required else "optional: ") + column.note,
+                               "fleetrun")
+        ws.column_dimensions[get_column_letter(index)].width = max(12, len(column.name) + 2)
+        for row, example in enumerate(column.example, start=2):
+            target = ws.cell(row=row, column=index, value=example)
+            if column.kind in ("text", "ratios", "cycle_mix", "choice"):
+                target.number_format = "@"  # keep "3.5,2.1" and ids as text
+        if column.choices:
+            letter = get_column_letter(index)
+            rule = DataValidation(type="list", formula1='"' + ",".join(column.choices) + '"',
+                                  allow_blank=not column.required, showErrorMessage=True,
+                                  errorTitle=column.name,
+                                  error=f"Choose one of: {', '.join(column.choices)}")
+            rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
+            ws.add_data_validation(rule)
+    # The dual example: HD_TANDEM has no low gear; keep the example rows valid as written.
+    ws.freeze_panes = "B2"
+
+
+def _fill_instructions(ws) -> None:
+    ws.column_dimensions["A"].width = 34
+    ws.column_dimensions["B"].width = 12
+    ws.column_dimensions["C"].width = 70
+    row = 1
+    for text, _ in INSTRUCTIONS:
+        ws.cell(row=row, column=1, value=text)
+        row += 1
+    ws["A1"].font = Font(bold=True, size=14)
+    ws.cell(row=row - 1, column=1).font = Font(bold=True)
+    for sheet, columns in ((VEHICLES_SHEET, VEHICLE_COLUMNS), (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
+        for column in columns:
+            ws.cell(row=row, column=1, value=f"{sheet}.{column.name}")
+            ws.cell(row=row, column=2, value="required" if column.required else "optional")
+            choices = f" ({', '.join(column.choices)})" if column.choices else ""
+            ws.cell(row=row, column=3, value=column.note + choices)
+            row += 1

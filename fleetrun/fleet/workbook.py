@@ -1,0 +1,567 @@
+"""Read and validate the fleet workbook (CONTRACT.md, "Fleet workbook").
+
+``read_fleet(path)`` checks everything before any simulation and reports every problem at
+once: one :class:`~fleetrun.errors.InputError` whose message is the count of problems followed
+by one line per problem, e.g. ``Vehicles!H4 peak_engine_torque_Nm: 'abc' is not a number``.
+Implausible but possible values (a 30 t light-duty vehicle) become warnings on the Fleet.
+
+Layout handled: header in row 1 (names matched case-insensitively), blank rows skipped, extra
+columns kept in ``VehicleSpec.extra`` with a warning, hidden sheets read with a warning.
+Refused: merged cells in the data, formulas whose result was never saved, duplicate headers.
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from openpyxl.utils import get_column_letter
+
+from fleetrun.errors import InputError
+from fleetrun.fleet import cells
+from fleetrun.fleet.cells import CellProblem
+from fleetrun.fleet.schema import (DUAL_CONFIGURATIONS, PLAUSIBLE_SCENARIO, PLAUSIBLE_VEHICLE,
+                                   SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
+                                   VEHICLES_SHEET, Column)
+from fleetrun.vehicle import VehicleSpec
+
+ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
+MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 are normalised (with a warning)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    scenario_id: str
+    description: str
+    ambient_temp_C: float
+    cycle_mix: dict[str, float]          # cycle name (or CSV path) -> share of annual miles
+    budget_years: int
+    vmt_growth_pct_per_year: float
+    state_tax_gasoline_usd_per_gal: float
+    state_tax_diesel_usd_per_gal: float
+    federal_tax_gasoline_usd_per_gal: float
+    federal_tax_diesel_usd_per_gal: float
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def state_tax_usd_per_gal(self, fuel: str) -> float:
+        return self.state_tax_gasoline_usd_per_gal if fuel == "gasoline" else self.state_tax_diesel_usd_per_gal
+
+    def federal_tax_usd_per_gal(self, fuel: str) -> float:
+        return (self.federal_tax_gasoline_usd_per_gal if fuel == "gasoline"
+                else self.federal_tax_diesel_usd_per_gal)
+
+    def mile_factor(self) -> float:
+        """Budget-period miles per unit of annual miles: sum over y of (1 + g)^(y - 1)."""
+        g = self.vmt_growth_pct_per_year / 100.0
+        return float(sum((1.0 + g) ** (y - 1) for y in range(1, self.budget_years + 1)))
+
+
+@dataclass
+class Fleet:
+    path: Path
+    sha256: str
+    vehicles: list[VehicleSpec]
+    scenarios: list[Scenario]
+    warnings: list[str] = field(default_factory=list)
+    vehicle_rows: dict[str, int] = field(default_factory=dict)    # vehicle_id -> Excel row
+    scenario_rows: dict[str, int] = field(default_factory=dict)
+
+    def vehicle(self, vehicle_id: str) -> VehicleSpec:
+        for v in self.vehicles:
+            if v.vehicle_id == vehicle_id:
+                return v
+        from fleetrun.errors import unknown_name_error
+        raise unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
+
+    def scenario(self, scenario_id: str) -> Scenario:
+        for s in self.scenarios:
+            if s.scenario_id == scenario_id:
+                return s
+        from fleetrun.errors import unknown_name_error
+        raise unknown_name_error("scenario_id", scenario_id, [s.scenario_id for s in self.scenarios])
+
+
+class Problems:
+    """Collects errors and warnings, each tied to a cell, sheet or row."""
+
+    def __init__(self):
+        self.errors: list[tuple[tuple, str]] = []
+        self.warnings: list[tuple[tuple, str]] = []
+
+    @staticmethod
+    def where(sheet, row=None, col=None, name=None) -> tuple[tuple, str]:
+        ref = sheet + "!"
+        if col is not None and row is not None:
+            ref += f"{get_column_letter(col)}{row}"
+        elif row is not None:
+            ref += f"row {row}"
+        else:
+            ref = sheet
+        if name:
+            ref += f" {name}"
+        return (sheet, row or 0, col or 0), ref
+
+    def error(self, text, sheet, row=None, col=None, name=None):
+        key, ref = self.where(sheet, row, col, name)
+        self.errors.append((key, f"{ref}: {text}"))
+
+    def warn(self, text, sheet, row=None, col=None, name=None):
+        key, ref = self.where(sheet, row, col, name)
+        self.warnings.append((key, f"{ref}: {text}"))
+
+    def sorted_errors(self) -> list[str]:
+        return [text for _, text in sorted(self.errors, key=lambda e: e[0])]
+
+    def sorted_warnings(self) -> list[str]:
+        return [text for _, text in sorted(self.warnings, key=lambda e: e[0])]
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def read_fleet(path) -> Fleet:
+    """Read, validate and return the fleet in ``path``; InputError lists every problem."""
+    from fleetrun.fleet.xlsx_safety import load_workbook_safely
+
+    path = Path(path)
+    workbook = load_workbook_safely(path)
+    problems = Problems()
+    try:
+        sheets = {ws.title: ws for ws in workbook.worksheets}
+        for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
+            if name not in sheets:
+                similar = [t for t in sheets if t.strip().lower() == name.lower()]
+                hint = f" (found '{similar[0]}': rename it)" if similar else ""
+                problems.error(f"sheet is missing{hint}; the workbook has: "
+                               f"{', '.join(sheets) or 'no sheets'}", name)
+        vehicle_table = scenario_table = None
+        if VEHICLES_SHEET in sheets:
+            vehicle_table = _read_table(sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
+        if SCENARIOS_SHEET in sheets:
+            scenario_table = _read_table(sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
+    finally:
+        workbook.close()
+
+    _refuse_merged_cells(path, problems)
+    vehicles, vehicle_rows = ([], {})
+    if vehicle_table is not None:
+        vehicles, vehicle_rows = _vehicles(vehicle_table, problems)
+    scenarios, scenario_rows = ([], {})
+    if scenario_table is not None:
+        scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
+    if problems.errors:
+        _explain_formulas(path, problems)
+
+    if problems.errors:
+        errors = problems.sorted_errors()
+        noun = "problem" if len(errors) == 1 else "problems"
+        head = (f"{path}: {len(errors)} {noun} in the fleet workbook; fix them and check again "
+                f"with `fleetrun validate {path.name}`:")
+        error = InputError("\n".join([head] + ["  " + e for e in errors]))
+        error.problems = errors
+        error.warnings = problems.sorted_warnings()
+        raise error
+    return Fleet(path=path, sha256=file_sha256(path), vehicles=vehicles, scenarios=scenarios,
+                 warnings=problems.sorted_warnings(), vehicle_rows=vehicle_rows,
+                 scenario_rows=scenario_rows)
+
+
+# --- reading a sheet into rows of raw values ---------------------------------------------
+
+@dataclass
+class _Table:
+    sheet: str
+    columns: dict[str, int]              # schema column name -> 1-based column index
+    extra_columns: dict[str, int]        # other headers -> column index
+    rows: list[tuple[int, tuple]]        # (Excel row number, values)
+
+
+def _read_table(ws, schema: tuple[Column, ...], problems: Problems) -> _Table:
+    sheet = ws.title
+    if getattr(ws, "sheet_state", "visible") != "visible":
+        problems.warn("sheet is hidden; read anyway", sheet)
+    rows = ws.iter_rows(values_only=True)
+    header = next(rows, None) or ()
+    known = {c.name.lower(): c.name for c in schema}
+    columns: dict[str, int] = {}
+    extra: dict[str, int] = {}
+    for index, value in enumerate(header, start=1):
+        if cells.is_blank(value):
+            continue
+        text = str(value).strip()
+        name = known.get(text.lower())
+        if name is None:
+            if text in extra:
+                problems.error(f"column '{text}' appears twice (also column "
+                               f"{get_column_letter(extra[text])})", sheet, 1, index)
+            else:
+                extra[text] = index
+                problems.warn(f"column '{text}' is not a fleetrun column; ignored "
+                              "(echoed in the report's Inputs sheet)", sheet, 1, index)
+            continue
+        if name in columns:
+            problems.error(f"column '{name}' appears twice (also column "
+                           f"{get_column_letter(columns[name])}); delete one", sheet, 1, index)
+            continue
+        columns[name] = index
+    missing = [c.name for c in schema if c.required and c.name not in columns]
+    if missing:
+        problems.error(f"missing required column(s) in row 1: {', '.join(missing)}", sheet, 1,
+                       name=None)
+    body: list[tuple[int, tuple]] = []
+    headed = set(columns.values()) | set(extra.values())
+    unheaded_warned: set[int] = set()
+    for row_number, values in enumerate(rows, start=2):
+        if all(cells.is_blank(v) for v in values):
+            continue  # blank rows (between blocks, or formatted-but-empty at the end)
+        for index, value in enumerate(values, start=1):
+            if index not in headed and not cells.is_blank(value) and index not in unheaded_warned:
+                unheaded_warned.add(index)
+                problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
+                              "ignored", sheet, row_number, index)
+        body.append((row_number, values))
+    if not body:
+        problems.error("has no data rows below the header", sheet)
+    return _Table(sheet, columns, extra, body)
+
+
+def _cell(values: tuple, index: int | None):
+    if index is None or index > len(values):
+        return None
+    return values[index - 1]
+
+
+def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> dict | None:
+    """The row's schema columns as typed values (None when blank); None if any cell is bad."""
+    parsed: dict = {}
+    ok = True
+    empty_required = [(c.name, table.columns[c.name]) for c in schema
+                      if c.required and c.name in table.columns
+                      and cells.is_blank(_cell(values, table.columns[c.name]))]
+    if len(empty_required) >= ROW_MOSTLY_EMPTY:
+        # A half-filled row: one line for the row, not one per cell.
+        listed = ", ".join(f"{name} ({get_column_letter(i)})" for name, i in empty_required)
+        problems.error(f"{len(empty_required)} required cells are empty: {listed}", table.sheet,
+                       row_number)
+        ok = False
+    for column in schema:
+        index = table.columns.get(column.name)
+        if index is None:
+            parsed[column.name] = None
+            continue
+        raw = _cell(values, index)
+        if cells.is_blank(raw):
+            if column.required and len(empty_required) < ROW_MOSTLY_EMPTY:
+                problems.error("is empty (required)", table.sheet, row_number, index, column.name)
+                ok = False
+            parsed[column.name] = None
+            continue
+        try:
+            value = _parse_cell(column, raw)
+        except CellProblem as problem:
+            problems.error(str(problem), table.sheet, row_number, index, column.name)
+            ok = False
+            continue
+        if isinstance(value, float):
+            if column.strictly_positive and value <= 0:
+                problems.error(f"{cells.show(raw)} must be greater than 0", table.sheet, row_number,
+                               index, column.name)
+                ok = False
+            elif column.minimum is not None and value < column.minimum:
+                problems.error(f"{cells.show(raw)} must be at least {cells.show(float(column.minimum))}",
+                               table.sheet, row_number, index, column.name)
+                ok = False
+        if column.kind == "integer" and column.strictly_positive and value <= 0:
+            problems.error(f"{cells.show(raw)} must be at least 1", table.sheet, row_number, index,
+                           column.name)
+            ok = False
+        parsed[column.name] = value
+    extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
+    parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
+    return parsed if ok else None
+
+
+def _text_or_blank(raw) -> str:
+    try:
+        return "" if cells.is_blank(raw) else cells.parse_text(raw)
+    except CellProblem:
+        return ""
+
+
+def _parse_cell(column: Column, raw):
+    if column.kind == "number":
+        return cells.parse_number(raw)
+    if column.kind == "integer":
+        return cells.parse_integer(raw)
+    if column.kind == "choice":
+        if column.name == "configuration":
+            return _canonical_configuration(raw)
+        return cells.parse_choice(raw, column.choices)
+    if column.kind == "ratios":
+        return cells.parse_ratios(raw)
+    if column.kind == "cycle_mix":
+        return cells.parse_cycle_mix(raw)
+    if column.name == "tire_size":
+        return cells.parse_tire_size(raw)
+    return cells.parse_text(raw)
+
+
+def _canonical_configuration(raw) -> str:
+    try:
+        from fleetrun.differential import canonical_configuration
+    except ImportError:  # the differential package not built yet: the CONTRACT list suffices
+        from fleetrun.fleet.schema import CONFIGURATIONS
+        return cells.parse_choice(raw, CONFIGURATIONS)
+    text = cells.parse_text(raw)
+    try:
+        return canonical_configuration(text)
+    except InputError as exc:
+        raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
+
+
+# --- Vehicles -----------------------------------------------------------------------------
+
+def _vehicles(table: _Table, problems: Problems):
+    sheet = table.sheet
+    vehicles: list[VehicleSpec] = []
+    rows: dict[str, int] = {}
+    col = table.columns.get
+    for row_number, values in table.rows:
+        parsed = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
+        vehicle_id = parsed.get("vehicle_id") if parsed else _text_or_blank(_cell(values, col("vehicle_id")))
+        if vehicle_id:
+            if vehicle_id in rows:
+                problems.error(f"{cells.show(vehicle_id)} is used again (first in row {rows[vehicle_id]}); "
+                               "vehicle ids must be unique", sheet, row_number, col("vehicle_id"), "vehicle_id")
+                parsed = None
+            else:
+                rows[vehicle_id] = row_number
+        if parsed is None:
+            continue
+        if not _vehicle_consistent(parsed, table, row_number, problems):
+            continue
+        _vehicle_plausible(parsed, table, row_number, problems)
+        spec_fields = {c.name: parsed[c.name] for c in VEHICLE_COLUMNS}
+        vehicles.append(VehicleSpec(**spec_fields, extra=parsed["_extra"]))
+    return vehicles, rows
+
+
+def _vehicle_consistent(p: dict, table: _Table, row: int, problems: Problems) -> bool:
+    sheet, col = table.sheet, table.columns.get
+    ok = True
+    config, duty = p["configuration"], p["duty_class"]
+    if config.startswith("LD_") != (duty == "LD"):
+        problems.error(f"'{config}' does not fit duty_class {duty} (LD vehicles use LD_* "
+                       "configurations, MD and HD vehicles HD_*)", sheet, row, col("configuration"),
+                       "configuration")
+        ok = False
+    if config in DUAL_CONFIGURATIONS and p["low_gear_ratio"] is None:
+        problems.error(f"is empty, but {config} (a two-speed axle) needs its low ratio", sheet, row,
+                       col("low_gear_ratio") or col("configuration"), "low_gear_ratio")
+        ok = False
+    if config not in DUAL_CONFIGURATIONS and p["low_gear_ratio"] is not None:
+        problems.warn(f"ignored: {config} has no two-speed axle", sheet, row, col("low_gear_ratio"),
+                      "low_gear_ratio")
+        p["low_gear_ratio"] = None
+    ratios = p["transmission_gear_ratios"]
+    if any(later > earlier for earlier, later in zip(ratios, ratios[1:])):
+        problems.warn(f"{', '.join(f'{r:g}' for r in ratios)} is not in falling order "
+                      "(first gear first?)", sheet, row, col("transmission_gear_ratios"),
+                      "transmission_gear_ratios")
+    return ok
+
+
+def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> None:
+    duty = p["duty_class"]
+    for name, ranges in PLAUSIBLE_VEHICLE.items():
+        low, high = ranges[duty]
+        value = p[name]
+        if value is not None and not (low <= value <= high):
+            problems.warn(f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to {high:g}); "
+                          "check the units", table.sheet, row, table.columns.get(name), name)
+    if p["count"] == 0:
+        problems.warn("0 vehicles: this row adds nothing", table.sheet, row,
+                      table.columns.get("count"), "count")
+    if p["annual_miles"] == 0:
+        problems.warn("0 miles: this row adds nothing", table.sheet, row,
+                      table.columns.get("annual_miles"), "annual_miles")
+
+
+# --- Scenarios ----------------------------------------------------------------------------
+
+def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
+    sheet, col = table.sheet, table.columns.get
+    scenarios: list[Scenario] = []
+    rows: dict[str, int] = {}
+    known_cycles = _shipped_cycle_names()
+    for row_number, values in table.rows:
+        parsed = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
+        scenario_id = parsed.get("scenario_id") if parsed else _text_or_blank(_cell(values, col("scenario_id")))
+        if scenario_id:
+            if scenario_id in rows:
+                problems.error(f"{cells.show(scenario_id)} is used again (first in row {rows[scenario_id]}); "
+                               "scenario ids must be unique", sheet, row_number, col("scenario_id"), "scenario_id")
+                parsed = None
+            else:
+                rows[scenario_id] = row_number
+        if parsed is None:
+            continue
+        mix = _check_cycle_mix(parsed["cycle_mix"], known_cycles, workbook_dir, table, row_number, problems)
+        if mix is None:
+            continue
+        g = parsed["vmt_growth_pct_per_year"]
+        if g <= -100:
+            problems.error(f"{g:g} % would make the miles negative", sheet, row_number,
+                           col("vmt_growth_pct_per_year"), "vmt_growth_pct_per_year")
+            continue
+        for name, (low, high) in PLAUSIBLE_SCENARIO.items():
+            value = parsed[name]
+            if value is not None and not (low <= value <= high):
+                problems.warn(f"{value:g} is unusual (expected {low:g} to {high:g}); check the units",
+                              sheet, row_number, col(name), name)
+        fields = {c.name: parsed[c.name] for c in SCENARIO_COLUMNS}
+        fields["description"] = fields["description"] or ""
+        fields["cycle_mix"] = mix
+        scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
+    return scenarios, rows
+
+
+def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, problems: Problems):
+    sheet, index = table.sheet, table.columns.get("cycle_mix")
+    resolved: dict[str, float] = {}
+    ok = True
+    for name, share in mix.items():
+        if name.lower().endswith(".csv"):
+            candidate = Path(name)
+            if not candidate.is_absolute():
+                candidate = workbook_dir / candidate
+            if not candidate.is_file():
+                problems.error(f"cycle file '{name}' not found (looked for {candidate})", sheet, row,
+                               index, "cycle_mix")
+                ok = False
+                continue
+            resolved[str(candidate.resolve())] = share
+        elif known is not None:
+            match = {k.upper(): k for k in known}.get(name.upper())
+            if match is None:
+                from fleetrun.errors import closest_names
+
+                near = closest_names(name, known)
+                guess = f" (did you mean {near[0]}?)" if near else ""
+                problems.error(f"unknown drive cycle '{name}'{guess}; shipped: {', '.join(known)}, "
+                               "or give a CSV path", sheet, row, index, "cycle_mix")
+                ok = False
+                continue
+            resolved[match] = share
+        else:
+            resolved[name] = share
+    if not ok:
+        return None
+    total = sum(resolved.values())
+    if abs(total - 1.0) > MIX_SUM_TOLERANCE:
+        problems.error(f"shares add up to {total:g}, not 1 (they are shares of the annual miles)",
+                       sheet, row, index, "cycle_mix")
+        return None
+    if total != 1.0:
+        if abs(total - 1.0) > 1e-9:
+            problems.warn(f"shares add up to {total:g}; scaled to 1", sheet, row, index, "cycle_mix")
+        resolved = {k: v / total for k, v in resolved.items()}
+    return resolved
+
+
+def _shipped_cycle_names() -> list[str] | None:
+    """Names of the shipped drive cycles, or None if fleetrun.cycles is not available."""
+    try:
+        from fleetrun.cycles import shipped_cycles
+    except ImportError:
+        return None
+    found = shipped_cycles()
+    if isinstance(found, dict):
+        found = list(found)
+    return [getattr(c, "name", c) for c in found]
+
+
+# --- layout checks that need the raw XML --------------------------------------------------
+
+_MERGE = re.compile(rb'<(?:\w+:)?mergeCell\s+ref="([A-Z]+[0-9]+(?::[A-Z]+[0-9]+)?)"')
+
+
+def _sheet_parts(path: Path) -> dict[str, str]:
+    """Sheet title -> zip part name, from the workbook's relationships."""
+    from defusedxml import ElementTree
+
+    ns_main = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
+    ns_rel = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
+    with zipfile.ZipFile(path) as archive:
+        book = ElementTree.fromstring(archive.read("xl/workbook.xml"))
+        rels = ElementTree.fromstring(archive.read("xl/_rels/workbook.xml.rels"))
+    targets = {r.get("Id"): r.get("Target") for r in rels}
+    parts = {}
+    for sheet in book.iter(f"{ns_main}sheet"):
+        target = targets.get(sheet.get(f"{ns_rel}id"), "")
+        target = target.lstrip("/") if target.startswith("/") else "xl/" + target
+        parts[sheet.get("name")] = target
+    return parts
+
+
+def _refuse_merged_cells(path: Path, problems: Problems) -> None:
+    try:
+        parts = _sheet_parts(path)
+    except Exception:
+        return  # openpyxl already read the workbook; a layout check must not mask that
+    with zipfile.ZipFile(path) as archive:
+        for sheet in (VEHICLES_SHEET, SCENARIOS_SHEET):
+            part = parts.get(sheet)
+            if not part or part not in archive.namelist():
+                continue
+            refs = []
+            tail = b""
+            with archive.open(part) as handle:
+                for block in iter(lambda: handle.read(1 << 20), b""):
+                    chunk = tail + block
+                    refs.extend(m.group(1).decode() for m in _MERGE.finditer(chunk))
+                    tail = chunk[-200:]
+                    # a match in the 200-byte overlap is found twice; dedupe below
+            for ref in dict.fromkeys(refs):
+                first = ref.split(":")[0]
+                match = re.match(r"([A-Z]+)([0-9]+)", first)
+                from openpyxl.utils import column_index_from_string
+
+                problems.errors.append(((sheet, int(match.group(2)), column_index_from_string(match.group(1))),
+                                        f"{sheet}!{ref}: merged cells; unmerge them and give every "
+                                        "row its own values"))
+
+
+def _explain_formulas(path: Path, problems: Problems) -> None:
+    """Reword 'is empty' for formula cells whose result the saving program never stored."""
+    empty = [(i, key) for i, (key, text) in enumerate(problems.errors) if text.endswith("is empty (required)")]
+    if not empty:
+        return
+    from fleetrun.fleet.xlsx_safety import load_workbook_safely
+
+    wanted: dict[str, dict[tuple[int, int], int]] = {}
+    for i, (sheet, row, col) in empty:
+        wanted.setdefault(sheet, {})[(row, col)] = i
+    workbook = load_workbook_safely(path, data_only=False)
+    try:
+        for sheet, positions in wanted.items():
+            last_row = max(r for r, _ in positions)
+            ws = workbook[sheet]
+            for row_number, values in enumerate(ws.iter_rows(values_only=True, max_row=last_row), start=1):
+                for col_index, value in enumerate(values, start=1):
+                    i = positions.get((row_number, col_index))
+                    if i is not None and isinstance(value, str) and value.startswith("="):
+                        key, text = problems.errors[i]
+                        text = text[: -len("is empty (required)")]
+                        problems.errors[i] = (key, text + f"formula {cells.show(value)} has no saved "
+                                              "result; open and save the workbook in Excel or "
+                                              "LibreOffice (or type the value)")
+    finally:
+        workbook.close()
