@@ -1,0 +1,78 @@
+"""Differential efficiency: the thesis model and other baselines behind one entry point.
+
+``efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, ...)`` evaluates a
+configuration with a physics baseline chosen by name (``thesis`` = Appendix B as printed,
+``vecto-generic`` = VECTO's generic axle loss map). Arrays broadcast; ``gear_ratio`` may be
+an array too (evaluated per distinct value).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.differential import baselines as _baselines  # noqa: F401  (registers baselines)
+from fleetrun.differential.configurations import (AXLE_GEARS, canonical_configuration,
+                                                  configuration_ids, uses_two_speed_box)
+from fleetrun.errors import InputError
+from fleetrun.registry import PHYSICS
+
+__all__ = ["efficiency", "canonical_configuration", "configuration_ids", "uses_two_speed_box",
+           "physics_names", "check_inputs"]
+
+
+def physics_names() -> list[str]:
+    return PHYSICS.names()
+
+
+def check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio=None, axle_gear="high"):
+    """Validate the arguments of :func:`efficiency`; returns the canonical configuration id."""
+    config = canonical_configuration(configuration)
+    g = np.asarray(gear_ratio, dtype=float)
+    if not np.all(np.isfinite(g)) or np.any(g <= 0):
+        raise InputError(f"gear ratio must be a positive number, got {_show(g)}",
+                         hint="Give the differential (final drive) ratio, e.g. --gear-ratio 3.73")
+    n = np.asarray(speed_rpm, dtype=float)
+    if np.any(np.isnan(n)) or np.any(n < 0):
+        raise InputError(f"speed must be >= 0 rpm, got {_show(n[~(n >= 0)])}",
+                         hint="Give the differential input speed in rpm, e.g. --speeds-rpm 0,1000,2000")
+    tf = np.asarray(torque_fraction, dtype=float)
+    if np.any(np.isnan(tf)) or np.any(tf < 0):
+        raise InputError(f"torque fraction must be >= 0, got {_show(tf[~(tf >= 0)])}",
+                         hint="The thesis model covers drive torque: input torque / Kim torque scale, e.g. 0,0.25,0.5")
+    if uses_two_speed_box(config):
+        if low_gear_ratio is None:
+            raise InputError(f"{config} has a two-speed axle and needs its low gear ratio",
+                             hint="Add --low-gear-ratio, e.g. 4.900735 for the measured Eaton box (43/34 x 62/16)")
+        lo = float(low_gear_ratio)
+        if not np.isfinite(lo) or lo <= 0:
+            raise InputError(f"low gear ratio must be a positive number, got {low_gear_ratio}")
+        if axle_gear not in AXLE_GEARS:
+            raise InputError(f"axle gear must be 'low' or 'high', got '{axle_gear}'")
+    return config
+
+
+def _show(values):
+    flat = np.atleast_1d(values).ravel()
+    return str(flat[0]) if flat.size == 1 else str(flat[:3].tolist())
+
+
+def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
+               axle_gear="high", physics="thesis", oil_temp_C=None):
+    """Differential efficiency of ``configuration`` (CONTRACT.md ids).
+
+    ``torque_fraction``: input torque / Kim torque scale (thesis Sec. 5.2.1.A).
+    ``speed_rpm``: differential input speed. ``gear_ratio``: final-drive ratio (scalar or
+    array). ``oil_temp_C``: lubricant temperature (None: the baseline's own, 70 C for thesis).
+    Returns an array of the broadcast shape; 0 where a stage's losses exceed its input.
+    """
+    config = check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio, axle_gear)
+    model = PHYSICS.get(physics)
+    tf, n, g = np.broadcast_arrays(np.asarray(torque_fraction, dtype=float),
+                                   np.asarray(speed_rpm, dtype=float), np.asarray(gear_ratio, dtype=float))
+    kwargs = dict(low_gear_ratio=low_gear_ratio, axle_gear=axle_gear, oil_temp_C=oil_temp_C)
+    if g.ndim == 0 or np.all(g == g.flat[0]):
+        return model.efficiency(config, tf, n, float(g.flat[0]) if g.size else 1.0, **kwargs)
+    out = np.empty(g.shape)
+    for value in np.unique(g):
+        sel = g == value
+        out[sel] = model.efficiency(config, tf[sel], n[sel], float(value), **kwargs)
+    return out

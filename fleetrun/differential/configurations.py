@@ -1,0 +1,71 @@
+"""The ten differential configurations as products of series chains (thesis Eqs 5.23-5.29).
+
+Each configuration in ``models/configurations.toml`` lists its ``factors``; every factor is a
+series of reference models evaluated at the configuration's input, each model passing its
+output torque fraction and speed to the next (B.3 and B.5 call B.2 and B.4 that way); the
+configuration's efficiency is the product of the factors' efficiencies (Eqs 5.26, 5.29).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.differential.chain import evaluate_stage_chain
+from fleetrun.differential.models import configuration_table, reference_model
+from fleetrun.errors import InputError, unknown_name_error
+
+AXLE_GEARS = ("low", "high")
+
+
+def configuration_ids() -> list[str]:
+    return list(configuration_table())
+
+
+def canonical_configuration(name: str) -> str:
+    """``ld-rwd``, ``LD_RWD``, ``Ld-Rwd`` -> ``LD_RWD``; unknown names raise InputError."""
+    key = str(name).strip().upper().replace("-", "_")
+    table = configuration_table()
+    if key not in table:
+        raise unknown_name_error("configuration", str(name), table,
+                                 hint="Configuration ids are listed in CONTRACT.md and `fleetrun map --help`")
+    return key
+
+
+def uses_two_speed_box(configuration: str) -> bool:
+    """True for the dual (two-speed) configurations, which need a low gear ratio."""
+    factors = configuration_table()[canonical_configuration(configuration)]["factors"]
+    return any(reference_model(m).kind == "two_speed_box" for chain in factors for m in chain)
+
+
+def evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio, axle_gear, oil_temp_C):
+    """Run a series of reference models; returns the product efficiency."""
+    eta_total = None
+    tf, rpm = torque_fraction, speed_rpm
+    for model_id in chain:
+        model = reference_model(model_id)
+        if model.kind == "stage_chain":
+            eta, tf, rpm = evaluate_stage_chain(model, tf, rpm, gear_ratio, oil_temp_C)
+        elif model.kind == "fixed_efficiency":
+            # B.3: the next model sees the reduced torque; the efficiency multiplies after.
+            eta = np.full(np.broadcast(tf, rpm).shape, model.efficiency)
+            tf = np.asarray(tf, dtype=float) * model.efficiency
+        elif model.kind == "two_speed_box":
+            from fleetrun.physics.two_speed_box import auxiliary_box
+
+            eta, tf, rpm = auxiliary_box(tf, rpm, low_gear_ratio, axle_gear)
+        else:
+            raise InputError(f"{model.path.name}: unknown model kind '{model.kind}'; "
+                             "valid: stage_chain, fixed_efficiency, two_speed_box")
+        eta_total = eta if eta_total is None else eta_total * eta
+    return eta_total
+
+
+def thesis_efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
+                      axle_gear="high", oil_temp_C=70.0):
+    """Efficiency of a configuration for one scalar gear ratio (arrays of torque and speed)."""
+    config = configuration_table()[canonical_configuration(configuration)]
+    eta = None
+    for chain in config["factors"]:
+        e = evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio=low_gear_ratio,
+                            axle_gear=axle_gear, oil_temp_C=oil_temp_C)
+        eta = e if eta is None else eta * e
+    return eta
