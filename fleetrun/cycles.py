@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 
 MILE_M = 1609.344          # international mile [m], exact
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
@@ -129,10 +129,14 @@ def _norm(name: str) -> str:
 def _shipped_files() -> dict[str, Path]:
     try:
         folder = _cycles_dir()
-    except FileNotFoundError:
-        return {}
+    except FileNotFoundError as exc:
+        raise FleetrunError(f"the shipped drive cycles are missing ({exc})",
+                            hint="Reinstall fleetrun; its inputs/cycles data folder "
+                                 "was not installed") from None
     if not folder.is_dir():
-        return {}
+        raise FleetrunError("the shipped drive cycles are missing", file=folder,
+                            hint="Reinstall fleetrun; its inputs/cycles data folder "
+                                 "was not installed")
     return {p.stem: p for p in folder.glob("*.csv")}
 
 
@@ -204,12 +208,23 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
         raise InputError(f"not a CSV file (extension '{path.suffix}')", file=path,
                          hint="Save the drive cycle as .csv with a header row "
                               "time_s,speed_mps[,grade_pct]")
+    with open(path, "rb") as fh:
+        head = fh.read(8192)
+    if b"\x00" in head:
+        raise InputError("not a CSV file (binary content; a spreadsheet saved under .csv?)",
+                         file=path, hint="Save the drive cycle as CSV text with a header row "
+                                         "time_s,speed_mps[,grade_pct]")
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
-                         encoding="utf-8-sig")
+        # UTF-8 (with or without BOM); Excel's default "CSV" on Windows is cp1252
+        try:
+            df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
+                             encoding="utf-8-sig")
+        except UnicodeDecodeError:
+            df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
+                             encoding="cp1252")
     except UnicodeDecodeError:
-        raise InputError("not a text CSV file (cannot decode as UTF-8)", file=path,
-                         hint="Save the drive cycle as a UTF-8 CSV") from None
+        raise InputError("not a text CSV file (cannot decode as UTF-8 or Windows-1252)",
+                         file=path, hint="Save the drive cycle as a UTF-8 CSV") from None
     except pd.errors.EmptyDataError:
         raise InputError("the file is empty", file=path,
                          hint="Give a header row time_s,speed_mps and at least two data rows"
