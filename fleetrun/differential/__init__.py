@@ -11,12 +11,13 @@ import numpy as np
 
 from fleetrun.differential import baselines as _baselines  # noqa: F401  (registers baselines)
 from fleetrun.differential.configurations import (AXLE_GEARS, canonical_configuration,
-                                                  configuration_ids, uses_two_speed_box)
+                                                  configuration_ids, configuration_lubricant,
+                                                  reference_capacity_Nm, uses_two_speed_box)
 from fleetrun.errors import InputError
 from fleetrun.registry import PHYSICS
 
 __all__ = ["efficiency", "canonical_configuration", "configuration_ids", "uses_two_speed_box",
-           "physics_names", "check_inputs"]
+           "configuration_lubricant", "reference_capacity_Nm", "physics_names", "check_inputs"]
 
 
 def physics_names() -> list[str]:

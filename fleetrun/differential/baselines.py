@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.differential.configurations import configuration_table, thesis_efficiency
-from fleetrun.differential.models import reference_model
+from fleetrun.differential.configurations import reference_capacity_Nm, thesis_efficiency
 from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C
 from fleetrun.registry import PHYSICS
 
@@ -49,9 +48,9 @@ class VectoGenericBaseline:
 
     def efficiency(self, configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
                    axle_gear="high", oil_temp_C=None):
-        # Absolute torque from the fraction: the capacity of the configuration's first axle
-        # model, the same scale the thesis model maps the fraction onto (Sec. 5.2.1.A).
-        capacity = _capacity_Nm(configuration)
+        # Absolute torque from the fraction: the capacity of the configuration's driving axle,
+        # the same scale the thesis model maps the fraction onto (Sec. 5.2.1.A).
+        capacity = reference_capacity_Nm(configuration)
         ratio = gear_ratio * (low_gear_ratio if (low_gear_ratio and axle_gear == "low") else 1.0)
         tin = np.asarray(torque_fraction, dtype=float) * capacity
         n_out = np.asarray(speed_rpm, dtype=float) / ratio
@@ -59,15 +58,6 @@ class VectoGenericBaseline:
         with np.errstate(all="ignore"):
             eta = np.where(tin > 0, tout / (tin * ratio), 0.0)
         return np.clip(eta, 0.0, 1.0)
-
-
-def _capacity_Nm(configuration) -> float:
-    for chain in configuration_table()[configuration]["factors"]:
-        for model_id in chain:
-            model = reference_model(model_id)
-            if model.kind == "stage_chain" and model.id != "equinox_transaxle":
-                return model.capacity_torque_Nm
-    return reference_model("equinox_transaxle").capacity_torque_Nm
 
 
 PHYSICS.register("thesis", ThesisBaseline())

@@ -36,6 +36,27 @@ def uses_two_speed_box(configuration: str) -> bool:
     return any(reference_model(m).kind == "two_speed_box" for chain in factors for m in chain)
 
 
+def _main_axle_model(configuration: str):
+    """The last stage-chain model of the last factor: the axle that drives the wheels."""
+    factors = configuration_table()[canonical_configuration(configuration)]["factors"]
+    models = [reference_model(m) for m in factors[-1] if reference_model(m).kind == "stage_chain"]
+    return models[-1]
+
+
+def configuration_lubricant(configuration: str) -> str:
+    """The lubricant of the configuration's driving axle (ATF for a transaxle, else gear oil)."""
+    return _main_axle_model(configuration).lubricant
+
+
+def reference_capacity_Nm(configuration: str) -> float:
+    """Torque capacity of the driving axle's reference differential (thesis Sec. 5.2.1.A).
+
+    A torque fraction of 1 is this torque at the reference differential; used where a map
+    needs absolute torque without a vehicle (VECTO baseline, effects in ``fleetrun map``).
+    """
+    return _main_axle_model(configuration).capacity_torque_Nm
+
+
 def evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio, axle_gear, oil_temp_C):
     """Run a series of reference models; returns the product efficiency."""
     eta_total = None
