@@ -1,0 +1,58 @@
+"""Figures: efficiency maps drawn like the thesis Figs 6.1-6.6 (matplotlib, no display)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from fleetrun.errors import InputError
+
+PLOT_FORMATS = (".png", ".svg")
+
+
+def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
+    """A two-panel figure: the efficiency surface as filled contours over (speed, torque
+    fraction), and efficiency against speed at each torque fraction (thesis Figs 6.1-6.6)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tf = np.asarray(torque_fractions, dtype=float)
+    n = np.asarray(speeds_rpm, dtype=float)
+    eta = np.asarray(eta, dtype=float).reshape(tf.size, n.size)
+    fig, (ax_map, ax_lines) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    if tf.size > 1 and n.size > 1:
+        levels = np.linspace(0, 1, 21)
+        filled = ax_map.contourf(n, tf, eta, levels=levels, cmap="viridis")
+        fig.colorbar(filled, ax=ax_map, label="efficiency [-]")
+    else:
+        ax_map.scatter(np.repeat(n[None, :], tf.size, 0), np.repeat(tf[:, None], n.size, 1), c=eta,
+                       vmin=0, vmax=1, cmap="viridis")
+    ax_map.set_xlabel("differential input speed [rpm]")
+    ax_map.set_ylabel("torque fraction [-]")
+    ax_map.set_title("efficiency map")
+    for i, frac in enumerate(tf):
+        ax_lines.plot(n, eta[i], marker="o", ms=3, label=f"{frac:g}")
+    ax_lines.set_xlabel("differential input speed [rpm]")
+    ax_lines.set_ylabel("efficiency [-]")
+    ax_lines.set_ylim(0, 1.02)
+    ax_lines.grid(alpha=0.3)
+    ax_lines.legend(title="torque fraction", fontsize=8)
+    fig.suptitle(title)
+    return fig
+
+
+def save_figure(fig, path) -> None:
+    """Save ``fig`` atomically as PNG or SVG (by the file's suffix)."""
+    from fleetrun.fleet.outputs import atomic_file
+
+    path = Path(path)
+    if path.suffix.lower() not in PLOT_FORMATS:
+        raise InputError(f"{path}: plot file must end in .png or .svg, got '{path.suffix or '(none)'}'",
+                         hint="Name the plot e.g. map.png or map.svg")
+    import matplotlib.pyplot as plt
+
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, format=path.suffix[1:].lower(), dpi=120)
+    plt.close(fig)
