@@ -53,3 +53,24 @@ def staging_dir(out_dir: Path):
                 os.replace(item, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json")
+
+
+def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
+    """Write the five outputs of a run into ``out_dir``, all or nothing."""
+    from fleetrun.fleet.manifest import write_manifest
+    from fleetrun.fleet.report_html import write_summary_html
+    from fleetrun.fleet.report_xlsx import write_report_xlsx
+    from fleetrun.fleet.workbook import file_sha256
+
+    out_dir = Path(out_dir)
+    with staging_dir(out_dir) as staging:
+        result.results.to_csv(staging / "results.csv", index=False)
+        result.classes.to_csv(staging / "class_summary.csv", index=False)
+        write_report_xlsx(result, staging / "report.xlsx")
+        write_summary_html(result, staging / "summary.html")
+        digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}
+        write_manifest(result, staging / "manifest.json", digests)
+    return {name: out_dir / name for name in OUTPUT_FILES}

@@ -1,0 +1,25 @@
+"""``fleetrun template -o new.xlsx``: a blank fleet workbook to fill in."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from fleetrun.errors import InputError
+
+
+@click.command("template")
+@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, path_type=Path),
+              default=Path("fleet.xlsx"), show_default=True, help="Workbook to write.")
+@click.option("--force", is_flag=True, help="Overwrite an existing file.")
+def command(output: Path, force: bool):
+    """Write a fleet workbook template: Vehicles and Scenarios sheets with headers,
+    drop-down lists, two example rows each, and an Instructions sheet."""
+    from fleetrun.fleet.template import write_template
+
+    if output.suffix.lower() != ".xlsx":
+        raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx.")
+    if output.exists() and not force:
+        raise InputError(f"'{output}' exists", hint="Choose another name or add --force.")
+    write_template(output)
+    click.echo(f"Wrote {output}: fill in Vehicles and Scenarios, then `fleetrun validate {output}`.")

@@ -1,0 +1,228 @@
+"""Unattended runs: the ``batch.toml`` file, the log, progress reporting and exit codes.
+
+Exit codes (docs/batch.md), for a scheduler to act on:
+
+====  =====================================================================================
+0     every fleet's five outputs were written
+1     bad input or a domain error; nothing was written for the failing fleet (every fleet,
+      for a batch)
+2     usage error (command line)
+3     partial failure: some fleets of a batch were written, others failed (see the log)
+4     internal error (a bug): nothing written for that fleet; the traceback is in the log
+====  =====================================================================================
+"""
+from __future__ import annotations
+
+import glob
+import logging
+import os
+import sys
+import time
+import tomllib
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fleetrun.errors import FleetrunError, InputError
+
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
+
+CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "mode", "cache_dir",
+               "log", "chunk_size"}
+
+log = logging.getLogger("fleetrun.run")
+
+
+def default_cache_dir() -> Path:
+    """Where cached efficiency maps live between runs: $FLEETRUN_CACHE or ~/.cache/fleetrun."""
+    if os.environ.get("FLEETRUN_CACHE"):
+        return Path(os.environ["FLEETRUN_CACHE"])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "fleetrun"
+
+
+@dataclass
+class RunPlan:
+    """One invocation of ``fleetrun run``: which fleets, where to, and how."""
+    inputs: list[Path]
+    out: Path
+    per_input_dirs: bool                  # batch: out/<stem>/ per fleet; single: out itself
+    scenarios: list[str] = field(default_factory=list)
+    engine: str = "local"
+    scheduler: str | None = None
+    physics: str = "thesis"
+    mode: str = "auto"
+    cache_dir: Path | None = None
+    log: Path | None = None
+    chunk_size: int | None = None
+
+    def out_dir(self, fleet_path: Path) -> Path:
+        return self.out / fleet_path.stem if self.per_input_dirs else self.out
+
+
+def read_config(path: Path) -> dict:
+    """``batch.toml`` as a dict of checked values; paths resolved against the file's folder."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("batch config not found", file=path, hint="Check the --config path.") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"is not valid TOML ({exc})", file=path) from None
+    if isinstance(data.get("run"), dict):   # a [run] table is accepted too
+        data = {**{k: v for k, v in data.items() if k != "run"}, **data["run"]}
+    unknown = sorted(set(data) - CONFIG_KEYS)
+    if unknown:
+        raise InputError(f"unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(CONFIG_KEYS))}",
+                         file=path)
+    base = path.resolve().parent
+    inputs = data.get("inputs")
+    if isinstance(inputs, str):
+        inputs = [inputs]
+    if not inputs or not all(isinstance(i, str) for i in inputs):
+        raise InputError("'inputs' must list the fleet workbooks (paths or globs)", file=path,
+                         hint='e.g. inputs = ["fleets/*.xlsx"]')
+    found: list[Path] = []
+    for pattern in inputs:
+        full = pattern if os.path.isabs(pattern) else str(base / pattern)
+        matches = sorted(glob.glob(full)) if glob.has_magic(full) else [full]
+        if not matches:
+            raise InputError(f"'inputs' pattern '{pattern}' matches no file", file=path)
+        found.extend(Path(m) for m in matches)
+    config: dict = {"inputs": list(dict.fromkeys(found))}
+    scenarios = data.get("scenarios", [])
+    if isinstance(scenarios, str):
+        scenarios = [scenarios]
+    if not isinstance(scenarios, list) or not all(isinstance(s, str) for s in scenarios):
+        raise InputError("'scenarios' must be a list of scenario ids", file=path)
+    config["scenarios"] = scenarios
+    for key in ("out", "cache_dir", "log"):
+        if key in data:
+            if not isinstance(data[key], str):
+                raise InputError(f"'{key}' must be a path (a string)", file=path)
+            value = Path(data[key]).expanduser()
+            config[key] = value if value.is_absolute() else base / value
+    for key in ("engine", "scheduler", "physics", "mode"):
+        if key in data:
+            if not isinstance(data[key], str):
+                raise InputError(f"'{key}' must be a string", file=path)
+            config[key] = data[key]
+    if "chunk_size" in data:
+        if not isinstance(data["chunk_size"], int) or data["chunk_size"] < 1:
+            raise InputError("'chunk_size' must be a positive whole number", file=path)
+        config["chunk_size"] = data["chunk_size"]
+    return config
+
+
+class Progress:
+    """A progress bar on a terminal; plain log lines (every 10 %) otherwise."""
+
+    def __init__(self, label: str, stream=None, enabled: bool = True):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
+        self._last_decile = -1
+        self._started = time.perf_counter()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled or total <= 0:
+            return
+        fraction = done / total
+        if self.tty:
+            width = 30
+            filled = int(round(width * fraction))
+            elapsed = time.perf_counter() - self._started
+            self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] "
+                              f"{done}/{total} tasks {elapsed:5.1f} s")
+            if done == total:
+                self.stream.write("\n")
+            self.stream.flush()
+        else:
+            decile = int(fraction * 10)
+            if decile != self._last_decile:
+                self._last_decile = decile
+                log.info("%s: %d/%d simulation tasks (%d %%)", self.label, done, total, int(fraction * 100))
+
+
+def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
+    """Log lines to the file (if any) and, unless quiet, to stderr when it is not a terminal."""
+    handlers: list[logging.Handler] = []
+    formatter = logging.Formatter("%(asctime)s %(levelname)s %(message)s", "%Y-%m-%dT%H:%M:%S")
+    formatter.converter = time.gmtime
+    if log_file is not None:
+        log_file.parent.mkdir(parents=True, exist_ok=True)
+        handler = logging.FileHandler(log_file, encoding="utf-8")
+        handler.setFormatter(formatter)
+        handlers.append(handler)
+    if not quiet and not sys.stderr.isatty():
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(formatter)
+        handlers.append(handler)
+    for handler in handlers:
+        log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    log.propagate = False
+    return handlers
+
+
+def teardown_logging(handlers) -> None:
+    for handler in handlers:
+        log.removeHandler(handler)
+        handler.close()
+
+
+def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
+    """Read, simulate and write one fleet; raises on failure (nothing written then)."""
+    from fleetrun.fleet.outputs import write_run_outputs
+    from fleetrun.fleet.runner import CHUNK_SIZE, run_fleet
+    from fleetrun.fleet.workbook import read_fleet
+
+    started = time.perf_counter()
+    fleet = read_fleet(fleet_path)
+    read_s = time.perf_counter() - started
+    for warning in fleet.warnings:
+        log.warning("%s: %s", fleet_path.name, warning)
+    log.info("%s: %d vehicle types, %d scenarios; engine %s", fleet_path.name, len(fleet.vehicles),
+             len(plan.scenarios) or len(fleet.scenarios), plan.engine)
+    result = run_fleet(fleet, plan.scenarios, engine=engine, physics=plan.physics, mode=plan.mode,
+                       cache_dir=str(plan.cache_dir) if plan.cache_dir else None,
+                       progress=Progress(fleet_path.name, enabled=progress_enabled),
+                       chunk_size=plan.chunk_size or CHUNK_SIZE)
+    result.timings_s = {"read": read_s, **result.timings_s}
+    written_at = time.perf_counter()
+    out_dir = plan.out_dir(fleet_path)
+    outputs = write_run_outputs(result, out_dir)
+    log.info("%s: wrote %s (read %.1f s, simulate %.1f s, write %.1f s)", fleet_path.name, out_dir,
+             read_s, result.timings_s["simulate"], time.perf_counter() - written_at)
+    return {"fleet": fleet_path, "out": out_dir, "outputs": outputs, "result": result}
+
+
+def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str]]:
+    """Run every fleet in the plan; return (exit code, error lines)."""
+    from fleetrun.fleet.engines import make_engine
+
+    errors: list[str] = []
+    internal = False
+    written = 0
+    engine = make_engine(plan.engine, plan.scheduler)   # InputError here: nothing to run
+    try:
+        for fleet_path in plan.inputs:
+            try:
+                run_one(plan, fleet_path, engine, progress_enabled=not quiet)
+                written += 1
+            except FleetrunError as exc:
+                errors.append(str(exc))
+                log.error("%s", exc)
+            except Exception as exc:  # a bug: keep going with the other fleets, keep the traceback
+                internal = True
+                errors.append(f"{fleet_path}: internal error ({type(exc).__name__}: {exc}); "
+                              "please report it with the log")
+                log.error("%s: internal error\n%s", fleet_path, traceback.format_exc())
+    finally:
+        engine.close()
+    if not errors:
+        return EXIT_OK, []
+    if written:
+        return EXIT_PARTIAL, errors
+    return (EXIT_INTERNAL if internal else EXIT_INPUT), errors

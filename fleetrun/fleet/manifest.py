@@ -1,0 +1,36 @@
+"""``manifest.json``: what produced a run's outputs (version, inputs' sha256, physics, timings,
+warnings), so a number in a budget document can be traced back and reproduced."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from fleetrun import __version__
+
+SCHEMA = "fleetrun.run/1"
+
+
+def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
+    inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
+    inputs += [{"role": "drive cycle", "path": path, "sha256": sha}
+               for path, sha in sorted(result.cycle_inputs.items())]
+    return {
+        "schema": SCHEMA,
+        "fleetrun_version": __version__,
+        "created_utc": result.created_utc,
+        "inputs": inputs,
+        "physics": result.physics,
+        "mode": result.mode,
+        "engine": result.engine,
+        "scenarios": [s.scenario_id for s in result.scenarios],
+        "vehicle_types": len(result.fleet.vehicles),
+        "cycles": result.cycles,
+        "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
+        "warnings": list(result.warnings),
+        "outputs": outputs or {},
+    }
+
+
+def write_manifest(result, path: Path, outputs: dict[str, str]) -> None:
+    Path(path).write_text(json.dumps(manifest_dict(result, outputs), indent=2, default=str) + "\n",
+                          encoding="utf-8")

@@ -1,0 +1,343 @@
+"""Simulate a fleet over its scenarios and aggregate fuel, efficiency and fuel-tax revenue.
+
+How the numbers are put together (also in docs/report.md):
+
+- Every vehicle type is simulated once per distinct (drive cycle, ambient temperature) that
+  the chosen scenarios use, in chunks of vehicles (the unit of work for both engines).
+- A scenario's ``cycle_mix`` shares are shares of each vehicle's annual miles. Fuel per mile on
+  the mix is ``sum_c share_c * fuel_gal_c / miles_c``; likewise each energy per mile.
+- Budget miles per vehicle are ``annual_miles * sum_{y=1..Y} (1 + g)^(y-1)``; totals are over
+  ``count`` vehicles. Gallons = miles x gallons per mile; taxes = gallons x the rate of the
+  vehicle's fuel; mpg = miles / gallons.
+- ``diff_efficiency`` = differential output energy / input energy and ``drivetrain_efficiency``
+  = wheel energy / drivetrain input energy, both summed over the mix's miles (energy-weighted).
+- Class rows are exact sums (``math.fsum``) of their vehicle rows; class mpg and efficiencies
+  are ratios of those sums.
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import pandas as pd
+
+from fleetrun.fleet.workbook import Fleet, Scenario
+from fleetrun.vehicle import VehicleSpec
+
+CHUNK_SIZE = 500            # vehicles per simulation task: bounds memory per task
+MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
+ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
+                 "wheel_energy_J")
+RESULT_FIELDS = ("miles", "fuel_gal") + ENERGY_FIELDS
+
+RESULTS_COLUMNS = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
+                   "miles_total", "fuel_gal_total", "mpg", "diff_efficiency",
+                   "drivetrain_efficiency", "state_tax_usd", "federal_tax_usd",
+                   # beyond the contract: what the efficiencies are ratios of
+                   "diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
+                   "wheel_energy_J", "duty_class"]
+CLASS_COLUMNS = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
+                 "diff_efficiency", "state_tax_usd", "federal_tax_usd",
+                 "drivetrain_efficiency", "vehicle_types"]
+
+# Tests replace this to run the runner without the simulation package.
+simulate_function: Callable | None = None
+
+
+@dataclass(frozen=True)
+class SimulationTask:
+    chunk: int
+    vehicles: tuple[VehicleSpec, ...]
+    cycle: str                  # shipped name or CSV path
+    ambient_temp_C: float
+    physics: str
+    mode: str
+    cache_dir: str | None
+    simulate: Callable | None = None   # None: fleetrun.simulation.simulate
+
+
+@dataclass
+class RunResult:
+    fleet: Fleet
+    scenarios: list[Scenario]
+    results: pd.DataFrame
+    classes: pd.DataFrame
+    years: pd.DataFrame
+    cycles: dict[str, dict]
+    maps: list[dict]
+    warnings: list[str]
+    timings_s: dict[str, float]
+    engine: dict
+    physics: str
+    mode: str
+    cycle_inputs: dict[str, str] = field(default_factory=dict)   # CSV path -> sha256
+    created_utc: str = field(default_factory=lambda: _now_utc())
+
+
+def _now_utc() -> str:
+    import datetime as dt
+
+    return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat()
+
+
+@lru_cache(maxsize=32)
+def _cycle(name: str):
+    from fleetrun.cycles import load_cycle
+
+    return load_cycle(name)
+
+
+def simulate_task(task: SimulationTask) -> dict[str, np.ndarray]:
+    """Run one chunk of vehicles over one cycle; only the per-vehicle sums travel back."""
+    simulate = task.simulate
+    if simulate is None:
+        from fleetrun.simulation import simulate
+    kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
+    if task.cache_dir:
+        kwargs["cache_dir"] = task.cache_dir
+    result = simulate(list(task.vehicles), _cycle(task.cycle), **kwargs)
+    out = {name: np.asarray(getattr(result, name), dtype=float) for name in RESULT_FIELDS}
+    for name in dir(result):
+        if name.startswith("shortfall_"):
+            value = getattr(result, name)
+            if isinstance(value, np.ndarray) or isinstance(value, (list, tuple)):
+                out[name] = np.asarray(value, dtype=float)
+    return out
+
+
+def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, physics: str = "thesis",
+              mode: str = "auto", cache_dir: str | None = None,
+              progress: Callable[[int, int], None] | None = None,
+              chunk_size: int = CHUNK_SIZE) -> RunResult:
+    """Simulate ``fleet`` for the scenarios named (all when none) and aggregate the results."""
+    from fleetrun.fleet.engines import LocalEngine
+
+    started = time.perf_counter()
+    scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
+    engine = engine or LocalEngine()
+    vehicles = fleet.vehicles
+    chunks = [tuple(vehicles[i:i + chunk_size]) for i in range(0, len(vehicles), chunk_size)]
+    # Each distinct (cycle, ambient) is simulated once, however many scenarios use it.
+    conditions = list(dict.fromkeys((cycle, s.ambient_temp_C) for s in scenarios for cycle in s.cycle_mix))
+    tasks = [SimulationTask(chunk=c, vehicles=chunk, cycle=cycle, ambient_temp_C=ambient,
+                            physics=physics, mode=mode, cache_dir=cache_dir, simulate=simulate_function)
+             for cycle, ambient in conditions for c, chunk in enumerate(chunks)]
+
+    n = len(vehicles)
+    per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
+    shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
+    if progress:
+        progress(0, len(tasks))
+    for done, (index, arrays) in enumerate(engine.run(simulate_task, tasks), start=1):
+        task = tasks[index]
+        cond = (task.cycle, task.ambient_temp_C)
+        start = task.chunk * chunk_size
+        stop = start + len(task.vehicles)
+        for name in RESULT_FIELDS:
+            per_condition[cond][name][start:stop] = arrays[name]
+        for name, values in arrays.items():
+            if name.startswith("shortfall_"):
+                shortfalls[cond].setdefault(name, np.zeros(n))[start:stop] = values
+        if progress:
+            progress(done, len(tasks))
+    simulated = time.perf_counter()
+
+    warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
+    cycles = _cycle_info({cycle for cycle, _ in conditions})
+    results = aggregate_vehicles(vehicles, scenarios, per_condition)
+    classes = aggregate_classes(results)
+    years = yearly_totals(results, scenarios)
+    maps, map_warnings = efficiency_maps(vehicles, physics)
+    warnings += map_warnings
+    finished = time.perf_counter()
+    return RunResult(
+        fleet=fleet, scenarios=scenarios, results=results, classes=classes, years=years,
+        cycles=cycles, maps=maps, warnings=warnings,
+        timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
+        engine=engine.describe(), physics=physics, mode=mode,
+        cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
+    )
+
+
+def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scenario],
+                       per_condition: dict) -> pd.DataFrame:
+    """One row per scenario x vehicle: budget totals over ``count`` vehicles and budget years."""
+    count = np.array([v.count for v in vehicles], dtype=float)
+    annual = np.array([v.annual_miles for v in vehicles], dtype=float)
+    fuel = np.array([v.fuel for v in vehicles], dtype=object)
+    frames = []
+    for s in scenarios:
+        per_mile = {name: np.zeros(len(vehicles)) for name in ("fuel_gal",) + ENERGY_FIELDS}
+        for cycle, share in s.cycle_mix.items():
+            sim = per_condition[(cycle, s.ambient_temp_C)]
+            for name in per_mile:
+                per_mile[name] += share * (sim[name] / sim["miles"])
+        miles_total = count * annual * s.mile_factor()
+        gallons = miles_total * per_mile["fuel_gal"]
+        energy = {name: miles_total * per_mile[name] for name in ENERGY_FIELDS}
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # A row with no miles still gets its per-vehicle mpg and efficiencies.
+            mpg = np.where(miles_total > 0, miles_total / gallons, 1.0 / per_mile["fuel_gal"])
+            diff_eff = np.where(energy["diff_input_energy_J"] > 0,
+                                energy["diff_output_energy_J"] / energy["diff_input_energy_J"],
+                                per_mile["diff_output_energy_J"] / per_mile["diff_input_energy_J"])
+            dt_eff = np.where(energy["drivetrain_input_energy_J"] > 0,
+                              energy["wheel_energy_J"] / energy["drivetrain_input_energy_J"],
+                              per_mile["wheel_energy_J"] / per_mile["drivetrain_input_energy_J"])
+        state_rate = np.where(fuel == "gasoline", s.state_tax_gasoline_usd_per_gal, s.state_tax_diesel_usd_per_gal)
+        federal_rate = np.where(fuel == "gasoline", s.federal_tax_gasoline_usd_per_gal,
+                                s.federal_tax_diesel_usd_per_gal)
+        frames.append(pd.DataFrame({
+            "scenario_id": s.scenario_id,
+            "vehicle_id": [v.vehicle_id for v in vehicles],
+            "vehicle_class": [v.vehicle_class for v in vehicles],
+            "configuration": [v.configuration for v in vehicles],
+            "fuel": fuel.astype(str),
+            "count": count,
+            "miles_total": miles_total,
+            "fuel_gal_total": gallons,
+            "mpg": mpg,
+            "diff_efficiency": diff_eff,
+            "drivetrain_efficiency": dt_eff,
+            "state_tax_usd": gallons * state_rate,
+            "federal_tax_usd": gallons * federal_rate,
+            **energy,
+            "duty_class": [v.duty_class for v in vehicles],
+        }))
+    if not frames:
+        return pd.DataFrame(columns=RESULTS_COLUMNS)
+    return pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS]
+
+
+def _ratio(numerator: float, denominator: float) -> float:
+    return numerator / denominator if denominator > 0 else float("nan")
+
+
+def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
+    """One row per scenario x vehicle_class: exact sums of the vehicle rows."""
+    rows = []
+    for (scenario_id, vehicle_class), group in results.groupby(["scenario_id", "vehicle_class"], sort=False):
+        total = {name: math.fsum(group[name]) for name in
+                 ("count", "miles_total", "fuel_gal_total", "state_tax_usd", "federal_tax_usd")
+                 + ENERGY_FIELDS}
+        rows.append({
+            "scenario_id": scenario_id,
+            "vehicle_class": vehicle_class,
+            "vehicles": total["count"],
+            "miles_total": total["miles_total"],
+            "fuel_gal_total": total["fuel_gal_total"],
+            "mpg": _ratio(total["miles_total"], total["fuel_gal_total"]),
+            "diff_efficiency": _ratio(total["diff_output_energy_J"], total["diff_input_energy_J"]),
+            "state_tax_usd": total["state_tax_usd"],
+            "federal_tax_usd": total["federal_tax_usd"],
+            "drivetrain_efficiency": _ratio(total["wheel_energy_J"], total["drivetrain_input_energy_J"]),
+            "vehicle_types": len(group),
+        })
+    return pd.DataFrame(rows, columns=CLASS_COLUMNS)
+
+
+def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
+    """One row per scenario: the fleet totals (sums of the class rows)."""
+    rows = []
+    for scenario_id, group in classes.groupby("scenario_id", sort=False):
+        miles = math.fsum(group["miles_total"])
+        gallons = math.fsum(group["fuel_gal_total"])
+        state = math.fsum(group["state_tax_usd"])
+        federal = math.fsum(group["federal_tax_usd"])
+        rows.append({"scenario_id": scenario_id, "vehicles": math.fsum(group["vehicles"]),
+                     "miles_total": miles, "fuel_gal_total": gallons, "mpg": _ratio(miles, gallons),
+                     "state_tax_usd": state, "federal_tax_usd": federal,
+                     "total_tax_usd": state + federal})
+    return pd.DataFrame(rows, columns=["scenario_id", "vehicles", "miles_total", "fuel_gal_total",
+                                       "mpg", "state_tax_usd", "federal_tax_usd", "total_tax_usd"])
+
+
+def yearly_totals(results: pd.DataFrame, scenarios: Sequence[Scenario]) -> pd.DataFrame:
+    """Per scenario and budget year: miles, gallons and taxes (year y scales by (1+g)^(y-1))."""
+    rows = []
+    for s in scenarios:
+        group = results[results["scenario_id"] == s.scenario_id]
+        factor = s.mile_factor()
+        g = s.vmt_growth_pct_per_year / 100.0
+        sums = {name: math.fsum(group[name]) for name in
+                ("miles_total", "fuel_gal_total", "state_tax_usd", "federal_tax_usd")}
+        for year in range(1, s.budget_years + 1):
+            share = (1.0 + g) ** (year - 1) / factor
+            rows.append({"scenario_id": s.scenario_id, "year": year,
+                         **{name: value * share for name, value in sums.items()}})
+    return pd.DataFrame(rows, columns=["scenario_id", "year", "miles_total", "fuel_gal_total",
+                                       "state_tax_usd", "federal_tax_usd"])
+
+
+def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
+    lines = []
+    for (cycle, ambient), arrays in shortfalls.items():
+        for name, values in arrays.items():
+            where = np.flatnonzero(np.nan_to_num(values) > 0)
+            for i in where[:MAX_LISTED_WARNINGS]:
+                lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {_cycle_label(cycle)} at "
+                             f"{ambient:g} C: {name} = {values[i]:.4g}")
+            if len(where) > MAX_LISTED_WARNINGS:
+                lines.append(f"... and {len(where) - MAX_LISTED_WARNINGS} more vehicles with {name} "
+                             f"on {_cycle_label(cycle)}")
+    return lines
+
+
+def _cycle_label(cycle: str) -> str:
+    from pathlib import Path
+
+    return Path(cycle).name if cycle.lower().endswith(".csv") else cycle
+
+
+def _cycle_info(names) -> dict[str, dict]:
+    from pathlib import Path
+
+    from fleetrun.fleet.workbook import file_sha256
+
+    info = {}
+    for name in sorted(names):
+        cycle = _cycle(name)
+        duration = float(cycle.time_s[-1] - cycle.time_s[0])
+        entry = {"name": cycle.name, "miles": float(cycle.miles), "duration_s": duration}
+        if name.lower().endswith(".csv"):
+            entry["path"] = name
+            entry["sha256"] = file_sha256(Path(name))
+        info[name] = entry
+    return info
+
+
+# --- efficiency maps of the configurations used -------------------------------------------
+
+MAP_TORQUE_FRACTIONS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+MAP_SPEEDS_RPM = (250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000)
+
+
+def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str) -> tuple[list[dict], list[str]]:
+    """For each configuration in the fleet: efficiency over torque fraction x speed at the
+    fleet's median gear ratio (and median low ratio for two-speed axles, high gear)."""
+    try:
+        from fleetrun.differential import efficiency
+    except ImportError:
+        return [], ["efficiency maps left out: fleetrun.differential is not available"]
+    maps = []
+    by_config: dict[str, list[VehicleSpec]] = {}
+    for v in vehicles:
+        by_config.setdefault(v.configuration, []).append(v)
+    tf, rpm = np.meshgrid(np.array(MAP_TORQUE_FRACTIONS), np.array(MAP_SPEEDS_RPM, dtype=float),
+                          indexing="ij")
+    for config in sorted(by_config):
+        group = by_config[config]
+        gear = float(np.median([v.final_drive_ratio for v in group]))
+        lows = [v.low_gear_ratio for v in group if v.low_gear_ratio]
+        low = float(np.median(lows)) if lows else None
+        eta = np.asarray(efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high",
+                                    physics=physics), dtype=float)
+        maps.append({"configuration": config, "gear_ratio": gear, "low_gear_ratio": low,
+                     "axle_gear": "high", "torque_fractions": list(MAP_TORQUE_FRACTIONS),
+                     "speeds_rpm": list(MAP_SPEEDS_RPM), "efficiency": eta.tolist(),
+                     "vehicle_types": len(group)})
+    return maps, []
