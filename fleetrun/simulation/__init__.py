@@ -1,0 +1,205 @@
+"""Drive-cycle simulation: from a speed trace to differential load, drivetrain efficiency and fuel.
+
+``simulate(vehicles, cycle)`` runs many vehicles over one cycle together (arrays over
+vehicles x steps). See docs/simulation.md for the model and its choices.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.simulation import diffmodes
+from fleetrun.simulation.core import FOLLOW_TOL_MPS, DifferentialSolver, backward, forward_redrive
+from fleetrun.simulation.params import vehicle_arrays
+
+__all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
+
+METERS_PER_MILE = 1609.344
+LITERS_PER_GALLON = 3.785411784
+MODES = diffmodes.MODES
+# "auto" = the fastest mode whose cycle fuel stays within 0.2 % of direct for every example
+# vehicle (tests/test_simulation_modes.py checks it): the cached 3-D map.
+DEFAULT_MODE = "map3d"
+REDRIVE_MARGINS = (0.97, 0.9, 0.8, 0.7)
+
+# CONTRACT.md trace columns first, then extras
+TRACE_COLUMNS = (
+    "time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm", "diff_input_speed_rpm",
+    "diff_efficiency", "gear", "engine_speed_rpm", "engine_torque_Nm", "fuel_rate_g_per_s",
+    "target_speed_mps", "grade_pct", "tractive_force_N", "wheel_speed_rpm", "axle_range",
+    "transmission_input_torque_Nm", "transmission_input_speed_rpm", "converter_unlocked",
+    "engine_max_torque_Nm", "wheel_power_W", "diff_loss_W", "transmission_loss_W", "converter_loss_W",
+    "engine_power_W", "not_followed",
+)
+
+
+@dataclass
+class FleetCycleResult:
+    """Per-vehicle results of one cycle (arrays of shape (V,)), and the trace if asked for.
+
+    Energies are summed over steps "while driving" (wheel torque > 0, hence positive
+    differential input torque), so ``diff_efficiency = diff_output / diff_input`` and
+    ``drivetrain_efficiency = wheel / drivetrain_input`` are energy weighted and add over cycles.
+    """
+    vehicle_ids: list
+    cycle: str
+    mode: str
+    miles: np.ndarray
+    fuel_g: np.ndarray
+    fuel_gal: np.ndarray
+    mpg: np.ndarray
+    diff_input_energy_J: np.ndarray
+    diff_output_energy_J: np.ndarray
+    drivetrain_input_energy_J: np.ndarray
+    wheel_energy_J: np.ndarray
+    engine_energy_J: np.ndarray          # positive engine work over the whole cycle
+    shortfall_time_s: np.ndarray         # time the vehicle ran more than 0.1 m/s below the trace
+    shortfall_distance_m: np.ndarray     # trace distance minus distance driven
+    shortfall_max_speed_mps: np.ndarray  # largest speed deficit
+    shortfall_steps: np.ndarray          # steps with demand above full load (after re-drive)
+    duration_s: float = 0.0
+    trace: dict | None = field(default=None, repr=False)
+
+    @property
+    def diff_efficiency(self) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.diff_output_energy_J / self.diff_input_energy_J
+
+    @property
+    def drivetrain_efficiency(self) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.wheel_energy_J / self.drivetrain_input_energy_J
+
+    def summary(self, i: int = 0) -> dict:
+        """The JSON line of ``fleetrun simulate`` for vehicle ``i``."""
+        def f(x):
+            x = float(x)
+            return x if np.isfinite(x) else None
+        return {
+            "vehicle_id": self.vehicle_ids[i], "cycle": self.cycle, "mode": self.mode,
+            "miles": f(self.miles[i]), "fuel_gal": f(self.fuel_gal[i]), "fuel_g": f(self.fuel_g[i]),
+            "mpg": f(self.mpg[i]), "diff_efficiency": f(self.diff_efficiency[i]),
+            "drivetrain_efficiency": f(self.drivetrain_efficiency[i]),
+            "shortfall_time_s": f(self.shortfall_time_s[i]), "shortfall_distance_m": f(self.shortfall_distance_m[i]),
+        }
+
+    def trace_frame(self, i: int = 0):
+        """Vehicle ``i``'s per-step trace as a pandas DataFrame (needs ``trace=True``)."""
+        import pandas as pd
+
+        if self.trace is None:
+            raise FleetrunError("no trace: simulate with trace=True")
+        return pd.DataFrame({c: (self.trace[c] if np.ndim(self.trace[c]) == 1 else self.trace[c][i])
+                             for c in TRACE_COLUMNS})
+
+
+def _cycle_arrays(cycle):
+    try:
+        t = np.asarray(cycle.time_s, float)
+        v = np.asarray(cycle.speed_mps, float)
+        grade = getattr(cycle, "grade_pct", None)
+    except (AttributeError, TypeError, ValueError):
+        raise InputError("the cycle must have time_s and speed_mps arrays") from None
+    name = str(getattr(cycle, "name", "cycle"))
+    grade = np.zeros_like(t) if grade is None else np.asarray(grade, float)
+    if t.ndim != 1 or t.size < 2 or v.shape != t.shape or grade.shape != t.shape:
+        raise InputError(f"cycle '{name}': time_s, speed_mps and grade_pct must be equal-length columns of at least 2 rows")
+    if not (np.isfinite(t).all() and np.isfinite(v).all() and np.isfinite(grade).all()):
+        raise InputError(f"cycle '{name}': time, speed and grade must be finite numbers")
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        raise InputError(f"cycle '{name}': time_s is not strictly increasing (row {bad[0] + 3}: "
+                         f"{t[bad[0]]} then {t[bad[0] + 1]})", column="time_s", value=t[bad[0] + 1],
+                         hint="Sort the rows by time and remove duplicates")
+    neg = np.flatnonzero(v < 0)
+    if neg.size:
+        raise InputError(f"cycle '{name}': negative speed {v[neg[0]]} at time {t[neg[0]]} s",
+                         column="speed", value=v[neg[0]], hint="Speeds must be >= 0")
+    return name, t, v, grade
+
+
+def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
+             physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None) -> FleetCycleResult:
+    """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle) together.
+
+    ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
+    DEFAULT_MODE). ``ambient_temp_C`` is passed to the differential model when it accepts it
+    (physics="thesis" fixes the lubricant at 70 C). ``effects``: physics extensions for the
+    differential layer; a FleetrunError if the layer does not support them yet.
+    """
+    vehicles = list(vehicles)
+    if mode == "auto":
+        mode = DEFAULT_MODE
+    if mode not in MODES:
+        raise unknown_name_error("mode", str(mode), MODES + ("auto",))
+    effects = tuple(effects or ())
+    if effects and not diffmodes.model_supports("effects"):
+        raise FleetrunError("effects are not supported in simulate yet",
+                            hint="Run without effects (the differential layer does not take them yet)")
+    if effects and mode != "direct":
+        mode = "direct"  # maps are built without effects; the effects see every step
+    name, t, v_target, grade = _cycle_arrays(cycle)
+    va = vehicle_arrays(vehicles)
+    V, N = va.n, t.size
+    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir, effects)
+    speed = np.broadcast_to(v_target, (V, N)).copy()
+    out = backward(va, t, speed, grade, solver)
+    # vehicles that cannot follow: re-drive at full effort, with a smaller margin on the
+    # estimated maximum effort each round, until the backward pass finds every step feasible
+    for margin in REDRIVE_MARGINS:
+        behind = np.flatnonzero(out["infeasible"].any(axis=1))
+        if behind.size == 0:
+            break
+        speed[behind] = forward_redrive(va, behind, t, v_target, grade, margin)
+        again = backward(va.subset(behind), t, speed[behind], grade, solver.subset(behind))
+        for key, arr in again.items():
+            if np.ndim(out[key]) == 2 and np.shape(out[key])[0] == V:
+                full = np.array(out[key])
+                full[behind] = arr
+                out[key] = full
+    dt = out["dt"]
+    distance_m = (out["v_avg"] * dt).sum(axis=1)
+    target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
+    target_m = float((target_avg * dt[0]).sum())
+    deficit = v_target[None, :] - speed
+    not_followed = (deficit > FOLLOW_TOL_MPS) | out["infeasible"]
+    fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
+    fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
+    miles = distance_m / METERS_PER_MILE
+    driving = out["moving"] & (out["wheel_torque_Nm"] > 0)
+    e = lambda p: np.where(driving, p, 0.0).__mul__(dt).sum(axis=1)  # noqa: E731
+    wheel = e(out["wheel_power_W"])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mpg = np.where(fuel_gal > 0, miles / fuel_gal, np.nan)
+    result = FleetCycleResult(
+        vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
+        miles=miles, fuel_g=fuel_g, fuel_gal=fuel_gal, mpg=mpg,
+        diff_input_energy_J=e(out["diff_input_torque_Nm"] * out["diff_input_speed_rpm"] * (2 * np.pi / 60)),
+        diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out["engine_power_W"]), wheel_energy_J=wheel,
+        engine_energy_J=(np.maximum(out["engine_power_W"], 0.0) * dt).sum(axis=1),
+        shortfall_time_s=(not_followed * dt).sum(axis=1), shortfall_distance_m=target_m - distance_m,
+        shortfall_max_speed_mps=np.maximum(deficit.max(axis=1), 0.0),
+        shortfall_steps=out["infeasible"].sum(axis=1), duration_s=float(t[-1] - t[0]),
+    )
+    if trace:
+        result.trace = {
+            "time_s": t, "vehicle_speed_mps": speed, "wheel_torque_Nm": out["wheel_torque_Nm"],
+            "diff_input_torque_Nm": out["diff_input_torque_Nm"], "diff_input_speed_rpm": out["diff_input_speed_rpm"],
+            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"], "engine_speed_rpm": out["engine_speed_rpm"],
+            "engine_torque_Nm": out["engine_torque_Nm"], "fuel_rate_g_per_s": out["fuel_rate_g_per_s"],
+            "target_speed_mps": v_target, "grade_pct": grade, "tractive_force_N": out["force"],
+            "wheel_speed_rpm": out["wheel_speed_rpm"],
+            "axle_range": np.where(out["axle_low"], "low", "high"),
+            "transmission_input_torque_Nm": out["transmission_input_torque_Nm"],
+            "transmission_input_speed_rpm": out["transmission_input_speed_rpm"],
+            "converter_unlocked": out["converter_unlocked"], "engine_max_torque_Nm": out["engine_max_torque_Nm"],
+            "wheel_power_W": out["wheel_power_W"], "diff_loss_W": out["diff_loss_W"],
+            "transmission_loss_W": out["transmission_loss_W"], "converter_loss_W": out["converter_loss_W"],
+            "engine_power_W": out["engine_power_W"], "not_followed": not_followed,
+            # internals for tests (not written to CSV)
+            "_v_avg": out["v_avg"], "_accel": out["accel"], "_dt": out["dt"], "_driving": driving,
+        }
+    return result

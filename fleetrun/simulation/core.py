@@ -1,0 +1,250 @@
+"""Backward drive-cycle simulation over many vehicles at once (thesis Ch. 1-3, 6, 7).
+
+Per step, from the wheels back to the fuel (arrays are vehicles x steps):
+
+1. kinematics: step i covers [t_{i-1}, t_i]; mean speed, acceleration, mean grade;
+2. road load + inertia + grade -> tractive force -> wheel torque and speed (tyre radius);
+3. gear (shift schedule, incl. the two-speed axle range) -> differential input speed;
+4. differential: invert the thesis model for the input torque (direct / map2d / map3d);
+5. gearbox (constant mesh efficiency), torque converter or clutch -> engine speed, torque;
+6. Willans-line fuel, idle fuel at standstill, fuel cut-off on overrun.
+
+A vehicle whose engine cannot deliver the demanded torque is re-driven forward at its
+maximum tractive effort (it follows the trace as closely as it can, re-joining it when the
+trace slows down); the backward pass is then repeated on the achieved speed and the
+shortfall is reported. Every step is independent given the speed, so the whole fleet x cycle
+is a handful of array operations (no per-step Python loop unless a vehicle falls behind).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.simulation import diffmodes
+from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
+from fleetrun.simulation.params import VehicleArrays
+from fleetrun.simulation.road_load import road_load_N, grade_force_N, G_MPS2
+from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, input_torque_Nm,
+                                              torque_ratio)
+
+RPM = 60.0 / (2.0 * np.pi)          # rad/s -> rpm
+FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than this = not followed
+DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
+N_POWER_TABLE = 65
+
+
+def _power_speed_table(va: VehicleArrays) -> np.ndarray:
+    """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65)."""
+    x = np.linspace(0.0, 1.0, 257)
+    table = np.empty((va.n, N_POWER_TABLE))
+    p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
+    for v in range(va.n):
+        n = va.n_idle[v] + x * (va.n_rated[v] - va.n_idle[v])
+        T = full_load_torque_Nm(n, va.T_peak[v], va.P_rated_kW[v], va.n_rated[v], va.n_idle[v],
+                                va.n_peak_torque[v], va.idle_T_frac[v])
+        p = np.maximum.accumulate(T * n / RPM / (va.P_rated_kW[v] * 1e3))
+        table[v] = np.interp(p_grid, p, n)
+    return table
+
+
+def _lookup_rows(table, rows, frac):
+    """Row-wise linear lookup on a uniform 0..1 grid: table[rows](frac)."""
+    m = table.shape[1] - 1
+    x = np.clip(frac, 0.0, 1.0) * m
+    i = np.minimum(x.astype(np.intp), m - 1)
+    w = x - i
+    flat = table.reshape(-1)
+    base = rows * (m + 1) + i
+    return flat[base] + w * (flat[base + 1] - flat[base])
+
+
+class DifferentialSolver:
+    """Input torque of the differential for given output torque and input speed, any mode."""
+
+    def __init__(self, va: VehicleArrays, mode, physics, ambient_temp_C, cache_dir, effects):
+        self.va, self.mode, self.physics = va, mode, physics
+        self.ambient = ambient_temp_C
+        self.effects = tuple(effects or ())
+        self.low = np.where(va.low_ratio > 1.0, va.low_ratio, np.nan)
+        if mode != "direct":
+            self.maps, self.n_max = diffmodes.vehicle_maps(va.configuration, va.final_drive, self.low, mode,
+                                                           physics, ambient_temp_C, cache_dir)
+
+    def subset(self, rows) -> "DifferentialSolver":
+        other = object.__new__(DifferentialSolver)
+        other.__dict__.update(self.__dict__)
+        other.va = self.va.subset(rows)
+        other.low = self.low[rows]
+        if self.mode != "direct":
+            other.maps, other.n_max = self.maps[rows], self.n_max[rows]
+        return other
+
+    def input_fraction(self, out_frac, speed_rpm, vehicle, axle_low):
+        """T_in / kim for T_out / (kim G_tot) = ``out_frac`` >= 0 (flat arrays)."""
+        if self.mode != "direct":
+            return diffmodes.interp_maps(self.maps, self.n_max, vehicle, axle_low.astype(np.intp), out_frac, speed_rpm)
+        result = np.empty(out_frac.shape)
+        cfgs = np.array(self.va.configuration)
+        for cfg in np.unique(cfgs[vehicle]) if vehicle.size else ():
+            for low_range in (False, True):
+                sel = np.flatnonzero((cfgs[vehicle] == cfg) & (axle_low == low_range))
+                if sel.size == 0:
+                    continue
+                vv = vehicle[sel]
+                low = self.low[vv]
+                result[sel] = diffmodes.invert_direct(
+                    cfg, out_frac[sel], speed_rpm[sel], self.va.final_drive[vv],
+                    None if np.isnan(low).all() else low, low_range, self.physics, self.ambient, self.effects)
+        return result
+
+
+def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver):
+    """One backward pass. ``speed_mps`` is (V, N) (each vehicle's achieved speed)."""
+    V, N = speed_mps.shape
+    dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
+    v_prev = np.concatenate([speed_mps[:, :1], speed_mps[:, :-1]], axis=1)
+    v_avg = 0.5 * (speed_mps + v_prev)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        accel = np.where(dt > 0, (speed_mps - v_prev) / dt, 0.0)
+    g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
+    grade = (0.5 * (grade_pct + g_prev))[None, :]
+    col = lambda a: a[:, None]  # noqa: E731
+    moving = v_avg > 1e-6
+    force = (road_load_N(v_avg, col(va.A_N), col(va.B_N), col(va.C_N))
+             + col(va.mass_kg * (1.0 + va.rot_frac)) * accel
+             + grade_force_N(col(va.mass_kg), grade))
+    force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
+    r = col(va.radius_m)
+    wheel_torque = force * r
+    wheel_omega = v_avg / r
+    wheel_rpm = wheel_omega * RPM
+
+    # gear: lowest engine speed with power reserve (transmission.py)
+    p_need = np.maximum(force * v_avg, 0.0) / DRIVETRAIN_GUESS
+    rows = np.broadcast_to(np.arange(V)[:, None], (V, N))
+    n_power = _lookup_rows(_power_speed_table(va), rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
+    n_req = np.minimum(np.maximum(col(va.shift_min_rpm), n_power), col(va.n_rated))
+    overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
+    k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
+    flat_k = rows * overall.shape[1] + k
+    trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
+    axle_low = va.combo_axle_low.reshape(-1)[flat_k] & moving
+    gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
+    gear = np.where(moving, va.combo_gear.reshape(-1)[flat_k], 0)
+
+    # differential
+    G_tot = col(va.final_drive) * np.where(axle_low, col(va.low_ratio), 1.0)
+    diff_rpm = wheel_rpm * G_tot
+    kim = col(va.kim_Nm)
+    idx = np.flatnonzero(moving & (diff_rpm > 0))
+    out_frac = np.abs(wheel_torque).reshape(-1)[idx] / (kim * G_tot).reshape(-1)[idx]
+    in_frac = solver.input_fraction(out_frac, diff_rpm.reshape(-1)[idx], rows.reshape(-1)[idx], axle_low.reshape(-1)[idx])
+    loss_frac = np.maximum(in_frac - out_frac, 0.0)  # input-referred loss / kim
+    diff_loss_Nm = np.zeros(V * N)
+    diff_loss_Nm[idx] = loss_frac * np.broadcast_to(kim, (V, N)).reshape(-1)[idx]
+    diff_loss_Nm = diff_loss_Nm.reshape(V, N)
+    diff_torque = wheel_torque / G_tot + diff_loss_Nm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        diff_eff = np.where(diff_loss_Nm > 0, np.abs(wheel_torque / G_tot) / (np.abs(wheel_torque / G_tot) + diff_loss_Nm), 0.0)
+    diff_eff = np.where(moving, diff_eff, 0.0)
+
+    # gearbox
+    trans_torque = np.where(moving, input_torque_Nm(diff_torque, trans_ratio, gear_eff), 0.0)
+    turbine_rpm = diff_rpm * trans_ratio
+    idle = col(va.n_idle)
+
+    # torque converter (automatic) or clutch (manual)
+    auto = col(va.automatic)
+    unlocked = auto & ((gear == 1) | (turbine_rpm < col(va.lockup_rpm)))
+    drive = trans_torque > 0
+    sr = converter_speed_ratio(turbine_rpm, trans_torque, col(va.K_tc), col(va.stall_TR))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pump_rpm = np.where(sr > 0, turbine_rpm / sr, idle)
+    pump_rpm = np.maximum(pump_rpm, idle)
+    sr_actual = np.where(pump_rpm > 0, turbine_rpm / pump_rpm, 0.0)
+    tr = torque_ratio(sr_actual, col(va.stall_TR))
+    engine_rpm = np.where(unlocked, np.where(drive, pump_rpm, np.maximum(idle, turbine_rpm)), turbine_rpm)
+    engine_torque = np.where(unlocked, np.where(drive, trans_torque / tr, 0.0), trans_torque)
+    # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
+    # below idle on overrun
+    manual = ~auto
+    launch = col(va.launch_rpm)
+    slip = manual & drive & (turbine_rpm < launch)
+    engine_rpm = np.where(slip, launch, engine_rpm)
+    declutch = manual & ~drive & (turbine_rpm < idle)
+    engine_rpm = np.where(declutch, idle, engine_rpm)
+    engine_torque = np.where(declutch, 0.0, engine_torque)
+    engine_rpm = np.where(moving, np.maximum(engine_rpm, idle), idle)
+    engine_torque = np.where(moving, engine_torque, 0.0)
+
+    # engine limits: full load (shortfall) and motoring (the rest is brakes)
+    t_max = full_load_torque_Nm(engine_rpm, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), idle,
+                                col(va.n_peak_torque), col(va.idle_T_frac))
+    pme0 = va.pme0
+    t_offset = offset_torque_Nm(engine_rpm, col(va.displacement_L), col(pme0[:, 0]), col(pme0[:, 1]), col(pme0[:, 2]))
+    infeasible = engine_torque > t_max * (1.0 + 1e-9)
+    engine_torque_fuel = np.minimum(engine_torque, t_max)
+    overrun = engine_torque < 0
+    fueled = ~(overrun & (engine_rpm >= col(va.fuel_cut_rpm)))
+    fuel = fuel_rate_g_per_s(np.maximum(engine_torque_fuel, 0.0), engine_rpm, fueled, t_offset,
+                             col(va.eta_ind), col(va.lhv))
+    idle_fuel = col(va.idle_fuel_g_s)
+    at_idle = ~moving | (unlocked & ~drive)
+    fuel = np.where(at_idle & np.isfinite(idle_fuel), np.broadcast_to(idle_fuel, fuel.shape), fuel)
+
+    wheel_power = wheel_torque * wheel_omega
+    diff_in_power = diff_torque * diff_rpm / RPM
+    turbine_power = trans_torque * turbine_rpm / RPM
+    engine_power = engine_torque * engine_rpm / RPM
+    return dict(
+        dt=dt, v_avg=v_avg, accel=accel, grade=np.broadcast_to(grade, (V, N)), force=force, moving=moving,
+        wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
+        diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
+        transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
+        converter_unlocked=unlocked & moving, engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
+        engine_max_torque_Nm=t_max, infeasible=infeasible & moving, fuel_rate_g_per_s=fuel,
+        wheel_power_W=wheel_power, diff_loss_W=diff_in_power - wheel_power,
+        transmission_loss_W=turbine_power - diff_in_power, converter_loss_W=engine_power - turbine_power,
+        engine_power_W=engine_power,
+    )
+
+
+def max_tractive_force_N(va: VehicleArrays, rows, speed_mps, margin=0.97):
+    """Largest wheel force the drivetrain can deliver at ``speed_mps`` (for the forward re-drive).
+
+    Over every gear: full-load torque at the engine speed the gear implies (automatics in
+    first gear may slip the converter up to stall speed and multiply torque by its torque
+    ratio), times the gearbox ratio and efficiency, final drive and 0.95 for the axle.
+    """
+    r = va.radius_m[rows]
+    n_wheel = speed_mps / r * RPM
+    overall = va.combo_trans_ratio[rows] * np.where(va.combo_axle_low[rows], va.low_ratio[rows, None], 1.0)
+    n_e = n_wheel[:, None] * overall * va.final_drive[rows, None]
+    col = lambda a: a[rows, None]  # noqa: E731
+    stall = col(va.K_tc) * np.sqrt(col(va.T_peak))
+    first = va.combo_gear[rows] == 1
+    auto = col(va.automatic)
+    n_use = np.where(auto & first, np.maximum(n_e, stall), np.maximum(n_e, col(va.launch_rpm)))
+    n_use = np.maximum(n_use, col(va.n_idle))
+    T = full_load_torque_Nm(n_use, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
+                            col(va.n_peak_torque), col(va.idle_T_frac))
+    tr = np.where(auto & first, torque_ratio(n_e / n_use, col(va.stall_TR)), 1.0)
+    F = T * tr * overall * va.final_drive[rows, None] * va.combo_gear_eff[rows] * 0.95 / r[:, None]
+    F = np.where(va.combo_trans_ratio[rows] > 0, F, 0.0)
+    return margin * F.max(axis=1)
+
+
+def forward_redrive(va: VehicleArrays, rows, time_s, target_mps, grade_pct, margin=0.97):
+    """Achieved speed (len(rows), N) of vehicles driven at most at full tractive effort."""
+    N = time_s.size
+    v = np.empty((rows.size, N))
+    v[:, 0] = target_mps[0]
+    m_eff = va.mass_kg[rows] * (1.0 + va.rot_frac[rows])
+    for i in range(1, N):
+        dt = time_s[i] - time_s[i - 1]
+        vp = v[:, i - 1]
+        grade = 0.5 * (grade_pct[i] + grade_pct[i - 1])
+        resist = road_load_N(np.maximum(vp, 1e-3), va.A_N[rows], va.B_N[rows], va.C_N[rows]) \
+            + grade_force_N(va.mass_kg[rows], grade)
+        a_max = (max_tractive_force_N(va, rows, vp, margin) - resist) / m_eff
+        v[:, i] = np.maximum(np.minimum(target_mps[i], vp + a_max * dt), 0.0)
+    return v

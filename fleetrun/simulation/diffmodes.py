@@ -1,0 +1,322 @@
+"""The differential inside the drive-cycle simulation: the thesis' three running modes (Ch. 6).
+
+The thesis model is forward: efficiency at a given *input* torque and speed. A backward
+simulation knows the *output* (wheel) torque, so every mode inverts it: find T_in with
+
+    eta(T_in / kim, n_in, G) * T_in * G_tot = T_out          (G_tot = G, or G x low range)
+
+(thesis Sec. 7.2 does the same by iteration). The input-referred loss is then
+L = T_in - T_out / G_tot.
+
+- ``direct`` (Sec. 6.1): the model is called at every step inside a bracketed
+  Illinois (false-position) root search, to 1e-9 of the Kim scale.
+- ``map2d`` (Sec. 6.2): per vehicle, the model is evaluated once on an input-torque x speed
+  grid at the vehicle's own gear ratio(s); each speed column is inverted (input torque as a
+  function of output torque) and the steps interpolate bilinearly in that inverse map.
+- ``map3d`` (Sec. 6.3): the same inverse maps on a gear-ratio grid, per configuration,
+  lubricant temperature and physics, built once and cached on disk; a vehicle's map is the
+  linear interpolation in gear ratio.
+
+The output-torque axis of the inverse maps is uniform in sqrt(T_out / (kim G_tot)): road-load
+torques are a few percent of the Kim scale, so the grid is densest there.
+
+Overrun and coast (T_out < 0), outside the thesis model (drive torque only): the differential
+passes the negative torque with the loss magnitude it has in drive at |T_out|, so
+T_in = T_out / G_tot + L(|T_out|) for either sign (continuous at 0, where L is the
+no-load loss). At standstill (n_in = 0) nothing turns and there is no loss.
+"""
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from fleetrun import __version__
+from fleetrun.errors import FleetrunError, InputError
+
+MODES = ("direct", "map2d", "map3d")
+
+# Grid of the maps: input torque fraction for the forward evaluation, sqrt-spaced to 1.2 of
+# the Kim scale; output torque fraction for the inverse map, sqrt-spaced to 1.1.
+TF_FORWARD = np.linspace(0.0, np.sqrt(1.2), 161) ** 2
+U_MAX = np.sqrt(1.1)
+N_U = 97
+N_SPEED = 81
+SPEED_MAX_RPM = {"LD": 10000.0, "HD": 5000.0}
+GEAR_GRID = {"LD": np.round(np.arange(2.0, 6.0001, 0.1), 6), "HD": np.round(np.arange(2.5, 8.0001, 0.125), 6)}
+
+
+def lubricant_temp_C(ambient_temp_C) -> float:
+    """Operating lubricant temperature: ambient + 50 K (thesis Sec. 3.1.2 and 7.1.1)."""
+    return 70.0 if ambient_temp_C is None else float(ambient_temp_C) + 50.0
+
+
+def duty_of(configuration: str) -> str:
+    return "HD" if configuration.startswith("HD") else "LD"
+
+
+def speed_grid(configuration: str) -> np.ndarray:
+    return np.linspace(0.0, SPEED_MAX_RPM[duty_of(configuration)], N_SPEED)
+
+
+# --------------------------------------------------------------------------- the model
+def _model():
+    try:
+        from fleetrun.differential import efficiency
+    except ImportError:  # pragma: no cover - only while the differential package is being written
+        return _interim_efficiency
+    return efficiency
+
+
+def _interim_efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
+                        axle_gear="high", physics="thesis", **_):  # pragma: no cover
+    """Stand-in with the real signature: constant no-load plus proportional loss."""
+    tf = np.asarray(torque_fraction, float)
+    n = np.asarray(speed_rpm, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eta = 1.0 - 0.03 - (0.002 + 2e-7 * n) / tf
+    return np.where(np.isfinite(eta) & (eta > 0), eta, 0.0)
+
+
+def model_supports(name: str) -> bool:
+    try:
+        params = inspect.signature(_model()).parameters
+    except (TypeError, ValueError):
+        return False
+    return name in params or any(p.kind == p.VAR_KEYWORD for p in params.values())
+
+
+def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio, axle_low,
+                physics, ambient_temp_C=None, effects=()):
+    """The thesis model (``fleetrun.differential.efficiency``) for one configuration.
+
+    ``gear_ratio``/``low_gear_ratio`` may be arrays; ``axle_low`` is a bool (one range).
+    """
+    kwargs = {"axle_gear": "low" if axle_low else "high", "physics": physics}
+    if low_gear_ratio is not None:
+        kwargs["low_gear_ratio"] = low_gear_ratio
+    if ambient_temp_C is not None and model_supports("oil_temp_C"):
+        # thesis Sec. 3.1.2: the lubricant runs 50 K above ambient (20 C ambient -> the 70 C
+        # that physics="thesis" assumes)
+        kwargs["oil_temp_C"] = lubricant_temp_C(ambient_temp_C)
+    if effects:
+        kwargs["effects"] = effects
+    f = _model()
+    tf = np.asarray(torque_fraction, float)
+    n = np.asarray(speed_rpm, float)
+    try:
+        return np.asarray(f(configuration, tf, n, gear_ratio, **kwargs), float)
+    except (TypeError, ValueError):
+        if np.ndim(gear_ratio) == 0 and (low_gear_ratio is None or np.ndim(low_gear_ratio) == 0):
+            raise
+    # the model wants scalar gear ratios: call it per distinct (G, low)
+    G = np.broadcast_to(np.asarray(gear_ratio, float), np.broadcast(tf, n).shape)
+    low = np.broadcast_to(np.asarray(low_gear_ratio if low_gear_ratio is not None else np.nan, float), G.shape)
+    out = np.zeros(G.shape)
+    tf_b, n_b = np.broadcast_to(tf, G.shape), np.broadcast_to(n, G.shape)
+    keys = np.stack([G.ravel(), low.ravel()], axis=1)
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    inv = inv.reshape(G.shape)
+    for j, (g, lo) in enumerate(uniq):
+        m = inv == j
+        kw = dict(kwargs)
+        if not np.isnan(lo):
+            kw["low_gear_ratio"] = float(lo)
+        out[m] = f(configuration, tf_b[m], n_b[m], float(g), **kw)
+    return out
+
+
+# --------------------------------------------------------------------------- direct inversion
+def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio, axle_low, physics,
+                  ambient_temp_C=None, effects=(), tol=1e-9, max_iter=60):
+    """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
+
+    ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
+    Illinois false position on f(x) = eta(x) x - out, bracketed by [out, hi]: eta <= 1 makes
+    f(out) <= 0; hi grows geometrically until f(hi) >= 0.
+    """
+    out = np.asarray(out_frac, float).ravel()
+    n = np.broadcast_to(np.asarray(speed_rpm, float), out.shape).ravel()
+    G = np.broadcast_to(np.asarray(gear_ratio, float), out.shape).ravel()
+    low = None if low_gear_ratio is None else np.broadcast_to(np.asarray(low_gear_ratio, float), out.shape).ravel()
+
+    def f(x, idx):
+        eta = eta_forward(configuration, x, n[idx], G[idx], None if low is None else low[idx], axle_low,
+                          physics, ambient_temp_C, effects)
+        return eta * x - out[idx]
+
+    all_idx = np.arange(out.size)
+    lo = out.copy()
+    f_lo = f(lo, all_idx)
+    hi = out / 0.9 + 2e-3
+    f_hi = f(hi, all_idx)
+    for _ in range(60):
+        grow = f_hi < 0
+        if not grow.any():
+            break
+        idx = np.flatnonzero(grow)
+        lo[idx], f_lo[idx] = hi[idx], f_hi[idx]
+        hi[idx] = hi[idx] * 2.0 + 1e-2
+        f_hi[idx] = f(hi[idx], idx)
+    else:
+        raise FleetrunError("the differential model delivers no output torque at any input torque here",
+                            hint="Check the gear ratio and speed range of the vehicle")
+    x = lo.copy()
+    done = np.abs(f_lo) <= tol
+    x[done] = lo[done]
+    side = np.zeros(out.size, np.int8)
+    active = np.flatnonzero(~done)
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        a, b, fa, fb = lo[active], hi[active], f_lo[active], f_hi[active]
+        denom = fb - fa
+        xm = np.where(denom > 0, (a * fb - b * fa) / np.where(denom > 0, denom, 1.0), 0.5 * (a + b))
+        xm = np.clip(xm, a, b)
+        fm = f(xm, active)
+        x[active] = xm
+        conv = (np.abs(fm) <= tol) | ((b - a) <= tol)
+        right = fm > 0  # root in [a, xm]
+        s = side[active]
+        # Illinois: halve the retained end's value when the same end is kept twice
+        new_hi, new_lo = np.where(right, xm, b), np.where(right, a, xm)
+        new_fhi = np.where(right, fm, np.where(s == -1, fb * 0.5, fb))
+        new_flo = np.where(right, np.where(s == 1, fa * 0.5, fa), fm)
+        side[active] = np.where(right, 1, -1)
+        lo[active], hi[active], f_lo[active], f_hi[active] = new_lo, new_hi, new_flo, new_fhi
+        active = active[~conv]
+    return x
+
+
+# --------------------------------------------------------------------------- maps
+def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, ambient_temp_C=None):
+    """Inverse map T_in/kim on the (u = sqrt(T_out/(kim G_tot)), speed) grid, shape (N_U, N_SPEED)."""
+    n_grid = speed_grid(configuration)
+    eta = eta_forward(configuration, TF_FORWARD[:, None], n_grid[None, :], gear_ratio, low_gear_ratio,
+                      axle_low, physics, ambient_temp_C)
+    eta = np.broadcast_to(eta, (TF_FORWARD.size, n_grid.size))
+    out = np.maximum.accumulate(np.nan_to_num(eta) * TF_FORWARD[:, None], axis=0)
+    targets = np.linspace(0.0, U_MAX, N_U) ** 2
+    inv = np.empty((N_U, n_grid.size))
+    for j in range(n_grid.size):
+        col = out[:, j]
+        zero = np.flatnonzero(col <= 0.0)
+        start = zero[-1] if zero.size else 0
+        xp, fp = col[start:], TF_FORWARD[start:]
+        keep = np.concatenate([[True], np.diff(xp) > 1e-15])
+        xp, fp = xp[keep], fp[keep]
+        if xp.size < 2:
+            raise FleetrunError(f"the differential model of {configuration} gives no output at {n_grid[j]:.0f} rpm")
+        vals = np.interp(targets, xp, fp)
+        beyond = targets > xp[-1]  # linear extrapolation with the last slope
+        slope = (fp[-1] - fp[-2]) / (xp[-1] - xp[-2])
+        vals[beyond] = fp[-1] + slope * (targets[beyond] - xp[-1])
+        inv[:, j] = vals
+    return inv
+
+
+def default_cache_dir() -> Path:
+    env = os.environ.get("FLEETRUN_CACHE_DIR")
+    return Path(env) if env else Path.home() / ".cache" / "fleetrun"
+
+
+def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir=None):
+    """Gear-ratio grid and inverse maps (2 ranges x gears x N_U x N_SPEED), cached on disk.
+
+    Key: configuration, physics, lubricant temperature, low range ratio, grid, fleetrun
+    version. Written atomically (temp file + os.replace) so concurrent runs never see half a file.
+    """
+    gears = GEAR_GRID[duty_of(configuration)]
+    key = {"configuration": configuration, "physics": physics, "lubricant_temp_C": lubricant_temp_C(ambient_temp_C),
+           "low_gear_ratio": low_gear_ratio, "gears": gears.tolist(), "tf": [float(TF_FORWARD[-1]), TF_FORWARD.size],
+           "u": [U_MAX, N_U], "speed": [float(speed_grid(configuration)[-1]), N_SPEED], "version": __version__,
+           "format": 1}
+    digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
+    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = directory / f"map3d-{configuration}-{digest}.npz"
+    if path.is_file():
+        try:
+            with np.load(path) as data:
+                return gears, data["maps"]
+        except Exception:  # a damaged cache file is rebuilt
+            pass
+    ranges = (False, True) if low_gear_ratio is not None else (False,)
+    maps = np.empty((2, gears.size, N_U, N_SPEED))
+    for r, axle_low in enumerate(ranges):
+        for i, g in enumerate(gears):
+            maps[r, i] = inverse_map(configuration, float(g), low_gear_ratio, axle_low, physics, ambient_temp_C)
+    if len(ranges) == 1:
+        maps[1] = maps[0]
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=directory)
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, maps=maps, key=json.dumps(key))
+        os.replace(tmp, path)
+    except OSError:
+        pass  # an unwritable cache only costs the rebuild next time
+    return gears, maps
+
+
+def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient_temp_C=None, cache_dir=None):
+    """Inverse maps per vehicle and axle range: array (V, 2, N_U, N_SPEED), speed grids (V, N_SPEED).
+
+    ``low_ratios`` holds NaN for single-speed axles. map2d evaluates the model at each distinct
+    (configuration, G, low); map3d interpolates the cached gear-ratio maps linearly in G.
+    """
+    V = len(configurations)
+    out = np.empty((V, 2, N_U, N_SPEED))
+    n_max = np.empty(V)
+    memo = {}
+    for v in range(V):
+        cfg, G, low = configurations[v], float(gear_ratios[v]), float(low_ratios[v])
+        lowv = None if np.isnan(low) else low
+        n_max[v] = speed_grid(cfg)[-1]
+        if mode == "map2d":
+            key = (cfg, G, lowv)
+            if key not in memo:
+                hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C)
+                lo_map = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C) if lowv is not None else hi
+                memo[key] = np.stack([hi, lo_map])
+            out[v] = memo[key]
+        else:
+            key = (cfg, lowv)
+            if key not in memo:
+                memo[key] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir)
+            gears, maps = memo[key]
+            if not gears[0] <= G <= gears[-1]:
+                raise InputError(f"final_drive_ratio {G} is outside the map3d gear-ratio grid "
+                                 f"{gears[0]}-{gears[-1]} of {cfg}", column="final_drive_ratio", value=G,
+                                 hint="Use --mode map2d or direct for this vehicle")
+            i = min(int(np.searchsorted(gears, G, side="right")) - 1, gears.size - 2)
+            w = (G - gears[i]) / (gears[i + 1] - gears[i])
+            out[v] = (1.0 - w) * maps[:, i] + w * maps[:, i + 1]
+    return out, n_max
+
+
+def interp_maps(maps, n_max, vehicle, axle_low, out_frac, speed_rpm):
+    """Bilinear lookup T_in/kim = map[vehicle, range](sqrt(out_frac), speed) for flat arrays.
+
+    Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
+    """
+    du = U_MAX / (N_U - 1)
+    u = np.sqrt(np.maximum(out_frac, 0.0)) / du
+    i = np.minimum(u.astype(np.intp), N_U - 2)
+    wu = u - i
+    s = np.minimum(speed_rpm * ((N_SPEED - 1) / n_max[vehicle]), N_SPEED - 1.0)
+    j = np.minimum(s.astype(np.intp), N_SPEED - 2)
+    ws = s - j
+    flat = maps.reshape(-1)
+    base = ((vehicle * 2 + axle_low) * N_U + i) * N_SPEED + j
+    m00 = flat[base]
+    m01 = flat[base + 1]
+    m10 = flat[base + N_SPEED]
+    m11 = flat[base + N_SPEED + 1]
+    a = m00 + ws * (m01 - m00)
+    b = m10 + ws * (m11 - m10)
+    return a + wu * (b - a)

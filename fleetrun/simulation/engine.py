@@ -1,0 +1,53 @@
+"""Engine: full-load torque curve and fuel rate (Willans line), gasoline and diesel.
+
+Fuel (Willans line; Heywood 1988, Sec. 13.5; Guzzella & Sciarretta 2013, Eq. 3.9): the fuel
+power is the engine's brake power plus a speed-dependent offset (friction and pumping),
+divided by an indicated efficiency,
+
+    m_dot = (T_e + T_0(n)) * omega / (eta_ind * LHV),   T_0 = p_me0(n) V_d / (4 pi),
+
+with the offset mean effective pressure p_me0 = a + b (n/1000) + c (n/1000)^2 (the
+Chen-Flynn / Patton-Nitschke-Heywood form). Idle fuel is the same line at idle speed and
+zero load unless the vehicle gives ``idle_fuel_g_per_s``; on overrun above the fuel cut-off
+speed the injectors are shut (m_dot = 0). Displacement, rated power and speed default from
+peak torque (``models/engines.toml``) when the row leaves them blank.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+RPM_RAD_S = 2.0 * np.pi / 60.0
+
+
+def offset_torque_Nm(speed_rpm, displacement_L, a_kPa, b_kPa, c_kPa):
+    """Willans offset torque T_0 = p_me0 V_d / (4 pi) [N m] of a four-stroke engine."""
+    k = np.asarray(speed_rpm, float) / 1000.0
+    pme0_Pa = 1e3 * (a_kPa + k * (b_kPa + c_kPa * k))
+    return pme0_Pa * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi)
+
+
+def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_rpm,
+                        idle_speed_rpm, peak_torque_speed_rpm, idle_torque_fraction):
+    """Maximum brake torque [N m] at ``speed_rpm``.
+
+    Rises linearly from ``idle_torque_fraction`` x peak at idle to peak at the peak-torque
+    speed, is capped by rated power (T = P / omega) and falls to zero 10 % above rated speed
+    (governor / rev limiter).
+    """
+    n = np.asarray(speed_rpm, float)
+    rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)
+    torque = peak_torque_Nm * (idle_torque_fraction + (1.0 - idle_torque_fraction) * rise)
+    power_cap = rated_power_kW * 1e3 / np.maximum(n * RPM_RAD_S, 1e-9)
+    torque = np.minimum(torque, power_cap)
+    governor = np.clip((1.1 * rated_speed_rpm - n) / (0.1 * rated_speed_rpm), 0.0, 1.0)
+    return torque * governor
+
+
+def fuel_rate_g_per_s(torque_Nm, speed_rpm, fueled, offset_Nm, eta_indicated, lhv_MJ_per_kg):
+    """Willans-line fuel rate [g/s]; 0 where ``fueled`` is False (deceleration fuel cut-off).
+
+    Never negative: at loads below the motoring line the engine is unfuelled.
+    """
+    omega = np.asarray(speed_rpm, float) * RPM_RAD_S
+    fuel_power_W = np.maximum(torque_Nm + offset_Nm, 0.0) * omega / eta_indicated
+    return np.where(fueled, fuel_power_W / (lhv_MJ_per_kg * 1e3), 0.0)

@@ -1,0 +1,224 @@
+"""Per-vehicle simulation parameters: the Vehicles row, defaults and overrides, as arrays.
+
+Every default comes from ``models/engines.toml`` (by fuel and duty class) or
+``models/transmissions.toml`` (by transmission type) and may be overridden per vehicle by a
+key of the same name in ``VehicleSpec.extra``. Derived defaults (documented in
+docs/simulation.md):
+
+- displacement [L] = 4 pi T_peak / bmep_at_peak (when ``engine_displacement_L`` is blank);
+- rated speed from the set; rated power = rated_power_factor x T_peak x omega_rated;
+- torque-converter stall torque ratio = ``VehicleSpec.converter_ratio`` (the thesis'
+  "maximum torque converter torque ratio", Sec. 5.2.1.C, default 3.0 automatic).
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Sequence
+
+import numpy as np
+
+from fleetrun.errors import InputError
+from fleetrun.resources import models_dir
+from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
+from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.vehicle import VehicleSpec
+
+DUAL_CONFIGURATIONS = {"HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL"}
+
+
+@lru_cache(maxsize=None)
+def _toml(name: str) -> dict:
+    with open(models_dir() / name, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def engine_defaults(fuel: str, duty_class: str) -> dict:
+    sets = _toml("engines.toml")
+    if fuel not in sets:
+        raise InputError(f"unknown fuel '{fuel}'", column="fuel", value=fuel,
+                         hint="Use gasoline or diesel")
+    by_duty = sets[fuel]
+    return dict(by_duty.get(duty_class, by_duty["LD"]))
+
+
+def transmission_defaults(transmission: str) -> dict:
+    sets = _toml("transmissions.toml")
+    if transmission not in sets:
+        raise InputError(f"unknown transmission '{transmission}'", column="transmission",
+                         value=transmission, hint="Use automatic or manual")
+    return dict(sets[transmission])
+
+
+def canonical(configuration: str) -> str:
+    return str(configuration).strip().upper().replace("-", "_")
+
+
+def _check(v: VehicleSpec) -> None:
+    def bad(column, value, what, hint):
+        raise InputError(f"vehicle '{v.vehicle_id}': {column} {what}", column=column, value=value, hint=hint)
+
+    gears = tuple(v.transmission_gear_ratios or ())
+    if len(gears) == 0:
+        bad("transmission_gear_ratios", gears, "is empty", "Give the gear ratios, first gear first, e.g. 4.17,2.34,1.52,1.14,0.87,0.69")
+    if any((not math.isfinite(g)) or g <= 0 for g in gears):
+        bad("transmission_gear_ratios", gears, "must be positive numbers", "Give the gear ratios, first gear first")
+    for column in ("peak_engine_torque_Nm", "final_drive_ratio", "test_weight_kg"):
+        value = getattr(v, column)
+        if value is None or not math.isfinite(float(value)) or float(value) <= 0:
+            bad(column, value, "must be a positive number", "Fix the value in the Vehicles row")
+    if canonical(v.configuration) in DUAL_CONFIGURATIONS:
+        if v.low_gear_ratio is None or not float(v.low_gear_ratio) > 1.0:
+            bad("low_gear_ratio", v.low_gear_ratio, "must be given (> 1) for a dual (two-speed) axle",
+                "Give the two-speed axle's low range ratio, e.g. 1.36")
+
+
+@dataclass
+class VehicleArrays:
+    """Per-vehicle parameters as arrays of shape (V,) (ratios (V, K))."""
+    n: int
+    configuration: list
+    mass_kg: np.ndarray
+    rot_frac: np.ndarray
+    A_N: np.ndarray
+    B_N: np.ndarray
+    C_N: np.ndarray
+    radius_m: np.ndarray
+    final_drive: np.ndarray
+    low_ratio: np.ndarray        # 1 for single-speed axles
+    kim_Nm: np.ndarray
+    # gear table: combinations of transmission gear x axle range, largest overall first
+    combo_trans_ratio: np.ndarray   # (V, K) transmission ratio (0 padding)
+    combo_axle_low: np.ndarray      # (V, K) bool
+    combo_gear: np.ndarray          # (V, K) 1-based transmission gear
+    combo_gear_eff: np.ndarray      # (V, K)
+    n_combos: np.ndarray
+    automatic: np.ndarray           # bool
+    stall_TR: np.ndarray
+    K_tc: np.ndarray
+    lockup_rpm: np.ndarray
+    launch_rpm: np.ndarray
+    # engine
+    T_peak: np.ndarray
+    P_rated_kW: np.ndarray
+    n_rated: np.ndarray
+    n_idle: np.ndarray
+    n_peak_torque: np.ndarray
+    idle_T_frac: np.ndarray
+    displacement_L: np.ndarray
+    pme0: np.ndarray                # (V, 3) kPa
+    eta_ind: np.ndarray
+    lhv: np.ndarray
+    density: np.ndarray
+    shift_min_rpm: np.ndarray
+    power_reserve: np.ndarray
+    fuel_cut_rpm: np.ndarray
+    idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
+
+    def subset(self, rows) -> "VehicleArrays":
+        """The same parameters for the vehicles ``rows`` only."""
+        rows = np.asarray(rows)
+        values = {}
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if name == "n":
+                value = rows.size
+            elif isinstance(value, np.ndarray):
+                value = value[rows]
+            elif isinstance(value, list):
+                value = [value[i] for i in rows]
+            values[name] = value
+        return VehicleArrays(**values)
+
+
+def _get(v: VehicleSpec, key: str, default):
+    extra = v.extra or {}
+    value = extra.get(key)
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return default
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"vehicle '{v.vehicle_id}': {key} must be a number", column=key, value=value) from None
+
+
+def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
+    """Check the rows and gather their parameters (defaults filled in) into arrays."""
+    rows = []
+    for v in vehicles:
+        _check(v)
+        eng = engine_defaults(v.fuel, v.duty_class)
+        trn = transmission_defaults(v.transmission)
+        cfg = canonical(v.configuration)
+        dual = cfg in DUAL_CONFIGURATIONS
+        low = float(v.low_gear_ratio) if dual else 1.0
+        T_peak = float(v.peak_engine_torque_Nm)
+        n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
+        n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
+        P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
+                   eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
+        disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
+                4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+        gears = tuple(float(g) for g in v.transmission_gear_ratios)
+        g_eff = _get(v, "gear_efficiency", trn["gear_efficiency"])
+        d_eff = _get(v, "direct_gear_efficiency", trn["direct_gear_efficiency"])
+        combos = []
+        for i, g in enumerate(gears):
+            eff = d_eff if abs(g - 1.0) < 0.02 else g_eff
+            combos.append((g, False, i + 1, eff, g))
+            if dual:
+                combos.append((g, True, i + 1, eff, g * low))
+        combos.sort(key=lambda c: -c[4])
+        rows.append(dict(
+            cfg=cfg,
+            mass=float(v.test_weight_kg),
+            rot=_get(v, "rotating_mass_fraction", ROTATING_MASS_FRACTION.get(v.duty_class, 0.015)),
+            coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
+            radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
+            fd=float(v.final_drive_ratio), low=low, kim=v.kim_scale_Nm, combos=combos,
+            auto=v.transmission == "automatic",
+            stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio),
+            # a converter that stalls above the engine's torque band could never hold full
+            # torque: the default stall speed is at most 3/4 of rated speed
+            stall_rpm=_get(v, "stall_speed_rpm", min(trn.get("stall_speed_rpm", 2000.0), 0.75 * n_rated)),
+            lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
+            launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
+            T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
+            n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
+            idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
+            disp=disp,
+            pme0=(_get(v, "pme0_a_kPa", eng["pme0_a_kPa"]), _get(v, "pme0_b_kPa", eng["pme0_b_kPa"]),
+                  _get(v, "pme0_c_kPa", eng["pme0_c_kPa"])),
+            eta=_get(v, "eta_indicated", eng["eta_indicated"]),
+            lhv=_get(v, "lhv_MJ_per_kg", eng["lhv_MJ_per_kg"]),
+            rho=_get(v, "density_kg_per_L", eng["density_kg_per_L"]),
+            shift=_get(v, "shift_speed_min_rpm", eng["shift_speed_min_rpm"]),
+            reserve=_get(v, "power_reserve", eng["power_reserve"]),
+            cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
+            idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
+        ))
+    V = len(rows)
+    K = max((len(r["combos"]) for r in rows), default=1)
+    ctr = np.zeros((V, K)); clow = np.zeros((V, K), bool); cg = np.ones((V, K), np.intp); ceff = np.ones((V, K))
+    for i, r in enumerate(rows):
+        for k, c in enumerate(r["combos"]):
+            ctr[i, k], clow[i, k], cg[i, k], ceff[i, k] = c[0], c[1], c[2], c[3]
+    a = lambda key: np.array([r[key] for r in rows], float)  # noqa: E731
+    coast = np.array([r["coast"] for r in rows], float).reshape(V, 3)
+    T_peak = a("T_peak")
+    return VehicleArrays(
+        n=V, configuration=[r["cfg"] for r in rows], mass_kg=a("mass"), rot_frac=a("rot"),
+        A_N=coast[:, 0], B_N=coast[:, 1], C_N=coast[:, 2], radius_m=a("radius"),
+        final_drive=a("fd"), low_ratio=a("low"), kim_Nm=a("kim"),
+        combo_trans_ratio=ctr, combo_axle_low=clow, combo_gear=cg, combo_gear_eff=ceff,
+        n_combos=np.array([len(r["combos"]) for r in rows]),
+        automatic=np.array([r["auto"] for r in rows], bool), stall_TR=a("stall_TR"),
+        K_tc=a("stall_rpm") / np.sqrt(T_peak), lockup_rpm=a("lockup"), launch_rpm=a("launch"),
+        T_peak=T_peak, P_rated_kW=a("P"), n_rated=a("n_rated"), n_idle=a("n_idle"),
+        n_peak_torque=a("n_pk"), idle_T_frac=a("idle_T"), displacement_L=a("disp"),
+        pme0=np.array([r["pme0"] for r in rows], float).reshape(V, 3), eta_ind=a("eta"),
+        lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), power_reserve=a("reserve"),
+        fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"),
+    )

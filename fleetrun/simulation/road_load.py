@@ -1,0 +1,54 @@
+"""Road load at the wheels (thesis Ch. 2 road-load forces, Sec. 7.2 coastdown coefficients).
+
+EPA target coefficients give the road-load force of a vehicle coasting on a level road,
+F = A + B v + C v^2 with F in lbf and v in mph (40 CFR 1066.301; Reineman & Nash 1995 as
+used in thesis Table 7.1). They lump tyre rolling resistance, aerodynamic drag and the
+spin losses of the coasting driveline. fleetrun adds inertia (test weight plus a
+rotating-mass allowance) and grade.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+LBF_N = 4.4482216152605  # exact (avoirdupois pound x standard gravity)
+MPH_MPS = 0.44704        # exact
+G_MPS2 = 9.80665         # standard gravity
+
+# EPA's effective-mass allowance for rotating parts in coastdown analysis is 1.5 % of the
+# test mass (40 CFR 1066.310(b)(7): M_e = M + 1.5 % for the rotating inertia of the wheels
+# and driveline). Heavy vehicles carry more wheels per tonne; fleetrun uses 3 % for MD/HD.
+ROTATING_MASS_FRACTION = {"LD": 0.015, "MD": 0.03, "HD": 0.03}
+
+
+def coastdown_to_si(A_lbf, B_lbf_per_mph, C_lbf_per_mph2):
+    """EPA coefficients (lbf, lbf/mph, lbf/mph^2) -> (N, N s/m, N s^2/m^2)."""
+    A = np.asarray(A_lbf, float) * LBF_N
+    B = np.asarray(B_lbf_per_mph, float) * LBF_N / MPH_MPS
+    C = np.asarray(C_lbf_per_mph2, float) * LBF_N / MPH_MPS**2
+    return A, B, C
+
+
+def road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
+    """Coastdown road-load force [N] at ``speed_mps`` (0 at standstill: nothing rolls)."""
+    v = np.asarray(speed_mps, float)
+    force = A_N + v * (B_N_s_per_m + C_N_s2_per_m2 * v)
+    return np.where(v > 0.0, force, 0.0)
+
+
+def grade_force_N(mass_kg, grade_pct):
+    """Gravity along the road, m g sin(atan(grade/100)) [N]; positive uphill."""
+    theta = np.arctan(np.asarray(grade_pct, float) / 100.0)
+    return np.asarray(mass_kg, float) * G_MPS2 * np.sin(theta)
+
+
+def tractive_force_N(speed_mps, accel_mps2, grade_pct, mass_kg, rotating_mass_fraction,
+                     A_N, B_N_s_per_m, C_N_s2_per_m2):
+    """Force the driven wheels must put on the road [N]: road load + inertia + grade.
+
+    Inertia uses the effective mass m (1 + f_rot); grade uses the test mass. Negative means
+    the vehicle must be slowed (engine overrun and brakes).
+    """
+    m = np.asarray(mass_kg, float)
+    return (road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2)
+            + m * (1.0 + rotating_mass_fraction) * accel_mps2
+            + grade_force_N(m, grade_pct))

@@ -1,0 +1,88 @@
+"""Transmission: shift schedule, gear efficiency, torque converter (thesis Ch. 2, 5.2.1.C).
+
+All functions are backward ("what must the input do so that the output does this") and
+vectorised over vehicles x steps.
+
+Shift schedule (documented in docs/simulation.md): a stateless "lowest engine speed that
+still has reserve" rule, as in economy schedules of backward simulators (ADVISOR, FASTSim's
+auto-shift): in every step choose the highest gear (smallest overall ratio) in which the
+engine turns at least
+
+    n_req = max(n_shift_min, n_power),  n_power: speed at which reserve x full-load power
+                                        equals the power demanded,
+
+falling back to first gear. Two-speed (dual) axles act as a range splitter: the schedule
+chooses among all transmission-gear x axle-gear products (thesis Sec. 2.2.6.B leaves the
+choice to the drive-cycle driver model), so the low axle range is used exactly when the high
+range would lug the engine. Being stateless it is vectorisable and needs no hysteresis.
+
+Torque converter (Kotwicki 1982 form, fitted to the usual curves): torque ratio falls
+linearly from the stall ratio TR_s at speed ratio SR = 0 to 1 at the coupling point SR_c,
+and the pump absorbs T_p = (n_p / K)^2 with a constant capacity factor K sized so that the
+engine stalls the converter at ``stall_speed_rpm`` with peak torque.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+COUPLING_SPEED_RATIO = 0.85   # SR where the torque ratio reaches 1 (typical converters 0.8-0.9)
+MAX_SPEED_RATIO = 0.98        # slip that remains in the coupling range when unlocked
+
+
+def torque_ratio(speed_ratio, stall_torque_ratio):
+    """Converter torque ratio TR(SR): linear from TR_s at stall to 1 at the coupling point."""
+    sr = np.clip(speed_ratio, 0.0, 1.0)
+    return np.where(sr < COUPLING_SPEED_RATIO,
+                    stall_torque_ratio + (1.0 - stall_torque_ratio) * sr / COUPLING_SPEED_RATIO, 1.0)
+
+
+def converter_speed_ratio(turbine_speed_rpm, turbine_torque_Nm, K_rpm_per_sqrtNm, stall_torque_ratio):
+    """Speed ratio SR = n_t / n_p of an unlocked converter delivering T_t > 0 at n_t.
+
+    Solves TR(SR) (n_t / (SR K))^2 = T_t in closed form: in the coupling range
+    SR = n_t / (K sqrt(T_t)); below it the quadratic T_t SR^2 - b SR - c TR_s = 0 with
+    c = (n_t / K)^2 and b = c (1 - TR_s) / SR_c.
+    """
+    nt = np.maximum(turbine_speed_rpm, 0.0)
+    Tt = np.maximum(turbine_torque_Nm, 1e-9)
+    c = (nt / K_rpm_per_sqrtNm) ** 2
+    sr_coupling = nt / (K_rpm_per_sqrtNm * np.sqrt(Tt))
+    b = c * (1.0 - stall_torque_ratio) / COUPLING_SPEED_RATIO
+    sr_converter = (b + np.sqrt(b * b + 4.0 * Tt * c * stall_torque_ratio)) / (2.0 * Tt)
+    sr = np.where(sr_coupling >= COUPLING_SPEED_RATIO, sr_coupling, sr_converter)
+    return np.clip(sr, 0.0, MAX_SPEED_RATIO)
+
+
+def capacity_factor(stall_speed_rpm, peak_torque_Nm, stall_torque_ratio=None):
+    """K [rpm / sqrt(N m)] so that peak engine torque holds the pump at ``stall_speed_rpm``."""
+    return np.asarray(stall_speed_rpm, float) / np.sqrt(np.asarray(peak_torque_Nm, float))
+
+
+def input_torque_Nm(output_torque_Nm, ratio, efficiency):
+    """Gearbox input torque for a demanded output torque (constant mesh efficiency).
+
+    Drive: T_in = T_out / (r eta). Overrun (T_out < 0) is given the same loss magnitude as
+    drive at |T_out|: T_in = T_out / r + (1 - eta) |T_out| / (r eta).
+    """
+    T = np.asarray(output_torque_Nm, float)
+    return T / ratio + (1.0 - efficiency) * np.abs(T) / (ratio * efficiency)
+
+
+def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_speed_rpm, overall_ratios, n_ratios):
+    """Index of the highest usable gear per step (the schedule above).
+
+    ``wheel_side_speed_rpm`` (V x N): speed the gearbox output would turn at ratio 1;
+    ``required_engine_speed_rpm`` (V x N); ``overall_ratios`` (V x K) sorted from the
+    largest (first gear) down, padded with 0 beyond ``n_ratios``. A gear that would turn the
+    engine above ``max_engine_speed_rpm`` (V x 1, rated speed) is not used while a lower
+    one is available: at full demand that picks the gear nearest rated speed. Returns int (V x N).
+    """
+    V, K = overall_ratios.shape
+    count = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int16)
+    over = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int16)
+    for k in range(K):
+        n = overall_ratios[:, k:k + 1] * wheel_side_speed_rpm
+        count += n >= required_engine_speed_rpm
+        over += n > max_engine_speed_rpm
+    top = np.asarray(n_ratios)[:, None] - 1
+    return np.minimum(np.maximum(count.astype(np.intp) - 1, over), top)
