@@ -21,22 +21,27 @@ def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
     tf = np.asarray(torque_fractions, dtype=float)
     n = np.asarray(speeds_rpm, dtype=float)
     eta = np.asarray(eta, dtype=float).reshape(tf.size, n.size)
+    # Cells where the losses exceed the input (efficiency 0, B.6) are left blank so that the
+    # colour scale shows the variation where the differential does drive.
+    shown = np.where(eta > 0, eta, np.nan)
+    lo, hi = (np.nanmin(shown), np.nanmax(shown)) if np.isfinite(shown).any() else (0.0, 1.0)
+    lo, hi = np.floor(lo * 100) / 100, min(1.0, np.ceil(hi * 100) / 100 + 1e-9)
     fig, (ax_map, ax_lines) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-    if tf.size > 1 and n.size > 1:
-        levels = np.linspace(0, 1, 21)
-        filled = ax_map.contourf(n, tf, eta, levels=levels, cmap="viridis")
-        fig.colorbar(filled, ax=ax_map, label="efficiency [-]")
+    if tf.size > 1 and n.size > 1 and np.isfinite(shown).sum() > 1:
+        filled = ax_map.contourf(n, tf, shown, levels=np.linspace(lo, hi, 21), cmap="viridis")
+        fig.colorbar(filled, ax=ax_map, label="efficiency [-] (blank: losses exceed input)")
     else:
-        ax_map.scatter(np.repeat(n[None, :], tf.size, 0), np.repeat(tf[:, None], n.size, 1), c=eta,
-                       vmin=0, vmax=1, cmap="viridis")
+        points = ax_map.scatter(np.repeat(n[None, :], tf.size, 0), np.repeat(tf[:, None], n.size, 1),
+                                c=shown, vmin=lo, vmax=hi, cmap="viridis")
+        fig.colorbar(points, ax=ax_map, label="efficiency [-]")
     ax_map.set_xlabel("differential input speed [rpm]")
     ax_map.set_ylabel("torque fraction [-]")
     ax_map.set_title("efficiency map")
     for i, frac in enumerate(tf):
-        ax_lines.plot(n, eta[i], marker="o", ms=3, label=f"{frac:g}")
+        ax_lines.plot(n, shown[i], marker="o", ms=3, label=f"{frac:g}")
     ax_lines.set_xlabel("differential input speed [rpm]")
     ax_lines.set_ylabel("efficiency [-]")
-    ax_lines.set_ylim(0, 1.02)
+    ax_lines.set_ylim(lo - 0.005, min(1.0, hi + 0.005))
     ax_lines.grid(alpha=0.3)
     ax_lines.legend(title="torque fraction", fontsize=8)
     fig.suptitle(title)
