@@ -1,0 +1,167 @@
+"""Differential-level diagnosis: the thesis model driven by the measured input torque and speed.
+
+Baseline: ``T_out = G * eta(T_in / Kim, n_in) * T_in`` while the pinion turns (thesis chain,
+``fleetrun.differential.efficiency``), ``G * T_in`` at standstill (statics: no power, no loss).
+
+Sensor zero: torque sensors drift; at standstill the half-shaft torque must equal
+``G * T_in`` whatever the efficiency, so the median of ``measured - G * T_in`` over standstill
+samples is the output sensor's offset (to first order also the input sensor's, times G) and
+is removed before anything is fitted. A constant offset while driving would otherwise look
+exactly like ``bearing_preload``. Without standstill samples the offset cannot be told from a
+preload, and a ``bearing_preload`` finding is reported ``ambiguous`` instead.
+
+Each candidate's column is its effect on the measured target per unit of its linear
+parameter: ``-G * m * dT_in``, with ``m = d(eta T)/dT`` the marginal efficiency of the thesis
+chain at the operating point (an extra pinion loss passes through the gears like torque).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.diagnose.engine import Problem
+from fleetrun.diagnose.recording import Recording
+from fleetrun.diagnose.select import Candidate
+from fleetrun.effects import effects_for_level, overall_ratio
+
+#: Pinion speed [rpm] below which the rig/vehicle counts as standing still.
+STANDSTILL_RPM = 5.0
+#: Standstill samples needed to zero the torque sensors (and at least this share of samples).
+MIN_STANDSTILL = 20
+
+
+def kim_scale_Nm(meta: dict) -> float:
+    """Kim torque scale: peak engine torque x converter ratio x max gear ratio (thesis 5.2.1.A)."""
+    return float(meta["peak_engine_torque_Nm"]) * float(meta["torque_converter_ratio"]) * \
+        float(meta["max_transmission_gear_ratio"])
+
+
+def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """dw/dt by a Savitzky-Golay derivative over ~1 s (speed sensors are noisy at 10 Hz)."""
+    from scipy.signal import savgol_filter
+
+    win = max(5, int(round(1.0 / dt_s)) | 1)
+    if win >= len(w_rad_s):
+        return np.gradient(w_rad_s, dt_s)
+    return savgol_filter(w_rad_s, win, 2, deriv=1, delta=dt_s)
+
+
+def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
+    """Model output torque and marginal efficiency for measured input torque and speed."""
+    from fleetrun.differential import efficiency
+
+    kim = kim_scale_Nm(meta)
+    cfg = meta["configuration"]
+    kw = {"physics": physics}
+    if meta.get("low_gear_ratio"):
+        kw["low_gear_ratio"] = float(meta["low_gear_ratio"])
+        kw["axle_gear"] = str(meta.get("axle_gear", "high"))
+    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
+    t_pos = np.maximum(t_in_Nm, 0.0)
+
+    def f(t):
+        return np.asarray(efficiency(cfg, t / kim, np.abs(n_rpm), float(meta["gear_ratio"]), **kw),
+                          dtype=float) * t
+
+    delta = max(0.005 * kim, 1.0)
+    f0 = f(t_pos)
+    marginal = (f0 - f(np.maximum(t_pos - delta, 0.0))) / delta
+    moving = np.abs(n_rpm) >= STANDSTILL_RPM
+    y = np.where(moving, g * f0, g * t_in_Nm)
+    # negative input torque while moving (driven backwards) is outside the thesis model:
+    # passed through without loss
+    y = np.where(moving & (t_in_Nm < 0), g * t_in_Nm, y)
+    m = np.where(moving & (t_in_Nm > 0), np.clip(marginal, 0.0, 1.2), 0.0)
+    return y, m, g
+
+
+def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
+    from fleetrun.differential import configuration_lubricant
+
+    df = rec.data
+    meta = rec.meta
+    t = df["time_s"].to_numpy()
+    t0 = t - t[0]
+    t_in = df["diff_input_torque_Nm"].to_numpy()
+    n_rpm = df["diff_input_speed_rpm"].to_numpy()
+    y = df["diff_output_torque_Nm"].to_numpy()
+    notes = list(rec.notes)
+    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
+    still = np.abs(n_rpm) < STANDSTILL_RPM
+    if "wheel_speed_left_rpm" in df:
+        still &= (np.abs(df["wheel_speed_left_rpm"].to_numpy()) < STANDSTILL_RPM / g) & \
+                 (np.abs(df["wheel_speed_right_rpm"].to_numpy()) < STANDSTILL_RPM / g)
+    extra_ambiguity = {}
+    offset = 0.0
+    if still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t)):
+        offset = float(np.median(y[still] - g * t_in[still]))
+        notes.append(f"torque sensors zeroed at standstill ({int(still.sum())} samples): "
+                     f"output offset {offset:.3g} N m removed")
+    else:
+        notes.append("no standstill in the recording: torque sensor offsets cannot be separated "
+                     "from a constant drag")
+        extra_ambiguity["bearing_preload"] = ("no standstill samples: a constant torque-sensor "
+                                              "offset would look the same")
+    y = y - offset
+    y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
+    w = n_rpm * 2 * np.pi / 60.0
+    lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
+    ch = {"time_s": t0, "input_torque_Nm": t_in, "input_speed_rad_s": w,
+          "input_accel_rad_s2": acceleration(w, rec.dt_s), "gear_ratio": g, "lubricant": lubricant}
+    wheels = "wheel_speed_left_rpm" in df and "wheel_speed_right_rpm" in df
+    if wheels:
+        ch["wheel_speed_difference_rad_s"] = np.abs(df["wheel_speed_left_rpm"].to_numpy()
+                                                    - df["wheel_speed_right_rpm"].to_numpy()) * 2 * np.pi / 60
+    if "ambient_temp_C" in df:
+        ch["ambient_temp_C"] = df["ambient_temp_C"].to_numpy()
+    elif "ambient_temp_C" in meta:
+        ch["ambient_temp_C"] = np.full(len(t), float(meta["ambient_temp_C"]))
+    if "oil_temp_C" in df:
+        ch["oil_temp_C"] = df["oil_temp_C"].to_numpy()
+    moving = np.abs(n_rpm) >= STANDSTILL_RPM
+    scale = -g * marginal * moving
+
+    def make(effect, channels):
+        shapes = effect.shape
+        if shapes:
+            p = shapes[0]
+            grid = [{p.name: v} for v in p.grid]
+            if p.name == "tau_s":  # a warm-up slower than the recording is a constant: preload
+                grid = [s for s in grid if s["tau_s"] <= max(0.5 * t0[-1], p.grid[0])]
+        else:
+            grid = [{}]
+        cols = [scale * effect.basis(channels, **sh) for sh in grid]
+        lin = effect.parameter(effect.linear)
+        return Candidate(effect.id, cols, grid, lin.lower, lin.upper,
+                         column_for=(lambda sh, e=effect, c=channels: scale * e.basis(c, **sh))
+                         if shapes else None)
+
+    candidates, untestable, surrogates, confound = [], {}, {}, {}
+    for effect in effects_for_level("differential"):
+        missing = effect.missing_channels(ch)
+        if missing:
+            untestable[effect.id] = missing
+            if effect.id == "oil_warmup":
+                # the thesis's own assumption (Sec. 3.1.2): 20 C ambient
+                surrogates[effect.id] = make(effect, {**ch, "ambient_temp_C": np.full(len(t), 20.0)})
+            # cornering: without wheel speeds an instrumented vehicle (it has a speed channel)
+            # may have turned; a rig cannot
+            confound[effect.id] = "vehicle_speed_kph" in df
+            continue
+        candidates.append(make(effect, ch))
+    if not wheels:
+        notes.append("no wheel speeds: wheels assumed equal (cornering cannot be tested)")
+    drivers = {"speed": n_rpm, "torque": t_in, "acceleration": ch["input_accel_rad_s2"],
+               "time_since_start": t0}
+    if wheels:
+        drivers["wheel_speed_difference"] = ch["wheel_speed_difference_rad_s"]
+    if "oil_temp_C" in ch:
+        drivers["temperature"] = ch["oil_temp_C"]
+    elif "ambient_temp_C" in ch:
+        drivers["temperature"] = ch["ambient_temp_C"]
+    if "vehicle_speed_kph" in df:
+        drivers["vehicle_speed"] = df["vehicle_speed_kph"].to_numpy()
+    info = {"model": f"thesis differential chain, {meta['configuration']}, physics={physics}",
+            "offset": round(offset, 6), "standstill_samples": int(still.sum()),
+            "kim_scale_Nm": kim_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
+    return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
+                   surrogates, confound, drivers, info, notes, extra_ambiguity, units="N m")

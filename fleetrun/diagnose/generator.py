@@ -1,0 +1,228 @@
+"""Synthetic recordings with hidden physics, for testing ``fleetrun diagnose``.
+
+A drive profile with stops, hard accelerations, cruising at several speeds and turns (at
+intersections, i.e. at low speed, so that cornering and low-speed friction are confounded
+in time), a cold start, and measured channels with AR(1) sensor noise and offsets. The
+measured output torque comes from the configured thesis model with the hidden effects taken
+at the pinion, ``T_out = G * eta(T_in - dT) * (T_in - dT)`` (the same chain
+:func:`fleetrun.effects.efficiency_with_effects` uses), so a diagnosis that names the right
+effect must also recover its parameters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from fleetrun.effects import _as_effect_list, differential_extra_torque_Nm, overall_ratio
+
+G_M_S2 = 9.80665
+
+
+@dataclass
+class RigSpec:
+    """Vehicle/rig the generator drives: sidecar keys plus what the road load needs."""
+
+    configuration: str = "LD_RWD"
+    gear_ratio: float = 3.55
+    peak_engine_torque_Nm: float = 400.0
+    torque_converter_ratio: float = 3.0
+    max_transmission_gear_ratio: float = 3.0
+    lubricant: str = "75W90"
+    low_gear_ratio: float | None = None
+    axle_gear: str = "high"
+    mass_kg: float = 2000.0
+    wheel_radius_m: float = 0.35
+    track_m: float = 1.6
+    road_load_N: tuple[float, float, float] = (150.0, 4.0, 0.45)  # A + B v + C v^2, SI
+
+    @property
+    def kim_scale_Nm(self) -> float:
+        return self.peak_engine_torque_Nm * self.torque_converter_ratio * self.max_transmission_gear_ratio
+
+    @property
+    def ratio(self) -> float:
+        return overall_ratio(self.gear_ratio, self.low_gear_ratio, self.axle_gear)
+
+    def sidecar(self) -> dict:
+        meta = {"configuration": self.configuration, "gear_ratio": self.gear_ratio,
+                "peak_engine_torque_Nm": self.peak_engine_torque_Nm,
+                "torque_converter_ratio": self.torque_converter_ratio,
+                "max_transmission_gear_ratio": self.max_transmission_gear_ratio,
+                "lubricant": self.lubricant}
+        if self.low_gear_ratio:
+            meta["low_gear_ratio"] = self.low_gear_ratio
+            meta["axle_gear"] = self.axle_gear
+        return meta
+
+
+@dataclass
+class Profile:
+    time_s: np.ndarray
+    speed_mps: np.ndarray
+    turn_curvature_per_m: np.ndarray   # 1/R, signed (left positive)
+
+
+def drive_profile(duration_s: float, rate_hz: float, rng: np.random.Generator, *,
+                  hard_accel_share: float = 0.4, turn_share: float = 0.6,
+                  high_speed_turns: bool = False) -> Profile:
+    """A city/suburban profile: stop, launch (often hard), cruise, brake, repeat.
+
+    Turns happen at intersections: right after a launch, at low speed (< 9 m/s), on a
+    radius of 8-25 m, so the wheel-speed difference is confounded with low speed. With
+    ``high_speed_turns`` some sweeping curves (R 150-400 m) at cruise are added as well.
+    """
+    dt = 1.0 / rate_hz
+    n = int(round(duration_s * rate_hz))
+    v = np.zeros(n)
+    kappa = np.zeros(n)
+    i = int(rng.uniform(5, 15) * rate_hz)  # idle at the start (cold start)
+    while i < n:
+        a_up = rng.uniform(2.5, 3.5) if rng.random() < hard_accel_share else rng.uniform(0.8, 1.6)
+        v_top = rng.choice([8.0, 12.0, 16.0, 22.0, 28.0]) * rng.uniform(0.85, 1.15)
+        cruise = rng.uniform(10, 60)
+        a_down = rng.uniform(1.0, 3.0)
+        stop = rng.uniform(5, 25)
+        turn = rng.random() < turn_share
+        turn_sign = 1.0 if rng.random() < 0.5 else -1.0
+        r_turn = rng.uniform(8.0, 25.0)
+        # launch
+        speed = 0.0
+        while speed < v_top and i < n:
+            # acceleration tapers near the top speed (driver eases off)
+            a = a_up * min(1.0, 0.3 + (v_top - speed) / max(v_top, 1.0))
+            speed = min(v_top, speed + a * dt)
+            v[i] = speed
+            if turn and speed < 9.0:
+                kappa[i] = turn_sign / r_turn
+            i += 1
+        # cruise with gentle speed wander
+        m = int(cruise * rate_hz)
+        wander = np.cumsum(rng.normal(0, 0.02, m))
+        seg = np.clip(v_top + wander - np.linspace(0, wander[-1] if m else 0, m), 0.5, None)
+        j = min(n, i + m)
+        v[i:j] = seg[: j - i]
+        if high_speed_turns and m and rng.random() < 0.3:
+            k0 = i + m // 3
+            k1 = min(j, k0 + int(rng.uniform(5, 15) * rate_hz))
+            kappa[k0:k1] = (1.0 if rng.random() < 0.5 else -1.0) / rng.uniform(150, 400)
+        i = j
+        speed = v[i - 1] if i > 0 else 0.0
+        while speed > 0 and i < n:
+            speed = max(0.0, speed - a_down * dt)
+            v[i] = speed
+            i += 1
+        i += int(stop * rate_hz)
+    t = np.arange(n) * dt
+    return Profile(t, v, kappa)
+
+
+def _ar1(n: int, rho: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """AR(1) noise with marginal standard deviation ``sigma`` (e_t = rho e_{t-1} + ...)."""
+    from scipy.signal import lfilter
+
+    z = rng.normal(0.0, sigma * np.sqrt(1 - rho ** 2), n)
+    z[0] = rng.normal(0.0, sigma)  # stationary start: the first samples are as noisy as the rest
+    e = lfilter([1.0], [1.0, -rho], z)
+    return e
+
+
+@dataclass
+class Recording:
+    data: pd.DataFrame
+    meta: dict
+    truth: dict = field(default_factory=dict)
+
+    def write(self, path) -> Path:
+        """Write ``path`` (CSV) and its sidecar TOML with the same stem."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.data.to_csv(path, index=False, float_format="%.6g")
+        lines = []
+        for k, v in self.meta.items():
+            lines.append(f'{k} = "{v}"' if isinstance(v, str) else f"{k} = {v!r}")
+        path.with_suffix(".toml").write_text("\n".join(lines) + "\n")
+        return path
+
+
+def generate_differential_recording(
+        effects=(), *, rig: RigSpec | None = None, duration_s: float = 1800.0,
+        rate_hz: float = 10.0, seed: int = 0, ambient_temp_C: float = 8.0,
+        noise_out_Nm: float = 1.5, noise_in_Nm: float = 0.2, noise_speed_rpm: float = 1.0,
+        noise_rho: float = 0.95, offset_out_Nm: float = 0.0, offset_in_Nm: float = 0.0,
+        wheel_speeds: bool = True, ambient_column: bool = True, ambient_in_sidecar: bool = False,
+        vehicle_speed: bool = True, high_speed_turns: bool = False,
+        min_drive_fraction: float = 0.04) -> Recording:
+    """A differential-level recording (CONTRACT.md) with ``effects`` hidden in the output torque.
+
+    ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
+    coefficient ``noise_rho`` per sample on output torque, input torque and speed; offsets are
+    constant sensor biases. ``min_drive_fraction`` keeps a light positive pinion torque while
+    moving (Kim-scale fraction) so the reverse power flow the thesis model does not cover
+    never occurs.
+    """
+    from fleetrun.differential import efficiency
+
+    rig = rig or RigSpec()
+    rng = np.random.default_rng(seed)
+    prof = drive_profile(duration_s, rate_hz, rng, high_speed_turns=high_speed_turns)
+    t, v = prof.time_s, prof.speed_mps
+    dt = 1.0 / rate_hz
+    a = np.gradient(v, dt)
+    a = np.convolve(a, np.ones(5) / 5, mode="same")  # drivers do not jerk at 10 Hz
+    A, B, C = rig.road_load_N
+    moving = v > 0.05
+    force = rig.mass_kg * a + (A + B * v + C * v ** 2) * moving
+    g = rig.ratio
+    t_in = np.maximum(force * rig.wheel_radius_m / (g * 0.95), 0.0)
+    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_scale_Nm), 0.0)
+    w_wheel = v / rig.wheel_radius_m
+    w_in = w_wheel * g
+    alpha_in = np.gradient(w_in, dt)
+    # wheel speeds in a turn of curvature k: w_L,R = w (1 -/+ k track / 2)
+    dw = np.abs(prof.turn_curvature_per_m) * rig.track_m * w_wheel
+    w_left = w_wheel * (1 - prof.turn_curvature_per_m * rig.track_m / 2)
+    w_right = w_wheel * (1 + prof.turn_curvature_per_m * rig.track_m / 2)
+    channels = {"time_s": t, "input_torque_Nm": t_in, "input_speed_rad_s": w_in,
+                "input_accel_rad_s2": alpha_in, "wheel_speed_difference_rad_s": dw,
+                "ambient_temp_C": np.full_like(t, ambient_temp_C), "gear_ratio": g,
+                "lubricant": rig.lubricant}
+    effect_list = _as_effect_list(effects)
+    d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
+    d_t = np.broadcast_to(d_t, t.shape)
+    t_eff = t_in - d_t
+    n_rpm = w_in * 60 / (2 * np.pi)
+    kw = {}
+    if rig.low_gear_ratio:
+        kw = {"low_gear_ratio": rig.low_gear_ratio, "axle_gear": rig.axle_gear}
+    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_scale_Nm, n_rpm,
+                                rig.gear_ratio, **kw), dtype=float)
+    # stopped: no power flows, the output carries the input torque unchanged (statics);
+    # driving the differential backwards (t_eff < 0) is outside the thesis model: lossless here
+    t_out = np.where(t_eff > 0, g * eta * t_eff, g * t_eff)
+    t_out = np.where(moving, t_out, g * t_in)
+    n = len(t)
+    meas = {
+        "time_s": t,
+        "diff_input_torque_Nm": t_in + offset_in_Nm + _ar1(n, noise_rho, noise_in_Nm, rng),
+        "diff_input_speed_rpm": n_rpm + _ar1(n, noise_rho, noise_speed_rpm, rng) * moving,
+        "diff_output_torque_Nm": t_out + offset_out_Nm + _ar1(n, noise_rho, noise_out_Nm, rng),
+    }
+    if wheel_speeds:
+        meas["wheel_speed_left_rpm"] = w_left * 60 / (2 * np.pi)
+        meas["wheel_speed_right_rpm"] = w_right * 60 / (2 * np.pi)
+    if ambient_column:
+        meas["ambient_temp_C"] = np.full(n, ambient_temp_C)
+    if vehicle_speed:
+        meas["vehicle_speed_kph"] = v * 3.6
+    meta = rig.sidecar()
+    if ambient_in_sidecar:
+        meta["ambient_temp_C"] = ambient_temp_C
+    truth = {"effects": [(e.id, dict(p)) for e, p in effect_list],
+             "extra_input_torque_Nm": np.asarray(d_t),
+             "noise_out_Nm": noise_out_Nm, "noise_rho": noise_rho,
+             "offset_out_Nm": offset_out_Nm, "offset_in_Nm": offset_in_Nm,
+             "effect_output_rms_Nm": float(np.sqrt(np.mean((g * eta * d_t) ** 2)))}
+    return Recording(pd.DataFrame(meas), meta, truth)

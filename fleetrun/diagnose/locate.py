@@ -1,0 +1,125 @@
+"""Where the residual lives: segments in time and the operating channels it follows.
+
+Both are judged against the same circular-shift null as the selection, so autocorrelated
+sensor noise (which makes any short stretch of residual look like a pattern) does not
+produce segments or drivers by itself.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def smooth(x: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average (window in samples, at least 1)."""
+    window = max(1, int(window))
+    if window == 1:
+        return np.asarray(x, dtype=float)
+    k = np.ones(window) / window
+    pad = window // 2
+    xp = np.pad(np.asarray(x, dtype=float), (pad, window - 1 - pad), mode="edge")
+    return np.convolve(xp, k, mode="valid")
+
+
+def segments(time_s: np.ndarray, r: np.ndarray, *, n_blocks: int = 60, share_target: float = 0.6,
+             noise_var: float | None = None, max_segments: int = 6) -> list[dict]:
+    """Contiguous time spans that hold most of the residual's systematic energy.
+
+    The recording is cut into ``n_blocks`` equal blocks; a block's energy is its mean squared
+    residual minus the noise floor (the residual variance the shift null attributes to noise,
+    estimated as the median block energy when not given), so blocks of noise carry none.
+    Blocks are taken largest first until ``share_target`` of the excess energy is covered;
+    neighbours merge. ``share`` is each segment's part of the total excess energy.
+    """
+    n = len(r)
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    e = np.array([np.mean(r[a:b] ** 2) if b > a else 0.0 for a, b in zip(edges[:-1], edges[1:])])
+    floor = float(np.median(e)) if noise_var is None else float(noise_var)
+    excess = np.maximum(e - floor, 0.0) * np.diff(edges)
+    total = excess.sum()
+    if total <= 0:
+        return []
+    order = np.argsort(excess)[::-1]
+    chosen = np.zeros(n_blocks, bool)
+    acc = 0.0
+    for i in order:
+        if acc >= share_target * total or excess[i] <= 0:
+            break
+        chosen[i] = True
+        acc += excess[i]
+    segs = []
+    i = 0
+    while i < n_blocks:
+        if chosen[i]:
+            j = i
+            while j + 1 < n_blocks and chosen[j + 1]:
+                j += 1
+            a, b = edges[i], edges[j + 1] - 1
+            segs.append({"start_s": float(time_s[a]), "end_s": float(time_s[b]),
+                         "share": float(excess[i:j + 1].sum() / total)})
+            i = j + 1
+        else:
+            i += 1
+    segs.sort(key=lambda s: -s["share"])
+    return segs[:max_segments]
+
+
+def _eta2(r: np.ndarray, bins: np.ndarray, nb: int) -> float:
+    """Correlation ratio: share of the residual variance explained by the bin means."""
+    cnt = np.bincount(bins, minlength=nb)
+    s = np.bincount(bins, weights=r, minlength=nb)
+    ok = cnt > 0
+    mean = r.mean()
+    between = np.sum(cnt[ok] * (s[ok] / cnt[ok] - mean) ** 2)
+    total = np.sum((r - mean) ** 2)
+    return float(between / total) if total > 0 else 0.0
+
+
+def _bins(x: np.ndarray, nb: int) -> tuple[np.ndarray, int]:
+    q = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
+    return np.searchsorted(q, x, side="right"), len(q) + 1
+
+
+def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
+            n_shifts: int = 100, quantile: float = 0.99, rng=None,
+            smooth_window: int = 1) -> tuple[list[dict], bool]:
+    """How strongly the residual follows each channel, and whether any does beyond noise.
+
+    Strength is the correlation ratio (eta^2) of the (lightly smoothed) residual over quantile
+    bins of the channel: it catches non-monotonic links (e.g. only at low speed). Each
+    channel's strength is compared with the largest strength any channel reaches on
+    circularly shifted residuals; ``significant`` is true if one beats that null's quantile.
+    """
+    rng = rng or np.random.default_rng(1)
+    rs = smooth(r, smooth_window)
+    n = len(r)
+    usable = {}
+    for name, x in channels.items():
+        x = np.asarray(x, dtype=float)
+        if x.shape != r.shape or np.ptp(x) <= 1e-12 * max(1.0, np.abs(x).max()):
+            continue
+        usable[name] = _bins(x, n_bins)
+    if not usable:
+        return [], False
+    shifts = rng.integers(max(1, n // 20), max(2, n - n // 20), n_shifts)
+    null_max = np.zeros(n_shifts)
+    for j, s in enumerate(shifts):
+        rr = np.roll(rs, s)
+        null_max[j] = max(_eta2(rr, b, nb) for b, nb in usable.values())
+    thr = float(np.quantile(null_max, quantile))
+    out = []
+    for name, (b, nb) in usable.items():
+        st = _eta2(rs, b, nb)
+        out.append({"channel": name, "strength": round(st, 4), "significant": bool(st > thr),
+                    "null_threshold": round(thr, 4)})
+    out.sort(key=lambda d: -d["strength"])
+    return out, any(d["significant"] for d in out)
+
+
+def binned_profile(x: np.ndarray, r: np.ndarray, n_bins: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """Bin centres (median of x) and mean residual per quantile bin, for plots."""
+    b, nb = _bins(np.asarray(x, float), n_bins)
+    cnt = np.bincount(b, minlength=nb)
+    ok = cnt > 0
+    xm = np.array([np.median(x[b == i]) for i in range(nb) if cnt[i] > 0])
+    rm = (np.bincount(b, weights=r, minlength=nb)[ok] / cnt[ok])
+    return xm, rm

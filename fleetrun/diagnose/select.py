@@ -1,0 +1,231 @@
+"""Which candidate physics the residual asks for: blocked cross-validation and a shift null.
+
+The residual ``r = measured - baseline`` is fitted by each candidate as ``r ~ N b_N + x b``:
+``N`` are columns already in the model (accepted effects), ``x`` the candidate's effect on
+the target per unit of its linear parameter (one column per value of its shape parameter).
+
+* **Held-out error** is blocked cross-validation in time: the recording is cut into ``K``
+  contiguous folds; each fold is predicted from a fit on the others. Contiguous folds keep
+  the autocorrelated noise of a fold out of its own fit.
+* **Significance**: the residual is circularly shifted against the channels (the shift
+  keeps its autocorrelation and its distribution but breaks any link to the physics) and
+  every candidate is refitted; the largest gain over all candidates and shape values is
+  recorded. A candidate is accepted only if its gain beats the ``quantile`` of that maximum.
+  All fold statistics for every shift come from FFT cross-correlations, so 200 shifts cost
+  little more than one fit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+@dataclass
+class Candidate:
+    """One effect as the selection sees it."""
+
+    id: str
+    columns: list[np.ndarray]            # one column per shape value (len 1: no shape)
+    shapes: list[dict]                   # the shape parameters of each column
+    lower: float
+    upper: float
+    column_for: Callable[[dict], np.ndarray] | None = None  # column for any shape (refinement)
+    status: str = "pending"
+    note: str = ""
+
+
+@dataclass
+class CVResult:
+    rmse_before: float
+    rmse_after: float
+    gain: float                          # 1 - after / before
+    shape_index: int
+    coefficient: float                   # fitted on all data
+
+
+def fold_ids(n: int, k: int) -> np.ndarray:
+    return np.minimum((np.arange(n) * k) // n, k - 1)
+
+
+def _solve_bounded(G, c, j, lo, hi):
+    """Least squares from normal equations with coefficient ``j`` clipped to [lo, hi].
+
+    ``G`` (..., p, p), ``c`` (..., p). One active-set step: if the free solution puts the
+    candidate outside its bounds it is fixed at the bound and the rest re-solved, which is
+    the exact bounded solution for a single bounded coefficient.
+    """
+    p = G.shape[-1]
+    ridge = 1e-12 * np.trace(G, axis1=-2, axis2=-1)[..., None, None] * np.eye(p) + 1e-300 * np.eye(p)
+    b = np.linalg.solve(G + ridge, c[..., None])[..., 0]
+    out = (b[..., j] < lo) | (b[..., j] > hi)
+    if np.any(out):
+        bj = np.clip(b[..., j], lo, hi)
+        if p > 1:
+            keep = [i for i in range(p) if i != j]
+            Gk = G[..., keep, :][..., :, keep]
+            ck = c[..., keep] - G[..., keep, j] * bj[..., None]
+            rk = ridge[..., keep, :][..., :, keep]
+            bk = np.linalg.solve(Gk + rk, ck[..., None])[..., 0]
+            b2 = b.copy()
+            b2[..., keep] = bk
+            b2[..., j] = bj
+        else:
+            b2 = bj[..., None]
+        b = np.where(out[..., None], b2, b)
+    return b
+
+
+def _heldout_sse(G_f, c_f, rr_f, j, lo, hi):
+    """Sum over folds of the held-out SSE; stats per fold on the last-but-one axes.
+
+    ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K).
+    """
+    G_tr = G_f.sum(axis=-3, keepdims=True) - G_f
+    c_tr = c_f.sum(axis=-2, keepdims=True) - c_f
+    if G_f.shape[-1] == 0:
+        return rr_f.sum(axis=-1)
+    b = _solve_bounded(G_tr, c_tr, j, lo, hi)
+    sse = rr_f - 2 * np.einsum("...p,...p->...", b, c_f) + np.einsum("...p,...pq,...q->...", b, G_f, b)
+    return sse.sum(axis=-1)
+
+
+def _fold_gram(cols: np.ndarray, folds: np.ndarray, k: int) -> np.ndarray:
+    """(K, p, p) Gram matrices of the columns ``cols`` (p, n) per fold."""
+    p = cols.shape[0]
+    out = np.zeros((k, p, p))
+    for f in range(k):
+        m = folds == f
+        out[f] = cols[:, m] @ cols[:, m].T
+    return out
+
+
+def cv_fit(r, nuisance: list[np.ndarray], x: np.ndarray, lo: float, hi: float, folds, k):
+    """Held-out SSE with and without ``x`` (nuisance columns always in), and the full fit."""
+    cols = np.array(list(nuisance) + [x])
+    G_f = _fold_gram(cols, folds, k)
+    c_f = np.array([cols[:, folds == f] @ r[folds == f] for f in range(k)])
+    rr_f = np.array([r[folds == f] @ r[folds == f] for f in range(k)])
+    j = cols.shape[0] - 1
+    sse_after = _heldout_sse(G_f, c_f, rr_f, j, lo, hi)
+    if nuisance:
+        sse_before = _heldout_sse(G_f[:, :j, :j], c_f[:, :j], rr_f, j - 1, -np.inf, np.inf)
+    else:
+        sse_before = rr_f.sum()
+    b = _solve_bounded(G_f.sum(0), c_f.sum(0), j, lo, hi)
+    return float(sse_before), float(sse_after), b
+
+
+def _circ_corr(a_fft, r_fft, n):
+    """``sum_t a_t r_{t-s}`` for every shift s (circular), from precomputed FFTs."""
+    return np.fft.irfft(a_fft * np.conj(r_fft), n)
+
+
+@dataclass
+class NullDistribution:
+    shifts: np.ndarray
+    max_gain: np.ndarray           # (B,) largest relative gain over all candidates/shapes per shift
+    max_dsse: np.ndarray           # (B,) largest held-out SSE reduction per shift
+    gains: dict = field(default_factory=dict)   # id -> (B,) best gain of that candidate
+
+    def threshold(self, quantile: float) -> float:
+        return float(np.quantile(self.max_gain, quantile))
+
+    def dsse_threshold(self, quantile: float) -> float:
+        return float(np.quantile(self.max_dsse, quantile))
+
+
+def shift_null(r, nuisance: list[np.ndarray], candidates: list[Candidate], folds, k, *,
+               n_shifts=200, rng=None, min_shift_frac=0.05) -> NullDistribution:
+    """Gains every candidate reaches on circularly shifted residuals (the noise-only null)."""
+    rng = rng or np.random.default_rng(0)
+    n = len(r)
+    lo_s = max(1, int(min_shift_frac * n))
+    shifts = rng.integers(lo_s, n - lo_s, n_shifts)
+    r_fft = np.fft.rfft(r)
+    r2_fft = np.fft.rfft(r * r)
+    masks = [(folds == f).astype(float) for f in range(k)]
+    rr = np.stack([_circ_corr(np.fft.rfft(m), r2_fft, n)[shifts] for m in masks], axis=-1)  # (B,K)
+    nq = len(nuisance)
+    if nq:
+        N = np.array(nuisance)
+        GN = _fold_gram(N, folds, k)                                              # (K,q,q)
+        cN = np.stack([np.stack([_circ_corr(np.fft.rfft(N[i] * masks[f]), r_fft, n)[shifts]
+                                 for i in range(nq)], -1) for f in range(k)], 1)  # (B,K,q)
+        sse_before = _heldout_sse(np.broadcast_to(GN, (len(shifts),) + GN.shape), cN, rr,
+                                  nq - 1, -np.inf, np.inf)
+    else:
+        sse_before = rr.sum(-1)
+    max_gain = np.full(len(shifts), -np.inf)
+    max_dsse = np.full(len(shifts), -np.inf)
+    gains = {}
+    for cand in candidates:
+        best = np.full(len(shifts), -np.inf)
+        for x in cand.columns:
+            cx = np.stack([_circ_corr(np.fft.rfft(x * m), r_fft, n)[shifts] for m in masks], -1)  # (B,K)
+            if nq:
+                cols = np.vstack([N, x[None]])
+                G_f = _fold_gram(cols, folds, k)
+                c_f = np.concatenate([cN, cx[..., None]], -1)
+                G_b = np.broadcast_to(G_f, (len(shifts),) + G_f.shape)
+            else:
+                xx = np.array([x[folds == f] @ x[folds == f] for f in range(k)])
+                G_b = np.broadcast_to(xx[:, None, None], (len(shifts), k, 1, 1))
+                c_f = cx[..., None]
+            sse_after = _heldout_sse(G_b, c_f, rr, nq, cand.lower, cand.upper)
+            g = 1 - np.sqrt(np.maximum(sse_after, 0) / np.maximum(sse_before, 1e-300))
+            best = np.maximum(best, g)
+            max_dsse = np.maximum(max_dsse, sse_before - sse_after)
+        gains[cand.id] = best
+        max_gain = np.maximum(max_gain, best)
+    return NullDistribution(shifts, max_gain, max_dsse, gains)
+
+
+def evaluate_candidate(r, nuisance, cand: Candidate, folds, k) -> CVResult:
+    """Best shape value by held-out error; coefficient refitted on all data."""
+    best = None
+    for i, x in enumerate(cand.columns):
+        before, after, b = cv_fit(r, nuisance, x, cand.lower, cand.upper, folds, k)
+        if best is None or after < best[1]:
+            best = (before, after, b, i)
+    before, after, b, i = best
+    n = len(r)
+    rb, ra = np.sqrt(before / n), np.sqrt(max(after, 0.0) / n)
+    return CVResult(rb, ra, 1 - ra / rb if rb > 0 else 0.0, i, float(b[-1]))
+
+
+def refine_shape(r, nuisance, cand: Candidate, index: int, name: str) -> tuple[float, np.ndarray]:
+    """Refine a profiled shape parameter between its grid neighbours (full-data SSE, log scale).
+
+    The grid step (~30 %) would otherwise limit how well the parameter is recovered.
+    """
+    from scipy.optimize import minimize_scalar
+
+    grid = [s[name] for s in cand.shapes]
+    lo = grid[max(index - 1, 0)]
+    hi = grid[min(index + 1, len(grid) - 1)]
+
+    def sse(logv):
+        x = cand.column_for({name: float(np.exp(logv))})
+        cols = np.array(list(nuisance) + [x])
+        b = _solve_bounded(cols @ cols.T, cols @ r, cols.shape[0] - 1, cand.lower, cand.upper)
+        e = r - b @ cols
+        return float(e @ e)
+
+    if hi <= lo:
+        return float(grid[index]), cand.columns[index]
+    res = minimize_scalar(sse, bounds=(np.log(lo), np.log(hi)), method="bounded",
+                          options={"xatol": 1e-3})
+    v = float(np.exp(res.x))
+    return v, cand.column_for({name: v})
+
+
+def full_fit(r, cols: list[np.ndarray], bounds: list[tuple[float, float]]) -> np.ndarray:
+    """Least squares of ``r`` on ``cols`` with every coefficient kept within its bounds."""
+    from scipy.optimize import lsq_linear
+
+    A = np.array(cols).T
+    lo = [b[0] for b in bounds]
+    hi = [b[1] for b in bounds]
+    return lsq_linear(A, r, bounds=(lo, hi), method="bvls").x

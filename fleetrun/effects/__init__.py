@@ -1,0 +1,178 @@
+"""Physics the thesis model leaves out: a registry used by ``diagnose`` and ``--with``.
+
+>>> from fleetrun.effects import get_effect, parse_with
+>>> [(e.id, p) for e, p in parse_with("inertia,cornering:k_c=0.1")]
+[('inertia', {'J_kg_m2': 0.05}), ('cornering', {'k_c': 0.1})]
+
+Differential-level effects are extra pinion torque losses (see
+:mod:`fleetrun.effects.differential`); vehicle-level effects are extra fuel rates (see
+:mod:`fleetrun.effects.vehicle`). docs/effects.md describes each one.
+"""
+from __future__ import annotations
+
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from fleetrun.effects.base import Effect, Parameter
+from fleetrun.effects.differential import DIFFERENTIAL_EFFECTS
+from fleetrun.effects.vehicle import VEHICLE_EFFECTS
+from fleetrun.errors import InputError, unknown_name_error
+
+EFFECTS: dict[str, Effect] = {e.id: e for e in DIFFERENTIAL_EFFECTS + VEHICLE_EFFECTS}
+
+__all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", "parse_with",
+           "differential_extra_torque_Nm", "efficiency_with_effects", "steady_channels"]
+
+
+def get_effect(name: str) -> Effect:
+    """The effect called ``name`` (case-insensitive, ``-`` for ``_``)."""
+    key = name.strip().lower().replace("-", "_")
+    if key not in EFFECTS:
+        raise unknown_name_error("effect", name, EFFECTS, hint="See docs/effects.md")
+    return EFFECTS[key]
+
+
+def effects_for_level(level: str) -> list[Effect]:
+    return [e for e in EFFECTS.values() if e.level == level]
+
+
+def parse_with(text: str | None) -> list[tuple[Effect, dict[str, float]]]:
+    """Parse ``--with EFFECT[,EFFECT...]``; each may carry ``:param=value[:param=value]``.
+
+    Unset parameters take the effect's defaults; values outside the declared bounds are
+    refused with the bounds in the message.
+    """
+    if text is None or not str(text).strip():
+        return []
+    out = []
+    for item in str(text).split(","):
+        item = item.strip()
+        if not item:
+            continue
+        name, *assignments = item.split(":")
+        effect = get_effect(name)
+        params = effect.defaults()
+        for assignment in assignments:
+            if "=" not in assignment:
+                raise InputError(f"--with {item}: expected name=value after ':', got '{assignment}'",
+                                 hint=f"Parameters of {effect.id}: "
+                                      + ", ".join(p.name for p in effect.parameters))
+            pname, value = (s.strip() for s in assignment.split("=", 1))
+            try:
+                param = effect.parameter(pname)
+            except KeyError:
+                raise unknown_name_error(f"parameter of {effect.id}", pname,
+                                         [p.name for p in effect.parameters]) from None
+            try:
+                val = float(value)
+            except ValueError:
+                raise InputError(f"--with {item}: {pname} must be a number, got '{value}'") from None
+            if not (param.lower <= val <= param.upper):
+                raise InputError(f"--with {item}: {pname}={val:g} is outside "
+                                 f"[{param.lower:g}, {param.upper:g}] {param.unit}")
+            params[pname] = val
+        out.append((effect, params))
+    return out
+
+
+def _as_effect_list(effects) -> list[tuple[Effect, dict]]:
+    if effects is None:
+        return []
+    if isinstance(effects, str):
+        return parse_with(effects)
+    out = []
+    for item in effects:
+        if isinstance(item, str):
+            out.extend(parse_with(item))
+        elif isinstance(item, Effect):
+            out.append((item, item.defaults()))
+        else:
+            effect, params = item
+            if isinstance(effect, str):
+                effect = get_effect(effect)
+            full = effect.defaults()
+            full.update(params or {})
+            out.append((effect, full))
+    return out
+
+
+def steady_channels(input_torque_Nm, input_speed_rpm, gear_ratio, *, lubricant="75W90",
+                    channels: Mapping | None = None) -> dict:
+    """Channels for a steady-state operating point (a map cell or a simulation step).
+
+    Steady state means: no acceleration, straight driving (equal wheel speeds) and oil at its
+    operating temperature (``time_s`` = infinity), unless ``channels`` overrides any of them
+    (e.g. ``{"oil_temp_C": 10.0, "ambient_temp_C": 10.0}`` or
+    ``{"wheel_speed_difference_rad_s": 2.0}``).
+    """
+    t = np.asarray(input_torque_Nm, dtype=float)
+    w = np.asarray(input_speed_rpm, dtype=float) * 2 * np.pi / 60.0
+    ch = {"input_torque_Nm": t, "input_speed_rad_s": w, "input_accel_rad_s2": 0.0,
+          "wheel_speed_difference_rad_s": 0.0, "time_s": np.inf, "ambient_temp_C": 20.0,
+          "gear_ratio": float(gear_ratio), "lubricant": lubricant}
+    if channels:
+        ch.update(channels)
+    return ch
+
+
+def differential_extra_torque_Nm(effects, channels: Mapping) -> np.ndarray:
+    """Sum of the extra pinion torque losses of differential-level ``effects``."""
+    total = 0.0
+    for effect, params in _as_effect_list(effects):
+        if effect.level != "differential":
+            continue
+        total = total + effect.evaluate(channels, params)
+    return np.asarray(total, dtype=float)
+
+
+def _default_lubricant(configuration: str) -> str:
+    try:  # the configuration's own lubricant when the differential package provides it
+        from fleetrun.differential import canonical_configuration, configuration_lubricant  # noqa: F401
+
+        return configuration_lubricant(canonical_configuration(configuration))
+    except Exception:  # noqa: BLE001 - fall back to the thesis choice below
+        pass
+    name = configuration.upper().replace("-", "_")
+    if name == "LD_FWD":
+        return "ATF"           # transaxles share the transmission fluid (thesis B.7 index 1)
+    return "75W90" if name.startswith("LD") else "80W90"
+
+
+def overall_ratio(gear_ratio, low_gear_ratio=None, axle_gear="high") -> float:
+    """Pinion-to-carrier ratio: ``gear_ratio``, times ``low_gear_ratio`` in a dual's low gear."""
+    if str(axle_gear).lower() == "low" and low_gear_ratio:
+        return float(gear_ratio) * float(low_gear_ratio)
+    return float(gear_ratio)
+
+
+def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_ratio, effects, *,
+                            kim_scale_Nm, channels=None, lubricant=None, **model_kwargs):
+    """Differential efficiency with extra physics at steady state.
+
+    The effects' extra pinion torque ``dT`` is taken before the thesis chain:
+    ``T_out = G * eta(T_in - dT) * (T_in - dT)``, so the returned efficiency is
+    ``eta(T_in - dT) * (T_in - dT) / T_in`` (0 where ``dT >= T_in``, as the B.6 floor).
+    At steady state inertia and cornering contribute nothing and the oil is warm, unless
+    ``channels`` says otherwise (see :func:`steady_channels`).
+    """
+    from fleetrun.differential import efficiency
+
+    tf = np.asarray(torque_fraction, dtype=float)
+    n = np.asarray(speed_rpm, dtype=float)
+    tf, n = np.broadcast_arrays(tf, n)
+    t_in = tf * kim_scale_Nm
+    effect_list = _as_effect_list(effects)
+    if not effect_list:
+        return efficiency(configuration, tf, n, gear_ratio, **model_kwargs)
+    lub = lubricant or _default_lubricant(str(configuration))
+    ratio = overall_ratio(gear_ratio, model_kwargs.get("low_gear_ratio"),
+                          model_kwargs.get("axle_gear", "high"))
+    ch = steady_channels(t_in, n, ratio, lubricant=lub, channels=channels)
+    dt = np.broadcast_to(differential_extra_torque_Nm(effect_list, ch), t_in.shape)
+    t_eff = t_in - dt
+    eta_b = np.asarray(efficiency(configuration, np.maximum(t_eff, 0.0) / kim_scale_Nm, n,
+                                  gear_ratio, **model_kwargs), dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eta = np.where((t_in > 0) & (t_eff > 0), eta_b * t_eff / np.where(t_in > 0, t_in, 1.0), 0.0)
+    return eta
