@@ -111,6 +111,10 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
         from fleetrun.effects import parse_with
 
         effects = parse_with(with_effects)
+        vehicle_level = [e.id for e, _ in effects if e.level != "differential"]
+        if vehicle_level:
+            raise InputError(f"--with {','.join(vehicle_level)}: vehicle-level effects do not change a "
+                             "differential map", hint="Use them with `fleetrun simulate` or `fleetrun run`")
     eta = compute_map(config, g, tfs, speeds, low_gear_ratio=low, axle_gear=axle_gear.lower(),
                       physics=physics, effects=effects)
     if fmt == "csv":
