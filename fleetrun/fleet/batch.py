@@ -158,7 +158,10 @@ def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
     if not quiet and not sys.stderr.isatty():
         handler = logging.StreamHandler(sys.stderr)
         handler.setFormatter(formatter)
+        # Errors reach stderr once, as the command's "Error: ..." message.
+        handler.addFilter(lambda record: record.levelno < logging.ERROR)
         handlers.append(handler)
+    handlers.append(logging.NullHandler())   # no "last resort" echo of records to stderr
     for handler in handlers:
         log.addHandler(handler)
     log.setLevel(logging.INFO)

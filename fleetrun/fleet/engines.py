@@ -46,7 +46,7 @@ class DaskEngine:
         self._cluster = None
         try:
             if scheduler:
-                self.client = Client(scheduler, timeout="20s", set_as_default=False)
+                self.client = Client(scheduler, timeout="10s", set_as_default=False)
             else:
                 import os
 
@@ -68,26 +68,27 @@ class DaskEngine:
         limit = workers * self.MAX_IN_FLIGHT_PER_WORKER
         pending = iter(enumerate(tasks))
         index_of = {}
-        queue = as_completed()
 
-        def submit_next() -> bool:
+        def submit_next():
             item = next(pending, None)
             if item is None:
-                return False
+                return None
             index, task = item
             future = self.client.submit(function, task, pure=False)
             index_of[future.key] = index
-            queue.add(future)
-            return True
+            return future
 
-        for _ in range(limit):
-            if not submit_next():
-                break
+        first = [f for f in (submit_next() for _ in range(limit)) if f is not None]
+        if not first:
+            return
+        queue = as_completed(first, loop=self.client.loop)
         for future in queue:
             result = future.result()  # re-raises the task's exception here
             index = index_of.pop(future.key)
             future.release()
-            submit_next()
+            following = submit_next()
+            if following is not None:
+                queue.add(following)
             yield index, result
 
     def close(self):

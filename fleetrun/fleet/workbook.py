@@ -238,8 +238,9 @@ def _cell(values: tuple, index: int | None):
     return values[index - 1]
 
 
-def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> dict | None:
-    """The row's schema columns as typed values (None when blank); None if any cell is bad."""
+def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> tuple[dict, bool]:
+    """The row's schema columns as typed values (None when blank or bad), and whether all
+    cells were good (row-level checks still run on the good ones)."""
     parsed: dict = {}
     ok = True
     empty_required = [(c.name, table.columns[c.name]) for c in schema
@@ -268,6 +269,7 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
         except CellProblem as problem:
             problems.error(str(problem), table.sheet, row_number, index, column.name)
             ok = False
+            parsed[column.name] = None
             continue
         if isinstance(value, float):
             if column.strictly_positive and value <= 0:
@@ -285,7 +287,7 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
         parsed[column.name] = value
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
     parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
-    return parsed if ok else None
+    return parsed, ok
 
 
 def _text_or_blank(raw) -> str:
@@ -334,20 +336,19 @@ def _vehicles(table: _Table, problems: Problems):
     rows: dict[str, int] = {}
     col = table.columns.get
     for row_number, values in table.rows:
-        parsed = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
-        vehicle_id = parsed.get("vehicle_id") if parsed else _text_or_blank(_cell(values, col("vehicle_id")))
+        parsed, ok = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
+        vehicle_id = parsed.get("vehicle_id")
         if vehicle_id:
             if vehicle_id in rows:
                 problems.error(f"{cells.show(vehicle_id)} is used again (first in row {rows[vehicle_id]}); "
                                "vehicle ids must be unique", sheet, row_number, col("vehicle_id"), "vehicle_id")
-                parsed = None
+                ok = False
             else:
                 rows[vehicle_id] = row_number
-        if parsed is None:
-            continue
-        if not _vehicle_consistent(parsed, table, row_number, problems):
-            continue
+        ok = _vehicle_consistent(parsed, table, row_number, problems) and ok
         _vehicle_plausible(parsed, table, row_number, problems)
+        if not ok:
+            continue
         spec_fields = {c.name: parsed[c.name] for c in VEHICLE_COLUMNS}
         vehicles.append(VehicleSpec(**spec_fields, extra=parsed["_extra"]))
     return vehicles, rows
@@ -357,7 +358,9 @@ def _vehicle_consistent(p: dict, table: _Table, row: int, problems: Problems) ->
     sheet, col = table.sheet, table.columns.get
     ok = True
     config, duty = p["configuration"], p["duty_class"]
-    if config.startswith("LD_") != (duty == "LD"):
+    if config is None:
+        return ok
+    if duty is not None and config.startswith("LD_") != (duty == "LD"):
         problems.error(f"'{config}' does not fit duty_class {duty} (LD vehicles use LD_* "
                        "configurations, MD and HD vehicles HD_*)", sheet, row, col("configuration"),
                        "configuration")
@@ -370,7 +373,7 @@ def _vehicle_consistent(p: dict, table: _Table, row: int, problems: Problems) ->
         problems.warn(f"ignored: {config} has no two-speed axle", sheet, row, col("low_gear_ratio"),
                       "low_gear_ratio")
         p["low_gear_ratio"] = None
-    ratios = p["transmission_gear_ratios"]
+    ratios = p["transmission_gear_ratios"] or ()
     if any(later > earlier for earlier, later in zip(ratios, ratios[1:])):
         problems.warn(f"{', '.join(f'{r:g}' for r in ratios)} is not in falling order "
                       "(first gear first?)", sheet, row, col("transmission_gear_ratios"),
@@ -380,16 +383,18 @@ def _vehicle_consistent(p: dict, table: _Table, row: int, problems: Problems) ->
 
 def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> None:
     duty = p["duty_class"]
+    if duty is None:
+        return
     for name, ranges in PLAUSIBLE_VEHICLE.items():
         low, high = ranges[duty]
         value = p[name]
         if value is not None and not (low <= value <= high):
             problems.warn(f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to {high:g}); "
                           "check the units", table.sheet, row, table.columns.get(name), name)
-    if p["count"] == 0:
+    if p["count"] is not None and p["count"] == 0:
         problems.warn("0 vehicles: this row adds nothing", table.sheet, row,
                       table.columns.get("count"), "count")
-    if p["annual_miles"] == 0:
+    if p["annual_miles"] is not None and p["annual_miles"] == 0:
         problems.warn("0 miles: this row adds nothing", table.sheet, row,
                       table.columns.get("annual_miles"), "annual_miles")
 
@@ -402,24 +407,24 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
     rows: dict[str, int] = {}
     known_cycles = _shipped_cycle_names()
     for row_number, values in table.rows:
-        parsed = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
-        scenario_id = parsed.get("scenario_id") if parsed else _text_or_blank(_cell(values, col("scenario_id")))
+        parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
+        scenario_id = parsed.get("scenario_id")
         if scenario_id:
             if scenario_id in rows:
                 problems.error(f"{cells.show(scenario_id)} is used again (first in row {rows[scenario_id]}); "
                                "scenario ids must be unique", sheet, row_number, col("scenario_id"), "scenario_id")
-                parsed = None
+                ok = False
             else:
                 rows[scenario_id] = row_number
-        if parsed is None:
-            continue
-        mix = _check_cycle_mix(parsed["cycle_mix"], known_cycles, workbook_dir, table, row_number, problems)
-        if mix is None:
-            continue
+        mix = None
+        if parsed["cycle_mix"] is not None:
+            mix = _check_cycle_mix(parsed["cycle_mix"], known_cycles, workbook_dir, table, row_number, problems)
         g = parsed["vmt_growth_pct_per_year"]
-        if g <= -100:
+        if g is not None and g <= -100:
             problems.error(f"{g:g} % would make the miles negative", sheet, row_number,
                            col("vmt_growth_pct_per_year"), "vmt_growth_pct_per_year")
+            ok = False
+        if not ok or mix is None:
             continue
         for name, (low, high) in PLAUSIBLE_SCENARIO.items():
             value = parsed[name]

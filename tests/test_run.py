@@ -1,0 +1,230 @@
+"""``fleetrun run``: outputs, reconciliation, atomic writes, batch config and exit codes.
+
+These use a deterministic stand-in for the simulation (test_fleet_fakes.fake_simulate) so they
+test the runner's bookkeeping quickly; test_run_real.py runs the real simulation.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+from fleetrun.fleet import runner
+from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json"}
+RESULTS_CONTRACT = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
+                    "miles_total", "fuel_gal_total", "mpg", "diff_efficiency", "drivetrain_efficiency",
+                    "state_tax_usd", "federal_tax_usd"]
+CLASS_CONTRACT = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
+                  "diff_efficiency", "state_tax_usd", "federal_tax_usd"]
+
+
+@pytest.fixture(autouse=True)
+def fake_simulation(monkeypatch):
+    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+    fakes.CALLS.clear()
+
+
+def run(*args):
+    return CliRunner().invoke(cli, ["run", *map(str, args)])
+
+
+@pytest.fixture
+def fleet_path(tmp_path):
+    return small_fleet(tmp_path / "fleet.xlsx")
+
+
+def test_run_writes_five_outputs(fleet_path, tmp_path):
+    out = tmp_path / "out"
+    result = run(fleet_path, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
+    assert {p.name for p in out.iterdir()} == OUTPUTS
+    results = pd.read_csv(out / "results.csv", keep_default_na=False)
+    classes = pd.read_csv(out / "class_summary.csv", keep_default_na=False)
+    assert list(results.columns[:13]) == RESULTS_CONTRACT
+    assert list(classes.columns[:9]) == CLASS_CONTRACT
+    assert len(results) == 3 * 4 and len(classes) == 3 * 3
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["fleetrun_version"] and manifest["physics"] == "thesis"
+    assert manifest["inputs"][0]["sha256"] == __import__("hashlib").sha256(fleet_path.read_bytes()).hexdigest()
+    assert set(manifest["outputs"]) == OUTPUTS - {"manifest.json"}
+    assert "simulate" in manifest["timings_s"] and isinstance(manifest["warnings"], list)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out-staging")]
+
+
+def test_totals_reconcile_exactly(fleet_path, tmp_path):
+    out = tmp_path / "out"
+    assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0
+    results = pd.read_csv(out / "results.csv")
+    classes = pd.read_csv(out / "class_summary.csv")
+    rates = {"baseline": (0.2, 0.2, 0.184, 0.244), "hot": (0.2, 0.2, 0.184, 0.244),
+             "urban": (0.2, 0.2, 0.184, 0.244)}
+    for row in results.itertuples():
+        state_g, state_d, fed_g, fed_d = rates[row.scenario_id]
+        gasoline = row.fuel == "gasoline"
+        assert row.state_tax_usd == row.fuel_gal_total * (state_g if gasoline else state_d)
+        assert row.federal_tax_usd == row.fuel_gal_total * (fed_g if gasoline else fed_d)
+        assert row.mpg == row.miles_total / row.fuel_gal_total
+        assert row.diff_efficiency == row.diff_output_energy_J / row.diff_input_energy_J
+        assert row.drivetrain_efficiency == row.wheel_energy_J / row.drivetrain_input_energy_J
+    for row in classes.itertuples():
+        group = results[(results.scenario_id == row.scenario_id) & (results.vehicle_class == row.vehicle_class)]
+        for column, total in (("count", row.vehicles), ("miles_total", row.miles_total),
+                              ("fuel_gal_total", row.fuel_gal_total), ("state_tax_usd", row.state_tax_usd),
+                              ("federal_tax_usd", row.federal_tax_usd)):
+            assert math.fsum(group[column]) == total, column
+        assert row.mpg == row.miles_total / row.fuel_gal_total
+        assert row.diff_efficiency == (math.fsum(group.diff_output_energy_J) / math.fsum(group.diff_input_energy_J))
+
+
+def test_budget_years_growth_and_cycle_mix(tmp_path):
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A", count=2, annual_miles=10000)],
+                       [scenario("s", cycle_mix="UDDS:0.25,HWFET:0.75", budget_years=3,
+                                 vmt_growth_pct_per_year=10)])
+    out = tmp_path / "out"
+    assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
+    row = pd.read_csv(out / "results.csv").iloc[0]
+    assert row.miles_total == pytest.approx(2 * 10000 * (1 + 1.1 + 1.21), rel=1e-12)
+    from fleetrun.cycles import load_cycle
+
+    v = runner.simulate_function
+    per_mile = 0.0
+    from fleetrun.fleet import read_fleet
+
+    spec = read_fleet(path).vehicles[0]
+    for name, share in (("UDDS", 0.25), ("HWFET", 0.75)):
+        sim = v([spec], load_cycle(name))
+        per_mile += share * sim.fuel_gal[0] / sim.miles[0]
+    assert row.fuel_gal_total == pytest.approx(row.miles_total * per_mile, rel=1e-12)
+
+
+def test_each_cycle_and_temperature_simulated_once(fleet_path, tmp_path):
+    assert run(fleet_path, "--out", tmp_path / "o", "--no-cache", "-q").exit_code == 0
+    # baseline: UDDS, HWFET at 20 C; hot: UDDS, HWFET, US06 at 38 C; urban: NYCC (+UDDS at 20 C)
+    assert sorted((c, t) for _, c, t in fakes.CALLS) == sorted(
+        [("UDDS", 20), ("HWFET", 20), ("UDDS", 38), ("HWFET", 38), ("US06", 38), ("NYCC", 20)])
+
+
+def test_scenario_filter_and_unknown_scenario(fleet_path, tmp_path):
+    out = tmp_path / "out"
+    ok = run(fleet_path, "--out", out, "--scenario", "hot", "--no-cache", "-q")
+    assert ok.exit_code == 0, ok.stderr
+    assert set(pd.read_csv(out / "class_summary.csv").scenario_id) == {"hot"}
+    bad = run(fleet_path, "--out", tmp_path / "o2", "--scenario", "hott", "--no-cache", "-q")
+    assert bad.exit_code == 1
+    assert bad.stderr.startswith("Error: ") and "did you mean 'hot'" in bad.stderr
+    assert not (tmp_path / "o2").exists()
+
+
+def test_bad_workbook_exit_1_nothing_written(tmp_path):
+    path = write_fleet(tmp_path / "bad.xlsx", [vehicle(peak_engine_torque_Nm="abc")])
+    out = tmp_path / "out"
+    result = run(path, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 1
+    assert result.stderr.count("Error:") == 1
+    assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number" in result.stderr
+    assert not out.exists()
+
+
+def test_usage_errors_exit_2(fleet_path, tmp_path):
+    assert run().exit_code == 2
+    assert run(fleet_path, "--engine", "spark").exit_code == 2
+    assert run(fleet_path, "--scheduler", "tcp://x:1", "--no-cache").exit_code == 2
+    assert run(fleet_path, "--config", tmp_path / "b.toml").exit_code == 2
+
+
+def test_failed_run_keeps_previous_good_outputs(fleet_path, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("disk on fire")
+
+    from fleetrun.fleet import report_html
+
+    monkeypatch.setattr(report_html, "render_summary", broken)
+    result = run(fleet_path, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 4
+    assert result.stderr.startswith("Error: ") and "internal error" in result.stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir() if "staging" in p.name] == []
+
+
+def test_batch_config_partial_failure_log_and_exit_3(fleet_path, tmp_path):
+    bad = write_fleet(tmp_path / "bad.xlsx", [vehicle(count=-1)])
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["fleet.xlsx", "bad.xlsx"]\nscenarios = ["baseline"]\nout = "results"\n'
+                      'engine = "local"\ncache_dir = "cache"\n')
+    result = run("--config", config, "-q")
+    assert result.exit_code == 3, result.stderr
+    assert result.stderr.startswith("Error: 1 of 2 fleet workbooks failed")
+    assert "Vehicles!E2 count: -1 must be at least 0" in result.stderr
+    assert {p.name for p in (tmp_path / "results" / "fleet").iterdir()} == OUTPUTS
+    assert not (tmp_path / "results" / "bad").exists()
+    log = (tmp_path / "results" / "fleetrun-run.log").read_text()
+    assert "ERROR" in log and "fleet.xlsx: wrote" in log
+    bad.unlink()
+    config.write_text('inputs = ["*.xlsx"]\nout = "results"\n')
+    assert run("--config", config, "-q").exit_code == 0
+
+
+def test_batch_config_errors(tmp_path):
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["nothing*.xlsx"]\n')
+    result = run("--config", config)
+    assert result.exit_code == 1 and "matches no file" in result.stderr
+    config.write_text('inputs = "a.xlsx"\nengin = "dask"\n')
+    result = run("--config", config)
+    assert result.exit_code == 1 and "unknown key(s) engin" in result.stderr
+    config.write_text('inputs = [\n')
+    assert run("--config", config).exit_code == 1
+
+
+def test_plain_log_lines_when_not_a_terminal(fleet_path, tmp_path):
+    result = run(fleet_path, "--out", tmp_path / "o", "--no-cache")
+    assert result.exit_code == 0
+    assert "INFO fleet.xlsx:" in result.stderr and "simulation tasks (100 %)" in result.stderr
+    assert "\r" not in result.stderr
+
+
+def test_shortfall_becomes_a_warning(tmp_path):
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("CAR-SLOW")],
+                       [scenario(cycle_mix="US06:1")])
+    out = tmp_path / "out"
+    assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
+    warnings = json.loads((out / "manifest.json").read_text())["warnings"]
+    assert any("CAR-SLOW cannot follow US06" in w for w in warnings)
+
+
+def test_dask_engine_same_numbers(fleet_path, tmp_path):
+    pytest.importorskip("distributed")
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(fakes)   # workers cannot import the tests folder
+    try:
+        local, dask = tmp_path / "local", tmp_path / "dask"
+        assert run(fleet_path, "--out", local, "--no-cache", "-q").exit_code == 0
+        result = run(fleet_path, "--out", dask, "--engine", "dask", "--no-cache", "-q")
+        assert result.exit_code == 0, result.stderr
+    finally:
+        cloudpickle.unregister_pickle_by_value(fakes)
+    for name in ("results.csv", "class_summary.csv"):
+        a, b = pd.read_csv(local / name), pd.read_csv(dask / name)
+        pd.testing.assert_frame_equal(a, b, check_exact=False, rtol=1e-9)
+    assert json.loads((dask / "manifest.json").read_text())["engine"]["engine"] == "dask"
+
+
+def test_unreachable_scheduler_is_an_input_error(fleet_path, tmp_path):
+    pytest.importorskip("distributed")
+    result = run(fleet_path, "--out", tmp_path / "o", "--engine", "dask", "--scheduler",
+                 "tcp://127.0.0.1:9", "--no-cache", "-q")
+    assert result.exit_code == 1
+    assert result.stderr.startswith("Error: cannot reach the Dask scheduler")

@@ -1,0 +1,229 @@
+"""The fleet workbook reader: schema, every problem at once, layout quirks, safety."""
+from __future__ import annotations
+
+import io
+import zipfile
+
+import openpyxl
+import pytest
+from click.testing import CliRunner
+
+from fleetrun.cli import cli
+from fleetrun.errors import InputError
+from fleetrun.fleet import read_fleet
+from fleetrun.fleet.template import write_template
+from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+
+
+def problems_of(path) -> list[str]:
+    with pytest.raises(InputError) as info:
+        read_fleet(path)
+    return info.value.problems
+
+
+def test_template_reads_back_clean(tmp_path):
+    path = tmp_path / "t.xlsx"
+    write_template(path)
+    fleet = read_fleet(path)
+    assert [v.vehicle_id for v in fleet.vehicles] == ["LD-CAR-01", "HD-TRACTOR-01"]
+    assert [s.scenario_id for s in fleet.scenarios] == ["baseline", "hot_summer"]
+    assert fleet.warnings == []
+    assert len(fleet.sha256) == 64
+    assert fleet.scenarios[0].cycle_mix == {"UDDS": 0.55, "HWFET": 0.45}
+    assert fleet.vehicles[0].transmission_gear_ratios[0] == 4.62
+
+
+def test_template_has_instructions_dropdowns_and_examples(tmp_path):
+    path = tmp_path / "t.xlsx"
+    assert CliRunner().invoke(cli, ["template", "-o", str(path)]).exit_code == 0
+    wb = openpyxl.load_workbook(path)
+    assert wb.sheetnames == ["Instructions", "Vehicles", "Scenarios"]
+    ws = wb["Vehicles"]
+    header = [c.value for c in ws[1]]
+    lists = {dv.formula1 for dv in ws.data_validations.dataValidation}
+    assert any("LD_FWD" in f and "HD_TAG_DUAL" in f for f in lists)
+    assert '"gasoline,diesel"' in lists and '"automatic,manual"' in lists
+    assert ws.max_row == 3 and header[0] == "vehicle_id"
+    again = CliRunner().invoke(cli, ["template", "-o", str(path)])
+    assert again.exit_code == 1 and again.stderr.startswith("Error:") and "--force" in again.stderr
+
+
+def test_values_are_typed_and_normalised(tmp_path):
+    path = write_fleet(tmp_path / "f.xlsx",
+                       [vehicle("101", configuration="ld-rwd", fuel="Gasoline", transmission="AUTOMATIC",
+                                transmission_gear_ratios="4.0; 2.5, 1.5 1.0", count="250")],
+                       [scenario(cycle_mix="udds:0.5,hwfet:0.5")])
+    fleet = read_fleet(path)
+    v = fleet.vehicles[0]
+    assert (v.configuration, v.fuel, v.transmission, v.count) == ("LD_RWD", "gasoline", "automatic", 250.0)
+    assert v.transmission_gear_ratios == (4.0, 2.5, 1.5, 1.0)
+    assert fleet.scenarios[0].cycle_mix == {"UDDS": 0.5, "HWFET": 0.5}
+
+
+def test_every_problem_reported_at_once_with_cell_and_value(tmp_path):
+    path = write_fleet(tmp_path / "bad.xlsx",
+                       [vehicle("A", peak_engine_torque_Nm="abc"),
+                        vehicle("B", count=-3, fuel="kerosene"),
+                        vehicle("A", configuration="LD_XWD"),
+                        vehicle("D", duty_class="HD", configuration="LD_FWD"),
+                        vehicle("E", vehicle_class="Trucks", duty_class="HD", configuration="HD_DUAL")],
+                       [scenario(cycle_mix="UDDS:0.5,HWFX:0.5"), scenario("s2", budget_years=1.5,
+                                                                          cycle_mix="UDDS:0.5")])
+    problems = problems_of(path)
+    assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number" in problems
+    assert "Vehicles!E3 count: -3 must be at least 0" in problems
+    assert "Vehicles!G3 fuel: 'kerosene' is not one of gasoline, diesel" in problems
+    assert any(p.startswith("Vehicles!A4 vehicle_id: 'A' is used again (first in row 2)") for p in problems)
+    assert any(p.startswith("Vehicles!D5 configuration: 'LD_FWD' does not fit duty_class HD") for p in problems)
+    assert any(p.startswith("Vehicles!S6 low_gear_ratio: is empty, but HD_DUAL") for p in problems)
+    assert any(p.startswith("Scenarios!D2 cycle_mix: unknown drive cycle 'HWFX' (did you mean HWFET?)")
+               for p in problems)
+    assert "Scenarios!E3 budget_years: 1.5 is not a whole number" in problems
+    assert any(p.startswith("Scenarios!D3 cycle_mix: shares add up to 0.5, not 1") for p in problems)
+
+
+def test_cli_validate_one_error_message_first_line_counts(tmp_path):
+    path = write_fleet(tmp_path / "bad.xlsx", [vehicle(peak_engine_torque_Nm="abc"), vehicle("X", count=-1)])
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 1
+    assert result.stderr.startswith("Error: ")
+    assert result.stderr.count("Error:") == 1
+    first, *lines = result.stderr.strip().splitlines()
+    assert "2 problems" in first and "bad.xlsx" in first
+    assert lines == ["  Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number",
+                     "  Vehicles!E3 count: -1 must be at least 0"]
+    assert "Traceback" not in result.output + result.stderr
+
+
+def test_cli_validate_ok_and_warnings(tmp_path):
+    path = write_fleet(tmp_path / "w.xlsx", [vehicle(test_weight_kg=30000)])
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 0, result.stderr
+    assert "Warning: Vehicles!L2 test_weight_kg: 30000 is unusual for a LD vehicle" in result.stderr
+    assert "OK: 1 vehicle types" in result.stdout
+    strict = CliRunner().invoke(cli, ["validate", "--strict", str(path)])
+    assert strict.exit_code == 1 and strict.stderr.count("Error:") == 1
+
+
+def test_plausibility_warnings_not_errors(tmp_path):
+    path = write_fleet(tmp_path / "p.xlsx", [vehicle(test_weight_kg=30000, annual_miles=0)],
+                       [scenario(ambient_temp_C=70, state_tax_gasoline_usd_per_gal=4.5)])
+    fleet = read_fleet(path)
+    text = "\n".join(fleet.warnings)
+    assert "Vehicles!L2 test_weight_kg: 30000 is unusual for a LD vehicle" in text
+    assert "Vehicles!F2 annual_miles: 0 miles" in text
+    assert "Scenarios!C2 ambient_temp_C: 70 is unusual" in text
+    assert "Scenarios!G2 state_tax_gasoline_usd_per_gal: 4.5 is unusual" in text
+
+
+def test_blank_rows_skipped_extra_columns_kept(tmp_path):
+    path = write_fleet(tmp_path / "b.xlsx", [vehicle("A"), {}, vehicle("B")])
+    wb = openpyxl.load_workbook(path)
+    ws = wb["Vehicles"]
+    ws.cell(row=1, column=30, value="fleet_manager_note")
+    ws.cell(row=4, column=30, value="ask Bob")
+    wb.save(path)
+    fleet = read_fleet(path)
+    assert [v.vehicle_id for v in fleet.vehicles] == ["A", "B"]
+    assert fleet.vehicle_rows == {"A": 2, "B": 4}
+    assert fleet.vehicles[1].extra == {"fleet_manager_note": "ask Bob"}
+    assert any("'fleet_manager_note' is not a fleetrun column" in w for w in fleet.warnings)
+
+
+def test_missing_columns_and_sheets(tmp_path):
+    path = write_fleet(tmp_path / "m.xlsx", [vehicle()])
+    wb = openpyxl.load_workbook(path)
+    wb["Vehicles"].delete_cols(8)   # peak_engine_torque_Nm
+    del wb["Scenarios"]
+    wb.save(path)
+    problems = problems_of(path)
+    assert any(p.startswith("Scenarios: sheet is missing") for p in problems)
+    assert any("missing required column(s) in row 1: peak_engine_torque_Nm" in p for p in problems)
+
+
+def test_formula_without_cached_value_and_merged_cells_refused(tmp_path):
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A"), vehicle("B")])
+    wb = openpyxl.load_workbook(path)
+    ws = wb["Vehicles"]
+    ws["F2"] = "=1000*12"          # openpyxl stores no cached result
+    ws.merge_cells("B3:C3")
+    wb.save(path)
+    problems = problems_of(path)
+    assert any(p.startswith("Vehicles!F2 annual_miles: formula '=1000*12' has no saved result") for p in problems)
+    assert any(p.startswith("Vehicles!B3:C3: merged cells") for p in problems)
+
+
+def test_hidden_sheet_read_with_warning(tmp_path):
+    path = write_fleet(tmp_path / "h.xlsx", [vehicle()])
+    wb = openpyxl.load_workbook(path)
+    wb["Scenarios"].sheet_state = "hidden"
+    wb.save(path)
+    fleet = read_fleet(path)
+    assert "Scenarios: sheet is hidden; read anyway" in fleet.warnings
+
+
+def test_half_filled_row_reported_once(tmp_path):
+    path = write_fleet(tmp_path / "r.xlsx", [vehicle("A"), {"vehicle_id": "B", "count": 3}])
+    problems = problems_of(path)
+    assert len(problems) == 1 and problems[0].startswith("Vehicles!row 3: 14 required cells are empty")
+
+
+def test_label_formulas_stay_text(tmp_path):
+    path = write_fleet(tmp_path / "x.xlsx", [vehicle("=HYPERLINK(\"http://x\")", vehicle_class="=1+1")])
+    fleet = read_fleet(path)
+    assert fleet.vehicles[0].vehicle_class == "=1+1"
+
+
+# --- refusing unsafe or broken files ------------------------------------------------------
+
+def _cli_error(path) -> str:
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 1, result.output
+    assert result.stderr.startswith("Error: ") and "Traceback" not in result.stderr
+    return result.stderr
+
+
+def test_not_a_workbook(tmp_path):
+    text = tmp_path / "fleet.xlsx"
+    text.write_text("vehicle_id,count\nA,1\n")
+    assert "not an .xlsx workbook" in _cli_error(text)
+    assert "file not found" in _cli_error(tmp_path / "missing.xlsx")
+    zipped = tmp_path / "z.xlsx"
+    with zipfile.ZipFile(zipped, "w") as z:
+        z.writestr("hello.txt", "hi")
+    assert "not an .xlsx workbook (no xl/workbook.xml)" in _cli_error(zipped)
+
+
+def test_truncated_workbook(tmp_path):
+    good = small_fleet(tmp_path / "good.xlsx")
+    bad = tmp_path / "truncated.xlsx"
+    bad.write_bytes(good.read_bytes()[:-400])
+    message = _cli_error(bad)
+    assert "truncated.xlsx" in message
+
+
+def _rewrite(source, target, replace: dict[str, bytes], compress=zipfile.ZIP_DEFLATED):
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w", compress) as zout:
+        for item in zin.infolist():
+            zout.writestr(item.filename, replace.get(item.filename, zin.read(item.filename)))
+        for name in set(replace) - set(zin.namelist()):
+            zout.writestr(name, replace[name])
+
+
+def test_xml_entity_attack_refused(tmp_path):
+    good = small_fleet(tmp_path / "good.xlsx")
+    with zipfile.ZipFile(good) as z:
+        workbook_xml = z.read("xl/workbook.xml")
+    laughs = (b'<?xml version="1.0"?>\n<!DOCTYPE lolz [<!ENTITY lol "lol">'
+              b'<!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">]>\n')
+    evil = laughs + workbook_xml[workbook_xml.index(b"<workbook"):]
+    bad = tmp_path / "laughs.xlsx"
+    _rewrite(good, bad, {"xl/workbook.xml": evil})
+    assert "DTD or XML entities" in _cli_error(bad)
+
+
+def test_zip_bomb_refused(tmp_path):
+    good = small_fleet(tmp_path / "good.xlsx")
+    bad = tmp_path / "bomb.xlsx"
+    _rewrite(good, bad, {"xl/media/padding.bin": b"\0" * 60_000_000})
+    assert "zip bomb" in _cli_error(bad)
