@@ -74,20 +74,45 @@ def _eta2(r: np.ndarray, bins: np.ndarray, nb: int) -> float:
     return float(between / total) if total > 0 else 0.0
 
 
-def _bins(x: np.ndarray, nb: int) -> tuple[np.ndarray, int]:
-    q = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
-    return np.searchsorted(q, x, side="right"), len(q) + 1
+def _bins(x: np.ndarray, nb: int, resolution: float = 0.02) -> tuple[np.ndarray, int]:
+    """Quantile bins, merged where two edges are closer than ``resolution`` of the range.
+
+    Without the merge, a channel that sits at one value for a long time (a torque floor, a
+    standstill) is split into bins by its own sensor noise; the baseline uses the same noisy
+    channel, so its noise shows up in the residual and the bins would "explain" it
+    (errors in variables). Bins wider than the noise cannot.
+    """
+    lo, hi = np.quantile(x, [0.01, 0.99])
+    if hi <= lo:
+        lo, hi = float(np.min(x)), float(np.max(x))
+    step = resolution * max(hi - lo, 1e-12)
+    at_min = x <= np.min(x) + step
+    if at_min.mean() > 0.3 and (~at_min).sum() > nb:
+        # a point mass at the minimum (straight driving: no wheel-speed difference; standstill):
+        # its own bin, quantile bins for the rest
+        q = np.r_[np.min(x) + step, np.quantile(x[~at_min], np.linspace(0, 1, nb)[1:-1])]
+    else:
+        q = np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1])
+    edges = []
+    for e in q:
+        if not edges or e - edges[-1] >= step:
+            edges.append(e)
+    edges = np.array(edges)
+    return np.searchsorted(edges, x, side="right"), len(edges) + 1
 
 
 def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
             n_shifts: int = 100, quantile: float = 0.99, rng=None,
-            smooth_window: int = 1) -> tuple[list[dict], bool]:
+            smooth_window: int = 1, null_residual: np.ndarray | None = None) -> tuple[list[dict], bool]:
     """How strongly the residual follows each channel, and whether any does beyond noise.
 
     Strength is the correlation ratio (eta^2) of the (lightly smoothed) residual over quantile
     bins of the channel: it catches non-monotonic links (e.g. only at low speed). Each
     channel's strength is compared with the largest strength any channel reaches on
     circularly shifted residuals; ``significant`` is true if one beats that null's quantile.
+    ``null_residual`` (default ``r``) is what gets shifted: the residual left after the
+    accepted effects is the better noise estimate, since shifting a residual that still holds
+    a slow effect keeps its structure and inflates the null.
     """
     rng = rng or np.random.default_rng(1)
     rs = smooth(r, smooth_window)
@@ -102,8 +127,9 @@ def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
         return [], False
     shifts = rng.integers(max(1, n // 20), max(2, n - n // 20), n_shifts)
     null_max = np.zeros(n_shifts)
+    rn = rs if null_residual is None else smooth(null_residual, smooth_window)
     for j, s in enumerate(shifts):
-        rr = np.roll(rs, s)
+        rr = np.roll(rn, s)
         null_max[j] = max(_eta2(rr, b, nb) for b, nb in usable.values())
     thr = float(np.quantile(null_max, quantile))
     out = []

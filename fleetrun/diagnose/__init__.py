@@ -1,0 +1,151 @@
+"""``fleetrun diagnose``: find the physics a recording shows and the model leaves out.
+
+>>> result = diagnose("run7.csv", out="diagnosis-run7")     # doctest: +SKIP
+>>> [f["effect"] for f in result["findings"]]                 # doctest: +SKIP
+
+Steps (docs/diagnose.md): load and check the recording (:mod:`.recording`); drive the
+configured model with the recording's own inputs (:mod:`.differential`, :mod:`.vehicle`);
+locate the residual in time and against operating channels (:mod:`.locate`); fit each
+candidate effect and keep only what beats noise on held-out data (:mod:`.engine`,
+:mod:`.select`); write diagnosis.json and diagnosis.html (:mod:`.report`).
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fleetrun.diagnose.engine import Problem, Settings, select
+from fleetrun.diagnose.locate import drivers as find_drivers
+from fleetrun.diagnose.locate import segments as find_segments
+from fleetrun.diagnose.recording import load_recording
+from fleetrun.errors import InputError
+
+SCHEMA = "fleetrun.diagnosis/1"
+
+
+def build(recording, meta=None, calibrate_on=None, physics="thesis") -> Problem:
+    rec = load_recording(recording, meta)
+    if rec.level == "differential":
+        from fleetrun.diagnose.differential import build_problem
+
+        if calibrate_on:
+            # the differential baseline has no free constants; the reference is still checked
+            ref = load_recording(calibrate_on)
+            if ref.level != "differential":
+                raise InputError("--calibrate-on must be a recording of the same level",
+                                 file=calibrate_on)
+        prob = build_problem(rec, physics)
+        if calibrate_on:
+            prob.notes.append("--calibrate-on: the differential-level baseline has no free "
+                              "constants to calibrate; the reference was read and not used")
+    else:
+        from fleetrun.diagnose.vehicle import build_problem
+
+        ref = load_recording(calibrate_on) if calibrate_on else None
+        if ref is not None and ref.level != "vehicle":
+            raise InputError("--calibrate-on must be a vehicle-level recording", file=calibrate_on)
+        prob = build_problem(rec, ref, physics)
+    prob.baseline_info.setdefault("recording", str(rec.path))
+    prob.baseline_info["_rec"] = rec
+    return prob
+
+
+def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, np.ndarray]:
+    """Locate and select; the JSON-ready result and the fitted effects (target units)."""
+    s = settings or Settings()
+    t0 = time.perf_counter()
+    r = problem.residual
+    sel = select(problem, s)
+    fitted = sel.pop("fitted_effects")
+    rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
+    drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
+                                smooth_window=max(1, int(rate)),
+                                null_residual=r - fitted if sel["findings"] else None)
+    significant = bool(sel["significant"] or drv_sig)
+    noise_var = float(np.var(r - fitted)) if sel["findings"] else None
+    segs = find_segments(problem.time_s, r, noise_var=noise_var) if significant else []
+    rmse = float(np.sqrt(np.mean(r ** 2)))
+    info = {k: v for k, v in problem.baseline_info.items() if not k.startswith("_")}
+    baseline = {"rmse": round(rmse, 6), "bias": round(float(np.mean(r)), 6),
+                "heldout_rmse": round(float(info.pop("heldout_rmse", rmse)), 6)}
+    baseline.update(info)
+    after = r - fitted
+    rec = problem.baseline_info.get("_rec")
+    from fleetrun import __version__
+
+    result = {
+        "schema": SCHEMA,
+        "target": problem.target,
+        "level": problem.level,
+        "units": problem.units,
+        "recording_name": rec.path.name if rec is not None else "",
+        "samples": int(len(r)),
+        "dt_s": float(rec.dt_s) if rec is not None else float(np.median(np.diff(problem.time_s))),
+        "baseline": baseline,
+        "mismatch": {"significant": significant, "segments": segs,
+                     "drivers": drv},
+        "findings": sel["findings"],
+        "candidates": sel["candidates"],
+        "ambiguities": sel["ambiguities"],
+        "after": {"rmse": round(float(np.sqrt(np.mean(after ** 2))), 6),
+                  "bias": round(float(np.mean(after)), 6)},
+        "method": {"folds": s.folds, "n_shifts": s.n_shifts, "quantile": s.quantile,
+                   "min_gain": s.min_gain, "rounds": _clean(sel["rounds"])},
+        "notes": problem.notes,
+        "version": __version__,
+    }
+    result["timing_s"] = round(time.perf_counter() - t0, 3)
+    return result, fitted
+
+
+def _clean(obj):
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return None if not np.isfinite(obj) else float(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
+             settings: Settings | None = None, write=True) -> dict:
+    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+    t_start = time.perf_counter()
+    problem = build(recording, meta, calibrate_on, physics)
+    result, fitted = analyse(problem, settings)
+    result = _clean(result)
+    if write:
+        from fleetrun.diagnose.report import render_html
+
+        out = Path(out) if out else Path(f"diagnosis-{Path(recording).stem}")
+        html = render_html(problem, result, fitted)      # everything rendered before writing
+        result["timing_s"] = round(time.perf_counter() - t_start, 3)
+        text = json.dumps(result, indent=2)
+        out.mkdir(parents=True, exist_ok=True)
+        _write_atomic(out / "diagnosis.json", text)
+        _write_atomic(out / "diagnosis.html", html)
+    else:
+        result["timing_s"] = round(time.perf_counter() - t_start, 3)
+    return result

@@ -1,0 +1,124 @@
+"""diagnosis.html: the story of a diagnosis in plots and plain words (self-contained HTML)."""
+from __future__ import annotations
+
+import base64
+import io
+
+import numpy as np
+
+from fleetrun.diagnose.locate import binned_profile, smooth
+from fleetrun.effects import EFFECTS
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _thin(n: int, max_points: int = 4000) -> slice:
+    return slice(None, None, max(1, n // max_points))
+
+
+def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = problem.time_s - problem.time_s[0]
+    sl = _thin(len(t))
+    r = problem.residual
+    r_after = r - fitted
+    win = max(1, int(len(t) / max(t[-1], 1e-9) * 5))   # ~5 s smoothing for display
+    unit = problem.units
+    figs = {}
+
+    fig, ax = plt.subplots(figsize=(10, 3.4))
+    ax.plot(t[sl], problem.measured[sl], lw=0.7, label="measured", color="black")
+    ax.plot(t[sl], problem.baseline[sl], lw=0.7, label="thesis model (baseline)", color="tab:blue")
+    if result["findings"]:
+        ax.plot(t[sl], (problem.baseline + fitted)[sl], lw=0.7, ls="--", color="tab:red",
+                label="model + findings")
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel(f"{problem.target} [{unit}]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title("Measured vs simulated")
+    figs["measured"] = _png(fig)
+
+    fig, ax = plt.subplots(figsize=(10, 3.0))
+    ax.plot(t[sl], smooth(r, win)[sl], lw=0.8, color="tab:blue", label="residual (5 s mean), baseline")
+    if result["findings"]:
+        ax.plot(t[sl], smooth(r_after, win)[sl], lw=0.8, color="tab:red", label="after findings")
+    for seg in result["mismatch"]["segments"]:
+        ax.axvspan(seg["start_s"] - problem.time_s[0], seg["end_s"] - problem.time_s[0],
+                   color="orange", alpha=0.25)
+    ax.axhline(0, color="grey", lw=0.5)
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel(f"measured - model [{unit}]")
+    ax.set_title("Residual over time (shaded: located segments)")
+    ax.legend(loc="upper right", fontsize=8)
+    figs["residual"] = _png(fig)
+
+    drivers = result["mismatch"]["drivers"]
+    if drivers:
+        top = [d["channel"] for d in drivers[:3]]
+        fig, axes = plt.subplots(1, len(top), figsize=(3.6 * len(top), 3.0), squeeze=False)
+        for ax, name in zip(axes[0], top):
+            x = problem.driver_channels[name]
+            xm, rm = binned_profile(x, r)
+            ax.plot(xm, rm, "o-", ms=3, color="tab:blue", label="baseline")
+            if result["findings"]:
+                xm2, rm2 = binned_profile(x, r_after)
+                ax.plot(xm2, rm2, "o-", ms=3, color="tab:red", label="after")
+            ax.axhline(0, color="grey", lw=0.5)
+            ax.set_xlabel(name)
+            ax.set_ylabel(f"mean residual [{unit}]")
+        axes[0][0].legend(fontsize=8)
+        fig.suptitle("Residual against its strongest drivers (quantile bins)")
+        figs["drivers"] = _png(fig)
+
+    labels = ["baseline"]
+    vals = [result["baseline"]["heldout_rmse"]]
+    for f in result["findings"]:
+        labels.append("+ " + f["effect"])
+        vals.append(f["heldout_rmse_after"])
+    fig, ax = plt.subplots(figsize=(1.6 + 1.4 * len(vals), 3.0))
+    ax.bar(range(len(vals)), vals, color=["tab:blue"] + ["tab:red"] * (len(vals) - 1))
+    ax.set_xticks(range(len(vals)), labels, fontsize=8)
+    ax.set_ylabel(f"held-out RMSE [{unit}]")
+    ax.set_title("Held-out fit (blocked CV)")
+    figs["heldout"] = _png(fig)
+    return figs
+
+
+def summary_sentence(result: dict) -> str:
+    f = result["findings"]
+    if f:
+        names = " and then ".join(EFFECTS[x["effect"]].title for x in f)
+        return (f"The model leaves out {names}. With it the held-out error falls from "
+                f"{result['baseline']['heldout_rmse']:.3g} to {f[-1]['heldout_rmse_after']:.3g} "
+                f"{result.get('units', '')}.")
+    if result.get("ambiguities"):
+        a = result["ambiguities"][0]
+        return (f"The recording shows a mismatch that {' or '.join(a['effects'])} could explain; "
+                f"the data cannot tell them apart. To separate them: {a['separating_test']}.")
+    if result["mismatch"]["significant"]:
+        return ("The residual is larger than noise but none of the candidate physics explains it "
+                "better than noise could: the cause is not in the catalog.")
+    return "Nothing is missing: the model matches the recording to within its noise."
+
+
+def render_html(problem, result: dict, fitted: np.ndarray) -> str:
+    from jinja2 import Environment, FileSystemLoader, select_autoescape
+
+    from fleetrun.resources import templates_dir
+
+    env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
+                      autoescape=select_autoescape(["html", "j2"]))
+    tpl = env.get_template("diagnosis.html.j2")
+    return tpl.render(r=result, figs=figures(problem, result, fitted),
+                      summary=summary_sentence(result), effects=EFFECTS)
