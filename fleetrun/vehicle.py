@@ -47,4 +47,7 @@ class VehicleSpec:
         """Kim torque scale (thesis Sec. 5.2.1.A): peak x converter x first (max) gear ratio."""
         if self.kim_torque_scale_Nm is not None:
             return float(self.kim_torque_scale_Nm)
-        return float(self.peak_engine_torque_Nm) * self.converter_ratio * max(self.transmission_gear_ratios)
+        from fleetrun.differential import kim_torque_scale_Nm
+
+        return float(kim_torque_scale_Nm(self.peak_engine_torque_Nm, self.converter_ratio,
+                                         max(self.transmission_gear_ratios)))

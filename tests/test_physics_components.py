@@ -149,3 +149,11 @@ def test_vecto_generic_axle_loss_map():
     tf = t_in / reference_capacity_Nm("HD_RWD")
     eta = float(efficiency("HD_RWD", tf, n_in, i, physics="vecto-generic"))
     assert eta == pytest.approx(t_out / (t_in * i), rel=1e-12)
+
+
+def test_kim_torque_scale():
+    # thesis Sec. 5.2.1.A, B.1's own example: GM V6 285 N m x converter 3 x first gear 4.69
+    from fleetrun.differential import kim_torque_scale_Nm, reference_capacity_Nm
+
+    assert kim_torque_scale_Nm(285, 3.0, 4.69) == pytest.approx(285 * 4.69 * 3, rel=REL)
+    assert reference_capacity_Nm("LD_FWD") == pytest.approx(285 * 4.69 * 3, rel=REL)

@@ -17,7 +17,17 @@ from fleetrun.errors import InputError
 from fleetrun.registry import PHYSICS
 
 __all__ = ["efficiency", "canonical_configuration", "configuration_ids", "uses_two_speed_box",
-           "configuration_lubricant", "reference_capacity_Nm", "physics_names", "check_inputs"]
+           "configuration_lubricant", "reference_capacity_Nm", "kim_torque_scale_Nm", "physics_names",
+           "check_inputs"]
+
+
+def kim_torque_scale_Nm(peak_engine_torque_Nm, torque_converter_ratio, max_transmission_gear_ratio):
+    """Kim's torque scale (thesis Sec. 5.2.1.A): the largest torque the transmission can hand
+    to the differential, peak engine torque x converter ratio (3.0 automatic, 1.0 manual) x
+    the largest (first) gear ratio. Input torque / this scale is the torque fraction that the
+    model maps back onto its reference differential's capacity."""
+    return (np.asarray(peak_engine_torque_Nm, dtype=float) * torque_converter_ratio
+            * max_transmission_gear_ratio)
 
 
 def physics_names() -> list[str]:
