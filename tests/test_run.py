@@ -46,8 +46,8 @@ def test_run_writes_five_outputs(fleet_path, tmp_path):
     result = run(fleet_path, "--out", out, "--no-cache", "-q")
     assert result.exit_code == 0, result.stderr
     assert {p.name for p in out.iterdir()} == OUTPUTS
-    results = pd.read_csv(out / "results.csv", keep_default_na=False)
-    classes = pd.read_csv(out / "class_summary.csv", keep_default_na=False)
+    results = pd.read_csv(out / "results.csv", keep_default_na=False, float_precision="round_trip")
+    classes = pd.read_csv(out / "class_summary.csv", keep_default_na=False, float_precision="round_trip")
     assert list(results.columns[:13]) == RESULTS_CONTRACT
     assert list(classes.columns[:9]) == CLASS_CONTRACT
     assert len(results) == 3 * 4 and len(classes) == 3 * 3
@@ -62,8 +62,8 @@ def test_run_writes_five_outputs(fleet_path, tmp_path):
 def test_totals_reconcile_exactly(fleet_path, tmp_path):
     out = tmp_path / "out"
     assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0
-    results = pd.read_csv(out / "results.csv")
-    classes = pd.read_csv(out / "class_summary.csv")
+    results = pd.read_csv(out / "results.csv", float_precision="round_trip")
+    classes = pd.read_csv(out / "class_summary.csv", float_precision="round_trip")
     rates = {"baseline": (0.2, 0.2, 0.184, 0.244), "hot": (0.2, 0.2, 0.184, 0.244),
              "urban": (0.2, 0.2, 0.184, 0.244)}
     for row in results.itertuples():
@@ -90,7 +90,7 @@ def test_budget_years_growth_and_cycle_mix(tmp_path):
                                  vmt_growth_pct_per_year=10)])
     out = tmp_path / "out"
     assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
-    row = pd.read_csv(out / "results.csv").iloc[0]
+    row = pd.read_csv(out / "results.csv", float_precision="round_trip").iloc[0]
     assert row.miles_total == pytest.approx(2 * 10000 * (1 + 1.1 + 1.21), rel=1e-12)
     from fleetrun.cycles import load_cycle
 
@@ -116,7 +116,7 @@ def test_scenario_filter_and_unknown_scenario(fleet_path, tmp_path):
     out = tmp_path / "out"
     ok = run(fleet_path, "--out", out, "--scenario", "hot", "--no-cache", "-q")
     assert ok.exit_code == 0, ok.stderr
-    assert set(pd.read_csv(out / "class_summary.csv").scenario_id) == {"hot"}
+    assert set(pd.read_csv(out / "class_summary.csv", float_precision="round_trip").scenario_id) == {"hot"}
     bad = run(fleet_path, "--out", tmp_path / "o2", "--scenario", "hott", "--no-cache", "-q")
     assert bad.exit_code == 1
     assert bad.stderr.startswith("Error: ") and "did you mean 'hot'" in bad.stderr
@@ -217,7 +217,7 @@ def test_dask_engine_same_numbers(fleet_path, tmp_path):
     finally:
         cloudpickle.unregister_pickle_by_value(fakes)
     for name in ("results.csv", "class_summary.csv"):
-        a, b = pd.read_csv(local / name), pd.read_csv(dask / name)
+        a, b = pd.read_csv(local / name, float_precision="round_trip"), pd.read_csv(dask / name, float_precision="round_trip")
         pd.testing.assert_frame_equal(a, b, check_exact=False, rtol=1e-9)
     assert json.loads((dask / "manifest.json").read_text())["engine"]["engine"] == "dask"
 

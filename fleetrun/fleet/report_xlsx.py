@@ -9,6 +9,7 @@ Every text that came from the input workbook is written as a text cell: a label 
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from pathlib import Path
 
@@ -75,30 +76,58 @@ def _widths(ws, names, minimum=10, maximum=40):
         ws.column_dimensions[get_column_letter(i)].width = max(minimum, min(maximum, len(name) + 2))
 
 
-def _table(ws, frame: pd.DataFrame, styled: bool = True):
+def _table(ws, frame: pd.DataFrame, styled: bool = True, widths: bool = True):
     names = list(frame.columns)
+    if widths:
+        _widths(ws, names)      # write-only sheets: layout before the first row
     _header(ws, names)
-    _widths(ws, names)
     formats = [FORMATS.get(n) if styled else None for n in names]
     for row in frame.itertuples(index=False, name=None):
         ws.append([_value(ws, v, f) for v, f in zip(row, formats)])
 
 
+@contextlib.contextmanager
+def _full_precision_numbers():
+    """openpyxl writes floats with 16 significant digits ("%.16g"), which changes the last bit
+    of some values; Excel reads 17. Write the shortest round-trip repr instead so every number
+    in report.xlsx equals the one in the CSVs bit for bit."""
+    from openpyxl.cell import _writer
+
+    original = _writer.safe_string
+
+    def safe_string(value):
+        if isinstance(value, float) and math.isfinite(value):
+            return repr(float(value))
+        return original(value)
+
+    _writer.safe_string = safe_string
+    try:
+        yield
+    finally:
+        _writer.safe_string = original
+
+
 def write_report_xlsx(result: RunResult, path: Path) -> None:
-    wb = Workbook(write_only=True)
-    totals = scenario_totals(result.classes)
-    _summary(wb, result, totals)
-    _by_class(wb, result)
-    _by_vehicle(wb, result)
-    _comparison(wb, result)
-    _maps(wb, result)
-    _inputs(wb, result)
-    _run_info(wb, result)
-    wb.save(path)
+    # Write-only sheets stream their rows as they are appended: the whole build is inside.
+    with _full_precision_numbers():
+        wb = Workbook(write_only=True)
+        totals = scenario_totals(result.classes)
+        _summary(wb, result, totals)
+        _by_class(wb, result)
+        _by_vehicle(wb, result)
+        _comparison(wb, result)
+        _maps(wb, result)
+        _inputs(wb, result)
+        _run_info(wb, result)
+        wb.save(path)
 
 
 def _summary(wb, result: RunResult, totals: pd.DataFrame):
     ws = wb.create_sheet("Summary")
+    header_row = 6
+    ws.freeze_panes = f"A{header_row + 1}"   # write-only sheets: layout before the first row
+    for letter, width in zip("ABCDEFGHIJK", (22, 36, 12, 12, 16, 16, 10, 16, 16, 16)):
+        ws.column_dimensions[letter].width = width
     descriptions = {s.scenario_id: s.description for s in result.scenarios}
     years = {s.scenario_id: s.budget_years for s in result.scenarios}
     title = text_cell(ws, "Fleet fuel and fuel-tax forecast")
@@ -111,11 +140,7 @@ def _summary(wb, result: RunResult, totals: pd.DataFrame):
     frame = totals.copy()
     frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
     frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
-    header_row = 6
-    _table(ws, frame)
-    ws.freeze_panes = f"A{header_row + 1}"
-    ws.column_dimensions["A"].width = 22
-    ws.column_dimensions["B"].width = 36
+    _table(ws, frame, widths=False)
     n = len(frame)
     if n:
         chart = BarChart()
@@ -136,9 +161,10 @@ def _summary(wb, result: RunResult, totals: pd.DataFrame):
 def _by_class(wb, result: RunResult):
     ws = wb.create_sheet("ByClass")
     frame = result.classes
-    _table(ws, frame)
     ws.freeze_panes = "C2"
+    _widths(ws, list(frame.columns))
     ws.column_dimensions["B"].width = 28
+    _table(ws, frame, widths=False)
     n = len(frame)
     if not n:
         return
@@ -167,8 +193,8 @@ def _by_class(wb, result: RunResult):
 
 def _by_vehicle(wb, result: RunResult):
     ws = wb.create_sheet("ByVehicle")
-    _table(ws, result.results, styled=len(result.results) <= STYLED_ROW_LIMIT)
     ws.freeze_panes = "C2"
+    _table(ws, result.results, styled=len(result.results) <= STYLED_ROW_LIMIT)
     ws.auto_filter.ref = f"A1:{get_column_letter(len(result.results.columns))}{len(result.results) + 1}"
 
 
@@ -177,14 +203,15 @@ def _comparison(wb, result: RunResult):
     classes = result.classes
     scenario_ids = [s.scenario_id for s in result.scenarios]
     base = scenario_ids[0] if scenario_ids else None
+    names = ["vehicle_class", "scenario_id", "fuel_gal_total", "mpg", "state_tax_usd",
+             "federal_tax_usd", "fuel_change_pct", "state_tax_change_pct"]
+    _widths(ws, names, minimum=14)
+    ws.column_dimensions["A"].width = 28
+    ws.freeze_panes = "C3"
     title = text_cell(ws, f"Change against the first scenario ({base})")
     title.font = TITLE_FONT
     ws.append([title])
-    names = ["vehicle_class", "scenario_id", "fuel_gal_total", "mpg", "state_tax_usd",
-             "federal_tax_usd", "fuel_change_pct", "state_tax_change_pct"]
     _header(ws, names)
-    _widths(ws, names, minimum=14)
-    ws.column_dimensions["A"].width = 28
     baseline = classes[classes["scenario_id"] == base].set_index("vehicle_class")
     for _, row in classes.iterrows():
         ref = baseline.loc[row["vehicle_class"]] if row["vehicle_class"] in baseline.index else None
@@ -199,7 +226,6 @@ def _comparison(wb, result: RunResult):
                    _value(ws, row["federal_tax_usd"], FORMATS["federal_tax_usd"]),
                    _value(ws, fuel_change, FORMATS["change_pct"]),
                    _value(ws, tax_change, FORMATS["change_pct"])])
-    ws.freeze_panes = "C3"
     ws.append([])
     year_title_row = len(classes) + 4
     t = text_cell(ws, "By budget year")
@@ -231,13 +257,13 @@ def _comparison(wb, result: RunResult):
 
 def _maps(wb, result: RunResult):
     ws = wb.create_sheet("Efficiency maps")
+    ws.column_dimensions["A"].width = 26
     title = text_cell(ws, "Differential efficiency: torque fraction (rows) x input speed [rpm] (columns)")
     title.font = TITLE_FONT
     ws.append([title])
     if not result.maps:
         ws.append([text_cell(ws, "No efficiency maps (see RunInfo warnings).")])
         return
-    ws.column_dimensions["A"].width = 26
     row = 2
     for m in result.maps:
         ws.append([])
@@ -281,13 +307,14 @@ def _maps(wb, result: RunResult):
 def _inputs(wb, result: RunResult):
     ws = wb.create_sheet("Inputs")
     fleet = result.fleet
+    ws.freeze_panes = "B3"
     t = text_cell(ws, "Vehicles (as read)")
     t.font = Font(bold=True)
     ws.append([t])
     extra_names = list(dict.fromkeys(k for v in fleet.vehicles for k in v.extra))
     names = [c.name for c in VEHICLE_COLUMNS] + extra_names
-    _header(ws, names)
     _widths(ws, names)
+    _header(ws, names)
     for v in fleet.vehicles:
         values = []
         for c in VEHICLE_COLUMNS:
@@ -312,7 +339,6 @@ def _inputs(wb, result: RunResult):
                                  for k, w in value.items())
             values.append(_value(ws, value))
         ws.append(values)
-    ws.freeze_panes = "B3"
 
 
 def _run_info(wb, result: RunResult):

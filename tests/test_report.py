@@ -1,0 +1,192 @@
+"""report.xlsx and summary.html read back: sheets, charts, totals equal to the CSVs, safety."""
+from __future__ import annotations
+
+import html.parser
+import math
+import re
+import zipfile
+
+import openpyxl
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+from fleetrun.fleet import runner
+from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+
+SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Efficiency maps", "Inputs", "RunInfo"]
+
+
+@pytest.fixture(autouse=True)
+def fake_simulation(monkeypatch):
+    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    import _pytest.monkeypatch
+
+    patch = _pytest.monkeypatch.MonkeyPatch()
+    patch.setattr(runner, "simulate_function", fakes.fake_simulate)
+    try:
+        base = tmp_path_factory.mktemp("report")
+        fleet = small_fleet(base / "fleet.xlsx")
+        out = base / "out"
+        result = CliRunner().invoke(cli, ["run", str(fleet), "--out", str(out), "--no-cache", "-q"])
+        assert result.exit_code == 0, result.stderr
+    finally:
+        patch.undo()
+    return out
+
+
+def table(ws, first_row: int = 1):
+    rows = list(ws.iter_rows(min_row=first_row, values_only=True))
+    header = rows[0]
+    width = len([h for h in header if h is not None])
+    body = []
+    for row in rows[1:]:
+        if all(v is None for v in row[:width]):
+            break
+        body.append(row[:width])
+    return pd.DataFrame(body, columns=header[:width])
+
+
+def charts_per_sheet(path) -> dict[str, int]:
+    """Sheet name -> number of charts, from the package's relationships."""
+    with zipfile.ZipFile(path) as z:
+        names = z.namelist()
+        workbook = z.read("xl/workbook.xml").decode()
+        rels = z.read("xl/_rels/workbook.xml.rels").decode()
+        targets = dict(re.findall(r'Id="(rId\d+)"[^>]*Target="([^"]+)"', rels)
+                       + [(b, a) for a, b in re.findall(r'Target="([^"]+)"[^>]*Id="(rId\d+)"', rels)])
+        counts = {}
+        for name, rid in re.findall(r'<sheet [^>]*name="([^"]+)"[^>]*r:id="(rId\d+)"', workbook):
+            sheet_part = "xl/" + targets[rid].lstrip("/").removeprefix("xl/")
+            rel_part = sheet_part.replace("worksheets/", "worksheets/_rels/") + ".rels"
+            count = 0
+            if rel_part in names:
+                for drawing in re.findall(r'Target="([^"]*drawings/drawing\d+\.xml)"', z.read(rel_part).decode()):
+                    drawing_rels = "xl/drawings/_rels/" + drawing.rsplit("/", 1)[1] + ".rels"
+                    if drawing_rels in names:
+                        count += len(re.findall(r"charts/chart\d+\.xml", z.read(drawing_rels).decode()))
+            counts[name.replace("&amp;", "&")] = count
+    return counts
+
+
+def test_report_sheets_and_charts(outputs):
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    assert wb.sheetnames == SHEETS
+    charts = charts_per_sheet(outputs / "report.xlsx")
+    assert charts["Summary"] == 1 and charts["ByClass"] == 1 and charts["Scenario comparison"] == 1
+    assert charts["Efficiency maps"] >= 1
+    assert wb["ByVehicle"].freeze_panes == "C2" and wb["ByClass"].freeze_panes == "C2"
+    assert wb["ByClass"]["F2"].number_format == "0.00"
+
+
+def test_report_totals_equal_csvs(outputs):
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    results = pd.read_csv(outputs / "results.csv", float_precision="round_trip")
+    classes = pd.read_csv(outputs / "class_summary.csv", float_precision="round_trip")
+    by_vehicle = table(wb["ByVehicle"])
+    by_class = table(wb["ByClass"])
+    pd.testing.assert_frame_equal(by_vehicle[results.columns].reset_index(drop=True), results,
+                                  check_dtype=False, check_exact=True)
+    pd.testing.assert_frame_equal(by_class[classes.columns].reset_index(drop=True), classes,
+                                  check_dtype=False, check_exact=True)
+    summary = table(wb["Summary"], first_row=6)
+    for row in summary.itertuples():
+        group = classes[classes.scenario_id == row.scenario_id]
+        assert row.fuel_gal_total == math.fsum(group.fuel_gal_total)
+        assert row.state_tax_usd == math.fsum(group.state_tax_usd)
+        assert row.mpg == row.miles_total / row.fuel_gal_total
+    assert list(summary.scenario_id) == ["baseline", "hot", "urban"]
+
+
+def test_report_inputs_and_runinfo(outputs):
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    inputs = [row for row in wb["Inputs"].iter_rows(values_only=True)]
+    assert inputs[1][0] == "vehicle_id" and inputs[2][0] == "CAR-1"
+    info = {row[0]: row[1] for row in wb["RunInfo"].iter_rows(values_only=True) if row and row[0]}
+    assert info["physics"] == "thesis" and "fleetrun_version" in info
+
+
+def test_labels_are_text_in_excel_and_escaped_in_html(tmp_path):
+    evil_class = '=HYPERLINK("http://evil.example","x")'
+    evil_id = "<script>alert(1)</script>"
+    path = write_fleet(tmp_path / "evil.xlsx",
+                       [vehicle(evil_id, vehicle_class=evil_class), vehicle("B", vehicle_class="+1+2")],
+                       [scenario("<b>s</b>", description="<img src=x onerror=alert(1)>")])
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"])
+    assert result.exit_code == 0, result.stderr
+    wb = openpyxl.load_workbook(out / "report.xlsx")
+    seen = 0
+    for ws in wb.worksheets:
+        for row in ws.iter_rows():
+            for cell in row:
+                if cell.value in (evil_class, evil_id, "+1+2"):
+                    assert cell.data_type == "s", (ws.title, cell.coordinate)
+                    seen += 1
+                assert cell.data_type != "f", (ws.title, cell.coordinate, cell.value)
+    assert seen >= 4
+    page = (out / "summary.html").read_text()
+    assert "<script>" not in page and "<img" not in page and "<b>s</b>" not in page
+    assert "&lt;script&gt;" not in page or True  # ids are not shown in the class table
+    assert "&lt;b&gt;s&lt;/b&gt;" in page and "&lt;img src=x onerror=alert(1)&gt;" in page
+    assert "=HYPERLINK(&#34;http://evil.example&#34;,&#34;x&#34;)" in page
+
+
+class _Collector(html.parser.HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.urls, self.rows, self._row, self.svgs, self.tags = [], [], None, 0, set()
+        self._in_class_table = False
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.add(tag)
+        for key in ("src", "href"):
+            if key in attrs:
+                self.urls.append(attrs[key])
+        if tag == "svg":
+            self.svgs += 1
+        if tag == "table" and attrs.get("id") == "class-table":
+            self._in_class_table = True
+        if self._in_class_table and tag == "tr":
+            self._row = {}
+        if self._in_class_table and tag == "td" and self._row is not None:
+            self._row[attrs["data-column"]] = attrs["data-value"]
+
+    def handle_endtag(self, tag):
+        if tag == "tr" and self._row:
+            self.rows.append(self._row)
+            self._row = None
+        if tag == "table":
+            self._in_class_table = False
+
+
+def test_summary_html_self_contained_with_class_table(outputs):
+    page = (outputs / "summary.html").read_text()
+    parsed = _Collector()
+    parsed.feed(page)
+    assert parsed.urls == [] and "script" not in parsed.tags and "http://" not in page.replace(
+        "http://www.w3.org/2000/svg", "")
+    assert parsed.svgs >= 3   # revenue and fuel charts plus the maps
+    classes = pd.read_csv(outputs / "class_summary.csv", dtype=str, keep_default_na=False, float_precision="round_trip")
+    assert len(parsed.rows) == len(classes)
+    for html_row, (_, csv_row) in zip(parsed.rows, classes.iterrows()):
+        for column, value in html_row.items():
+            assert value == csv_row[column], column
+    assert '<meta name="viewport"' in page and "@media print" in page
+    assert pd.read_csv(outputs / "results.csv", float_precision="round_trip").shape[0] == 12
+
+
+def test_scenario_without_vehicles_rows_is_fine(tmp_path):
+    path = write_fleet(tmp_path / "z.xlsx", [vehicle(count=0)], [scenario()])
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"])
+    assert result.exit_code == 0, result.stderr
+    row = pd.read_csv(out / "results.csv", float_precision="round_trip").iloc[0]
+    assert row.miles_total == 0 and row.fuel_gal_total == 0 and row.mpg > 0
