@@ -22,7 +22,7 @@ import numpy as np
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
 from fleetrun.simulation.params import VehicleArrays
-from fleetrun.simulation.road_load import road_load_N, grade_force_N, G_MPS2
+from fleetrun.simulation.road_load import road_load_N, grade_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, input_torque_Nm,
                                               torque_ratio)
 
@@ -34,16 +34,21 @@ N_POWER_TABLE = 65
 
 def _power_speed_table(va: VehicleArrays) -> np.ndarray:
     """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65)."""
-    x = np.linspace(0.0, 1.0, 257)
-    table = np.empty((va.n, N_POWER_TABLE))
+    x = np.linspace(0.0, 1.0, 257)[None, :]
+    col = lambda a: a[:, None]  # noqa: E731
+    n = col(va.n_idle) + x * col(va.n_rated - va.n_idle)
+    T = full_load_torque_Nm(n, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
+                            col(va.n_peak_torque), col(va.idle_T_frac))
+    p = np.maximum.accumulate(T * n / RPM / col(va.P_rated_kW * 1e3), axis=1)
     p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
-    for v in range(va.n):
-        n = va.n_idle[v] + x * (va.n_rated[v] - va.n_idle[v])
-        T = full_load_torque_Nm(n, va.T_peak[v], va.P_rated_kW[v], va.n_rated[v], va.n_idle[v],
-                                va.n_peak_torque[v], va.idle_T_frac[v])
-        p = np.maximum.accumulate(T * n / RPM / (va.P_rated_kW[v] * 1e3))
-        table[v] = np.interp(p_grid, p, n)
-    return table
+    # p is non-decreasing per row: the first grid index where p >= target, interpolated
+    idx = np.clip(np.array([np.searchsorted(row, p_grid) for row in p]).reshape(va.n, -1), 1, x.size - 1)
+    rows = np.arange(va.n)[:, None]
+    p0, p1 = p[rows, idx - 1], p[rows, idx]
+    n0, n1 = n[rows, idx - 1], n[rows, idx]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.clip(np.where(p1 > p0, (p_grid[None, :] - p0) / (p1 - p0), 1.0), 0.0, 1.0)
+    return n0 + w * (n1 - n0)
 
 
 def _lookup_rows(table, rows, frac):
@@ -66,8 +71,8 @@ class DifferentialSolver:
         self.effects = tuple(effects or ())
         self.low = np.where(va.low_ratio > 1.0, va.low_ratio, np.nan)
         if mode != "direct":
-            self.maps, self.n_max = diffmodes.vehicle_maps(va.configuration, va.final_drive, self.low, mode,
-                                                           physics, ambient_temp_C, cache_dir)
+            self.maps, self.map_id, self.n_max = diffmodes.vehicle_maps(
+                va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir)
 
     def subset(self, rows) -> "DifferentialSolver":
         other = object.__new__(DifferentialSolver)
@@ -75,13 +80,14 @@ class DifferentialSolver:
         other.va = self.va.subset(rows)
         other.low = self.low[rows]
         if self.mode != "direct":
-            other.maps, other.n_max = self.maps[rows], self.n_max[rows]
+            other.map_id = self.map_id[rows]
         return other
 
     def input_fraction(self, out_frac, speed_rpm, vehicle, axle_low):
         """T_in / kim for T_out / (kim G_tot) = ``out_frac`` >= 0 (flat arrays)."""
         if self.mode != "direct":
-            return diffmodes.interp_maps(self.maps, self.n_max, vehicle, axle_low.astype(np.intp), out_frac, speed_rpm)
+            return diffmodes.interp_maps(self.maps, self.n_max, self.map_id[vehicle], axle_low.astype(np.intp),
+                                         out_frac, speed_rpm)
         result = np.empty(out_frac.shape)
         cfgs = np.array(self.va.configuration)
         for cfg in np.unique(cfgs[vehicle]) if vehicle.size else ():
@@ -121,6 +127,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     # gear: lowest engine speed with power reserve (transmission.py)
     p_need = np.maximum(force * v_avg, 0.0) / DRIVETRAIN_GUESS
     rows = np.broadcast_to(np.arange(V)[:, None], (V, N))
+    # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
     n_power = _lookup_rows(_power_speed_table(va), rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
     n_req = np.minimum(np.maximum(col(va.shift_min_rpm), n_power), col(va.n_rated))
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)

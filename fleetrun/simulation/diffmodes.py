@@ -220,6 +220,9 @@ def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, am
     return inv
 
 
+_LOADED: dict = {}  # maps already read in this process, by (file, key digest)
+
+
 def default_cache_dir() -> Path:
     env = os.environ.get("FLEETRUN_CACHE_DIR")
     return Path(env) if env else Path.home() / ".cache" / "fleetrun"
@@ -239,10 +242,14 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = directory / f"map3d-{configuration}-{digest}.npz"
+    if (path, digest) in _LOADED:
+        return gears, _LOADED[(path, digest)]
     if path.is_file():
         try:
             with np.load(path) as data:
-                return gears, data["maps"]
+                maps = data["maps"]
+            _LOADED[(path, digest)] = maps
+            return gears, maps
         except Exception:  # a damaged cache file is rebuilt
             pass
     ranges = (False, True) if low_gear_ratio is not None else (False,)
@@ -260,47 +267,49 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
         os.replace(tmp, path)
     except OSError:
         pass  # an unwritable cache only costs the rebuild next time
+    _LOADED[(path, digest)] = maps
     return gears, maps
 
 
 def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient_temp_C=None, cache_dir=None):
-    """Inverse maps per vehicle and axle range: array (V, 2, N_U, N_SPEED), speed grids (V, N_SPEED).
+    """Inverse maps per distinct differential: (maps (M, 2, N_U, N_SPEED), map index per vehicle (V,),
+    top of the speed grid per map (M,)).
 
     ``low_ratios`` holds NaN for single-speed axles. map2d evaluates the model at each distinct
     (configuration, G, low); map3d interpolates the cached gear-ratio maps linearly in G.
     """
     V = len(configurations)
-    out = np.empty((V, 2, N_U, N_SPEED))
-    n_max = np.empty(V)
-    memo = {}
+    index = np.empty(V, np.intp)
+    keys: dict = {}
     for v in range(V):
-        cfg, G, low = configurations[v], float(gear_ratios[v]), float(low_ratios[v])
-        lowv = None if np.isnan(low) else low
-        n_max[v] = speed_grid(cfg)[-1]
+        low = float(low_ratios[v])
+        key = (configurations[v], float(gear_ratios[v]), None if np.isnan(low) else low)
+        index[v] = keys.setdefault(key, len(keys))
+    maps = np.empty((len(keys), 2, N_U, N_SPEED))
+    n_max = np.empty(len(keys))
+    grids = {}
+    for (cfg, G, lowv), m in keys.items():
+        n_max[m] = speed_grid(cfg)[-1]
         if mode == "map2d":
-            key = (cfg, G, lowv)
-            if key not in memo:
-                hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C)
-                lo_map = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C) if lowv is not None else hi
-                memo[key] = np.stack([hi, lo_map])
-            out[v] = memo[key]
-        else:
-            key = (cfg, lowv)
-            if key not in memo:
-                memo[key] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir)
-            gears, maps = memo[key]
-            if not gears[0] <= G <= gears[-1]:
-                raise InputError(f"final_drive_ratio {G} is outside the map3d gear-ratio grid "
-                                 f"{gears[0]}-{gears[-1]} of {cfg}", column="final_drive_ratio", value=G,
-                                 hint="Use --mode map2d or direct for this vehicle")
-            i = min(int(np.searchsorted(gears, G, side="right")) - 1, gears.size - 2)
-            w = (G - gears[i]) / (gears[i + 1] - gears[i])
-            out[v] = (1.0 - w) * maps[:, i] + w * maps[:, i + 1]
-    return out, n_max
+            hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C)
+            maps[m, 0] = hi
+            maps[m, 1] = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C) if lowv is not None else hi
+            continue
+        if (cfg, lowv) not in grids:
+            grids[(cfg, lowv)] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir)
+        gears, grid_maps = grids[(cfg, lowv)]
+        if not gears[0] <= G <= gears[-1]:
+            raise InputError(f"final_drive_ratio {G:g} is outside the map3d gear-ratio grid "
+                             f"{gears[0]:g}-{gears[-1]:g} of {cfg}", column="final_drive_ratio", value=G,
+                             hint="Use --mode map2d or direct for this vehicle")
+        i = min(int(np.searchsorted(gears, G, side="right")) - 1, gears.size - 2)
+        w = (G - gears[i]) / (gears[i + 1] - gears[i])
+        maps[m] = (1.0 - w) * grid_maps[:, i] + w * grid_maps[:, i + 1]
+    return maps, index, n_max
 
 
-def interp_maps(maps, n_max, vehicle, axle_low, out_frac, speed_rpm):
-    """Bilinear lookup T_in/kim = map[vehicle, range](sqrt(out_frac), speed) for flat arrays.
+def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm):
+    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) for flat arrays.
 
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
     """
@@ -308,11 +317,11 @@ def interp_maps(maps, n_max, vehicle, axle_low, out_frac, speed_rpm):
     u = np.sqrt(np.maximum(out_frac, 0.0)) / du
     i = np.minimum(u.astype(np.intp), N_U - 2)
     wu = u - i
-    s = np.minimum(speed_rpm * ((N_SPEED - 1) / n_max[vehicle]), N_SPEED - 1.0)
+    s = np.minimum(speed_rpm * ((N_SPEED - 1) / n_max[map_id]), N_SPEED - 1.0)
     j = np.minimum(s.astype(np.intp), N_SPEED - 2)
     ws = s - j
     flat = maps.reshape(-1)
-    base = ((vehicle * 2 + axle_low) * N_U + i) * N_SPEED + j
+    base = ((map_id * 2 + axle_low) * N_U + i) * N_SPEED + j
     m00 = flat[base]
     m01 = flat[base + 1]
     m10 = flat[base + N_SPEED]

@@ -146,59 +146,80 @@ def _get(v: VehicleSpec, key: str, default):
 
 def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
     """Check the rows and gather their parameters (defaults filled in) into arrays."""
-    rows = []
-    for v in vehicles:
-        _check(v)
-        eng = engine_defaults(v.fuel, v.duty_class)
-        trn = transmission_defaults(v.transmission)
-        cfg = canonical(v.configuration)
-        dual = cfg in DUAL_CONFIGURATIONS
-        low = float(v.low_gear_ratio) if dual else 1.0
-        T_peak = float(v.peak_engine_torque_Nm)
-        n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
-        n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
-        P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
-                   eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
-        disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
-                4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
-        gears = tuple(float(g) for g in v.transmission_gear_ratios)
-        g_eff = _get(v, "gear_efficiency", trn["gear_efficiency"])
-        d_eff = _get(v, "direct_gear_efficiency", trn["direct_gear_efficiency"])
-        combos = []
-        for i, g in enumerate(gears):
-            eff = d_eff if abs(g - 1.0) < 0.02 else g_eff
-            combos.append((g, False, i + 1, eff, g))
-            if dual:
-                combos.append((g, True, i + 1, eff, g * low))
-        combos.sort(key=lambda c: -c[4])
-        rows.append(dict(
-            cfg=cfg,
-            mass=float(v.test_weight_kg),
-            rot=_get(v, "rotating_mass_fraction", ROTATING_MASS_FRACTION.get(v.duty_class, 0.015)),
-            coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
-            radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
-            fd=float(v.final_drive_ratio), low=low, kim=v.kim_scale_Nm, combos=combos,
-            auto=v.transmission == "automatic",
-            stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio),
-            # a converter that stalls above the engine's torque band could never hold full
-            # torque: the default stall speed is at most 3/4 of rated speed
-            stall_rpm=_get(v, "stall_speed_rpm", min(trn.get("stall_speed_rpm", 2000.0), 0.75 * n_rated)),
-            lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
-            launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
-            T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
-            n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
-            idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
-            disp=disp,
-            pme0=(_get(v, "pme0_a_kPa", eng["pme0_a_kPa"]), _get(v, "pme0_b_kPa", eng["pme0_b_kPa"]),
-                  _get(v, "pme0_c_kPa", eng["pme0_c_kPa"])),
-            eta=_get(v, "eta_indicated", eng["eta_indicated"]),
-            lhv=_get(v, "lhv_MJ_per_kg", eng["lhv_MJ_per_kg"]),
-            rho=_get(v, "density_kg_per_L", eng["density_kg_per_L"]),
-            shift=_get(v, "shift_speed_min_rpm", eng["shift_speed_min_rpm"]),
-            reserve=_get(v, "power_reserve", eng["power_reserve"]),
-            cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
-            idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
-        ))
+    rows = [_row_cached(v) for v in vehicles]
+    return _gather(rows)
+
+
+def _row_cached(v: VehicleSpec) -> dict:
+    try:
+        key = (v, tuple(sorted((v.extra or {}).items())))
+        hash(key)
+    except TypeError:
+        return _row(v)
+    return _ROW_CACHE(key)
+
+
+@lru_cache(maxsize=65536)
+def _ROW_CACHE(key) -> dict:
+    return _row(key[0])
+
+
+def _row(v: VehicleSpec) -> dict:
+    """One vehicle's checked parameters with defaults filled in."""
+    _check(v)
+    eng = engine_defaults(v.fuel, v.duty_class)
+    trn = transmission_defaults(v.transmission)
+    cfg = canonical(v.configuration)
+    dual = cfg in DUAL_CONFIGURATIONS
+    low = float(v.low_gear_ratio) if dual else 1.0
+    T_peak = float(v.peak_engine_torque_Nm)
+    n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
+    n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
+    P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
+               eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
+    disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
+            4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+    gears = tuple(float(g) for g in v.transmission_gear_ratios)
+    g_eff = _get(v, "gear_efficiency", trn["gear_efficiency"])
+    d_eff = _get(v, "direct_gear_efficiency", trn["direct_gear_efficiency"])
+    combos = []
+    for i, g in enumerate(gears):
+        eff = d_eff if abs(g - 1.0) < 0.02 else g_eff
+        combos.append((g, False, i + 1, eff, g))
+        if dual:
+            combos.append((g, True, i + 1, eff, g * low))
+    combos.sort(key=lambda c: -c[4])
+    return dict(
+        cfg=cfg,
+        mass=float(v.test_weight_kg),
+        rot=_get(v, "rotating_mass_fraction", ROTATING_MASS_FRACTION.get(v.duty_class, 0.015)),
+        coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
+        radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
+        fd=float(v.final_drive_ratio), low=low, kim=v.kim_scale_Nm, combos=combos,
+        auto=v.transmission == "automatic",
+        stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio),
+        # a converter that stalls above the engine's torque band could never hold full
+        # torque: the default stall speed is at most 3/4 of rated speed
+        stall_rpm=_get(v, "stall_speed_rpm", min(trn.get("stall_speed_rpm", 2000.0), 0.75 * n_rated)),
+        lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
+        launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
+        T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
+        n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
+        idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
+        disp=disp,
+        pme0=(_get(v, "pme0_a_kPa", eng["pme0_a_kPa"]), _get(v, "pme0_b_kPa", eng["pme0_b_kPa"]),
+              _get(v, "pme0_c_kPa", eng["pme0_c_kPa"])),
+        eta=_get(v, "eta_indicated", eng["eta_indicated"]),
+        lhv=_get(v, "lhv_MJ_per_kg", eng["lhv_MJ_per_kg"]),
+        rho=_get(v, "density_kg_per_L", eng["density_kg_per_L"]),
+        shift=_get(v, "shift_speed_min_rpm", eng["shift_speed_min_rpm"]),
+        reserve=_get(v, "power_reserve", eng["power_reserve"]),
+        cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
+        idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
+    )
+
+
+def _gather(rows: list) -> VehicleArrays:
     V = len(rows)
     K = max((len(r["combos"]) for r in rows), default=1)
     ctr = np.zeros((V, K)); clow = np.zeros((V, K), bool); cg = np.ones((V, K), np.intp); ceff = np.ones((V, K))

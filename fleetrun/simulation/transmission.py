@@ -8,8 +8,9 @@ still has reserve" rule, as in economy schedules of backward simulators (ADVISOR
 auto-shift): in every step choose the highest gear (smallest overall ratio) in which the
 engine turns at least
 
-    n_req = max(n_shift_min, n_power),  n_power: speed at which reserve x full-load power
-                                        equals the power demanded,
+    n_req = min(max(n_shift_min, n_power), n_rated),  n_power = P_demand / (reserve x T_peak)
+                                        (the speed at which reserve x peak torque gives
+                                        the power demanded),
 
 falling back to first gear. Two-speed (dual) axles act as a range splitter: the schedule
 chooses among all transmission-gear x axle-gear products (thesis Sec. 2.2.6.B leaves the
