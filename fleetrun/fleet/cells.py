@@ -137,6 +137,18 @@ TIRE_PATTERNS = (
 
 def parse_tire_size(value) -> str:
     text = parse_text(value)
-    if not any(p.match(text) for p in TIRE_PATTERNS):
-        raise CellProblem(f"{show(value)} is not a tire size like P235/75R15 or 295/75R22.5")
-    return text
+    try:  # the simulation's own parser decides what it can use
+        from fleetrun.simulation.tyre import tire_diameter_m
+    except ImportError:
+        tire_diameter_m = None
+    if tire_diameter_m is not None:
+        from fleetrun.errors import InputError
+
+        try:
+            tire_diameter_m(text)
+            return text
+        except InputError:
+            pass
+    elif any(p.match(text) for p in TIRE_PATTERNS):
+        return text
+    raise CellProblem(f"{show(value)} is not a tire size like P235/75R15, 295/75R22.5 or 11R22.5")

@@ -274,16 +274,22 @@ def yearly_totals(results: pd.DataFrame, scenarios: Sequence[Scenario]) -> pd.Da
 
 
 def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
+    """One line per vehicle and cycle that the vehicle could not follow, all measures together."""
     lines = []
     for (cycle, ambient), arrays in shortfalls.items():
-        for name, values in arrays.items():
-            where = np.flatnonzero(np.nan_to_num(values) > 0)
-            for i in where[:MAX_LISTED_WARNINGS]:
-                lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {_cycle_label(cycle)} at "
-                             f"{ambient:g} C: {name} = {values[i]:.4g}")
-            if len(where) > MAX_LISTED_WARNINGS:
-                lines.append(f"... and {len(where) - MAX_LISTED_WARNINGS} more vehicles with {name} "
-                             f"on {_cycle_label(cycle)}")
+        if not arrays:
+            continue
+        names = sorted(arrays)
+        stacked = np.nan_to_num(np.vstack([arrays[n] for n in names]))
+        where = np.flatnonzero((stacked > 0).any(axis=0))
+        for i in where[:MAX_LISTED_WARNINGS]:
+            measures = ", ".join(f"{n.removeprefix('shortfall_')} {stacked[k, i]:.3g}"
+                                 for k, n in enumerate(names) if stacked[k, i] > 0)
+            lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {_cycle_label(cycle)} at "
+                         f"{ambient:g} C (shortfall: {measures})")
+        if len(where) > MAX_LISTED_WARNINGS:
+            lines.append(f"... and {len(where) - MAX_LISTED_WARNINGS} more vehicles that cannot follow "
+                         f"{_cycle_label(cycle)} at {ambient:g} C")
     return lines
 
 

@@ -60,7 +60,7 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("torque_converter_ratio", "number", False, "default 3.0 automatic, 1.0 manual", minimum=1.0),
     Column("kim_torque_scale_Nm", "number", False, "overrides peak x converter x first gear",
            strictly_positive=True),
-    Column("low_gear_ratio", "number", False, "two-speed (dual) axles only: low ratio",
+    Column("low_gear_ratio", "number", False, "two-speed (dual) axles only: low-range multiplier, e.g. 1.35 (low = final drive x this)",
            strictly_positive=True),
     Column("rated_power_kW", "number", False, "rated engine power [kW]", strictly_positive=True,
            example=(150, 336)),
