@@ -1,0 +1,183 @@
+"""summary.html in headless Chromium: no console errors, no network, the class table equals
+class_summary.csv, fits a phone screen, prints to PDF. Skipped when Chromium is absent."""
+from __future__ import annotations
+
+import base64
+import json
+import re
+import shutil
+import subprocess
+import time
+import urllib.request
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+from fleetrun.fleet import runner
+from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+
+pytestmark = pytest.mark.browser
+CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
+websocket = pytest.importorskip("websocket", reason="websocket-client is needed to drive Chromium")
+if CHROMIUM is None:
+    pytest.skip("chromium is not installed", allow_module_level=True)
+
+
+class Browser:
+    """Just enough of the DevTools protocol: commands, and the events they produce."""
+
+    def __init__(self, profile_dir):
+        self.process = subprocess.Popen(
+            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             "--disable-dev-shm-usage", f"--user-data-dir={profile_dir}", "--remote-debugging-port=0",
+             "about:blank"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        port = None
+        deadline = time.time() + 30
+        while time.time() < deadline and port is None:
+            line = self.process.stderr.readline()
+            found = re.search(r"DevTools listening on ws://[^:]+:(\d+)/", line)
+            if found:
+                port = int(found.group(1))
+        if port is None:
+            self.close()
+            pytest.fail("chromium did not start its DevTools endpoint")
+        targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10))
+        page = next(t for t in targets if t["type"] == "page")
+        self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=30)
+        self.next_id = 0
+        self.events: list[dict] = []
+
+    def send(self, method, **params):
+        self.next_id += 1
+        self.ws.send(json.dumps({"id": self.next_id, "method": method, "params": params}))
+        while True:
+            message = json.loads(self.ws.recv())
+            if message.get("id") == self.next_id:
+                if "error" in message:
+                    raise RuntimeError(f"{method}: {message['error']}")
+                return message.get("result", {})
+            self.events.append(message)
+
+    def wait_for(self, method, timeout=30):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            for i, event in enumerate(self.events):
+                if event.get("method") == method:
+                    return self.events.pop(i)
+            self.ws.settimeout(max(0.1, deadline - time.time()))
+            self.events.append(json.loads(self.ws.recv()))
+        raise TimeoutError(method)
+
+    def evaluate(self, expression):
+        result = self.send("Runtime.evaluate", expression=expression, returnByValue=True)
+        if "exceptionDetails" in result:
+            raise RuntimeError(result["exceptionDetails"])
+        return result["result"]["value"]
+
+    def problems(self) -> list[str]:
+        found = []
+        for event in self.events:
+            method, params = event.get("method"), event.get("params", {})
+            if method == "Runtime.exceptionThrown":
+                found.append(f"exception: {params['exceptionDetails'].get('text')}")
+            elif method == "Runtime.consoleAPICalled" and params.get("type") in ("error", "warning", "assert"):
+                found.append(f"console.{params['type']}: {params.get('args')}")
+            elif method == "Log.entryAdded" and params["entry"]["level"] in ("error", "warning"):
+                found.append(f"log {params['entry']['level']}: {params['entry'].get('text')}")
+            elif method == "Network.requestWillBeSent":
+                url = params["request"]["url"]
+                if not url.startswith(("file:", "data:", "about:")):
+                    found.append(f"network request: {url}")
+        return found
+
+    def close(self):
+        try:
+            self.ws.close()
+        except Exception:
+            pass
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    import _pytest.monkeypatch
+
+    patch = _pytest.monkeypatch.MonkeyPatch()
+    patch.setattr(runner, "simulate_function", fakes.fake_simulate)
+    try:
+        base = tmp_path_factory.mktemp("browser")
+        fleet = small_fleet(base / "fleet.xlsx")
+        out = base / "out"
+        result = CliRunner().invoke(cli, ["run", str(fleet), "--out", str(out), "--no-cache", "-q"])
+        assert result.exit_code == 0, result.stderr
+    finally:
+        patch.undo()
+    return out
+
+
+@pytest.fixture
+def browser(tmp_path):
+    b = Browser(tmp_path / "profile")
+    for domain in ("Runtime", "Log", "Network", "Page"):
+        b.send(f"{domain}.enable")
+    yield b
+    b.close()
+
+
+def open_page(browser, path):
+    browser.send("Page.navigate", url=path.resolve().as_uri())
+    browser.wait_for("Page.loadEventFired")
+
+
+CLASS_TABLE_JS = """JSON.stringify([...document.querySelectorAll('#class-table tbody tr')].map(
+  tr => Object.fromEntries([...tr.cells].map(td => [td.dataset.column, [td.dataset.value, td.textContent]]))))"""
+
+
+def test_summary_no_console_errors_and_class_table_equals_csv(browser, run_dir):
+    open_page(browser, run_dir / "summary.html")
+    assert browser.problems() == []
+    rows = json.loads(browser.evaluate(CLASS_TABLE_JS))
+    csv = pd.read_csv(run_dir / "class_summary.csv", dtype=str, keep_default_na=False)
+    assert len(rows) == len(csv)
+    for shown, (_, expected) in zip(rows, csv.iterrows()):
+        for column, (value, text) in shown.items():
+            assert value == expected[column], column
+            if column not in ("scenario_id", "vehicle_class"):
+                number = float(text.replace("$", "").replace(",", ""))
+                assert number == pytest.approx(float(value), rel=5e-3, abs=0.5), column
+            else:
+                assert text == value
+    assert browser.evaluate("document.querySelectorAll('svg.chart').length") >= 3
+    assert browser.evaluate("document.getElementById('fingerprint').textContent").strip() != ""
+
+
+def test_summary_fits_a_phone_and_prints(browser, run_dir):
+    browser.send("Emulation.setDeviceMetricsOverride", width=390, height=844, deviceScaleFactor=3, mobile=True)
+    open_page(browser, run_dir / "summary.html")
+    assert browser.evaluate("document.documentElement.scrollWidth") <= 390
+    pdf = base64.b64decode(browser.send("Page.printToPDF", printBackground=True)["data"])
+    assert pdf.startswith(b"%PDF") and len(pdf) > 10_000
+    assert browser.problems() == []
+
+
+def test_hostile_labels_stay_text_in_the_browser(browser, tmp_path, monkeypatch):
+    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+    label = '<img src=x onerror="console.error(1)"><script>console.error(2)</script>'
+    path = write_fleet(tmp_path / "evil.xlsx", [vehicle(vehicle_class=label)],
+                       [scenario(description=label)])
+    out = tmp_path / "out"
+    assert CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"]).exit_code == 0
+    open_page(browser, out / "summary.html")
+    assert browser.problems() == []
+    assert browser.evaluate("document.querySelectorAll('img, script').length") == 0
+    cells = json.loads(browser.evaluate(CLASS_TABLE_JS))
+    assert cells[0]["vehicle_class"][1] == label
