@@ -201,7 +201,7 @@ def test_shortfall_becomes_a_warning(tmp_path):
     out = tmp_path / "out"
     assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
     warnings = json.loads((out / "manifest.json").read_text())["warnings"]
-    assert any("CAR-SLOW cannot follow US06 at 20 C (shortfall: s 5)" in w for w in warnings)
+    assert "vehicle CAR-SLOW cannot follow US06 (20 C); worst shortfall: s 5" in warnings
 
 
 def test_dask_engine_same_numbers(fleet_path, tmp_path):

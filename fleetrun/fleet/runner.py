@@ -274,22 +274,29 @@ def yearly_totals(results: pd.DataFrame, scenarios: Sequence[Scenario]) -> pd.Da
 
 
 def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
-    """One line per vehicle and cycle that the vehicle could not follow, all measures together."""
-    lines = []
+    """One line per vehicle that could not follow some cycle: which cycles, and the worst
+    value of each shortfall measure the simulation reports."""
+    by_vehicle: dict[int, dict] = {}
     for (cycle, ambient), arrays in shortfalls.items():
         if not arrays:
             continue
         names = sorted(arrays)
         stacked = np.nan_to_num(np.vstack([arrays[n] for n in names]))
-        where = np.flatnonzero((stacked > 0).any(axis=0))
-        for i in where[:MAX_LISTED_WARNINGS]:
-            measures = ", ".join(f"{n.removeprefix('shortfall_')} {stacked[k, i]:.3g}"
-                                 for k, n in enumerate(names) if stacked[k, i] > 0)
-            lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {_cycle_label(cycle)} at "
-                         f"{ambient:g} C (shortfall: {measures})")
-        if len(where) > MAX_LISTED_WARNINGS:
-            lines.append(f"... and {len(where) - MAX_LISTED_WARNINGS} more vehicles that cannot follow "
-                         f"{_cycle_label(cycle)} at {ambient:g} C")
+        for i in np.flatnonzero((stacked > 0).any(axis=0)):
+            entry = by_vehicle.setdefault(int(i), {"cycles": {}, "worst": {}})
+            entry["cycles"].setdefault(_cycle_label(cycle), []).append(f"{ambient:g} C")
+            for k, name in enumerate(names):
+                if stacked[k, i] > 0:
+                    entry["worst"][name] = max(entry["worst"].get(name, 0.0), float(stacked[k, i]))
+    lines = []
+    for i in sorted(by_vehicle)[:MAX_LISTED_WARNINGS]:
+        entry = by_vehicle[i]
+        cycles = ", ".join(f"{c} ({', '.join(t)})" for c, t in entry["cycles"].items())
+        worst = ", ".join(f"{n.removeprefix('shortfall_')} {v:.3g}" for n, v in sorted(entry["worst"].items()))
+        lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {cycles}; worst shortfall: {worst}")
+    if len(by_vehicle) > MAX_LISTED_WARNINGS:
+        lines.append(f"... and {len(by_vehicle) - MAX_LISTED_WARNINGS} more vehicle types that cannot "
+                     "follow some cycle")
     return lines
 
 
