@@ -3,10 +3,11 @@
 Baseline: ``T_out = G * eta(T_in / Kim, n_in) * T_in`` while the pinion turns (thesis chain,
 ``fleetrun.differential.efficiency``), ``G * T_in`` at standstill (statics: no power, no loss).
 
-Sensor zero: torque sensors drift; at standstill the half-shaft torque must equal
-``G * T_in`` whatever the efficiency, so the median of ``measured - G * T_in`` over standstill
-samples is the output sensor's offset (to first order also the input sensor's, times G) and
-is removed before anything is fitted. A constant offset while driving would otherwise look
+Sensor zero: torque sensors drift. Where the recording stands still with no torque (a rig,
+neutral) the median reading of each torque sensor at standstill is its offset. Where torque
+is held at standstill (creep against the brakes), statics still give ``T_out = G * T_in``
+whatever the efficiency, so the median of ``measured - G * T_in`` at standstill is the output
+sensor's offset relative to the input's. Offsets are removed before anything is fitted. A constant offset while driving would otherwise look
 exactly like ``bearing_preload``. Without standstill samples the offset cannot be told from a
 preload, and a ``bearing_preload`` finding is reported ``ambiguous`` instead.
 
@@ -92,16 +93,30 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
                  (np.abs(df["wheel_speed_right_rpm"].to_numpy()) < STANDSTILL_RPM / g)
     extra_ambiguity = {}
     offset = 0.0
+    offset_in = 0.0
     if still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t)):
-        offset = float(np.median(y[still] - g * t_in[still]))
-        notes.append(f"torque sensors zeroed at standstill ({int(still.sum())} samples): "
-                     f"output offset {offset:.3g} N m removed")
+        t_still = float(np.median(t_in[still]))
+        driving = t_in[~still]
+        typical = float(np.median(np.abs(driving))) if driving.size else 0.0
+        if abs(t_still) < 0.05 * max(typical, 1e-9):
+            # no torque at rest (rig, neutral): each sensor reads its own offset
+            offset_in = t_still
+            offset = float(np.median(y[still]))
+            notes.append(f"torque sensors zeroed at standstill ({int(still.sum())} samples): "
+                         f"input offset {offset_in:.3g} N m, output offset {offset:.3g} N m removed")
+        else:
+            # torque held at rest (creep against the brakes): statics y = G T_in, so only the
+            # output sensor's offset relative to G x input is known
+            offset = float(np.median(y[still] - g * t_in[still]))
+            notes.append(f"torque held at standstill ({t_still:.3g} N m): output zeroed against "
+                         f"G x input, offset {offset:.3g} N m removed")
     else:
         notes.append("no standstill in the recording: torque sensor offsets cannot be separated "
                      "from a constant drag")
         extra_ambiguity["bearing_preload"] = ("no standstill samples: a constant torque-sensor "
                                               "offset would look the same")
     y = y - offset
+    t_in = t_in - offset_in
     y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
     w = n_rpm * 2 * np.pi / 60.0
     lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
@@ -161,7 +176,8 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
     if "vehicle_speed_kph" in df:
         drivers["vehicle_speed"] = df["vehicle_speed_kph"].to_numpy()
     info = {"model": f"thesis differential chain, {meta['configuration']}, physics={physics}",
-            "offset": round(offset, 6), "standstill_samples": int(still.sum()),
+            "offset": round(offset, 6), "input_offset_Nm": round(offset_in, 6),
+            "standstill_samples": int(still.sum()),
             "kim_scale_Nm": kim_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
                    surrogates, confound, drivers, info, notes, extra_ambiguity, units="N m")

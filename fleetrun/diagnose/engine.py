@@ -9,8 +9,9 @@ Rules (docs/diagnose.md):
 2. The best is accepted only if its gain beats both the ``quantile`` of the largest gain any
    candidate reaches on circularly shifted residuals and ``min_gain`` (a 1 % floor: smaller
    improvements do not change a forecast).
-3. A rival whose gain is within ``margin`` of the best and whose fitted signature is
-   correlated with it in this recording makes both ``ambiguous``; so does an untestable
+3. A rival that beats the null too, and once in the model leaves the best nothing to add
+   beyond noise (conditional held-out SSE reduction below the same null threshold), makes
+   both ``ambiguous``; so does an untestable
    candidate that could produce the same residual (its declared confounder, or its
    surrogate with assumed channels fitting as well). The separating test is reported.
 4. Accepted effects join the model and the search repeats for a further effect.
@@ -21,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fleetrun.diagnose.select import (Candidate, evaluate_candidate, fold_ids, full_fit,
+from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
                                       refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
 
@@ -55,16 +56,7 @@ class Settings:
     quantile: float = 0.99
     min_gain: float = 0.01
     max_effects: int = 3
-    correlation_confound: float = 0.6
-    margin_rel: float = 0.10
     seed: int = 0
-
-
-def _corr(a, b):
-    a = a - a.mean()
-    b = b - b.mean()
-    d = np.sqrt((a @ a) * (b @ b))
-    return float(a @ b / d) if d > 0 else 0.0
 
 
 def _params(cand: Candidate, shape: dict, coef: float) -> dict:
@@ -95,8 +87,7 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
                          "missing_channels": missing}
     accepted: list[dict] = []      # {cand, shape, column}
-    nuisance: list[np.ndarray] = []
-    nuisance_bounds: list[tuple[float, float]] = []
+    nuisance: list[tuple] = []          # terms in the model: (column, lower, upper)
     ambiguities: list[dict] = []
     rounds: list[dict] = []
     active = [c for c in problem.candidates]
@@ -113,8 +104,8 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         # the model *and* the best candidate. Shifting the raw residual would keep the
         # effect's own structure (e.g. "constant while moving"), which the channels still
         # match after a shift, and inflate the null.
-        cols = nuisance + [best_col]
-        coefs = full_fit(r, cols, nuisance_bounds + [(best.lower, best.upper)])
+        cols = [t[0] for t in nuisance] + [best_col]
+        coefs = full_fit(r, cols, [(t[1], t[2]) for t in nuisance] + [(best.lower, best.upper)])
         r_noise = r - np.array(cols).T @ coefs
         null = shift_null(r_noise, nuisance, active, folds, k, n_shifts=s.n_shifts, rng=rng)
         thr_dsse = null.dsse_threshold(s.quantile)
@@ -131,27 +122,53 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                               "parameters": _params(c, c.shapes[evals[c.id].shape_index],
                                                     evals[c.id].coefficient)}
         if not (dsse > thr_dsse and bev.gain > s.min_gain):
+            # nothing testable explains the residual; say so if an untestable effect could
+            for uid, sur in problem.surrogates.items():
+                sev = evaluate_candidate(r, nuisance, sur, folds, k)
+                if sev.gain > thr and n * (sev.rmse_before ** 2 - sev.rmse_after ** 2) > thr_dsse:
+                    significant = True
+                    ambiguities.append({
+                        "effects": [uid],
+                        "reasons": [f"{uid} cannot be tested (missing "
+                                    f"{', '.join(problem.untestable[uid])}); with assumed values "
+                                    f"it would cut the held-out error by {100 * sev.gain:.0f} %"],
+                        "separating_test": EFFECTS[uid].separating_test})
+                    statuses[uid]["could_explain"] = "mismatch"
             break
         significant = True
-        # a rival is as good if its held-out RMSE is within margin_rel of the best's
-        tol = bev.rmse_after * (1 + s.margin_rel)
+        # a rival is as good if, once the rival is in the model, the best adds no more
+        # held-out SSE reduction than noise can (the same shift-null threshold)
+        def as_good(cand, ev):
+            col = cand.columns[ev.shape_index]
+            before, after, _ = cv_fit(r, nuisance + [(col, cand.lower, cand.upper)], best_col, best.lower, best.upper, folds, k)
+            return before - after <= thr_dsse
+
         rivals = []
         for c in active:
             if c is best:
                 continue
             ev = evals[c.id]
-            if ev.gain > thr and ev.rmse_after < tol and \
-                    abs(_corr(best_col, c.columns[ev.shape_index])) > s.correlation_confound:
+            if ev.gain > thr and as_good(c, ev):
                 rivals.append((c.id, f"fits about as well ({ev.gain:.3f} vs {bev.gain:.3f} held-out "
-                                     f"gain) with a signature correlated with {best.id}'s in this recording"))
+                                     f"gain): with it in the model, {best.id} adds nothing beyond noise"))
         for uid in problem.untestable:
             eff = EFFECTS[uid]
             if uid in problem.surrogates:
                 sur = problem.surrogates[uid]
                 sev = evaluate_candidate(r, nuisance, sur, folds, k)
-                if sev.gain > thr and sev.rmse_after < tol:
+                if sev.gain > thr and as_good(sur, sev):
                     rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
                                         f"but with assumed values it fits as well ({sev.gain:.3f})"))
+                else:
+                    # the reverse: with the best in the model, does the untestable effect still
+                    # explain more than noise? Then the best alone is not the whole story and
+                    # the rest cannot be tested
+                    b2, a2, _ = cv_fit(r, nuisance + [(best_col, best.lower, best.upper)], sur.columns[sev.shape_index],
+                                       sur.lower, sur.upper, folds, k)
+                    if b2 - a2 > thr_dsse:
+                        rivals.append((uid, f"cannot be tested (missing "
+                                            f"{', '.join(problem.untestable[uid])}) and with assumed "
+                                            f"values explains what {best.id} leaves"))
             elif best.id in eff.confounded_with and problem.confound_possible.get(uid, False):
                 rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
                                     f"and produces a residual like {best.id}'s in such data"))
@@ -179,17 +196,31 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                 elif rid in statuses:
                     statuses[rid]["could_explain"] = best.id
             drop = {best.id} | {rid for rid, _ in rivals}
-            # the mismatch is explained by one of them: take the best's column out of the
-            # residual so that a further, different effect can still be found
-            nuisance.append(col)
-            nuisance_bounds.append((best.lower, best.upper))
+            active_ids = {c.id for c in active}
+            if any(rid not in active_ids and rid not in problem.surrogates for rid, _ in rivals):
+                # an untestable effect may be what the residual shows: nothing fitted now can
+                # be trusted to leave only noise behind, so the search stops here
+                break
+            # one of them explains the mismatch: put all of their columns in the model so that
+            # a further, different effect can still be found
+            for rid, _ in rivals:
+                if rid in active_ids:
+                    c = next(c for c in active if c.id == rid)
+                    cols_r, lo_r, hi_r = c.columns[evals[rid].shape_index], c.lower, c.upper
+                elif rid in problem.surrogates:
+                    sur = problem.surrogates[rid]
+                    cols_r = sur.columns[evaluate_candidate(r, nuisance, sur, folds, k).shape_index]
+                    lo_r, hi_r = sur.lower, sur.upper
+                else:
+                    continue
+                nuisance.append((cols_r, lo_r, hi_r))
+            nuisance.append((col, best.lower, best.upper))
             active = [c for c in active if c.id not in drop]
             continue
         accepted.append({"cand": best, "shape": shape, "column": col,
                          "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
         statuses[best.id]["status"] = "accepted"
-        nuisance.append(col)
-        nuisance_bounds.append((best.lower, best.upper))
+        nuisance.append((col, best.lower, best.upper))
         active = [c for c in active if c.id != best.id]
     # joint refit of every accepted effect on all data: the parameters reported
     findings = []

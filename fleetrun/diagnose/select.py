@@ -49,44 +49,47 @@ def fold_ids(n: int, k: int) -> np.ndarray:
     return np.minimum((np.arange(n) * k) // n, k - 1)
 
 
-def _solve_bounded(G, c, j, lo, hi):
-    """Least squares from normal equations with coefficient ``j`` clipped to [lo, hi].
+def _solve_bounded(G, c, lo, hi):
+    """Least squares from normal equations with every coefficient kept in [lo, hi].
 
-    ``G`` (..., p, p), ``c`` (..., p). One active-set step: if the free solution puts the
-    candidate outside its bounds it is fixed at the bound and the rest re-solved, which is
-    the exact bounded solution for a single bounded coefficient.
+    ``G`` (..., p, p), ``c`` (..., p), ``lo``/``hi`` (p,). Greedy active set, vectorised over
+    the leading axes: solve, fix the coefficients that left their bounds at the bound, re-solve
+    the rest; at most p passes. Exact for one bounded coefficient; for several it never
+    releases a bound again, which is fine for the 1-4 columns used here.
     """
     p = G.shape[-1]
-    ridge = 1e-12 * np.trace(G, axis1=-2, axis2=-1)[..., None, None] * np.eye(p) + 1e-300 * np.eye(p)
-    b = np.linalg.solve(G + ridge, c[..., None])[..., 0]
-    out = (b[..., j] < lo) | (b[..., j] > hi)
-    if np.any(out):
-        bj = np.clip(b[..., j], lo, hi)
-        if p > 1:
-            keep = [i for i in range(p) if i != j]
-            Gk = G[..., keep, :][..., :, keep]
-            ck = c[..., keep] - G[..., keep, j] * bj[..., None]
-            rk = ridge[..., keep, :][..., :, keep]
-            bk = np.linalg.solve(Gk + rk, ck[..., None])[..., 0]
-            b2 = b.copy()
-            b2[..., keep] = bk
-            b2[..., j] = bj
-        else:
-            b2 = bj[..., None]
-        b = np.where(out[..., None], b2, b)
-    return b
+    lo = np.broadcast_to(np.asarray(lo, dtype=float), (p,))
+    hi = np.broadcast_to(np.asarray(hi, dtype=float), (p,))
+    eye = np.eye(p)
+    scale = np.trace(G, axis1=-2, axis2=-1)[..., None, None] / p
+    ridge = (1e-12 * scale + 1e-300) * eye
+    fixed = np.zeros(c.shape, bool)
+    val = np.zeros(c.shape)
+    b = None
+    for _ in range(p + 1):
+        A = np.where(fixed[..., None, :], 0.0, G)
+        A = np.where(fixed[..., :, None], eye, A)
+        rhs = c - np.einsum("...ij,...j->...i", np.where(fixed[..., None, :], G, 0.0), val)
+        rhs = np.where(fixed, val, rhs)
+        b = np.linalg.solve(A + np.where(fixed[..., :, None], 0.0, ridge), rhs[..., None])[..., 0]
+        viol = ~fixed & ((b < lo) | (b > hi))
+        if not viol.any():
+            break
+        val = np.where(viol, np.clip(b, lo, hi), val)
+        fixed = fixed | viol
+    return np.where(fixed, val, b)
 
 
-def _heldout_sse(G_f, c_f, rr_f, j, lo, hi):
+def _heldout_sse(G_f, c_f, rr_f, lo, hi):
     """Sum over folds of the held-out SSE; stats per fold on the last-but-one axes.
 
-    ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K).
+    ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K); bounds (p,).
     """
-    G_tr = G_f.sum(axis=-3, keepdims=True) - G_f
-    c_tr = c_f.sum(axis=-2, keepdims=True) - c_f
     if G_f.shape[-1] == 0:
         return rr_f.sum(axis=-1)
-    b = _solve_bounded(G_tr, c_tr, j, lo, hi)
+    G_tr = G_f.sum(axis=-3, keepdims=True) - G_f
+    c_tr = c_f.sum(axis=-2, keepdims=True) - c_f
+    b = _solve_bounded(G_tr, c_tr, lo, hi)
     sse = rr_f - 2 * np.einsum("...p,...p->...", b, c_f) + np.einsum("...p,...pq,...q->...", b, G_f, b)
     return sse.sum(axis=-1)
 
@@ -101,19 +104,32 @@ def _fold_gram(cols: np.ndarray, folds: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def cv_fit(r, nuisance: list[np.ndarray], x: np.ndarray, lo: float, hi: float, folds, k):
-    """Held-out SSE with and without ``x`` (nuisance columns always in), and the full fit."""
-    cols = np.array(list(nuisance) + [x])
+def _split(nuisance):
+    """Columns and bounds of the model terms ``[(column, lower, upper), ...]``."""
+    cols = [t[0] for t in nuisance]
+    lo = np.array([t[1] for t in nuisance], dtype=float)
+    hi = np.array([t[2] for t in nuisance], dtype=float)
+    return cols, lo, hi
+
+
+def cv_fit(r, nuisance: list[tuple], x: np.ndarray, lo: float, hi: float, folds, k):
+    """Held-out SSE with and without ``x`` (the ``nuisance`` terms always in), and the full fit.
+
+    ``nuisance``: the terms already in the model, ``[(column, lower, upper), ...]``.
+    """
+    ncols, nlo, nhi = _split(nuisance)
+    cols = np.array(ncols + [x])
+    los, his = np.r_[nlo, lo], np.r_[nhi, hi]
     G_f = _fold_gram(cols, folds, k)
     c_f = np.array([cols[:, folds == f] @ r[folds == f] for f in range(k)])
     rr_f = np.array([r[folds == f] @ r[folds == f] for f in range(k)])
     j = cols.shape[0] - 1
-    sse_after = _heldout_sse(G_f, c_f, rr_f, j, lo, hi)
-    if nuisance:
-        sse_before = _heldout_sse(G_f[:, :j, :j], c_f[:, :j], rr_f, j - 1, -np.inf, np.inf)
+    sse_after = _heldout_sse(G_f, c_f, rr_f, los, his)
+    if ncols:
+        sse_before = _heldout_sse(G_f[:, :j, :j], c_f[:, :j], rr_f, nlo, nhi)
     else:
         sse_before = rr_f.sum()
-    b = _solve_bounded(G_f.sum(0), c_f.sum(0), j, lo, hi)
+    b = _solve_bounded(G_f.sum(0), c_f.sum(0), los, his)
     return float(sse_before), float(sse_after), b
 
 
@@ -136,7 +152,7 @@ class NullDistribution:
         return float(np.quantile(self.max_dsse, quantile))
 
 
-def shift_null(r, nuisance: list[np.ndarray], candidates: list[Candidate], folds, k, *,
+def shift_null(r, nuisance: list[tuple], candidates: list[Candidate], folds, k, *,
                n_shifts=200, rng=None, min_shift_frac=0.05) -> NullDistribution:
     """Gains every candidate reaches on circularly shifted residuals (the noise-only null)."""
     rng = rng or np.random.default_rng(0)
@@ -147,14 +163,14 @@ def shift_null(r, nuisance: list[np.ndarray], candidates: list[Candidate], folds
     r2_fft = np.fft.rfft(r * r)
     masks = [(folds == f).astype(float) for f in range(k)]
     rr = np.stack([_circ_corr(np.fft.rfft(m), r2_fft, n)[shifts] for m in masks], axis=-1)  # (B,K)
-    nq = len(nuisance)
+    ncols, nlo, nhi = _split(nuisance)
+    nq = len(ncols)
     if nq:
-        N = np.array(nuisance)
+        N = np.array(ncols)
         GN = _fold_gram(N, folds, k)                                              # (K,q,q)
         cN = np.stack([np.stack([_circ_corr(np.fft.rfft(N[i] * masks[f]), r_fft, n)[shifts]
                                  for i in range(nq)], -1) for f in range(k)], 1)  # (B,K,q)
-        sse_before = _heldout_sse(np.broadcast_to(GN, (len(shifts),) + GN.shape), cN, rr,
-                                  nq - 1, -np.inf, np.inf)
+        sse_before = _heldout_sse(np.broadcast_to(GN, (len(shifts),) + GN.shape), cN, rr, nlo, nhi)
     else:
         sse_before = rr.sum(-1)
     max_gain = np.full(len(shifts), -np.inf)
@@ -173,7 +189,7 @@ def shift_null(r, nuisance: list[np.ndarray], candidates: list[Candidate], folds
                 xx = np.array([x[folds == f] @ x[folds == f] for f in range(k)])
                 G_b = np.broadcast_to(xx[:, None, None], (len(shifts), k, 1, 1))
                 c_f = cx[..., None]
-            sse_after = _heldout_sse(G_b, c_f, rr, nq, cand.lower, cand.upper)
+            sse_after = _heldout_sse(G_b, c_f, rr, np.r_[nlo, cand.lower], np.r_[nhi, cand.upper])
             g = 1 - np.sqrt(np.maximum(sse_after, 0) / np.maximum(sse_before, 1e-300))
             best = np.maximum(best, g)
             max_dsse = np.maximum(max_dsse, sse_before - sse_after)
@@ -206,10 +222,12 @@ def refine_shape(r, nuisance, cand: Candidate, index: int, name: str) -> tuple[f
     lo = grid[max(index - 1, 0)]
     hi = grid[min(index + 1, len(grid) - 1)]
 
+    ncols, nlo, nhi = _split(nuisance)
+
     def sse(logv):
         x = cand.column_for({name: float(np.exp(logv))})
-        cols = np.array(list(nuisance) + [x])
-        b = _solve_bounded(cols @ cols.T, cols @ r, cols.shape[0] - 1, cand.lower, cand.upper)
+        cols = np.array(ncols + [x])
+        b = _solve_bounded(cols @ cols.T, cols @ r, np.r_[nlo, cand.lower], np.r_[nhi, cand.upper])
         e = r - b @ cols
         return float(e @ e)
 
