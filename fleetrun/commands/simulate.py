@@ -72,14 +72,12 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
             vehicle = fleet.vehicle(vehicle_id)
         except InputError as exc:
             exc.file = exc.file or fleet_file
-            exc.sheet = exc.sheet or "Vehicles"
             raise
         if scenario_id:
             try:
                 ambient = fleet.scenario(scenario_id).ambient_temp_C
             except InputError as exc:
                 exc.file = exc.file or fleet_file
-                exc.sheet = exc.sheet or "Scenarios"
                 raise
     if ambient_temp_C is not None:
         ambient = ambient_temp_C

@@ -9,7 +9,7 @@ simulation knows the *output* (wheel) torque, so every mode inverts it: find T_i
 L = T_in - T_out / G_tot.
 
 - ``direct`` (Sec. 6.1): the model is called at every step inside a bracketed
-  Illinois (false-position) root search, to 1e-9 of the Kim scale.
+  Illinois (false-position) root search, to 1e-10 of the Kim scale.
 - ``map2d`` (Sec. 6.2): per vehicle, the model is evaluated once on an input-torque x speed
   grid at the vehicle's own gear ratio(s); each speed column is inverted (input torque as a
   function of output torque) and the steps interpolate bilinearly in that inverse map.
@@ -40,6 +40,7 @@ from fleetrun import __version__
 from fleetrun.errors import FleetrunError, InputError
 
 MODES = ("direct", "map2d", "map3d")
+ZERO_OUTPUT = 1e-8  # output torque fraction that stands for "zero" in the direct inversion
 
 # Grid of the maps: input torque fraction for the forward evaluation, sqrt-spaced to 1.2 of
 # the Kim scale; output torque fraction for the inverse map, sqrt-spaced to 1.1.
@@ -133,14 +134,16 @@ def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_
 
 # --------------------------------------------------------------------------- direct inversion
 def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio, axle_low, physics,
-                  ambient_temp_C=None, effects=(), tol=1e-9, max_iter=60):
+                  ambient_temp_C=None, effects=(), tol=1e-10, max_iter=60):
     """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
 
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
     Illinois false position on f(x) = eta(x) x - out, bracketed by [out, hi]: eta <= 1 makes
     f(out) <= 0; hi grows geometrically until f(hi) >= 0.
     """
-    out = np.asarray(out_frac, float).ravel()
+    # zero output is met by any input up to the no-load loss; aim just above 0 so the
+    # answer is that loss (continuous with small outputs, and what the maps give at 0)
+    out = np.maximum(np.asarray(out_frac, float).ravel(), ZERO_OUTPUT)
     n = np.broadcast_to(np.asarray(speed_rpm, float), out.shape).ravel()
     G = np.broadcast_to(np.asarray(gear_ratio, float), out.shape).ravel()
     low = None if low_gear_ratio is None else np.broadcast_to(np.asarray(low_gear_ratio, float), out.shape).ravel()

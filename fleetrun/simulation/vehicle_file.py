@@ -51,8 +51,9 @@ def read_vehicle_toml(path) -> VehicleSpec:
         raw = data.get(column.name)
         if raw is None or cells.is_blank(raw):
             if column.required:
-                raise InputError(f"key '{column.name}' is missing ({column.note})", file=path, column=column.name,
-                                 hint="Add it; the keys are the Vehicles columns of CONTRACT.md")
+                what = "is missing" if raw is None else "is empty"
+                raise InputError(f"key '{column.name}' {what} ({column.note})", file=path, column=column.name,
+                                 hint="Give a value; the keys are the Vehicles columns of CONTRACT.md")
             fields[column.name] = None
             continue
         try:

@@ -1,0 +1,247 @@
+"""Drive-cycle simulation: component physics against hand-computed values, energy balance,
+shortfall, two-speed axle rule and input errors (issue 3)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fleetrun.cycles import DriveCycle, load_cycle
+from fleetrun.errors import FleetrunError, InputError
+from fleetrun.simulation import TRACE_COLUMNS, simulate
+from fleetrun.simulation.engine import fuel_rate_g_per_s, full_load_torque_Nm, offset_torque_Nm
+from fleetrun.simulation.params import vehicle_arrays
+from fleetrun.simulation.road_load import coastdown_to_si, road_load_N, tractive_force_N
+from fleetrun.simulation.transmission import converter_speed_ratio, input_torque_Nm, torque_ratio
+from fleetrun.simulation.tyre import rolling_radius_m, tire_diameter_m
+from simulation_examples import ALL, CAMRY, CIVIC, F150, HD_DUAL
+
+CONTRACT_TRACE = ("time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm",
+                  "diff_input_speed_rpm", "diff_efficiency", "gear", "engine_speed_rpm",
+                  "engine_torque_Nm", "fuel_rate_g_per_s")
+
+
+# ----------------------------------------------------------------------------- components
+@pytest.mark.parametrize("size, mm", [
+    ("P235/75R15", 15 * 25.4 + 2 * 235 * 0.75),      # thesis Table 7.1, F-150
+    ("195/65VR16", 16 * 25.4 + 2 * 195 * 0.65),      # speed-rated code (300E)
+    ("P175/70R13", 13 * 25.4 + 2 * 175 * 0.70),      # Civic
+    ("225/45ZR17 94W", 17 * 25.4 + 2 * 225 * 0.45),  # load index / speed symbol after the size
+    ("LT245/75R16", 16 * 25.4 + 2 * 245 * 0.75),
+    ("295/75R22.5", 22.5 * 25.4 + 2 * 295 * 0.75),
+    ("31x10.50R15", 31 * 25.4),                      # flotation: diameter in inches
+    ("11R22.5", (22.5 + 2 * 11 * 0.88) * 25.4),      # inch truck size, 88 % section height
+])
+def test_tyre_diameter_from_size_code(size, mm):
+    # exact arithmetic of the size code (ISO 4000 / TRA): 1e-12 relative
+    assert tire_diameter_m(size) == pytest.approx(mm / 1000, rel=1e-12)
+    assert rolling_radius_m(size) == pytest.approx(mm / 2000, rel=1e-12)  # thesis 7.2.1: half the diameter
+
+
+@pytest.mark.parametrize("bad", ["banana", "", "235/75", "P235/75X15x"])
+def test_tyre_size_that_does_not_parse(bad):
+    with pytest.raises(InputError, match="does not parse"):
+        tire_diameter_m(bad)
+
+
+def test_road_load_conversion_hand_computed():
+    # A=30 lbf, B=0.5 lbf/mph, C=0.02 lbf/mph^2 at 50 mph: 30 + 25 + 50 = 105 lbf = 467.063 N
+    A, B, C = coastdown_to_si(30.0, 0.5, 0.02)
+    assert road_load_N(50 * 0.44704, A, B, C) == pytest.approx(105 * 4.4482216152605, rel=1e-12)
+    assert road_load_N(0.0, A, B, C) == 0.0  # nothing rolls at standstill
+    # 5 % grade, 1000 kg, 1.5 % rotating mass, 1 m/s^2, at rest: m(1+f)a + m g sin(atan 0.05)
+    F = tractive_force_N(0.0, 1.0, 5.0, 1000.0, 0.015, A, B, C)
+    assert F == pytest.approx(1015.0 + 1000 * 9.80665 * 0.05 / np.sqrt(1 + 0.05**2), rel=1e-12)
+
+
+def test_willans_fuel_hand_computed():
+    # 100 N m at 2000 rpm, 2.0 L, p_me0 = 100 + 10*2 + 4*4 = 136 kPa -> T0 = 136e3*2e-3/(4 pi)
+    T0 = offset_torque_Nm(2000.0, 2.0, 100.0, 10.0, 4.0)
+    assert T0 == pytest.approx(136e3 * 2e-3 / (4 * np.pi), rel=1e-12)
+    rate = fuel_rate_g_per_s(100.0, 2000.0, True, T0, 0.38, 42.9)
+    assert rate == pytest.approx((100 + T0) * 2000 * 2 * np.pi / 60 / 0.38 / 42.9e3, rel=1e-12)
+    assert fuel_rate_g_per_s(-50.0, 2000.0, False, T0, 0.38, 42.9) == 0.0  # fuel cut-off
+
+
+def test_full_load_curve_shape():
+    n = np.array([700.0, 4200.0, 6000.0, 6600.0])
+    T = full_load_torque_Nm(n, 250.0, 140.0, 6000.0, 700.0, 4200.0, 0.7)
+    assert T[0] == pytest.approx(0.7 * 250)                      # idle: 70 % of peak
+    assert T[1] == pytest.approx(250.0)                          # peak-torque speed
+    assert T[2] == pytest.approx(140e3 / (6000 * 2 * np.pi / 60))  # rated power cap
+    assert T[3] == pytest.approx(0.0, abs=1e-9)                  # governor 10 % above rated
+
+
+def test_converter_closed_form_solves_its_equation():
+    # the speed ratio must satisfy TR(SR) (n_t / (SR K))^2 = T_t in both ranges
+    nt = np.array([100.0, 800.0, 1500.0, 2500.0])
+    Tt = np.array([400.0, 300.0, 100.0, 50.0])
+    K, TRs = 2200 / np.sqrt(250.0), 2.0
+    sr = converter_speed_ratio(nt, Tt, K, TRs)
+    unclipped = sr < 0.98
+    lhs = torque_ratio(sr, TRs) * (nt / (sr * K)) ** 2
+    assert np.allclose(lhs[unclipped], Tt[unclipped], rtol=1e-10)
+    assert torque_ratio(0.0, TRs) == TRs and torque_ratio(0.9, TRs) == 1.0
+
+
+def test_gearbox_loss_same_magnitude_on_overrun():
+    drive = input_torque_Nm(100.0, 2.0, 0.95)
+    overrun = input_torque_Nm(-100.0, 2.0, 0.95)
+    assert drive == pytest.approx(100 / (2 * 0.95))
+    assert drive - 50.0 == pytest.approx(overrun + 50.0)  # same loss, either direction
+
+
+# ----------------------------------------------------------------------------- whole cycle
+@pytest.fixture(scope="module")
+def udds_traces():
+    return simulate(ALL, load_cycle("UDDS"), mode="direct", trace=True)
+
+
+def test_trace_has_contract_columns(udds_traces):
+    frame = udds_traces.trace_frame(0)
+    assert list(frame.columns[:len(CONTRACT_TRACE)]) == list(CONTRACT_TRACE)
+    assert set(CONTRACT_TRACE) <= set(TRACE_COLUMNS)
+    assert len(frame) == load_cycle("UDDS").time_s.size
+
+
+def test_energy_balance_per_step(udds_traces):
+    """Engine output = losses + wheel work in every driving step, each loss from its own model."""
+    tr = udds_traces.trace
+    va = vehicle_arrays(ALL)
+    driving = tr["_driving"]
+    lhs = tr["engine_power_W"][driving]
+    rhs = (tr["wheel_power_W"] + tr["diff_loss_W"] + tr["transmission_loss_W"] + tr["converter_loss_W"])[driving]
+    # pure bookkeeping of the same floats: 1e-9 relative
+    np.testing.assert_allclose(lhs, rhs, rtol=1e-9)
+    # differential loss from the reported efficiency: P_in - P_out = P_out (1/eta - 1)
+    eta = tr["diff_efficiency"][driving]
+    np.testing.assert_allclose(tr["diff_loss_W"][driving], tr["wheel_power_W"][driving] * (1 / eta - 1),
+                               rtol=1e-9, atol=1e-6)
+    # gearbox loss from the constant mesh efficiency of the gear in use
+    rows = np.broadcast_to(np.arange(va.n)[:, None], driving.shape)[driving]
+    P_d = tr["diff_input_torque_Nm"][driving] * tr["diff_input_speed_rpm"][driving] * 2 * np.pi / 60
+    gear = tr["gear"][driving]
+    eff = np.array([va.combo_gear_eff[r][np.flatnonzero(va.combo_gear[r] == g)[0]] for r, g in zip(rows, gear)])
+    np.testing.assert_allclose(tr["transmission_loss_W"][driving], P_d * (1 / eff - 1), rtol=1e-9, atol=1e-6)
+    # locked converter / engaged clutch: no slip loss; slipping: never a gain
+    locked = driving & ~tr["converter_unlocked"] & (tr["engine_speed_rpm"] == tr["transmission_input_speed_rpm"])
+    assert np.all(np.abs(tr["converter_loss_W"][locked]) < 1e-6)
+    assert np.all(tr["converter_loss_W"][driving] > -1e-6)
+
+
+def test_wheel_work_equals_road_load_work(udds_traces):
+    """Over a level cycle from rest to rest, wheel work = road-load work exactly: the inertia
+    term telescopes, sum m (v_i - v_(i-1)) (v_i + v_(i-1)) / 2 = 0 (trapezoidal steps)."""
+    tr = udds_traces.trace
+    va = vehicle_arrays(ALL)
+    v, dt = tr["_v_avg"], tr["_dt"]
+    wheel = (tr["wheel_power_W"] * dt).sum(axis=1)
+    road = (road_load_N(v, va.A_N[:, None], va.B_N[:, None], va.C_N[:, None]) * v * dt).sum(axis=1)
+    followed = udds_traces.shortfall_distance_m < 1e-9
+    assert followed[:4].all()
+    np.testing.assert_allclose(wheel[followed], road[followed], rtol=1e-9)
+
+
+def test_results_consistent(udds_traces):
+    r = udds_traces
+    assert np.allclose(r.miles[:4], load_cycle("UDDS").miles, rtol=1e-12)
+    assert np.allclose(r.mpg, r.miles / r.fuel_gal)
+    assert np.all((r.diff_efficiency > 0.8) & (r.diff_efficiency < 1.0))
+    assert np.all(r.drivetrain_efficiency < r.diff_efficiency)
+    # plausible city fuel economy (EPA unadjusted city values of such cars: 15-50 mpg)
+    assert 15 < r.mpg[0] < 30 and 25 < r.mpg[1] < 50 and 30 < r.mpg[2] < 60
+
+
+def test_energies_add_over_cycles():
+    a = simulate([CAMRY], load_cycle("UDDS"), mode="direct")
+    b = simulate([CAMRY], load_cycle("HWFET"), mode="direct")
+    joined = simulate([CAMRY], DriveCycle("both", np.r_[load_cycle("UDDS").time_s, load_cycle("HWFET").time_s + 2000],
+                                          np.r_[load_cycle("UDDS").speed_mps, load_cycle("HWFET").speed_mps],
+                                          np.zeros(load_cycle("UDDS").time_s.size + load_cycle("HWFET").time_s.size)),
+                      mode="direct")
+    # the 2000 s gap between the cycles is idling: only the fuel differs, by idle fuel
+    for name in ("wheel_energy_J", "diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J"):
+        assert getattr(joined, name)[0] == pytest.approx(getattr(a, name)[0] + getattr(b, name)[0], rel=1e-9)
+
+
+def test_idle_fuel_override_and_standstill():
+    cyc = DriveCycle("idle", np.arange(0.0, 61.0), np.zeros(61), np.zeros(61))
+    r = simulate([dataclasses.replace(CAMRY, extra={"idle_fuel_g_per_s": 0.25})], cyc, mode="direct", trace=True)
+    assert r.fuel_g[0] == pytest.approx(0.25 * 60)
+    assert r.miles[0] == 0 and r.mpg[0] == 0
+    assert np.all(r.trace["gear"] == 0) and np.all(r.trace["diff_efficiency"] == 0)
+
+
+def test_deceleration_fuel_cut():
+    r = simulate([CIVIC], load_cycle("UDDS"), mode="direct", trace=True)
+    tr = r.trace
+    overrun = (tr["engine_torque_Nm"][0] < 0) & (tr["engine_speed_rpm"][0] > 1100)
+    assert overrun.sum() > 50
+    assert np.all(tr["fuel_rate_g_per_s"][0][overrun] == 0)
+
+
+def test_vehicle_that_cannot_follow_reports_shortfall():
+    weak = dataclasses.replace(CIVIC, vehicle_id="weak", peak_engine_torque_Nm=60.0, rated_power_kW=20.0)
+    r = simulate([weak, CIVIC], load_cycle("US06"), mode="direct", trace=True)
+    target = r.trace["target_speed_mps"]
+    achieved = r.trace["vehicle_speed_mps"]
+    assert r.shortfall_time_s[0] > 100 and r.shortfall_distance_m[0] > 500
+    assert r.shortfall_time_s[1] == 0 and r.shortfall_distance_m[1] == pytest.approx(0, abs=1e-9)
+    assert np.all(achieved[0] <= target + 1e-12)      # never ahead of the trace
+    assert r.miles[0] < r.miles[1]
+    # it follows as closely as it can: full load in most steps where it is behind
+    behind = r.trace["not_followed"][0] & (achieved[0] > 1)
+    at_full = r.trace["engine_torque_Nm"][0] > 0.8 * r.trace["engine_max_torque_Nm"][0]
+    assert at_full[behind].mean() > 0.6
+
+
+def test_dual_axle_uses_low_range_only_when_high_lugs():
+    r = simulate([HD_DUAL], load_cycle("HWFET"), mode="direct", trace=True)
+    tr = r.trace
+    low = (tr["axle_range"][0] == "low") & (tr["vehicle_speed_mps"][0] > 0)
+    high = (tr["axle_range"][0] == "high") & (tr["vehicle_speed_mps"][0] > 0)
+    assert low.any() and high.any()
+    # cruise at highway speed is in the high range (fuel economy, thesis Sec. 2.2.6)
+    assert np.all(tr["axle_range"][0][tr["vehicle_speed_mps"][0] > 25] == "high")
+    # low range multiplies the diff input speed by the low ratio relative to the high one
+    with np.errstate(invalid="ignore"):
+        ratio = tr["diff_input_speed_rpm"][0] / tr["wheel_speed_rpm"][0]
+    assert np.allclose(ratio[low], HD_DUAL.final_drive_ratio * HD_DUAL.low_gear_ratio)
+    assert np.allclose(ratio[high], HD_DUAL.final_drive_ratio)
+
+
+def test_ambient_temperature_reaches_the_differential():
+    cold = simulate([F150], load_cycle("UDDS"), mode="direct", ambient_temp_C=-10.0)
+    warm = simulate([F150], load_cycle("UDDS"), mode="direct", ambient_temp_C=20.0)
+    # colder (thicker) oil, lower efficiency: the thesis model's viscosity terms
+    assert cold.diff_efficiency[0] < warm.diff_efficiency[0]
+
+
+def test_effects_not_supported_yet():
+    with pytest.raises(FleetrunError, match="effects are not supported in simulate yet"):
+        simulate([CAMRY], load_cycle("UDDS"), effects=("cornering",))
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(transmission_gear_ratios=()), "transmission_gear_ratios is empty"),
+    (dict(tire_size="big"), "tire size 'big' does not parse"),
+    (dict(final_drive_ratio=0.0), "final_drive_ratio must be a positive number"),
+])
+def test_bad_vehicle(change, message):
+    with pytest.raises(InputError, match=message):
+        simulate([dataclasses.replace(CAMRY, **change)], load_cycle("UDDS"))
+
+
+def test_bad_cycle_arrays():
+    with pytest.raises(InputError, match="not strictly increasing"):
+        simulate([CAMRY], DriveCycle("x", [0, 1, 1, 2], [0, 1, 1, 0], [0, 0, 0, 0]))
+    with pytest.raises(InputError, match="negative speed"):
+        simulate([CAMRY], DriveCycle("x", [0, 1, 2], [0, -1, 0], [0, 0, 0]))
+    with pytest.raises(InputError, match="unknown mode"):
+        simulate([CAMRY], load_cycle("UDDS"), mode="fast")
+
+
+def test_empty_fleet():
+    r = simulate([], load_cycle("UDDS"))
+    assert r.miles.shape == (0,)
