@@ -1,4 +1,4 @@
-"""Example vehicles for the simulation tests (one per drivetrain family)."""
+"""Example vehicles of the simulation tests and benchmark (one per drivetrain family)."""
 from fleetrun.vehicle import VehicleSpec
 
 
