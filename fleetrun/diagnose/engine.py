@@ -74,6 +74,22 @@ def explanation(effect_id: str, params: dict, before: float, after: float, units
             f"Physics: {e.seed}.")
 
 
+def _ambiguity(best_id, rivals, statuses, ambiguities):
+    tests = [EFFECTS[best_id].separating_test] + [
+        EFFECTS[rid].separating_test for rid, _ in rivals if rid in EFFECTS]
+    test = "; ".join(dict.fromkeys(t for t in tests if t))
+    ambiguities.append({"effects": [best_id] + [rid for rid, _ in rivals],
+                        "reasons": [why for _, why in rivals], "separating_test": test})
+    for cid in [best_id] + [rid for rid, _ in rivals]:
+        if cid not in statuses:
+            continue
+        if statuses[cid]["status"] == "untestable":
+            statuses[cid]["could_explain"] = best_id
+        else:
+            statuses[cid]["status"] = "ambiguous"
+            statuses[cid]["separating_test"] = test
+
+
 def select(problem: Problem, settings: Settings | None = None) -> dict:
     """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
     s = settings or Settings()
@@ -86,13 +102,15 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     for cid, missing in problem.untestable.items():
         statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
                          "missing_channels": missing}
-    accepted: list[dict] = []      # {cand, shape, column}
+    accepted: list[dict] = []           # {cand, shape, column, before, after, gain}
     nuisance: list[tuple] = []          # terms in the model: (column, lower, upper)
     ambiguities: list[dict] = []
     rounds: list[dict] = []
-    active = [c for c in problem.candidates]
+    active = list(problem.candidates)
     first_threshold = None
     significant = False
+    stopped_untestable = False
+    # ---- forward selection ----------------------------------------------------------------
     for _round in range(s.max_effects):
         if not active:
             break
@@ -100,10 +118,9 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         best = max(active, key=lambda c: evals[c.id].gain)
         bev = evals[best.id]
         best_col = best.columns[bev.shape_index]
-        # the noise estimate for the shift null: what is left after the effects already in
-        # the model *and* the best candidate. Shifting the raw residual would keep the
-        # effect's own structure (e.g. "constant while moving"), which the channels still
-        # match after a shift, and inflate the null.
+        # noise estimate for the shift null: what is left after the model *and* the best
+        # candidate. Shifting the raw residual would keep the effect's own structure (e.g.
+        # "constant while moving"), which the channels still match after a shift.
         cols = [t[0] for t in nuisance] + [best_col]
         coefs = full_fit(r, cols, [(t[1], t[2]) for t in nuisance] + [(best.lower, best.upper)])
         r_noise = r - np.array(cols).T @ coefs
@@ -122,7 +139,7 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                               "parameters": _params(c, c.shapes[evals[c.id].shape_index],
                                                     evals[c.id].coefficient)}
         if not (dsse > thr_dsse and bev.gain > s.min_gain):
-            # nothing testable explains the residual; say so if an untestable effect could
+            # nothing testable explains the rest; say so if an untestable effect could
             for uid, sur in problem.surrogates.items():
                 sev = evaluate_candidate(r, nuisance, sur, folds, k)
                 if sev.gain > thr and n * (sev.rmse_before ** 2 - sev.rmse_after ** 2) > thr_dsse:
@@ -136,93 +153,79 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                     statuses[uid]["could_explain"] = "mismatch"
             break
         significant = True
-        # a rival is as good if, once the rival is in the model, the best adds no more
-        # held-out SSE reduction than noise can (the same shift-null threshold)
-        def as_good(cand, ev):
-            col = cand.columns[ev.shape_index]
-            before, after, _ = cv_fit(r, nuisance + [(col, cand.lower, cand.upper)], best_col, best.lower, best.upper, folds, k)
-            return before - after <= thr_dsse
-
-        rivals = []
-        for c in active:
-            if c is best:
-                continue
-            ev = evals[c.id]
-            if ev.gain > thr and as_good(c, ev):
-                rivals.append((c.id, f"fits about as well ({ev.gain:.3f} vs {bev.gain:.3f} held-out "
-                                     f"gain): with it in the model, {best.id} adds nothing beyond noise"))
-        for uid in problem.untestable:
-            eff = EFFECTS[uid]
-            if uid in problem.surrogates:
-                sur = problem.surrogates[uid]
-                sev = evaluate_candidate(r, nuisance, sur, folds, k)
-                if sev.gain > thr and as_good(sur, sev):
-                    rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
-                                        f"but with assumed values it fits as well ({sev.gain:.3f})"))
-                else:
-                    # the reverse: with the best in the model, does the untestable effect still
-                    # explain more than noise? Then the best alone is not the whole story and
-                    # the rest cannot be tested
-                    b2, a2, _ = cv_fit(r, nuisance + [(best_col, best.lower, best.upper)], sur.columns[sev.shape_index],
-                                       sur.lower, sur.upper, folds, k)
-                    if b2 - a2 > thr_dsse:
-                        rivals.append((uid, f"cannot be tested (missing "
-                                            f"{', '.join(problem.untestable[uid])}) and with assumed "
-                                            f"values explains what {best.id} leaves"))
-            elif best.id in eff.confounded_with and problem.confound_possible.get(uid, False):
-                rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
-                                    f"and produces a residual like {best.id}'s in such data"))
-        if best.id in problem.extra_ambiguity:
-            rivals.append(("sensor_offset", problem.extra_ambiguity[best.id]))
         shape = dict(best.shapes[bev.shape_index])
         col = best_col
         if best.column_for is not None and len(shape) == 1:
             name = next(iter(shape))
             v, col = refine_shape(r, nuisance, best, bev.shape_index, name)
             shape = {name: v}
+        # untestable effects that could produce this residual, and sensor offsets
+        rivals = []
+        for uid in problem.untestable:
+            eff = EFFECTS[uid]
+            if uid in problem.surrogates:
+                sur = problem.surrogates[uid]
+                sev = evaluate_candidate(r, nuisance, sur, folds, k)
+                scol = sur.columns[sev.shape_index]
+                b1, a1, _ = cv_fit(r, nuisance + [(scol, sur.lower, sur.upper)], col,
+                                   best.lower, best.upper, folds, k)
+                b2, a2, _ = cv_fit(r, nuisance + [(col, best.lower, best.upper)], scol,
+                                   sur.lower, sur.upper, folds, k)
+                if sev.gain > thr and b1 - a1 <= thr_dsse:
+                    rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
+                                        f"but with assumed values it fits as well ({sev.gain:.3f})"))
+                elif b2 - a2 > thr_dsse:
+                    rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
+                                        f"and with assumed values explains what {best.id} leaves"))
+            elif best.id in eff.confounded_with and problem.confound_possible.get(uid, False):
+                rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
+                                    f"and produces a residual like {best.id}'s in such data"))
+        if best.id in problem.extra_ambiguity:
+            rivals.append(("sensor_offset", problem.extra_ambiguity[best.id]))
         if rivals:
-            tests = [EFFECTS[best.id].separating_test] + [
-                EFFECTS[rid].separating_test for rid, _ in rivals if rid in EFFECTS]
-            test = "; ".join(dict.fromkeys(t for t in tests if t))
-            ambiguities.append({"effects": [best.id] + [rid for rid, _ in rivals],
-                                "reasons": [why for _, why in rivals],
-                                "separating_test": test})
-            statuses[best.id]["status"] = "ambiguous"
-            statuses[best.id]["separating_test"] = test
-            for rid, why in rivals:
-                if rid in statuses and statuses[rid]["status"] != "untestable":
-                    statuses[rid]["status"] = "ambiguous"
-                    statuses[rid]["separating_test"] = test
-                elif rid in statuses:
-                    statuses[rid]["could_explain"] = best.id
-            drop = {best.id} | {rid for rid, _ in rivals}
-            active_ids = {c.id for c in active}
-            if any(rid not in active_ids and rid not in problem.surrogates for rid, _ in rivals):
-                # an untestable effect may be what the residual shows: nothing fitted now can
-                # be trusted to leave only noise behind, so the search stops here
-                break
-            # one of them explains the mismatch: put all of their columns in the model so that
-            # a further, different effect can still be found
-            for rid, _ in rivals:
-                if rid in active_ids:
-                    c = next(c for c in active if c.id == rid)
-                    cols_r, lo_r, hi_r = c.columns[evals[rid].shape_index], c.lower, c.upper
-                elif rid in problem.surrogates:
-                    sur = problem.surrogates[rid]
-                    cols_r = sur.columns[evaluate_candidate(r, nuisance, sur, folds, k).shape_index]
-                    lo_r, hi_r = sur.lower, sur.upper
-                else:
-                    continue
-                nuisance.append((cols_r, lo_r, hi_r))
-            nuisance.append((col, best.lower, best.upper))
-            active = [c for c in active if c.id not in drop]
-            continue
+            _ambiguity(best.id, rivals, statuses, ambiguities)
+            # what the residual shows may be an effect that cannot be fitted: nothing fitted
+            # now can be trusted to leave only noise behind, so the search stops here
+            stopped_untestable = True
+            break
         accepted.append({"cand": best, "shape": shape, "column": col,
                          "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
         statuses[best.id]["status"] = "accepted"
         nuisance.append((col, best.lower, best.upper))
         active = [c for c in active if c.id != best.id]
-    # joint refit of every accepted effect on all data: the parameters reported
+    # ---- confounding among testable candidates, judged with everything else in the model ----
+    # A rival R makes an accepted effect A ambiguous when, with the other accepted effects in
+    # the model, R alone beats the noise null and A adds nothing beyond noise once R is in.
+    # Judging this only at the end matters: while another effect is still unmodelled, the
+    # noise estimate holds its structure and every rival looks "as good".
+    if accepted and not stopped_untestable:
+        remaining = [c for c in problem.candidates if c.id not in {a["cand"].id for a in accepted}]
+        keep = []
+        for a in accepted:
+            others = [(b["column"], b["cand"].lower, b["cand"].upper) for b in accepted if b is not a]
+            cols = [t[0] for t in others] + [a["column"]]
+            coefs = full_fit(r, cols, [(t[1], t[2]) for t in others] + [(a["cand"].lower, a["cand"].upper)])
+            r_noise = r - np.array(cols).T @ coefs
+            pool = remaining + [a["cand"]]
+            null = shift_null(r_noise, others, pool, folds, k, n_shifts=s.n_shifts, rng=rng)
+            thr_dsse = null.dsse_threshold(s.quantile)
+            rivals = []
+            for c in remaining:
+                ev = evaluate_candidate(r, others, c, folds, k)
+                if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= s.min_gain:
+                    continue
+                ccol = c.columns[ev.shape_index]
+                b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a["column"],
+                                   a["cand"].lower, a["cand"].upper, folds, k)
+                if b1 - a1 <= thr_dsse:
+                    rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
+                                         f"it in the model, {a['cand'].id} adds nothing beyond noise"))
+            if rivals:
+                _ambiguity(a["cand"].id, rivals, statuses, ambiguities)
+            else:
+                keep.append(a)
+        accepted = keep
+    # ---- joint refit of every accepted effect on all data: the parameters reported ----------
     findings = []
     fitted = np.zeros(n)
     if accepted:
