@@ -228,3 +228,16 @@ def test_unreachable_scheduler_is_an_input_error(fleet_path, tmp_path):
                  "tcp://127.0.0.1:9", "--no-cache", "-q")
     assert result.exit_code == 1
     assert result.stderr.startswith("Error: cannot reach the Dask scheduler")
+
+
+def test_rows_that_drive_alike_are_simulated_once(tmp_path):
+    twins = [vehicle("A", count=10), vehicle("B", count=20, annual_miles=5000, vehicle_class="Other"),
+             vehicle("C", test_weight_kg=1700)]
+    path = write_fleet(tmp_path / "f.xlsx", twins, [scenario(cycle_mix="UDDS:1")])
+    out = tmp_path / "out"
+    assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
+    assert fakes.CALLS == [(2, "UDDS", 20)]
+    results = pd.read_csv(out / "results.csv", float_precision="round_trip").set_index("vehicle_id")
+    assert results.loc["A", "mpg"] == pytest.approx(results.loc["B", "mpg"], rel=1e-14)
+    assert results.loc["A", "mpg"] != pytest.approx(results.loc["C", "mpg"], rel=1e-6)
+    assert json.loads((out / "manifest.json").read_text())["distinct_vehicles_simulated"] == 2

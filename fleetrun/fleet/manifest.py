@@ -24,6 +24,7 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "engine": result.engine,
         "scenarios": [s.scenario_id for s in result.scenarios],
         "vehicle_types": len(result.fleet.vehicles),
+        "distinct_vehicles_simulated": result.distinct_vehicles,
         "cycles": result.cycles,
         "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
         "warnings": list(result.warnings),

@@ -76,6 +76,7 @@ class RunResult:
     mode: str
     cycle_inputs: dict[str, str] = field(default_factory=dict)   # CSV path -> sha256
     created_utc: str = field(default_factory=lambda: _now_utc())
+    distinct_vehicles: int = 0                 # physically distinct vehicles simulated
 
 
 def _now_utc() -> str:
@@ -120,14 +121,17 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
     engine = engine or LocalEngine()
     vehicles = fleet.vehicles
-    chunks = [tuple(vehicles[i:i + chunk_size]) for i in range(0, len(vehicles), chunk_size)]
+    # Rows that differ only in id, class, count or miles drive the same: simulate each
+    # distinct physical vehicle once and hand its per-vehicle results to every such row.
+    distinct, owner = distinct_vehicles(vehicles)
+    chunks = [tuple(distinct[i:i + chunk_size]) for i in range(0, len(distinct), chunk_size)]
     # Each distinct (cycle, ambient) is simulated once, however many scenarios use it.
     conditions = list(dict.fromkeys((cycle, s.ambient_temp_C) for s in scenarios for cycle in s.cycle_mix))
     tasks = [SimulationTask(chunk=c, vehicles=chunk, cycle=cycle, ambient_temp_C=ambient,
                             physics=physics, mode=mode, cache_dir=cache_dir, simulate=simulate_function)
              for cycle, ambient in conditions for c, chunk in enumerate(chunks)]
 
-    n = len(vehicles)
+    n = len(distinct)
     per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
     shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
@@ -145,6 +149,10 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         if progress:
             progress(done, len(tasks))
     simulated = time.perf_counter()
+    per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
+                     for cond, arrays in per_condition.items()}
+    shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
+                  for cond, arrays in shortfalls.items()}
 
     warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
     cycles = _cycle_info({cycle for cycle, _ in conditions})
@@ -158,9 +166,37 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         fleet=fleet, scenarios=scenarios, results=results, classes=classes, years=years,
         cycles=cycles, maps=maps, warnings=warnings,
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
+        distinct_vehicles=len(distinct),
         engine=engine.describe(), physics=physics, mode=mode,
         cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
     )
+
+
+# VehicleSpec fields that do not change how a vehicle drives a cycle.
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles")
+
+
+def _physics_key(v: VehicleSpec) -> tuple:
+    fields = tuple((name, value) for name, value in vars(v).items()
+                   if name not in BOOKKEEPING_FIELDS and name != "extra")
+    extra = tuple(sorted((k, repr(x)) for k, x in v.extra.items()))
+    return fields + (("extra", extra),)
+
+
+def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec], np.ndarray]:
+    """The physically distinct vehicles (first of each, in fleet order) and, per fleet row,
+    the index of its distinct vehicle."""
+    index: dict[tuple, int] = {}
+    distinct: list[VehicleSpec] = []
+    owner = np.empty(len(vehicles), dtype=np.int64)
+    for i, v in enumerate(vehicles):
+        key = _physics_key(v)
+        j = index.get(key)
+        if j is None:
+            j = index[key] = len(distinct)
+            distinct.append(v)
+        owner[i] = j
+    return distinct, owner
 
 
 def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scenario],
