@@ -83,6 +83,24 @@ class DifferentialSolver:
             other.map_id = self.map_id[rows]
         return other
 
+    def input_fraction_2d(self, out_frac, speed_rpm, axle_low, active):
+        """T_in / kim (V, N) for the (V, N) arrays; only ``active`` steps are meaningful.
+
+        The maps are looked up for every step (cheaper than gathering the active ones); the
+        direct model is called for the active steps only.
+        """
+        V, N = out_frac.shape
+        if self.mode != "direct":
+            map_id = np.broadcast_to(self.map_id[:, None], (V, N))
+            n_max = np.broadcast_to(self.n_max[self.map_id][:, None], (V, N))
+            return diffmodes.interp_maps(self.maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=True)
+        result = np.zeros((V, N))
+        idx = np.flatnonzero(active)
+        rows = np.broadcast_to(np.arange(V)[:, None], (V, N)).reshape(-1)[idx]
+        result.reshape(-1)[idx] = self.input_fraction(out_frac.reshape(-1)[idx], speed_rpm.reshape(-1)[idx], rows,
+                                                      axle_low.reshape(-1)[idx])
+        return result
+
     def input_fraction(self, out_frac, speed_rpm, vehicle, axle_low):
         """T_in / kim for T_out / (kim G_tot) = ``out_frac`` >= 0 (flat arrays)."""
         if self.mode != "direct":
@@ -128,7 +146,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     p_need = np.maximum(force * v_avg, 0.0) / DRIVETRAIN_GUESS
     rows = np.broadcast_to(np.arange(V)[:, None], (V, N))
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
-    n_power = _lookup_rows(_power_speed_table(va), rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
+    if va.power_table is None:
+        va.power_table = _power_speed_table(va)
+    n_power = _lookup_rows(va.power_table, rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
     n_req = np.minimum(np.maximum(col(va.shift_min_rpm), n_power), col(va.n_rated))
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
     k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
@@ -142,13 +162,10 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     G_tot = col(va.final_drive) * np.where(axle_low, col(va.low_ratio), 1.0)
     diff_rpm = wheel_rpm * G_tot
     kim = col(va.kim_Nm)
-    idx = np.flatnonzero(moving & (diff_rpm > 0))
-    out_frac = np.abs(wheel_torque).reshape(-1)[idx] / (kim * G_tot).reshape(-1)[idx]
-    in_frac = solver.input_fraction(out_frac, diff_rpm.reshape(-1)[idx], rows.reshape(-1)[idx], axle_low.reshape(-1)[idx])
-    loss_frac = np.maximum(in_frac - out_frac, 0.0)  # input-referred loss / kim
-    diff_loss_Nm = np.zeros(V * N)
-    diff_loss_Nm[idx] = loss_frac * np.broadcast_to(kim, (V, N)).reshape(-1)[idx]
-    diff_loss_Nm = diff_loss_Nm.reshape(V, N)
+    active = moving & (diff_rpm > 0)
+    out_frac = np.abs(wheel_torque) / (kim * G_tot)
+    diff_loss_Nm = np.maximum(solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active) - out_frac, 0.0) * kim
+    diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
     diff_torque = wheel_torque / G_tot + diff_loss_Nm
     with np.errstate(divide="ignore", invalid="ignore"):
         diff_eff = np.where(diff_loss_Nm > 0, np.abs(wheel_torque / G_tot) / (np.abs(wheel_torque / G_tot) + diff_loss_Nm), 0.0)
@@ -163,14 +180,20 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     auto = col(va.automatic)
     unlocked = auto & ((gear == 1) | (turbine_rpm < col(va.lockup_rpm)))
     drive = trans_torque > 0
-    sr = converter_speed_ratio(turbine_rpm, trans_torque, col(va.K_tc), col(va.stall_TR))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pump_rpm = np.where(sr > 0, turbine_rpm / sr, idle)
-    pump_rpm = np.maximum(pump_rpm, idle)
-    sr_actual = np.where(pump_rpm > 0, turbine_rpm / pump_rpm, 0.0)
-    tr = torque_ratio(sr_actual, col(va.stall_TR))
-    engine_rpm = np.where(unlocked, np.where(drive, pump_rpm, np.maximum(idle, turbine_rpm)), turbine_rpm)
-    engine_torque = np.where(unlocked, np.where(drive, trans_torque / tr, 0.0), trans_torque)
+    engine_rpm = turbine_rpm.copy()
+    engine_torque = trans_torque.copy()
+    slipping = np.flatnonzero(unlocked & drive)  # the converter model only where it slips
+    if slipping.size:
+        vrow = slipping // N
+        nt, Tt = turbine_rpm.reshape(-1)[slipping], trans_torque.reshape(-1)[slipping]
+        sr = converter_speed_ratio(nt, Tt, va.K_tc[vrow], va.stall_TR[vrow])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pump = np.maximum(np.where(sr > 0, nt / sr, va.n_idle[vrow]), va.n_idle[vrow])
+        engine_rpm.reshape(-1)[slipping] = pump
+        engine_torque.reshape(-1)[slipping] = Tt / torque_ratio(nt / pump, va.stall_TR[vrow])
+    coasting = unlocked & ~drive  # unlocked converter on overrun: the engine idles unloaded
+    engine_rpm = np.where(coasting, np.maximum(idle, turbine_rpm), engine_rpm)
+    engine_torque = np.where(coasting, 0.0, engine_torque)
     # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
     # below idle on overrun
     manual = ~auto

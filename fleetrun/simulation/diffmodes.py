@@ -323,20 +323,22 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
     return maps, index, n_max
 
 
-def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm):
-    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) for flat arrays.
+def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=False):
+    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) (arrays of one shape).
 
+    ``n_max`` is the top of each map's speed grid, per map (or per step with ``per_step``).
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
     """
     du = U_MAX / (N_U - 1)
     u = np.sqrt(np.maximum(out_frac, 0.0)) / du
     i = np.minimum(u.astype(np.intp), N_U - 2)
     wu = u - i
-    s = np.minimum(speed_rpm * ((N_SPEED - 1) / n_max[map_id]), N_SPEED - 1.0)
+    top = n_max if per_step else n_max[map_id]
+    s = np.minimum(speed_rpm * ((N_SPEED - 1) / top), N_SPEED - 1.0)
     j = np.minimum(s.astype(np.intp), N_SPEED - 2)
     ws = s - j
     flat = maps.reshape(-1)
-    base = ((map_id * 2 + axle_low) * N_U + i) * N_SPEED + j
+    base = ((map_id * 2 + axle_low.astype(np.intp)) * N_U + i) * N_SPEED + j
     m00 = flat[base]
     m01 = flat[base + 1]
     m10 = flat[base + N_SPEED]

@@ -116,6 +116,7 @@ class VehicleArrays:
     power_reserve: np.ndarray
     fuel_cut_rpm: np.ndarray
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
+    power_table: np.ndarray | None = None   # filled by the simulation on first use
 
     def subset(self, rows) -> "VehicleArrays":
         """The same parameters for the vehicles ``rows`` only."""
@@ -127,6 +128,8 @@ class VehicleArrays:
                 value = rows.size
             elif isinstance(value, np.ndarray):
                 value = value[rows]
+            elif value is None:
+                pass
             elif isinstance(value, list):
                 value = [value[i] for i in rows]
             values[name] = value
