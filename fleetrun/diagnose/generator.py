@@ -226,3 +226,34 @@ def generate_differential_recording(
              "offset_out_Nm": offset_out_Nm, "offset_in_Nm": offset_in_Nm,
              "effect_output_rms_Nm": float(np.sqrt(np.mean((g * eta * d_t) ** 2)))}
     return Recording(pd.DataFrame(meas), meta, truth)
+
+
+#: Parameter ranges the acceptance cases draw from (docs/diagnose.md reports the effect size
+#: they give against the 1.5 N m AR(1) output-sensor noise: effect RMS 2-8 x noise RMS).
+CASE_PARAMETER_RANGES = {
+    "bearing_preload": {"drag_torque_Nm": (3.0, 6.0)},
+    "cornering": {"k_c": (0.2, 0.4)},               # limited-slip-like spider friction
+    "inertia": {"J_kg_m2": (0.2, 0.35)},
+    "oil_warmup": {"c_w_Nm": (1.0, 1.8), "tau_s": (300.0, 900.0)},
+    "bearing_drag": {"drag_1000rpm_Nm": (1.2, 2.5)},
+    "mixed_lubrication": {"mu_b": (0.06, 0.12), "speed_ref_rpm": (150.0, 300.0)},
+}
+
+#: Rigs the cases alternate between: a light-duty RWD axle and a FWD transaxle.
+CASE_RIGS = (
+    RigSpec(),
+    RigSpec(configuration="LD_FWD", gear_ratio=2.8, lubricant="ATF", peak_engine_torque_Nm=250.0,
+            max_transmission_gear_ratio=5.5, mass_kg=1650.0, wheel_radius_m=0.33),
+)
+
+
+def random_case(effects, seed: int, **kw) -> Recording:
+    """An acceptance case: ``effects`` (ids) with parameters drawn from
+    :data:`CASE_PARAMETER_RANGES`, random sensor offsets, alternating rigs."""
+    rng = np.random.default_rng(1000 + seed)
+    chosen = [(e, {k: float(rng.uniform(*v)) for k, v in CASE_PARAMETER_RANGES[e].items()})
+              for e in effects]
+    kw.setdefault("rig", CASE_RIGS[seed % len(CASE_RIGS)])
+    kw.setdefault("offset_out_Nm", float(rng.normal(0, 5)))
+    kw.setdefault("offset_in_Nm", float(rng.normal(0, 1)))
+    return generate_differential_recording(chosen, seed=seed, **kw)

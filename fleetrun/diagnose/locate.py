@@ -102,7 +102,7 @@ def _bins(x: np.ndarray, nb: int, resolution: float = 0.02) -> tuple[np.ndarray,
 
 
 def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
-            n_shifts: int = 100, quantile: float = 0.99, rng=None,
+            n_shifts: int = 200, quantile: float = 0.99, rng=None,
             smooth_window: int = 1, null_residual: np.ndarray | None = None) -> tuple[list[dict], bool]:
     """How strongly the residual follows each channel, and whether any does beyond noise.
 
