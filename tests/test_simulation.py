@@ -245,3 +245,15 @@ def test_bad_cycle_arrays():
 def test_empty_fleet():
     r = simulate([], load_cycle("UDDS"))
     assert r.miles.shape == (0,)
+
+
+@pytest.mark.parametrize("cycle", ["UDDS", "US06"])
+def test_trace_and_summary_paths_agree(cycle):
+    # without a trace, standstill steps are skipped and charged idle fuel: same numbers
+    weak = dataclasses.replace(CIVIC, vehicle_id="weak", peak_engine_torque_Nm=80.0, rated_power_kW=30.0)
+    vehicles = ALL + [weak, dataclasses.replace(CAMRY, vehicle_id="idle-given", extra={"idle_fuel_g_per_s": 0.3})]
+    a = simulate(vehicles, load_cycle(cycle), mode="map3d", trace=True)
+    b = simulate(vehicles, load_cycle(cycle), mode="map3d", trace=False)
+    for name in ("fuel_g", "miles", "wheel_energy_J", "diff_input_energy_J", "drivetrain_input_energy_J",
+                 "shortfall_time_s", "shortfall_distance_m", "shortfall_steps"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-9, err_msg=name)

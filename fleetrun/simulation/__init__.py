@@ -12,7 +12,8 @@ import numpy as np
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
-from fleetrun.simulation.core import FOLLOW_TOL_MPS, DifferentialSolver, backward, forward_redrive
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, DifferentialSolver, backward, forward_redrive,
+                                      idle_fuel_rate_g_per_s)
 from fleetrun.simulation.params import vehicle_arrays
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
@@ -177,7 +178,11 @@ def _run_block(va, solver, t, v_target, grade, trace):
     """Simulate one block of vehicles; per-vehicle sums (and the trace if asked for)."""
     V, N = va.n, t.size
     speed = np.broadcast_to(v_target, (V, N)).copy()
-    out = backward(va, t, speed, grade, solver)
+    # Without a trace, steps where the trace stands still (and so every vehicle, which is
+    # never ahead of it) are not simulated: they burn idle fuel, added below.
+    target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
+    columns = None if trace else np.flatnonzero(target_avg > 0)
+    out = backward(va, t, speed, grade, solver, columns)
     # vehicles that cannot follow: re-drive at full effort, with a smaller margin on the
     # estimated maximum effort each round, until the backward pass finds every step feasible
     for margin in REDRIVE_MARGINS:
@@ -185,19 +190,26 @@ def _run_block(va, solver, t, v_target, grade, trace):
         if behind.size == 0:
             break
         speed[behind] = forward_redrive(va, behind, t, v_target, grade, margin)
-        again = backward(va.subset(behind), t, speed[behind], grade, solver.subset(behind))
+        again = backward(va.subset(behind), t, speed[behind], grade, solver.subset(behind), columns)
         for key, arr in again.items():
             if np.ndim(out[key]) == 2 and np.shape(out[key])[0] == V:
                 full = np.array(out[key])
                 full[behind] = arr
                 out[key] = full
     dt = out["dt"]
+    dt_all = np.concatenate([[0.0], np.diff(t)])
     distance_m = (out["v_avg"] * dt).sum(axis=1)
-    target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
-    target_m = float((target_avg * dt[0]).sum())
+    target_m = float((target_avg * dt_all).sum())
     deficit = v_target[None, :] - speed
-    not_followed = (deficit > FOLLOW_TOL_MPS) | out["infeasible"]
+    not_followed = deficit > FOLLOW_TOL_MPS
+    if columns is None:
+        not_followed |= out["infeasible"]
+    else:
+        not_followed[:, columns] |= out["infeasible"]
     fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
+    if columns is not None:
+        standstill_s = dt_all.sum() - dt_all[columns].sum()
+        fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
     fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
     miles = distance_m / METERS_PER_MILE
     driving = out["moving"] & (out["wheel_torque_Nm"] > 0)
@@ -211,7 +223,7 @@ def _run_block(va, solver, t, v_target, grade, trace):
         diff_input_energy_J=e(out["diff_input_torque_Nm"] * out["diff_input_speed_rpm"] * (2 * np.pi / 60)),
         diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out["engine_power_W"]), wheel_energy_J=wheel,
         engine_energy_J=(np.maximum(out["engine_power_W"], 0.0) * dt).sum(axis=1),
-        shortfall_time_s=(not_followed * dt).sum(axis=1), shortfall_distance_m=target_m - distance_m,
+        shortfall_time_s=(not_followed * dt_all).sum(axis=1), shortfall_distance_m=target_m - distance_m,
         shortfall_max_speed_mps=np.maximum(deficit.max(axis=1), 0.0),
         shortfall_steps=out["infeasible"].sum(axis=1),
     )

@@ -121,8 +121,20 @@ class DifferentialSolver:
         return result
 
 
-def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver):
-    """One backward pass. ``speed_mps`` is (V, N) (each vehicle's achieved speed)."""
+def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
+    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the Willans line at
+    idle speed and zero load."""
+    t0 = offset_torque_Nm(va.n_idle, va.displacement_L, va.pme0[:, 0], va.pme0[:, 1], va.pme0[:, 2])
+    willans = fuel_rate_g_per_s(0.0, va.n_idle, True, t0, va.eta_ind, va.lhv)
+    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, willans)
+
+
+def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None):
+    """One backward pass. ``speed_mps`` is (V, N) (each vehicle's achieved speed).
+
+    ``columns``: compute only these steps (the caller skips steps where the whole block
+    stands still); the results then have shape (V, len(columns)).
+    """
     V, N = speed_mps.shape
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
     v_prev = np.concatenate([speed_mps[:, :1], speed_mps[:, :-1]], axis=1)
@@ -131,6 +143,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         accel = np.where(dt > 0, (speed_mps - v_prev) / dt, 0.0)
     g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
     grade = (0.5 * (grade_pct + g_prev))[None, :]
+    if columns is not None:
+        dt, v_avg, accel, grade = dt[:, columns], v_avg[:, columns], accel[:, columns], grade[:, columns]
+        N = dt.shape[1]
     col = lambda a: a[:, None]  # noqa: E731
     moving = v_avg > 1e-6
     force = (road_load_N(v_avg, col(va.A_N), col(va.B_N), col(va.C_N))
@@ -218,8 +233,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     fuel = fuel_rate_g_per_s(np.maximum(engine_torque_fuel, 0.0), engine_rpm, fueled, t_offset,
                              col(va.eta_ind), col(va.lhv))
     idle_fuel = col(va.idle_fuel_g_s)
-    at_idle = ~moving | (unlocked & ~drive)
-    fuel = np.where(at_idle & np.isfinite(idle_fuel), np.broadcast_to(idle_fuel, fuel.shape), fuel)
+    at_idle = (unlocked & ~drive) & np.isfinite(idle_fuel)
+    fuel = np.where(at_idle, np.broadcast_to(idle_fuel, fuel.shape), fuel)
+    fuel = np.where(moving, fuel, col(idle_fuel_rate_g_per_s(va)))
 
     wheel_power = wheel_torque * wheel_omega
     diff_in_power = diff_torque * diff_rpm / RPM
