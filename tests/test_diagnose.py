@@ -232,3 +232,15 @@ def test_rate_untestable_never_misnamed(tmp_path, effect, kw):
         status = {c["effect"]: c["status"] for c in res["candidates"]}
         assert status[effect] == "untestable"
         assert res["findings"] == [], res["findings"]
+
+
+@pytest.mark.slow
+def test_benchmark_one_hour_10hz_under_60s(tmp_path):
+    import time
+
+    rec = random_case(["oil_warmup", "cornering"], 7, duration_s=3600.0, rate_hz=10.0)
+    path = rec.write(tmp_path / "hour.csv")
+    t0 = time.perf_counter()
+    res = diagnose(path, out=tmp_path / "out")
+    assert time.perf_counter() - t0 < 60.0
+    assert {"oil_warmup", "cornering"} <= {f["effect"] for f in res["findings"]}
