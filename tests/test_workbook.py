@@ -227,3 +227,40 @@ def test_zip_bomb_refused(tmp_path):
     bad = tmp_path / "bomb.xlsx"
     _rewrite(good, bad, {"xl/media/padding.bin": b"\0" * 60_000_000})
     assert "zip bomb" in _cli_error(bad)
+
+
+def test_dates_booleans_and_errors_are_not_numbers(tmp_path):
+    import datetime
+
+    path = write_fleet(tmp_path / "d.xlsx", [vehicle(annual_miles=datetime.datetime(2024, 1, 5),
+                                                      count=True, peak_engine_torque_Nm="#DIV/0!")])
+    problems = problems_of(path)
+    assert "Vehicles!F2 annual_miles: 2024-01-05T00:00:00 is a date, not a number (format the column as Number)" in problems
+    assert "Vehicles!E2 count: True is not a number" in problems
+    assert "Vehicles!H2 peak_engine_torque_Nm: '#DIV/0!' is not a number" in problems
+
+
+def test_large_fleet_reads_fast(tmp_path):
+    """5,000 rows written without a <dimension> (as pandas or openpyxl write-only do)."""
+    import time
+
+    from openpyxl import Workbook
+
+    from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+
+    wb = Workbook(write_only=True)
+    ws = wb.create_sheet("Vehicles")
+    names = [c.name for c in VEHICLE_COLUMNS]
+    ws.append(names)
+    base = vehicle()
+    for n in range(5000):
+        ws.append([f"V{n}" if c == "vehicle_id" else base.get(c) for c in names])
+    sc = wb.create_sheet("Scenarios")
+    sc.append([c.name for c in SCENARIO_COLUMNS])
+    sc.append([scenario().get(c.name) for c in SCENARIO_COLUMNS])
+    path = tmp_path / "big.xlsx"
+    wb.save(path)
+    started = time.perf_counter()
+    fleet = read_fleet(path)
+    assert len(fleet.vehicles) == 5000 and fleet.vehicle_rows["V4999"] == 5001
+    assert time.perf_counter() - started < 10

@@ -17,7 +17,7 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from openpyxl.utils import get_column_letter
+from openpyxl.utils import column_index_from_string, get_column_letter
 
 from fleetrun.errors import InputError
 from fleetrun.fleet import cells
@@ -128,36 +128,42 @@ def file_sha256(path: Path) -> str:
 
 def read_fleet(path) -> Fleet:
     """Read, validate and return the fleet in ``path``; InputError lists every problem."""
-    from fleetrun.fleet.xlsx_safety import load_workbook_safely
+    from xml.parsers.expat import ExpatError
+
+    from fleetrun.fleet.xlsx_reader import ForbiddenXml, XlsxBook, XlsxFormatError
+    from fleetrun.fleet.xlsx_safety import HINT, check_xlsx
 
     path = Path(path)
-    workbook = load_workbook_safely(path)
+    check_xlsx(path)
     problems = Problems()
+    vehicle_table = scenario_table = None
     try:
-        sheets = {ws.title: ws for ws in workbook.worksheets}
-        for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
-            if name not in sheets:
-                similar = [t for t in sheets if t.strip().lower() == name.lower()]
-                hint = f" (found '{similar[0]}': rename it)" if similar else ""
-                problems.error(f"sheet is missing{hint}; the workbook has: "
-                               f"{', '.join(sheets) or 'no sheets'}", name)
-        vehicle_table = scenario_table = None
-        if VEHICLES_SHEET in sheets:
-            vehicle_table = _read_table(sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
-        if SCENARIOS_SHEET in sheets:
-            scenario_table = _read_table(sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
-    finally:
-        workbook.close()
+        with XlsxBook(path) as book:
+            sheets = {s.name: s for s in book.sheets}
+            for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
+                if name not in sheets:
+                    similar = [t for t in sheets if t.strip().lower() == name.lower()]
+                    hint = f" (found '{similar[0]}': rename it)" if similar else ""
+                    problems.error(f"sheet is missing{hint}; the workbook has: "
+                                   f"{', '.join(sheets) or 'no sheets'}", name)
+            if VEHICLES_SHEET in sheets:
+                vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
+            if SCENARIOS_SHEET in sheets:
+                scenario_table = _read_table(book, sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
+    except ForbiddenXml:
+        raise InputError("contains a DTD or XML entities; refusing to open it (XML entity attack?)",
+                         file=path, hint=HINT) from None
+    except (XlsxFormatError, ExpatError, KeyError, ValueError, IndexError, zipfile.BadZipFile,
+            OSError, EOFError) as exc:
+        raise InputError(f"cannot be read as an .xlsx workbook (corrupt? {type(exc).__name__}: {exc})",
+                         file=path, hint=HINT) from None
 
-    _refuse_merged_cells(path, problems)
     vehicles, vehicle_rows = ([], {})
     if vehicle_table is not None:
         vehicles, vehicle_rows = _vehicles(vehicle_table, problems)
     scenarios, scenario_rows = ([], {})
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
-    if problems.errors:
-        _explain_formulas(path, problems)
 
     if problems.errors:
         errors = problems.sorted_errors()
@@ -181,14 +187,21 @@ class _Table:
     columns: dict[str, int]              # schema column name -> 1-based column index
     extra_columns: dict[str, int]        # other headers -> column index
     rows: list[tuple[int, tuple]]        # (Excel row number, values)
+    uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
 
 
-def _read_table(ws, schema: tuple[Column, ...], problems: Problems) -> _Table:
-    sheet = ws.title
-    if getattr(ws, "sheet_state", "visible") != "visible":
+def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
+    sheet = info.name
+    if info.state != "visible":
         problems.warn("sheet is hidden; read anyway", sheet)
-    rows = ws.iter_rows(values_only=True)
-    header = next(rows, None) or ()
+    values = book.read(info)
+    for ref in values.merged:
+        first = ref.split(":")[0]
+        match = re.match(r"([A-Z]+)([0-9]+)", first)
+        key = (sheet, int(match.group(2)), column_index_from_string(match.group(1))) if match else (sheet, 0, 0)
+        problems.errors.append((key, f"{sheet}!{ref}: merged cells; unmerge them and give every "
+                                     "row its own values"))
+    header = values.rows[0][1] if values.rows and values.rows[0][0] == 1 else ()
     known = {c.name.lower(): c.name for c in schema}
     columns: dict[str, int] = {}
     extra: dict[str, int] = {}
@@ -218,18 +231,21 @@ def _read_table(ws, schema: tuple[Column, ...], problems: Problems) -> _Table:
     body: list[tuple[int, tuple]] = []
     headed = set(columns.values()) | set(extra.values())
     unheaded_warned: set[int] = set()
-    for row_number, values in enumerate(rows, start=2):
-        if all(cells.is_blank(v) for v in values):
+    uncached_rows = {r for r, _ in values.uncached_formulas}
+    for row_number, row_values in values.rows:
+        if row_number == 1:
+            continue
+        if all(cells.is_blank(v) for v in row_values) and row_number not in uncached_rows:
             continue  # blank rows (between blocks, or formatted-but-empty at the end)
-        for index, value in enumerate(values, start=1):
+        for index, value in enumerate(row_values, start=1):
             if index not in headed and not cells.is_blank(value) and index not in unheaded_warned:
                 unheaded_warned.add(index)
                 problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
                               "ignored", sheet, row_number, index)
-        body.append((row_number, values))
+        body.append((row_number, row_values))
     if not body:
         problems.error("has no data rows below the header", sheet)
-    return _Table(sheet, columns, extra, body)
+    return _Table(sheet, columns, extra, body, values.uncached_formulas)
 
 
 def _cell(values: tuple, index: int | None):
@@ -245,7 +261,8 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     ok = True
     empty_required = [(c.name, table.columns[c.name]) for c in schema
                       if c.required and c.name in table.columns
-                      and cells.is_blank(_cell(values, table.columns[c.name]))]
+                      and cells.is_blank(_cell(values, table.columns[c.name]))
+                      and (row_number, table.columns[c.name]) not in table.uncached]
     if len(empty_required) >= ROW_MOSTLY_EMPTY:
         # A half-filled row: one line for the row, not one per cell.
         listed = ", ".join(f"{name} ({get_column_letter(i)})" for name, i in empty_required)
@@ -258,6 +275,14 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             parsed[column.name] = None
             continue
         raw = _cell(values, index)
+        formula = table.uncached.get((row_number, index))
+        if formula is not None:
+            problems.error(f"formula {cells.show(formula)} has no saved result; open and save the "
+                           "workbook in Excel or LibreOffice (or type the value)", table.sheet,
+                           row_number, index, column.name)
+            ok = False
+            parsed[column.name] = None
+            continue
         if cells.is_blank(raw):
             if column.required and len(empty_required) < ROW_MOSTLY_EMPTY:
                 problems.error("is empty (required)", table.sheet, row_number, index, column.name)
@@ -491,82 +516,3 @@ def _shipped_cycle_names() -> list[str] | None:
     if isinstance(found, dict):
         found = list(found)
     return [getattr(c, "name", c) for c in found]
-
-
-# --- layout checks that need the raw XML --------------------------------------------------
-
-_MERGE = re.compile(rb'<(?:\w+:)?mergeCell\s+ref="([A-Z]+[0-9]+(?::[A-Z]+[0-9]+)?)"')
-
-
-def _sheet_parts(path: Path) -> dict[str, str]:
-    """Sheet title -> zip part name, from the workbook's relationships."""
-    from defusedxml import ElementTree
-
-    ns_main = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
-    ns_rel = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
-    with zipfile.ZipFile(path) as archive:
-        book = ElementTree.fromstring(archive.read("xl/workbook.xml"))
-        rels = ElementTree.fromstring(archive.read("xl/_rels/workbook.xml.rels"))
-    targets = {r.get("Id"): r.get("Target") for r in rels}
-    parts = {}
-    for sheet in book.iter(f"{ns_main}sheet"):
-        target = targets.get(sheet.get(f"{ns_rel}id"), "")
-        target = target.lstrip("/") if target.startswith("/") else "xl/" + target
-        parts[sheet.get("name")] = target
-    return parts
-
-
-def _refuse_merged_cells(path: Path, problems: Problems) -> None:
-    try:
-        parts = _sheet_parts(path)
-    except Exception:
-        return  # openpyxl already read the workbook; a layout check must not mask that
-    with zipfile.ZipFile(path) as archive:
-        for sheet in (VEHICLES_SHEET, SCENARIOS_SHEET):
-            part = parts.get(sheet)
-            if not part or part not in archive.namelist():
-                continue
-            refs = []
-            tail = b""
-            with archive.open(part) as handle:
-                for block in iter(lambda: handle.read(1 << 20), b""):
-                    chunk = tail + block
-                    refs.extend(m.group(1).decode() for m in _MERGE.finditer(chunk))
-                    tail = chunk[-200:]
-                    # a match in the 200-byte overlap is found twice; dedupe below
-            for ref in dict.fromkeys(refs):
-                first = ref.split(":")[0]
-                match = re.match(r"([A-Z]+)([0-9]+)", first)
-                from openpyxl.utils import column_index_from_string
-
-                problems.errors.append(((sheet, int(match.group(2)), column_index_from_string(match.group(1))),
-                                        f"{sheet}!{ref}: merged cells; unmerge them and give every "
-                                        "row its own values"))
-
-
-def _explain_formulas(path: Path, problems: Problems) -> None:
-    """Reword 'is empty' for formula cells whose result the saving program never stored."""
-    empty = [(i, key) for i, (key, text) in enumerate(problems.errors) if text.endswith("is empty (required)")]
-    if not empty:
-        return
-    from fleetrun.fleet.xlsx_safety import load_workbook_safely
-
-    wanted: dict[str, dict[tuple[int, int], int]] = {}
-    for i, (sheet, row, col) in empty:
-        wanted.setdefault(sheet, {})[(row, col)] = i
-    workbook = load_workbook_safely(path, data_only=False)
-    try:
-        for sheet, positions in wanted.items():
-            last_row = max(r for r, _ in positions)
-            ws = workbook[sheet]
-            for row_number, values in enumerate(ws.iter_rows(values_only=True, max_row=last_row), start=1):
-                for col_index, value in enumerate(values, start=1):
-                    i = positions.get((row_number, col_index))
-                    if i is not None and isinstance(value, str) and value.startswith("="):
-                        key, text = problems.errors[i]
-                        text = text[: -len("is empty (required)")]
-                        problems.errors[i] = (key, text + f"formula {cells.show(value)} has no saved "
-                                              "result; open and save the workbook in Excel or "
-                                              "LibreOffice (or type the value)")
-    finally:
-        workbook.close()

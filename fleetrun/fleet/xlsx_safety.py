@@ -20,7 +20,7 @@ MAX_RATIO = 200                          # workbook XML compresses ~5-50x; bombs
 RATIO_CHECK_MIN_BYTES = 10_000_000       # small parts may compress extremely well; harmless
 DTD_SCAN_BYTES = 4096                    # a DOCTYPE must come before the root element
 
-_HINT = "Save it from Excel (or LibreOffice) as an .xlsx workbook and try again."
+HINT = "Save it from Excel (or LibreOffice) as an .xlsx workbook and try again."
 
 
 def check_xlsx(path: Path) -> None:
@@ -31,22 +31,22 @@ def check_xlsx(path: Path) -> None:
     if path.is_dir():
         raise InputError("is a folder, not a workbook", file=path, hint="Give the .xlsx file.")
     if path.suffix.lower() == ".xls":
-        raise InputError("old-style .xls workbooks are not supported", file=path, hint=_HINT)
+        raise InputError("old-style .xls workbooks are not supported", file=path, hint=HINT)
     if path.suffix.lower() in (".xlsm", ".xltm"):
-        raise InputError("macro-enabled workbooks are refused", file=path, hint=_HINT)
+        raise InputError("macro-enabled workbooks are refused", file=path, hint=HINT)
     if not zipfile.is_zipfile(path):
         raise InputError("is not an .xlsx workbook (not a zip file; corrupt, or another format "
-                         "such as .xls or .csv renamed)", file=path, hint=_HINT)
+                         "such as .xls or .csv renamed)", file=path, hint=HINT)
     try:
         with zipfile.ZipFile(path) as archive:
             members = archive.infolist()
             names = {m.filename for m in members}
             if "[Content_Types].xml" not in names or "xl/workbook.xml" not in names:
                 raise InputError("is a zip file but not an .xlsx workbook (no xl/workbook.xml)",
-                                 file=path, hint=_HINT)
+                                 file=path, hint=HINT)
             if len(members) > MAX_MEMBERS:
                 raise InputError(f"has {len(members)} parts; refusing to open it (zip bomb?)",
-                                 file=path, hint=_HINT)
+                                 file=path, hint=HINT)
             total = sum(m.file_size for m in members)
             if total > MAX_TOTAL_UNCOMPRESSED:
                 raise InputError(f"would decompress to {total / 1e9:.1f} GB; refusing to open it "
@@ -54,16 +54,16 @@ def check_xlsx(path: Path) -> None:
             for m in members:
                 if m.file_size > RATIO_CHECK_MIN_BYTES and m.file_size > MAX_RATIO * max(m.compress_size, 1):
                     raise InputError(f"part {m.filename} expands {m.file_size / max(m.compress_size, 1):.0f}x; "
-                                     "refusing to open it (zip bomb?)", file=path, hint=_HINT)
+                                     "refusing to open it (zip bomb?)", file=path, hint=HINT)
             for m in members:
                 if m.filename.endswith((".xml", ".rels", ".vml")):
                     with archive.open(m) as part:
                         head = part.read(DTD_SCAN_BYTES).upper()
                     if b"<!DOCTYPE" in head or b"<!ENTITY" in head:
                         raise InputError(f"part {m.filename} declares a DTD or XML entities; refusing "
-                                         "to open it (XML entity attack?)", file=path, hint=_HINT)
+                                         "to open it (XML entity attack?)", file=path, hint=HINT)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, NotImplementedError) as exc:
-        raise InputError(f"is corrupt ({exc})", file=path, hint=_HINT) from None
+        raise InputError(f"is corrupt ({exc})", file=path, hint=HINT) from None
 
 
 def load_workbook_safely(path: Path, *, data_only: bool = True, read_only: bool = True):
@@ -87,6 +87,6 @@ def load_workbook_safely(path: Path, *, data_only: bool = True, read_only: bool 
         name = type(exc).__name__
         if "Forbidden" in name:  # defusedxml's DTDForbidden / EntitiesForbidden / ...
             raise InputError("contains forbidden XML (DTD or entities); refusing to open it",
-                             file=path, hint=_HINT) from None
+                             file=path, hint=HINT) from None
         raise InputError(f"cannot be read as an .xlsx workbook ({name}: {exc})", file=path,
-                         hint=_HINT) from None
+                         hint=HINT) from None
