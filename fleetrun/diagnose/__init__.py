@@ -62,17 +62,18 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     r = problem.residual
     sel = select(problem, s)
     fitted = sel.pop("fitted_effects")
+    base_heldout = sel.pop("baseline_heldout_rmse")
     rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
                                 smooth_window=max(1, int(rate)),
                                 null_residual=r - fitted if sel["findings"] else None)
     significant = bool(sel["significant"] or drv_sig)
-    noise_var = float(np.var(r - fitted)) if sel["findings"] else None
-    segs = find_segments(problem.time_s, r, noise_var=noise_var) if significant else []
+    segs = find_segments(problem.time_s, r, noise=(r - fitted) if sel["findings"] else None) \
+        if significant else []
     rmse = float(np.sqrt(np.mean(r ** 2)))
     info = {k: v for k, v in problem.baseline_info.items() if not k.startswith("_")}
     baseline = {"rmse": round(rmse, 6), "bias": round(float(np.mean(r)), 6),
-                "heldout_rmse": round(float(info.pop("heldout_rmse", rmse)), 6)}
+                "heldout_rmse": round(float(base_heldout if base_heldout is not None else rmse), 6)}
     baseline.update(info)
     after = r - fitted
     rec = problem.baseline_info.get("_rec")

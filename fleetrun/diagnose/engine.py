@@ -43,6 +43,9 @@ class Problem:
     notes: list[str] = field(default_factory=list)
     extra_ambiguity: dict[str, str] = field(default_factory=dict)     # id -> reason (e.g. offset)
     units: str = ""
+    #: terms always in the model and refitted in every fold (free calibration constants),
+    #: ``[(column, lower, upper), ...]``
+    initial_terms: list = field(default_factory=list)
 
     @property
     def residual(self) -> np.ndarray:
@@ -52,6 +55,7 @@ class Problem:
 @dataclass
 class Settings:
     folds: int = 5
+    blocks_per_fold: int = 4
     n_shifts: int = 200
     quantile: float = 0.99
     min_gain: float = 0.01
@@ -97,19 +101,20 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     r = problem.residual
     n = len(r)
     k = s.folds
-    folds = fold_ids(n, k)
+    folds = fold_ids(n, k, s.blocks_per_fold)
     statuses: dict[str, dict] = {}
     for cid, missing in problem.untestable.items():
         statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
                          "missing_channels": missing}
     accepted: list[dict] = []           # {cand, shape, column, before, after, gain}
-    nuisance: list[tuple] = []          # terms in the model: (column, lower, upper)
+    nuisance: list[tuple] = list(problem.initial_terms)   # terms in the model: (column, lower, upper)
     ambiguities: list[dict] = []
     rounds: list[dict] = []
     active = list(problem.candidates)
     first_threshold = None
     significant = False
     stopped_untestable = False
+    baseline_heldout = None
     # ---- forward selection ----------------------------------------------------------------
     for _round in range(s.max_effects):
         if not active:
@@ -117,6 +122,8 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         evals = {c.id: evaluate_candidate(r, nuisance, c, folds, k) for c in active}
         best = max(active, key=lambda c: evals[c.id].gain)
         bev = evals[best.id]
+        if baseline_heldout is None:
+            baseline_heldout = bev.rmse_before      # CV of the baseline (its own terms refitted)
         best_col = best.columns[bev.shape_index]
         # noise estimate for the shift null: what is left after the model *and* the best
         # candidate. Shifting the raw residual would keep the effect's own structure (e.g.
@@ -202,7 +209,8 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         remaining = [c for c in problem.candidates if c.id not in {a["cand"].id for a in accepted}]
         keep = []
         for a in accepted:
-            others = [(b["column"], b["cand"].lower, b["cand"].upper) for b in accepted if b is not a]
+            others = list(problem.initial_terms) + [
+                (b["column"], b["cand"].lower, b["cand"].upper) for b in accepted if b is not a]
             cols = [t[0] for t in others] + [a["column"]]
             coefs = full_fit(r, cols, [(t[1], t[2]) for t in others] + [(a["cand"].lower, a["cand"].upper)])
             r_noise = r - np.array(cols).T @ coefs
@@ -229,9 +237,13 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     findings = []
     fitted = np.zeros(n)
     if accepted:
-        cols = [a["column"] for a in accepted]
-        coefs = full_fit(r, cols, [(a["cand"].lower, a["cand"].upper) for a in accepted])
-        for a, c in zip(accepted, coefs):
+        init = list(problem.initial_terms)
+        cols = [t[0] for t in init] + [a["column"] for a in accepted]
+        coefs = full_fit(r, cols, [(t[1], t[2]) for t in init]
+                         + [(a["cand"].lower, a["cand"].upper) for a in accepted])
+        for col, c in zip(cols[:len(init)], coefs[:len(init)]):
+            fitted = fitted + c * col       # calibration constants move with the effects
+        for a, c in zip(accepted, coefs[len(init):]):
             params = _params(a["cand"], a["shape"], c)
             statuses[a["cand"].id]["parameters"] = params
             statuses[a["cand"].id]["heldout_gain"] = round(a["gain"], 5)
@@ -246,4 +258,5 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     candidates = [statuses[cid] for cid in order if cid in statuses]
     return {"findings": findings, "candidates": candidates, "ambiguities": ambiguities,
             "significant": significant or bool(ambiguities), "threshold": first_threshold,
-            "rounds": rounds, "fitted_effects": fitted}
+            "rounds": rounds, "fitted_effects": fitted,
+            "baseline_heldout_rmse": baseline_heldout}

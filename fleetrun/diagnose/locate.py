@@ -21,19 +21,30 @@ def smooth(x: np.ndarray, window: int) -> np.ndarray:
 
 
 def segments(time_s: np.ndarray, r: np.ndarray, *, n_blocks: int = 60, share_target: float = 0.6,
-             noise_var: float | None = None, max_segments: int = 6) -> list[dict]:
+             noise: np.ndarray | None = None, smooth_s: float | None = None,
+             max_segments: int = 6) -> list[dict]:
     """Contiguous time spans that hold most of the residual's systematic energy.
 
-    The recording is cut into ``n_blocks`` equal blocks; a block's energy is its mean squared
-    residual minus the noise floor (the residual variance the shift null attributes to noise,
-    estimated as the median block energy when not given), so blocks of noise carry none.
-    Blocks are taken largest first until ``share_target`` of the excess energy is covered;
-    neighbours merge. ``share`` is each segment's part of the total excess energy.
+    The residual is first averaged over ``smooth_s`` (default: 1 % of the recording, at least
+    10 s) so that sensor noise, fast or autocorrelated, averages out and what remains is the
+    systematic part. The recording is cut into ``n_blocks`` equal blocks; a block's energy is
+    its mean squared smoothed residual minus the noise floor (the same quantity for
+    ``noise``, the residual left after the accepted effects, or the median block when no
+    effect was accepted). Blocks are taken largest first until ``share_target`` of the
+    excess energy is covered; neighbours merge. ``share`` is each segment's part of the total
+    excess energy.
     """
     n = len(r)
+    duration = float(time_s[-1] - time_s[0]) or 1.0
+    smooth_s = smooth_s or max(10.0, 0.01 * duration)
+    win = max(1, int(round(smooth_s * n / duration)))
+    rs = smooth(r, win)
     edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    e = np.array([np.mean(r[a:b] ** 2) if b > a else 0.0 for a, b in zip(edges[:-1], edges[1:])])
-    floor = float(np.median(e)) if noise_var is None else float(noise_var)
+    e = np.array([np.mean(rs[a:b] ** 2) if b > a else 0.0 for a, b in zip(edges[:-1], edges[1:])])
+    if noise is not None:
+        floor = float(np.mean(smooth(noise, win) ** 2))
+    else:
+        floor = float(np.median(e))
     excess = np.maximum(e - floor, 0.0) * np.diff(edges)
     total = excess.sum()
     if total <= 0:

@@ -33,7 +33,8 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     sl = _thin(len(t))
     r = problem.residual
     r_after = r - fitted
-    win = max(1, int(len(t) / max(t[-1], 1e-9) * 5))   # ~5 s smoothing for display
+    smooth_s = max(10.0, 0.01 * float(t[-1]))          # the segments' smoothing (locate.segments)
+    win = max(1, int(round(len(t) / max(t[-1], 1e-9) * smooth_s)))
     unit = problem.units
     figs = {}
 
@@ -50,7 +51,7 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     figs["measured"] = _png(fig)
 
     fig, ax = plt.subplots(figsize=(10, 3.0))
-    ax.plot(t[sl], smooth(r, win)[sl], lw=0.8, color="tab:blue", label="residual (5 s mean), baseline")
+    ax.plot(t[sl], smooth(r, win)[sl], lw=0.8, color="tab:blue", label=f"residual ({smooth_s:.0f} s mean), baseline")
     if result["findings"]:
         ax.plot(t[sl], smooth(r_after, win)[sl], lw=0.8, color="tab:red", label="after findings")
     for seg in result["mismatch"]["segments"]:

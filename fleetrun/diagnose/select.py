@@ -45,8 +45,16 @@ class CVResult:
     coefficient: float                   # fitted on all data
 
 
-def fold_ids(n: int, k: int) -> np.ndarray:
-    return np.minimum((np.arange(n) * k) // n, k - 1)
+def fold_ids(n: int, k: int, blocks_per_fold: int = 1) -> np.ndarray:
+    """Fold of each sample: ``k * blocks_per_fold`` contiguous blocks dealt to the folds in turn.
+
+    Blocks (not samples) are held out, so autocorrelated noise in a held-out block is not in
+    the fit that predicts it (blocks are much longer than the noise's correlation time). With
+    more than one block per fold, an effect confined to part of the recording (a warm-up in
+    the first minutes) still has data in every training set.
+    """
+    nb = k * blocks_per_fold
+    return np.minimum((np.arange(n) * nb) // n, nb - 1) % k
 
 
 def _solve_bounded(G, c, lo, hi):
