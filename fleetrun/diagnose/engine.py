@@ -73,9 +73,18 @@ def _params(cand: Candidate, shape: dict, coef: float) -> dict:
 def explanation(effect_id: str, params: dict, before: float, after: float, units: str) -> str:
     e = EFFECTS[effect_id]
     ps = ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
-    return (f"The residual follows the signature of {e.title} ({e.signature}); adding it with "
-            f"{ps} cuts the held-out error from {before:.3g} to {after:.3g} {units}. "
-            f"Physics: {e.seed}.")
+    text = (f"The residual follows the signature of {e.title} ({e.signature}); adding it with "
+            f"{ps} cuts the held-out error from {before:.3g} to {after:.3g} {units}.")
+    at_bound = [p.name for p in e.parameters if p.name in params and
+                (np.isclose(params[p.name], p.upper, rtol=0.01) or
+                 (p.lower != 0 and np.isclose(params[p.name], p.lower, rtol=0.01)))]
+    at_bound += [p.name for p in e.shape if p.grid and p.name in params and
+                 (params[p.name] >= 0.99 * max(p.grid) or params[p.name] <= 1.01 * min(p.grid))]
+    if at_bound:
+        text += (f" {', '.join(dict.fromkeys(at_bound))} sits at the edge of its plausible range: the "
+                 "data ask for more of this effect than the physics allows, so it is the best "
+                 "available description rather than a measurement of it.")
+    return text + f" Physics: {e.seed}."
 
 
 def _ambiguity(best_id, rivals, statuses, ambiguities):
