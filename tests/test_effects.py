@@ -109,3 +109,26 @@ def test_efficiency_with_effects_steady_state():
     # drag larger than the input torque: nothing reaches the wheels (B.6 floor)
     assert efficiency_with_effects("LD_RWD", 0.001, n, 3.55, "bearing_preload:drag_torque_Nm=10",
                                    kim_scale_Nm=kim) == 0.0
+
+
+def test_vehicle_extra_fuel():
+    from fleetrun.effects import vehicle_extra_fuel_g_per_s
+    from fleetrun.effects.vehicle import marginal_fuel_g_per_J
+
+    t = np.array([0.0, 100.0, 1e6])
+    v = np.array([10.0, 10.0, 10.0])
+    warm = vehicle_extra_fuel_g_per_s("warmup:extra_fuel_g_per_s=1:tau_s=100", time_s=t,
+                                      vehicle_speed_mps=v, vehicle_mass_kg=1500, fuel="gasoline")
+    np.testing.assert_allclose(warm, [1.0, np.exp(-1), 0.0], atol=1e-12)
+    gpj = marginal_fuel_g_per_J("gasoline")
+    grade = vehicle_extra_fuel_g_per_s("road_grade:grade_pct=2", time_s=t, vehicle_speed_mps=v,
+                                       vehicle_mass_kg=1500, fuel="gasoline",
+                                       wheel_power_W=np.array([1.0, -1.0, 1.0]))
+    # m g v grade/100 of extra work while driving the wheels, none while braking
+    np.testing.assert_allclose(grade, [1500 * 9.80665 * 10 * 0.02 * gpj, 0.0, 1500 * 9.80665 * 10 * 0.02 * gpj])
+    acc = vehicle_extra_fuel_g_per_s("accessory_load:power_kW=2", time_s=t, vehicle_speed_mps=v,
+                                     vehicle_mass_kg=1500, fuel="gasoline", engine_on=np.array([1, 0, 1]))
+    np.testing.assert_allclose(acc, [2000 * gpj, 0.0, 2000 * gpj])
+    # differential effects do not add fuel here
+    assert np.all(vehicle_extra_fuel_g_per_s("inertia", time_s=t, vehicle_speed_mps=v,
+                                             vehicle_mass_kg=1500, fuel="gasoline") == 0)

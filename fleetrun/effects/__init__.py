@@ -22,7 +22,8 @@ from fleetrun.errors import InputError, unknown_name_error
 EFFECTS: dict[str, Effect] = {e.id: e for e in DIFFERENTIAL_EFFECTS + VEHICLE_EFFECTS}
 
 __all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", "parse_with",
-           "differential_extra_torque_Nm", "efficiency_with_effects", "steady_channels"]
+           "differential_extra_torque_Nm", "efficiency_with_effects", "steady_channels",
+           "vehicle_extra_fuel_g_per_s", "overall_ratio"]
 
 
 def get_effect(name: str) -> Effect:
@@ -176,3 +177,28 @@ def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_rati
     with np.errstate(divide="ignore", invalid="ignore"):
         eta = np.where((t_in > 0) & (t_eff > 0), eta_b * t_eff / np.where(t_in > 0, t_in, 1.0), 0.0)
     return eta
+
+
+def vehicle_extra_fuel_g_per_s(effects, *, time_s, vehicle_speed_mps, vehicle_mass_kg, fuel,
+                               engine_on=1.0, wheel_power_W=None) -> np.ndarray:
+    """Extra fuel rate [g/s] of the vehicle-level ``effects`` for a simulation to add.
+
+    ``time_s`` is the time since the (cold) start; ``wheel_power_W`` (when given) limits the
+    grade's extra work to steps that drive the wheels; ``engine_on`` is 0 where the engine is
+    off. Extra work costs fuel at the Willans-line slope of ``fuel`` (see
+    :func:`fleetrun.effects.vehicle.marginal_fuel_g_per_J`).
+    """
+    from fleetrun.effects.vehicle import marginal_fuel_g_per_J
+
+    t = np.asarray(time_s, dtype=float)
+    v = np.asarray(vehicle_speed_mps, dtype=float)
+    if wheel_power_W is not None:
+        v = v * (np.asarray(wheel_power_W, dtype=float) > 0)
+    on = np.broadcast_to(np.asarray(engine_on, dtype=float), t.shape)
+    ch = {"time_s": t, "vehicle_speed_mps": v, "engine_on": on,
+          "vehicle_mass_kg": float(vehicle_mass_kg), "marginal_fuel_g_per_J": marginal_fuel_g_per_J(fuel)}
+    total = np.zeros(np.broadcast_shapes(t.shape, v.shape))
+    for effect, params in _as_effect_list(effects):
+        if effect.level == "vehicle":
+            total = total + effect.evaluate(ch, params)
+    return total
