@@ -107,7 +107,10 @@ def test_report_totals_equal_csvs(outputs):
 def test_report_inputs_and_runinfo(outputs):
     wb = openpyxl.load_workbook(outputs / "report.xlsx")
     inputs = [row for row in wb["Inputs"].iter_rows(values_only=True)]
-    assert inputs[1][0] == "vehicle_id" and inputs[2][0] == "CAR-1"
+    assert inputs[1][0] == "scenario_id" and [r[0] for r in inputs[2:5]] == ["baseline", "hot", "urban"]
+    header = next(i for i, row in enumerate(inputs) if row[0] == "vehicle_id")
+    assert [r[0] for r in inputs[header + 1:]] == ["CAR-1", "CAR-2", "PICKUP-1", "TRUCK-1"]
+    assert inputs[header + 4][18] == 4.9   # low_gear_ratio of the dual axle, written in bulk
     info = {row[0]: row[1] for row in wb["RunInfo"].iter_rows(values_only=True) if row and row[0]}
     assert info["physics"] == "thesis" and "fleetrun_version" in info
 

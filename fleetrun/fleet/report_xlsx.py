@@ -38,7 +38,6 @@ FORMATS = {
     "drivetrain_input_energy_J": "0.000E+00", "wheel_energy_J": "0.000E+00",
     "change_pct": "+0.00%;-0.00%;0.00%", "efficiency": "0.000",
 }
-STYLED_ROW_LIMIT = 20_000   # beyond this, ByVehicle numbers go unstyled (write speed)
 
 
 def text_cell(ws, value):
@@ -108,18 +107,23 @@ def _full_precision_numbers():
 
 
 def write_report_xlsx(result: RunResult, path: Path) -> None:
+    from fleetrun.fleet.xlsx_bulk import append_rows
+
+    bulk: dict = {}   # sheet title -> (template row, columns, remaining rows), see xlsx_bulk
     # Write-only sheets stream their rows as they are appended: the whole build is inside.
     with _full_precision_numbers():
         wb = Workbook(write_only=True)
         totals = scenario_totals(result.classes)
         _summary(wb, result, totals)
         _by_class(wb, result)
-        _by_vehicle(wb, result)
+        _by_vehicle(wb, result, bulk)
         _comparison(wb, result)
         _maps(wb, result)
-        _inputs(wb, result)
+        _inputs(wb, result, bulk)
         _run_info(wb, result)
         wb.save(path)
+    if bulk:
+        append_rows(path, bulk)
 
 
 def _summary(wb, result: RunResult, totals: pd.DataFrame):
@@ -191,11 +195,15 @@ def _by_class(wb, result: RunResult):
     ws.add_chart(chart, f"{get_column_letter(len(frame.columns) + 2)}2")
 
 
-def _by_vehicle(wb, result: RunResult):
+def _by_vehicle(wb, result: RunResult, bulk: dict):
     ws = wb.create_sheet("ByVehicle")
     ws.freeze_panes = "C2"
-    _table(ws, result.results, styled=len(result.results) <= STYLED_ROW_LIMIT)
-    ws.auto_filter.ref = f"A1:{get_column_letter(len(result.results.columns))}{len(result.results) + 1}"
+    frame = result.results
+    ws.auto_filter.ref = f"A1:{get_column_letter(len(frame.columns))}{len(frame) + 1}"
+    # openpyxl writes the header and the first row (and so the styles); the rest in bulk.
+    _table(ws, frame.iloc[:1])
+    if len(frame) > 1:
+        bulk[ws.title] = (2, len(frame.columns), frame.iloc[1:].itertuples(index=False, name=None))
 
 
 def _comparison(wb, result: RunResult):
@@ -304,32 +312,17 @@ def _maps(wb, result: RunResult):
             row += 1
 
 
-def _inputs(wb, result: RunResult):
+def _inputs(wb, result: RunResult, bulk: dict):
     ws = wb.create_sheet("Inputs")
     fleet = result.fleet
-    ws.freeze_panes = "B3"
-    t = text_cell(ws, "Vehicles (as read)")
-    t.font = Font(bold=True)
-    ws.append([t])
     extra_names = list(dict.fromkeys(k for v in fleet.vehicles for k in v.extra))
-    names = [c.name for c in VEHICLE_COLUMNS] + extra_names
-    _widths(ws, names)
-    _header(ws, names)
-    for v in fleet.vehicles:
-        values = []
-        for c in VEHICLE_COLUMNS:
-            value = getattr(v, c.name)
-            if c.name == "transmission_gear_ratios":
-                value = ",".join(f"{r:g}" for r in value)
-            values.append(_value(ws, value))
-        values += [_value(ws, v.extra.get(k)) for k in extra_names]
-        ws.append(values)
-    ws.append([])
+    vehicle_names = [c.name for c in VEHICLE_COLUMNS] + extra_names
+    _widths(ws, vehicle_names)
+    # Scenarios first (a few rows), then the Vehicles table, whose rows may be many.
     t = text_cell(ws, "Scenarios (as read)")
     t.font = Font(bold=True)
     ws.append([t])
-    names = [c.name for c in SCENARIO_COLUMNS]
-    _header(ws, names)
+    _header(ws, [c.name for c in SCENARIO_COLUMNS])
     for s in fleet.scenarios:
         values = []
         for c in SCENARIO_COLUMNS:
@@ -339,6 +332,27 @@ def _inputs(wb, result: RunResult):
                                  for k, w in value.items())
             values.append(_value(ws, value))
         ws.append(values)
+    ws.append([])
+    t = text_cell(ws, "Vehicles (as read)")
+    t.font = Font(bold=True)
+    ws.append([t])
+    _header(ws, vehicle_names)
+    header_row = len(fleet.scenarios) + 5
+
+    def row_of(v):
+        values = []
+        for c in VEHICLE_COLUMNS:
+            value = getattr(v, c.name)
+            if c.name == "transmission_gear_ratios":
+                value = ",".join(f"{r:g}" for r in value)
+            values.append(value)
+        return values + [v.extra.get(k) for k in extra_names]
+
+    if fleet.vehicles:
+        ws.append([_value(ws, x) for x in row_of(fleet.vehicles[0])])
+        if len(fleet.vehicles) > 1:
+            bulk[ws.title] = (header_row + 1, len(vehicle_names),
+                              (row_of(v) for v in fleet.vehicles[1:]))
 
 
 def _run_info(wb, result: RunResult):

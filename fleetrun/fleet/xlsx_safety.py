@@ -8,7 +8,6 @@ of defence.
 """
 from __future__ import annotations
 
-import os
 import zipfile
 from pathlib import Path
 
@@ -64,29 +63,3 @@ def check_xlsx(path: Path) -> None:
                                          "to open it (XML entity attack?)", file=path, hint=HINT)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, NotImplementedError) as exc:
         raise InputError(f"is corrupt ({exc})", file=path, hint=HINT) from None
-
-
-def load_workbook_safely(path: Path, *, data_only: bool = True, read_only: bool = True):
-    """``openpyxl.load_workbook`` after :func:`check_xlsx`, with parse errors as InputError."""
-    check_xlsx(path)
-    # openpyxl uses defusedxml when it is installed unless this variable says otherwise.
-    os.environ["OPENPYXL_DEFUSEDXML"] = "True"
-    import openpyxl
-    import warnings
-
-    try:
-        with warnings.catch_warnings():
-            # "Data Validation extension is not supported" and similar chatter about features
-            # fleetrun does not read.
-            warnings.simplefilter("ignore", UserWarning)
-            return openpyxl.load_workbook(path, read_only=read_only, data_only=data_only,
-                                          keep_links=False)
-    except InputError:
-        raise
-    except Exception as exc:  # openpyxl raises many types for a damaged file
-        name = type(exc).__name__
-        if "Forbidden" in name:  # defusedxml's DTDForbidden / EntitiesForbidden / ...
-            raise InputError("contains forbidden XML (DTD or entities); refusing to open it",
-                             file=path, hint=HINT) from None
-        raise InputError(f"cannot be read as an .xlsx workbook ({name}: {exc})", file=path,
-                         hint=HINT) from None
