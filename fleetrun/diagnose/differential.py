@@ -40,7 +40,7 @@ def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
     """dw/dt by a Savitzky-Golay derivative over ~1 s (speed sensors are noisy at 10 Hz)."""
     from scipy.signal import savgol_filter
 
-    win = max(5, int(round(1.0 / dt_s)) | 1)
+    win = max(5, int(round(0.3 / dt_s)) | 1)
     if win >= len(w_rad_s):
         return np.gradient(w_rad_s, dt_s)
     return savgol_filter(w_rad_s, win, 2, deriv=1, delta=dt_s)
@@ -117,6 +117,19 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
                                               "offset would look the same")
     y = y - offset
     t_in = t_in - offset_in
+    offset_floor = {}
+    if still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t)):
+        # how well the zero is known: standstill noise is autocorrelated, so the effective
+        # number of samples is n (1 - rho) / (1 + rho); 1.25 for the median's efficiency
+        z = (y - g * t_in)[still]
+        z = z - np.median(z)
+        rho = float(np.clip(np.corrcoef(z[:-1], z[1:])[0, 1], 0.0, 0.999)) if z.size > 3 else 0.0
+        n_eff = max(z.size * (1 - rho) / (1 + rho), 1.0)
+        se = 1.25 * float(np.std(z)) / np.sqrt(n_eff)
+        # a constant-while-driving effect must stand out from the zeroing error (3 sigma)
+        offset_floor["bearing_preload"] = 3.0 * se
+        notes.append(f"sensor zero known to {se:.3g} N m (1 sigma, {n_eff:.0f} effective standstill "
+                     "samples): a constant drag below 3 sigma cannot be told from a zeroing error")
     y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
     w = n_rpm * 2 * np.pi / 60.0
     lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
@@ -137,18 +150,23 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
 
     def make(effect, channels):
         shapes = effect.shape
+        bounds = None
         if shapes:
             p = shapes[0]
             grid = [{p.name: v} for v in p.grid]
-            if p.name == "tau_s":  # a warm-up slower than the recording is a constant: preload
-                grid = [s for s in grid if s["tau_s"] <= max(0.5 * t0[-1], p.grid[0])]
+            bounds = (p.lower, p.upper)
+            if p.name == "tau_s":
+                # a warm-up much slower than the recording is a constant (a preload): time
+                # constants up to the recording's length only
+                grid = [s for s in grid if s["tau_s"] <= max(t0[-1], p.grid[0])]
+                bounds = (p.lower, min(p.upper, max(t0[-1], p.grid[0])))
         else:
             grid = [{}]
         cols = [scale * effect.basis(channels, **sh) for sh in grid]
         lin = effect.parameter(effect.linear)
         return Candidate(effect.id, cols, grid, lin.lower, lin.upper,
                          column_for=(lambda sh, e=effect, c=channels: scale * e.basis(c, **sh))
-                         if shapes else None)
+                         if shapes else None, shape_bounds=bounds)
 
     candidates, untestable, surrogates, confound = [], {}, {}, {}
     for effect in effects_for_level("differential"):
@@ -180,4 +198,5 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
             "standstill_samples": int(still.sum()),
             "kim_scale_Nm": kim_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
-                   surrogates, confound, drivers, info, notes, extra_ambiguity, units="N m")
+                   surrogates, confound, drivers, info, notes, extra_ambiguity, units="N m",
+                   offset_floor=offset_floor)

@@ -46,6 +46,9 @@ class Problem:
     #: terms always in the model and refitted in every fold (free calibration constants),
     #: ``[(column, lower, upper), ...]``
     initial_terms: list = field(default_factory=list)
+    #: effect id -> smallest size (target units, mean over the samples it acts on) that can be
+    #: told from a sensor-zeroing error; smaller fits are rejected
+    offset_floor: dict = field(default_factory=dict)
 
     @property
     def residual(self) -> np.ndarray:
@@ -103,6 +106,30 @@ def _ambiguity(best_id, rivals, statuses, ambiguities):
             statuses[cid]["separating_test"] = test
 
 
+def _refine_jointly(r, initial_terms, accepted, passes: int = 2) -> None:
+    """Re-fit the shape parameters of the accepted effects with each other in the model.
+
+    A shape found while another effect was still missing (a warm-up time constant fitted
+    before the inertia was in the model) is biased; left so, the misfit it leaves behind can
+    be picked up as a spurious further effect. Coordinate passes over the accepted effects.
+    """
+    if len(accepted) < 2:
+        return
+    for _ in range(passes):
+        for a in accepted:
+            cand = a["cand"]
+            if cand.column_for is None or len(a["shape"]) != 1:
+                continue
+            name, value = next(iter(a["shape"].items()))
+            grid = [sh[name] for sh in cand.shapes]
+            index = int(np.argmin(np.abs(np.log(np.asarray(grid) / value))))
+            others = list(initial_terms) + [(b["column"], b["cand"].lower, b["cand"].upper)
+                                            for b in accepted if b is not a]
+            v, col = refine_shape(r, others, cand, index, name)
+            a["shape"] = {name: v}
+            a["column"] = col
+
+
 def select(problem: Problem, settings: Settings | None = None) -> dict:
     """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
     s = settings or Settings()
@@ -154,7 +181,15 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                               "heldout_gain": round(evals[c.id].gain, 5),
                               "parameters": _params(c, c.shapes[evals[c.id].shape_index],
                                                     evals[c.id].coefficient)}
-        if not (dsse > thr_dsse and bev.gain > s.min_gain):
+        below_floor = False
+        if best.id in problem.offset_floor:
+            acts = np.abs(best_col) > 1e-9 * max(np.abs(best_col).max(), 1e-300)
+            size = abs(bev.coefficient) * float(np.mean(np.abs(best_col[acts]))) if acts.any() else 0.0
+            below_floor = size < problem.offset_floor[best.id]
+            if below_floor:
+                statuses[best.id]["note"] = (f"fitted size {size:.3g} {problem.units} is below the "
+                                             f"sensor-zeroing uncertainty ({problem.offset_floor[best.id]:.3g})")
+        if below_floor or not (dsse > thr_dsse and bev.gain > s.min_gain):
             # nothing testable explains the rest; say so if an untestable effect could
             for uid, sur in problem.surrogates.items():
                 sev = evaluate_candidate(r, nuisance, sur, folds, k)
@@ -207,7 +242,9 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
         accepted.append({"cand": best, "shape": shape, "column": col,
                          "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
         statuses[best.id]["status"] = "accepted"
-        nuisance.append((col, best.lower, best.upper))
+        _refine_jointly(r, problem.initial_terms, accepted)
+        nuisance = list(problem.initial_terms) + [
+            (a["column"], a["cand"].lower, a["cand"].upper) for a in accepted]
         active = [c for c in active if c.id != best.id]
     # ---- confounding among testable candidates, judged with everything else in the model ----
     # A rival R makes an accepted effect A ambiguous when, with the other accepted effects in

@@ -123,12 +123,53 @@ def _images(out_dir: Path, img_dir: Path, results: dict) -> None:
     import re
 
     img_dir.mkdir(parents=True, exist_ok=True)
-    names = ["measured", "residual", "drivers", "heldout"]
+    names = ["measured", "residual", "cumulative", "drivers", "heldout"]
     for key in ("camry_cold_vs_hot", "matthews_ford_f150"):
         folder = "camry2018_udds_cold" if key.startswith("camry") else key
         html = (out_dir / folder / "diagnosis.html").read_text()
         for name, b64 in zip(names, re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", html)):
             (img_dir / f"diagnose_{key}_{name}.png").write_bytes(base64.b64decode(b64))
+    _efficiency_figure(out_dir, img_dir, results)
+
+
+def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
+    """Thesis Fig. 7.2 redrawn: curve fit, thesis model, thesis model + the finding."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fleetrun.differential import efficiency
+    from fleetrun.effects import efficiency_with_effects, get_effect
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for i, vehicle in enumerate(THESIS_TABLE_7_1):
+        stem = "matthews_" + vehicle.lower().replace(" ", "_").replace("-", "")
+        rec = matthews_recording(vehicle, speeds_kph=np.arange(5.0, 151.0, 5.0))
+        df = rec.data
+        plateau = (df["vehicle_speed_kph"] % 5 < 1e-9) & (df["vehicle_speed_kph"] > 0)
+        d = df[plateau].groupby("vehicle_speed_kph").mean()
+        meta = rec.meta
+        kim = meta["peak_engine_torque_Nm"] * meta["torque_converter_ratio"] * meta["max_transmission_gear_ratio"]
+        tf = d["diff_input_torque_Nm"].to_numpy() / kim
+        n = d["diff_input_speed_rpm"].to_numpy()
+        eta_model = efficiency("LD_RWD", tf, n, meta["gear_ratio"])
+        found = results[stem]["findings"]
+        color = f"C{i}"
+        ax.plot(d.index, eta_model, color=color, ls=":", lw=1)
+        if found:
+            eff = [(get_effect(f["effect"]), f["parameters"]) for f in found]
+            eta_with = efficiency_with_effects("LD_RWD", tf, n, meta["gear_ratio"], eff, kim_scale_Nm=kim)
+            ax.plot(d.index, eta_with, color=color, lw=1.2,
+                    label=f"{vehicle}: model + {', '.join(f['effect'] for f in found)}")
+    s = np.arange(5.0, 151.0, 1.0)
+    ax.plot(s, matthews_ld_rwd_efficiency(s), color="black", lw=2.5, label="Matthews curve fit (Eq. C.19)")
+    ax.set_xlabel("vehicle speed [km/h]")
+    ax.set_ylabel("differential efficiency")
+    ax.set_title("LD RWD (thesis Sec. 7.2): dotted = thesis model, solid = model + finding")
+    ax.legend(fontsize=7, loc="lower right")
+    fig.savefig(img_dir / "diagnose_matthews_efficiency.png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
 
 
 def main(argv=None):

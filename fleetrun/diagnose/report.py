@@ -40,7 +40,8 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
 
     fig, ax = plt.subplots(figsize=(10, 3.4))
     ax.plot(t[sl], problem.measured[sl], lw=0.7, label="measured", color="black")
-    ax.plot(t[sl], problem.baseline[sl], lw=0.7, label="thesis model (baseline)", color="tab:blue")
+    base_label = "thesis model (baseline)" if problem.level == "differential" else "simulation (baseline)"
+    ax.plot(t[sl], problem.baseline[sl], lw=0.7, label=base_label, color="tab:blue")
     if result["findings"]:
         ax.plot(t[sl], (problem.baseline + fitted)[sl], lw=0.7, ls="--", color="tab:red",
                 label="model + findings")
@@ -63,6 +64,18 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     ax.set_title("Residual over time (shaded: located segments)")
     ax.legend(loc="upper right", fontsize=8)
     figs["residual"] = _png(fig)
+
+    dt = np.gradient(problem.time_s)
+    fig, ax = plt.subplots(figsize=(10, 2.6))
+    ax.plot(t[sl], np.cumsum(r * dt)[sl], color="tab:blue", label="baseline")
+    if result["findings"]:
+        ax.plot(t[sl], np.cumsum(r_after * dt)[sl], color="tab:red", label="after findings")
+    ax.axhline(0, color="grey", lw=0.5)
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel(f"cumulative residual [{unit} s]")
+    ax.set_title("Cumulative residual: where the mismatch adds up")
+    ax.legend(loc="best", fontsize=8)
+    figs["cumulative"] = _png(fig)
 
     drivers = result["mismatch"]["drivers"]
     if drivers:

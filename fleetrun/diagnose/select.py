@@ -32,6 +32,7 @@ class Candidate:
     lower: float
     upper: float
     column_for: Callable[[dict], np.ndarray] | None = None  # column for any shape (refinement)
+    shape_bounds: tuple[float, float] | None = None  # where refinement may go past the grid
     status: str = "pending"
     note: str = ""
 
@@ -227,8 +228,12 @@ def refine_shape(r, nuisance, cand: Candidate, index: int, name: str) -> tuple[f
     from scipy.optimize import minimize_scalar
 
     grid = [s[name] for s in cand.shapes]
-    lo = grid[max(index - 1, 0)]
-    hi = grid[min(index + 1, len(grid) - 1)]
+    # between the grid neighbours; at an end of the grid, one grid step beyond it (within
+    # the shape parameter's bounds), so a value just past the last grid point is reachable
+    step = grid[1] / grid[0] if len(grid) > 1 else 1.0
+    b_lo, b_hi = cand.shape_bounds or (grid[0], grid[-1])
+    lo = grid[index - 1] if index > 0 else max(b_lo, grid[0] / step)
+    hi = grid[index + 1] if index < len(grid) - 1 else min(b_hi, grid[-1] * step)
 
     ncols, nlo, nhi = _split(nuisance)
 

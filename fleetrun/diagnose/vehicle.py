@@ -124,7 +124,8 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Pr
         lin = effect.parameter(effect.linear)
         cols = [effect.basis(ch, **sh) for sh in grid]
         candidates.append(Candidate(effect.id, cols, grid, lin.lower, lin.upper,
-                                    column_for=(lambda sh, e=effect: e.basis(ch, **sh)) if shapes else None))
+                                    column_for=(lambda sh, e=effect: e.basis(ch, **sh)) if shapes else None,
+                                    shape_bounds=(shapes[0].lower, shapes[0].upper) if shapes else None))
     drivers = {"speed": v, "acceleration": np.gradient(v, rec.dt_s), "time_since_start": t0,
                "torque": tr["wheel_torque_Nm"].to_numpy()}
     if "grade_pct" in df:
