@@ -138,8 +138,9 @@ def append_rows(path: Path, tables: dict[str, tuple[int, int, Iterable[tuple]]])
                     raise ValueError(f"{item.filename} has no sheetData")
                 info = zipfile.ZipInfo(item.filename, date_time=item.date_time)
                 info.compress_type = zipfile.ZIP_DEFLATED
-                info._compresslevel = BULK_COMPRESSLEVEL      # Python < 3.13
-                info.compress_level = BULK_COMPRESSLEVEL      # Python >= 3.13
+                # the attribute is public from Python 3.13 (compress_level), private before
+                setattr(info, "compress_level" if hasattr(info, "compress_level") else "_compresslevel",
+                        BULK_COMPRESSLEVEL)
                 with out.open(info, "w", force_zip64=True) as stream:
                     stream.write(head.encode("utf-8"))
                     for block in _rows_xml(rows, template_row + 1, letters, styles):
