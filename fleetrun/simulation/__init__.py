@@ -12,8 +12,8 @@ import numpy as np
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, DifferentialSolver, backward, forward_redrive,
-                                      idle_fuel_rate_g_per_s)
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
+                                      forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table)
 from fleetrun.simulation.params import vehicle_arrays
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
@@ -24,7 +24,7 @@ MODES = diffmodes.MODES
 # "auto" = the fastest mode whose cycle fuel stays within 0.2 % of direct for every example
 # vehicle (tests/test_simulation_modes.py checks it): the cached 3-D map.
 DEFAULT_MODE = "map3d"
-REDRIVE_MARGINS = (0.97, 0.9, 0.8, 0.7)
+REDRIVE_MARGINS = (0.9, 0.8, 0.7, 0.6, 0.5)
 BLOCK_STEPS = 22000  # vehicles x steps per block: ~16 UDDS vehicles, whose arrays fit the L2 cache
 
 # CONTRACT.md trace columns first, then extras
@@ -149,23 +149,52 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir, effects)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
-    parts = []
     block = max(1, BLOCK_STEPS // t.size)
-    for first in range(0, V, block):
-        rows = np.arange(first, min(V, first + block))
-        whole = rows.size == V
-        parts.append(_run_block(va if whole else va.subset(rows), solver if whole else solver.subset(rows),
-                                t, v_target, grade, trace))
-    cat = lambda key: np.concatenate([p[key] for p in parts]) if parts else np.zeros(0)  # noqa: E731
+
+    def run(rows, speed):
+        parts = []
+        for first in range(0, rows.size, block):
+            sub = rows[first:first + block]
+            whole = sub.size == V
+            parts.append(_run_block(va if whole else va.subset(sub), solver if whole else solver.subset(sub),
+                                    t, speed[first:first + block], v_target, grade, trace))
+        out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + ("_behind",)}
+        if trace:
+            out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else
+                                  np.concatenate([p["trace"][key] for p in parts])) for key in parts[0]["trace"]}
+        return out
+
+    everyone = np.arange(V)
+    sums = run(everyone, np.broadcast_to(v_target, (V, t.size))) if V else None
+    # vehicles that cannot follow: re-drive them (all together) at full effort, with a
+    # smaller margin on the estimated maximum effort each round, until the backward pass
+    # finds every step feasible
+    force_tables = None
+    for margin in REDRIVE_MARGINS:
+        if not V:
+            break
+        behind = np.flatnonzero(sums["_behind"])
+        if behind.size == 0:
+            break
+        if force_tables is None:  # the drivetrain's maximum effort, once per simulate
+            force_tables = np.zeros((V, REDRIVE_SPEED_GRID.size))
+            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
+        again = run(behind, achieved)
+        for key in SUM_FIELDS + ("_behind",):
+            sums[key][behind] = again[key]
+        if trace:
+            for key, arr in again["trace"].items():
+                if np.ndim(arr) == 2:
+                    sums["trace"][key] = np.array(sums["trace"][key])
+                    sums["trace"][key][behind] = arr
+    empty = np.zeros(0)
     result = FleetCycleResult(
         vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
-        **{key: cat(key) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
+        **{key: (sums[key] if V else empty) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
     )
-    if trace:
-        result.trace = {}
-        for key in parts[0]["trace"] if parts else ():
-            values = [p["trace"][key] for p in parts]
-            result.trace[key] = values[0] if np.ndim(values[0]) < 2 else np.concatenate(values)
+    if trace and V:
+        result.trace = sums["trace"]
     return result
 
 
@@ -174,28 +203,16 @@ SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff
               "shortfall_distance_m", "shortfall_max_speed_mps", "shortfall_steps")
 
 
-def _run_block(va, solver, t, v_target, grade, trace):
-    """Simulate one block of vehicles; per-vehicle sums (and the trace if asked for)."""
+def _run_block(va, solver, t, speed, v_target, grade, trace):
+    """Simulate one block of vehicles at the speeds ``speed`` (V, N): per-vehicle sums (and
+    the trace if asked for); ``_behind`` marks vehicles with steps above full load."""
     V, N = va.n, t.size
-    speed = np.broadcast_to(v_target, (V, N)).copy()
+    speed = np.asarray(speed)
     # Without a trace, steps where the trace stands still (and so every vehicle, which is
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
     columns = None if trace else np.flatnonzero(target_avg > 0)
     out = backward(va, t, speed, grade, solver, columns)
-    # vehicles that cannot follow: re-drive at full effort, with a smaller margin on the
-    # estimated maximum effort each round, until the backward pass finds every step feasible
-    for margin in REDRIVE_MARGINS:
-        behind = np.flatnonzero(out["infeasible"].any(axis=1))
-        if behind.size == 0:
-            break
-        speed[behind] = forward_redrive(va, behind, t, v_target, grade, margin)
-        again = backward(va.subset(behind), t, speed[behind], grade, solver.subset(behind), columns)
-        for key, arr in again.items():
-            if np.ndim(out[key]) == 2 and np.shape(out[key])[0] == V:
-                full = np.array(out[key])
-                full[behind] = arr
-                out[key] = full
     dt = out["dt"]
     dt_all = np.concatenate([[0.0], np.diff(t)])
     distance_m = (out["v_avg"] * dt).sum(axis=1)
@@ -225,7 +242,7 @@ def _run_block(va, solver, t, v_target, grade, trace):
         engine_energy_J=(np.maximum(out["engine_power_W"], 0.0) * dt).sum(axis=1),
         shortfall_time_s=(not_followed * dt_all).sum(axis=1), shortfall_distance_m=target_m - distance_m,
         shortfall_max_speed_mps=np.maximum(deficit.max(axis=1), 0.0),
-        shortfall_steps=out["infeasible"].sum(axis=1),
+        shortfall_steps=out["infeasible"].sum(axis=1), _behind=out["infeasible"].any(axis=1),
     )
     if trace:
         sums["trace"] = {

@@ -254,43 +254,82 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     )
 
 
-def max_tractive_force_N(va: VehicleArrays, rows, speed_mps, margin=0.97):
-    """Largest wheel force the drivetrain can deliver at ``speed_mps`` (for the forward re-drive).
+REDRIVE_SPEED_GRID = np.linspace(0.0, 70.0, 281)  # m/s, 0.25 m/s steps, beyond any cycle
 
-    Over every gear: full-load torque at the engine speed the gear implies (automatics in
-    first gear may slip the converter up to stall speed and multiply torque by its torque
-    ratio), times the gearbox ratio and efficiency, final drive and 0.95 for the axle.
+
+def converter_stall_point(va: VehicleArrays):
+    """Engine speed and torque at converter stall (V,): where (n/K)^2 meets full load."""
+    x = np.linspace(0.0, 1.0, 401)[None, :]
+    n = va.n_idle[:, None] + x * (va.n_rated - va.n_idle)[:, None]
+    T = full_load_torque_Nm(n, va.T_peak[:, None], va.P_rated_kW[:, None], va.n_rated[:, None],
+                            va.n_idle[:, None], va.n_peak_torque[:, None], va.idle_T_frac[:, None])
+    gap = (n / va.K_tc[:, None]) ** 2 - T          # rises through 0 at the stall point
+    i = np.argmax(gap >= 0, axis=1)
+    i = np.where((gap >= 0).any(axis=1), i, x.size - 1)
+    rows = np.arange(va.n)
+    return n[rows, i], np.minimum((n[rows, i] / va.K_tc) ** 2, T[rows, i])
+
+
+def max_tractive_force_table(va: VehicleArrays, margin=0.97):
+    """Largest wheel force [N] the drivetrain can deliver, (V, len(REDRIVE_SPEED_GRID)).
+
+    Over every gear: full-load torque at the engine speed the gear implies (clutch: at least
+    the launch speed; automatics in first gear: the converter slips up to its stall point and
+    multiplies the stall torque by its torque ratio), times gearbox ratio and efficiency,
+    final drive and 0.95 for the axle; x ``margin``.
     """
-    r = va.radius_m[rows]
-    n_wheel = speed_mps / r * RPM
-    overall = va.combo_trans_ratio[rows] * np.where(va.combo_axle_low[rows], va.low_ratio[rows, None], 1.0)
-    n_e = n_wheel[:, None] * overall * va.final_drive[rows, None]
-    col = lambda a: a[rows, None]  # noqa: E731
-    stall = col(va.K_tc) * np.sqrt(col(va.T_peak))
-    first = va.combo_gear[rows] == 1
+    v = REDRIVE_SPEED_GRID[None, :, None]
+    col = lambda a: a[:, None, None]  # noqa: E731
+    overall = (va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0))[:, None, :]
+    n_e = v / col(va.radius_m) * RPM * overall * col(va.final_drive)
+    n_stall, T_stall = converter_stall_point(va)
+    first = (va.combo_gear == 1)[:, None, :]
     auto = col(va.automatic)
-    n_use = np.where(auto & first, np.maximum(n_e, stall), np.maximum(n_e, col(va.launch_rpm)))
-    n_use = np.maximum(n_use, col(va.n_idle))
-    T = full_load_torque_Nm(n_use, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
-                            col(va.n_peak_torque), col(va.idle_T_frac))
-    tr = np.where(auto & first, torque_ratio(n_e / n_use, col(va.stall_TR)), 1.0)
-    F = T * tr * overall * va.final_drive[rows, None] * va.combo_gear_eff[rows] * 0.95 / r[:, None]
-    F = np.where(va.combo_trans_ratio[rows] > 0, F, 0.0)
-    return margin * F.max(axis=1)
+    T_lock = full_load_torque_Nm(np.maximum(n_e, col(np.where(va.automatic, va.n_idle, va.launch_rpm))),
+                                 col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
+                                 col(va.n_peak_torque), col(va.idle_T_frac))
+    T_conv = col(T_stall) * torque_ratio(n_e / col(n_stall), col(va.stall_TR))
+    T = np.where(auto & first, np.maximum(np.where(n_e < col(n_stall), T_conv, 0.0), T_lock), T_lock)
+    F = T * overall * col(va.final_drive) * va.combo_gear_eff[:, None, :] * 0.95 / col(va.radius_m)
+    F = np.where((va.combo_trans_ratio > 0)[:, None, :], F, 0.0)
+    return margin * F.max(axis=2)
 
 
-def forward_redrive(va: VehicleArrays, rows, time_s, target_mps, grade_pct, margin=0.97):
-    """Achieved speed (len(rows), N) of vehicles driven at most at full tractive effort."""
+def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.97, table=None):
+    """Achieved speed (V, N) of vehicles driven at most at full tractive effort.
+
+    v(i) = min(trace(i), v(i-1) + a_max dt), a_max from the force table at the step's mean
+    speed (one predictor-corrector pass, as the backward pass evaluates the step at its mean
+    speed): the vehicle falls behind on hard accelerations and re-joins the trace when it
+    slows down. One loop over steps, vectorised over vehicles. ``table``: the unscaled
+    :func:`max_tractive_force_table` if already computed.
+    """
     N = time_s.size
-    v = np.empty((rows.size, N))
+    if table is None:
+        table = max_tractive_force_table(va, 1.0)
+    dv = REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0]
+    last = REDRIVE_SPEED_GRID.size - 1
+    flat = table.reshape(-1) * margin
+    base = np.arange(va.n) * table.shape[1]
+    inv_m = 1.0 / (va.mass_kg * (1.0 + va.rot_frac))
+    grade_force = grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :])
+    A, B, C = va.A_N, va.B_N, va.C_N
+
+    def accel(v, i):
+        x = np.minimum(v / dv, last - 1e-9)
+        j = x.astype(np.intp)
+        w = x - j
+        F = flat[base + j] * (1.0 - w) + flat[base + j + 1] * w
+        v = np.maximum(v, 1e-3)
+        return (F - (A + v * (B + C * v)) - grade_force[:, i - 1]) * inv_m
+
+    v = np.empty((va.n, N))
     v[:, 0] = target_mps[0]
-    m_eff = va.mass_kg[rows] * (1.0 + va.rot_frac[rows])
+    vp = v[:, 0].copy()
     for i in range(1, N):
         dt = time_s[i] - time_s[i - 1]
-        vp = v[:, i - 1]
-        grade = 0.5 * (grade_pct[i] + grade_pct[i - 1])
-        resist = road_load_N(np.maximum(vp, 1e-3), va.A_N[rows], va.B_N[rows], va.C_N[rows]) \
-            + grade_force_N(va.mass_kg[rows], grade)
-        a_max = (max_tractive_force_N(va, rows, vp, margin) - resist) / m_eff
-        v[:, i] = np.maximum(np.minimum(target_mps[i], vp + a_max * dt), 0.0)
+        cap = target_mps[i]
+        guess = np.maximum(np.minimum(cap, vp + accel(vp, i) * dt), 0.0)
+        vp = np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
+        v[:, i] = vp
     return v
