@@ -15,7 +15,8 @@ rolling resistance and drag area (A = Crr m g; B = 0.2 % of A per mph; C = rho C
 the way EPA's GEM describes heavy vehicles.
 
 Counts and annual miles are plausible for a mid-size US state (about 3.5 million vehicles),
-not registration data. Three scenarios: baseline, hot summer, congested urban.
+not registration data. Three scenarios: baseline, hot summer, congested urban, each with a
+light-duty cycle mix of four cycles and mixes for medium and heavy trucks.
 """
 from __future__ import annotations
 
@@ -102,13 +103,18 @@ HEAVY = [
      1.36, 32_000, 0.0080, 7.0, "11R22.5", 4_500, 20_000, 336, 1800, 14.8),
 ]
 
+# Light-duty vehicles drive cycle_mix; medium and heavy trucks cannot follow US06 or the
+# UDDS's accelerations, so they drive the heavy-duty UDDS and the highway cycle instead.
 SCENARIOS = [
     ("baseline", "Average year: mixed urban, highway and aggressive driving at 20 C", 20,
-     "UDDS:0.43,HWFET:0.42,US06:0.10,NYCC:0.05"),
+     "UDDS:0.43,HWFET:0.42,US06:0.10,NYCC:0.05",
+     "HD-UDDS:0.5,NYCC:0.1,HWFET:0.4", "HD-UDDS:0.55,HWFET:0.45"),
     ("hot_summer", "Hot summer: 38 C ambient, more high-speed driving", 38,
-     "UDDS:0.38,HWFET:0.44,US06:0.13,NYCC:0.05"),
+     "UDDS:0.38,HWFET:0.44,US06:0.13,NYCC:0.05",
+     "HD-UDDS:0.45,NYCC:0.1,HWFET:0.45", "HD-UDDS:0.5,HWFET:0.5"),
     ("congested_urban", "Congested urban growth: more stop-and-go", 25,
-     "UDDS:0.45,HWFET:0.20,US06:0.05,NYCC:0.30"),
+     "UDDS:0.45,HWFET:0.20,US06:0.05,NYCC:0.30",
+     "HD-UDDS:0.6,NYCC:0.25,HWFET:0.15", "HD-UDDS:0.7,HWFET:0.3"),
 ]
 
 
@@ -170,10 +176,11 @@ def build(output: Path) -> Path:
             ("Vehicles", VEHICLE_COLUMNS, vehicles),
             ("Scenarios", SCENARIO_COLUMNS, [
                 {"scenario_id": sid, "description": text, "ambient_temp_C": temp, "cycle_mix": mix,
+                 "cycle_mix_MD": mix_md, "cycle_mix_HD": mix_hd,
                  "budget_years": 2, "vmt_growth_pct_per_year": 1.2,
                  "state_tax_gasoline_usd_per_gal": 0.20, "state_tax_diesel_usd_per_gal": 0.20,
                  "federal_tax_gasoline_usd_per_gal": 0.184, "federal_tax_diesel_usd_per_gal": 0.244}
-                for sid, text, temp, mix in SCENARIOS])):
+                for sid, text, temp, mix, mix_md, mix_hd in SCENARIOS])):
         ws = wb[sheet]
         ws.delete_rows(2, ws.max_row)
         names = [c.name for c in columns]

@@ -241,3 +241,21 @@ def test_rows_that_drive_alike_are_simulated_once(tmp_path):
     assert results.loc["A", "mpg"] == pytest.approx(results.loc["B", "mpg"], rel=1e-14)
     assert results.loc["A", "mpg"] != pytest.approx(results.loc["C", "mpg"], rel=1e-6)
     assert json.loads((out / "manifest.json").read_text())["distinct_vehicles_simulated"] == 2
+
+
+def test_heavy_vehicles_drive_their_own_cycle_mix(tmp_path):
+    truck = vehicle("TRUCK", vehicle_class="Truck", duty_class="HD", configuration="HD_RWD", fuel="diesel",
+                    test_weight_kg=20000, tire_size="11R22.5")
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("CAR"), truck],
+                       [scenario(cycle_mix="UDDS:0.5,HWFET:0.5", cycle_mix_HD="HD-UDDS:1")])
+    out = tmp_path / "out"
+    result = run(path, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
+    assert sorted(fakes.CALLS) == [(1, "HD-UDDS", 20), (1, "HWFET", 20), (1, "UDDS", 20)]
+    from fleetrun.cycles import load_cycle
+    from fleetrun.fleet import read_fleet
+
+    spec = read_fleet(path).vehicle("TRUCK")
+    sim = fakes.fake_simulate([spec], load_cycle("HD-UDDS"))
+    row = pd.read_csv(out / "results.csv", float_precision="round_trip").set_index("vehicle_id").loc["TRUCK"]
+    assert row.fuel_gal_total == pytest.approx(row.miles_total * sim.fuel_gal[0] / sim.miles[0], rel=1e-12)

@@ -264,3 +264,15 @@ def test_large_fleet_reads_fast(tmp_path):
     fleet = read_fleet(path)
     assert len(fleet.vehicles) == 5000 and fleet.vehicle_rows["V4999"] == 5001
     assert time.perf_counter() - started < 10
+
+
+def test_duty_class_cycle_mixes_checked(tmp_path):
+    path = write_fleet(tmp_path / "m.xlsx", [vehicle()],
+                       [scenario(cycle_mix_HD="HD-UDDS:0.5", cycle_mix_MD="HD-UDS:1")])
+    problems = problems_of(path)
+    assert any(p.startswith("Scenarios!L2 cycle_mix_HD: shares add up to 0.5, not 1") for p in problems)
+    assert any(p.startswith("Scenarios!K2 cycle_mix_MD: unknown drive cycle 'HD-UDS' (did you mean HD-UDDS?)")
+               for p in problems)
+    ok = write_fleet(tmp_path / "ok.xlsx", [vehicle()], [scenario(cycle_mix_HD="hd-udds:1")])
+    s = read_fleet(ok).scenarios[0]
+    assert s.mix_for("HD") == {"HD-UDDS": 1.0} and s.mix_for("MD") == s.mix_for("LD") == s.cycle_mix

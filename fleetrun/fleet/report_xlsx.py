@@ -327,7 +327,7 @@ def _inputs(wb, result: RunResult, bulk: dict):
         values = []
         for c in SCENARIO_COLUMNS:
             value = getattr(s, c.name)
-            if c.name == "cycle_mix":
+            if c.kind == "cycle_mix" and value:
                 value = ",".join(f"{Path(k).name if k.lower().endswith('.csv') else k}:{w:g}"
                                  for k, w in value.items())
             values.append(_value(ws, value))

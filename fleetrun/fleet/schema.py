@@ -71,6 +71,8 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("lubricant", "text", False, "axle lubricant name (default: the configuration's)"),
 )
 
+# cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty
+# cycles such as US06, so a scenario may give them their own mix.
 SCENARIO_COLUMNS: tuple[Column, ...] = (
     Column("scenario_id", "text", True, "unique id of this scenario", example=("baseline", "hot_summer")),
     Column("description", "text", False, "free text for the reports",
@@ -90,6 +92,10 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=(0.184, 0.184)),
     Column("federal_tax_diesel_usd_per_gal", "number", True, "federal diesel tax [$/gal]", minimum=0,
            example=(0.244, 0.244)),
+    Column("cycle_mix_MD", "cycle_mix", False, "MD vehicles' cycle mix (empty: cycle_mix)",
+           example=("HD-UDDS:0.5,UDDS:0.2,HWFET:0.3", "HD-UDDS:0.5,UDDS:0.2,HWFET:0.3")),
+    Column("cycle_mix_HD", "cycle_mix", False, "HD vehicles' cycle mix (empty: cycle_mix)",
+           example=("HD-UDDS:0.6,HWFET:0.4", "HD-UDDS:0.6,HWFET:0.4")),
 )
 
 # Plausibility: values outside these ranges are warned about, not refused (analysts model

@@ -29,6 +29,7 @@ from fleetrun.vehicle import VehicleSpec
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
 MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 are normalised (with a warning)
+MIX_COLUMNS = ("cycle_mix", "cycle_mix_MD", "cycle_mix_HD")
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,14 @@ class Scenario:
     state_tax_diesel_usd_per_gal: float
     federal_tax_gasoline_usd_per_gal: float
     federal_tax_diesel_usd_per_gal: float
+    cycle_mix_MD: dict[str, float] | None = None   # None: MD vehicles drive cycle_mix
+    cycle_mix_HD: dict[str, float] | None = None   # None: HD vehicles drive cycle_mix
     extra: dict = field(default_factory=dict, compare=False)
+
+    def mix_for(self, duty_class: str) -> dict[str, float]:
+        """The cycle mix that vehicles of ``duty_class`` drive in this scenario."""
+        own = {"MD": self.cycle_mix_MD, "HD": self.cycle_mix_HD}.get(duty_class)
+        return own or self.cycle_mix
 
     def state_tax_usd_per_gal(self, fuel: str) -> float:
         return self.state_tax_gasoline_usd_per_gal if fuel == "gasoline" else self.state_tax_diesel_usd_per_gal
@@ -441,9 +449,13 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
                 ok = False
             else:
                 rows[scenario_id] = row_number
-        mix = None
-        if parsed["cycle_mix"] is not None:
-            mix = _check_cycle_mix(parsed["cycle_mix"], known_cycles, workbook_dir, table, row_number, problems)
+        mixes = {}
+        for name in MIX_COLUMNS:
+            if parsed[name] is not None:
+                mixes[name] = _check_cycle_mix(parsed[name], known_cycles, workbook_dir, table, row_number,
+                                               problems, name)
+                ok = ok and mixes[name] is not None
+        mix = mixes.get("cycle_mix")
         g = parsed["vmt_growth_pct_per_year"]
         if g is not None and g <= -100:
             problems.error(f"{g:g} % would make the miles negative", sheet, row_number,
@@ -458,13 +470,14 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
                               sheet, row_number, col(name), name)
         fields = {c.name: parsed[c.name] for c in SCENARIO_COLUMNS}
         fields["description"] = fields["description"] or ""
-        fields["cycle_mix"] = mix
+        fields.update(mixes)
         scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
     return scenarios, rows
 
 
-def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, problems: Problems):
-    sheet, index = table.sheet, table.columns.get("cycle_mix")
+def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, problems: Problems,
+                     column: str = "cycle_mix"):
+    sheet, index = table.sheet, table.columns.get(column)
     resolved: dict[str, float] = {}
     ok = True
     for name, share in mix.items():
@@ -474,7 +487,7 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
                 candidate = workbook_dir / candidate
             if not candidate.is_file():
                 problems.error(f"cycle file '{name}' not found (looked for {candidate})", sheet, row,
-                               index, "cycle_mix")
+                               index, column)
                 ok = False
                 continue
             resolved[str(candidate.resolve())] = share
@@ -486,7 +499,7 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
                 near = closest_names(name, known)
                 guess = f" (did you mean {near[0]}?)" if near else ""
                 problems.error(f"unknown drive cycle '{name}'{guess}; shipped: {', '.join(known)}, "
-                               "or give a CSV path", sheet, row, index, "cycle_mix")
+                               "or give a CSV path", sheet, row, index, column)
                 ok = False
                 continue
             resolved[match] = share
@@ -497,11 +510,11 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
     total = sum(resolved.values())
     if abs(total - 1.0) > MIX_SUM_TOLERANCE:
         problems.error(f"shares add up to {total:g}, not 1 (they are shares of the annual miles)",
-                       sheet, row, index, "cycle_mix")
+                       sheet, row, index, column)
         return None
     if total != 1.0:
         if abs(total - 1.0) > 1e-9:
-            problems.warn(f"shares add up to {total:g}; scaled to 1", sheet, row, index, "cycle_mix")
+            problems.warn(f"shares add up to {total:g}; scaled to 1", sheet, row, index, column)
         resolved = {k: v / total for k, v in resolved.items()}
     return resolved
 
