@@ -123,7 +123,9 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
         # number of samples is n (1 - rho) / (1 + rho); 1.25 for the median's efficiency
         z = (y - g * t_in)[still]
         z = z - np.median(z)
-        rho = float(np.clip(np.corrcoef(z[:-1], z[1:])[0, 1], 0.0, 0.999)) if z.size > 3 else 0.0
+        rho = 0.0
+        if z.size > 3 and np.std(z[:-1]) > 0 and np.std(z[1:]) > 0:
+            rho = float(np.clip(np.corrcoef(z[:-1], z[1:])[0, 1], 0.0, 0.999))
         n_eff = max(z.size * (1 - rho) / (1 + rho), 1.0)
         se = 1.25 * float(np.std(z)) / np.sqrt(n_eff)
         # a constant-while-driving effect must stand out from the zeroing error (3 sigma)
@@ -156,10 +158,11 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
             grid = [{p.name: v} for v in p.grid]
             bounds = (p.lower, p.upper)
             if p.name == "tau_s":
-                # a warm-up much slower than the recording is a constant (a preload): time
-                # constants up to the recording's length only
-                grid = [s for s in grid if s["tau_s"] <= max(t0[-1], p.grid[0])]
-                bounds = (p.lower, min(p.upper, max(t0[-1], p.grid[0])))
+                # a warm-up slower than half the recording is hard to tell from a constant
+                # drag (a preload, a bearing drag): time constants up to half its length only
+                tau_max = max(0.5 * t0[-1], p.grid[0])
+                grid = [s for s in grid if s["tau_s"] <= tau_max]
+                bounds = (p.lower, min(p.upper, tau_max))
         else:
             grid = [{}]
         cols = [scale * effect.basis(channels, **sh) for sh in grid]

@@ -300,6 +300,12 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
                                                         a["after"], problem.units),
                              "seed": EFFECTS[a["cand"].id].seed})
             fitted = fitted + c * a["column"]
+    # each candidate's gain over the baseline alone (round 1), next to its gain in the final
+    # round (over the model with the accepted effects): both tell the story
+    if rounds:
+        for cid, g in rounds[0]["gains"].items():
+            if cid in statuses:
+                statuses[cid]["heldout_gain_vs_baseline"] = round(float(g), 5)
     order = [c.id for c in problem.candidates] + list(problem.untestable)
     candidates = [statuses[cid] for cid in order if cid in statuses]
     return {"findings": findings, "candidates": candidates, "ambiguities": ambiguities,

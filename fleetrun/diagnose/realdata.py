@@ -53,7 +53,8 @@ def tyre_radius_m(size: str) -> float:
 
 def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
                        first_gear: float = 2.84, speeds_kph=None, hold_s: float = 60.0,
-                       rate_hz: float = 1.0, straight: bool = True) -> Recording:
+                       rate_hz: float = 1.0, straight: bool = True, shuffle_seed: int | None = 0,
+                       ambient_temp_C: float | None = 20.0) -> Recording:
     """Constant-speed test of thesis Sec. 7.2: plateaus at each speed, slow ramps between.
 
     The F-150's axle ratio and first gear are not in the thesis (Sec. 7.2: "details regarding
@@ -63,17 +64,24 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
     ``straight``: write equal left and right wheel speeds, i.e. take the thesis's reading that
     the curve fit comes from constant-speed (straight, dynamometer) tests. Without them the
     recording cannot rule out turning, and diagnose says so.
+    ``shuffle_seed``: visit the speeds in a shuffled order (None: ascending). An ascending
+    sweep makes time since start and speed the same channel, so a warm-up could not be told
+    from a low-speed loss; a test programme would randomise the order for that reason.
+    ``ambient_temp_C``: sidecar ambient (the thesis's 20 C, Sec. 3.1.2), which makes
+    oil_warmup testable.
     """
     a_lbf, b_lbf, c_lbf, tyre, peak = THESIS_TABLE_7_1[vehicle]
     r = tyre_radius_m(tyre)
     speeds = np.arange(5.0, 151.0, 5.0) if speeds_kph is None else np.asarray(speeds_kph, float)
-    # 20 s at rest (sensors zeroed), then each plateau; ramps at 0.3 m/s^2 are short and
+    if shuffle_seed is not None:
+        speeds = np.random.default_rng(shuffle_seed).permutation(speeds)
+    # 20 s at rest (sensors zeroed), then each plateau; ramps at 0.5 m/s^2 are short and
     # their inertia is not in the curve fit, so ramp samples carry road load only
     v_list = [np.zeros(int(20 * rate_hz))]
     v_prev = 0.0
     for s in speeds:
         v = s / 3.6
-        n_ramp = max(1, int(abs(v - v_prev) / 0.3 * rate_hz))
+        n_ramp = max(1, int(abs(v - v_prev) / 0.5 * rate_hz))
         v_list.append(np.linspace(v_prev, v, n_ramp + 1)[1:])
         v_list.append(np.full(int(hold_s * rate_hz), v))
         v_prev = v
@@ -92,6 +100,8 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
         df["wheel_speed_right_rpm"] = n_in / gear_ratio
     meta = {"configuration": "LD_RWD", "gear_ratio": gear_ratio, "peak_engine_torque_Nm": peak,
             "torque_converter_ratio": 3.0, "max_transmission_gear_ratio": first_gear}
+    if ambient_temp_C is not None:
+        meta["ambient_temp_C"] = ambient_temp_C
     return Recording(df, meta, {"source": "thesis Sec. 7.2, Eq. C.19 and Table 7.1", "vehicle": vehicle})
 
 
