@@ -6,7 +6,6 @@ sensor offsets. The full acceptance rates (issue 5, "Done when") are the slow te
 end; the default run keeps one case of each kind.
 """
 import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from fleetrun.effects import EFFECTS, efficiency_with_effects, get_effect, parse_with
+from fleetrun.effects import EFFECTS, efficiency_with_effects, parse_with
 from fleetrun.effects import differential as d
 from fleetrun.errors import InputError
 

@@ -38,7 +38,7 @@ _UNIT_ALIASES = {
     r"^diff_output_torque_(lbft|ftlb|lbf_ft|kNm)$": ("diff_output_torque_Nm", "torque in N m"),
     r"^diff_input_speed_(rad_s|rads|rad_per_s|hz)$": ("diff_input_speed_rpm", "speed in rpm"),
     r"^wheel_speed_(left|right)_(rad_s|rads|hz)$": ("wheel_speed_<side>_rpm", "speed in rpm"),
-    r"^vehicle_speed_(kmh|km_h|kmph)$": ("vehicle_speed_kph", "the same values, renamed"),
+    r"^vehicle_speed_(kmh|km_h|kmph)$": ("vehicle_speed_kph", "km/h (the same numbers)"),
     r"^(ambient|oil)_temp_(F|K)$": ("<name>_temp_C", "temperature in deg C"),
     r"^fuel_rate_(g_s|gps|kg_h|l_h|ml_s)$": ("fuel_rate_g_per_s or fuel_rate_cc_per_s", "g/s or cm^3/s"),
 }

@@ -10,7 +10,7 @@ Differential-level effects are extra pinion torque losses (see
 """
 from __future__ import annotations
 
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
