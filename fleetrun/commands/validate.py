@@ -14,7 +14,12 @@ def command(workbook: Path, strict: bool):
     from fleetrun.errors import InputError
     from fleetrun.fleet import read_fleet
 
-    fleet = read_fleet(workbook)
+    try:
+        fleet = read_fleet(workbook)
+    except InputError as exc:
+        for warning in getattr(exc, "warnings", []):   # the warnings are worth fixing too
+            click.echo(f"Warning: {warning}", err=True)
+        raise
     for warning in fleet.warnings:
         click.echo(f"Warning: {warning}", err=True)
     if strict and fleet.warnings:

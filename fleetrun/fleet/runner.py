@@ -30,7 +30,7 @@ from fleetrun.fleet.schema import DUTY_CLASSES
 from fleetrun.fleet.workbook import Fleet, Scenario
 from fleetrun.vehicle import VehicleSpec
 
-CHUNK_SIZE = 500            # vehicles per simulation task: bounds memory per task
+CHUNK_SIZE = 128            # vehicles per simulation task: bounds memory, spreads work
 MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
 SHORTFALL_TOLERANCE = 1e-6  # shortfall measures below this are rounding noise
 ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
@@ -53,9 +53,14 @@ simulate_function: Callable | None = None
 
 @dataclass(frozen=True)
 class SimulationTask:
+    """A chunk of vehicles at one temperature over the cycles they drive there.
+
+    Vehicles in a chunk mostly share their differentials (the fleet is sorted by them), and
+    one task does every cycle at that temperature, so a worker builds each efficiency map once.
+    """
     chunk: int
     vehicles: tuple[VehicleSpec, ...]
-    cycle: str                  # shipped name or CSV path
+    cycles: tuple[tuple[str, tuple[int, ...]], ...]   # (cycle, indices into vehicles) pairs
     ambient_temp_C: float
     physics: str
     mode: str
@@ -95,22 +100,25 @@ def _cycle(name: str):
     return load_cycle(name)
 
 
-def simulate_task(task: SimulationTask) -> dict[str, np.ndarray]:
-    """Run one chunk of vehicles over one cycle; only the per-vehicle sums travel back."""
+def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
+    """Run one chunk over its cycles: cycle -> per-vehicle sums (only these travel back)."""
     simulate = task.simulate
     if simulate is None:
         from fleetrun.simulation import simulate
     kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
     if task.cache_dir:
         kwargs["cache_dir"] = task.cache_dir
-    result = simulate(list(task.vehicles), _cycle(task.cycle), **kwargs)
-    out = {name: np.asarray(getattr(result, name), dtype=float) for name in RESULT_FIELDS}
-    for name in dir(result):
-        if name.startswith("shortfall_"):
-            value = getattr(result, name)
-            if isinstance(value, np.ndarray) or isinstance(value, (list, tuple)):
-                out[name] = np.asarray(value, dtype=float)
-    return out
+    found = {}
+    for cycle, members in task.cycles:
+        result = simulate([task.vehicles[k] for k in members], _cycle(cycle), **kwargs)
+        out = {name: np.asarray(getattr(result, name), dtype=float) for name in RESULT_FIELDS}
+        for name in dir(result):
+            if name.startswith("shortfall_"):
+                value = getattr(result, name)
+                if isinstance(value, (np.ndarray, list, tuple)):
+                    out[name] = np.asarray(value, dtype=float)
+        found[cycle] = out
+    return found
 
 
 def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, physics: str = "thesis",
@@ -138,29 +146,37 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     duties = np.array([v.duty_class for v in distinct], dtype=object)
     tasks: list[SimulationTask] = []
     positions: list[np.ndarray] = []
-    for cycle, ambient in conditions:
-        members = np.flatnonzero(np.isin(duties, sorted(needed[(cycle, ambient)])))
+    for ambient in dict.fromkeys(a for _, a in conditions):
+        cycles_here = [c for c, a in conditions if a == ambient]
+        members = np.flatnonzero(np.isin(duties, sorted(set().union(*(needed[(c, ambient)] for c in cycles_here)))))
         for start in range(0, len(members), chunk_size):
             chunk = members[start:start + chunk_size]
+            cycles = []
+            for cycle in cycles_here:
+                wanted = np.flatnonzero(np.isin(duties[chunk], sorted(needed[(cycle, ambient)])))
+                if len(wanted):
+                    cycles.append((cycle, tuple(int(k) for k in wanted)))
             positions.append(chunk)
             tasks.append(SimulationTask(chunk=len(tasks), vehicles=tuple(distinct[j] for j in chunk),
-                                        cycle=cycle, ambient_temp_C=ambient, physics=physics, mode=mode,
-                                        cache_dir=cache_dir, simulate=simulate_function))
+                                        cycles=tuple(cycles), ambient_temp_C=ambient, physics=physics,
+                                        mode=mode, cache_dir=cache_dir, simulate=simulate_function))
 
     n = len(distinct)
     per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
     shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
         progress(0, len(tasks))
-    for done, (index, arrays) in enumerate(engine.run(simulate_task, tasks), start=1):
+    for done, (index, by_cycle) in enumerate(engine.run(simulate_task, tasks), start=1):
         task = tasks[index]
-        cond = (task.cycle, task.ambient_temp_C)
-        where = positions[index]
-        for name in RESULT_FIELDS:
-            per_condition[cond][name][where] = arrays[name]
-        for name, values in arrays.items():
-            if name.startswith("shortfall_"):
-                shortfalls[cond].setdefault(name, np.zeros(n))[where] = values
+        for cycle, members in task.cycles:
+            cond = (cycle, task.ambient_temp_C)
+            where = positions[index][list(members)]
+            arrays = by_cycle[cycle]
+            for name in RESULT_FIELDS:
+                per_condition[cond][name][where] = arrays[name]
+            for name, values in arrays.items():
+                if name.startswith("shortfall_"):
+                    shortfalls[cond].setdefault(name, np.zeros(n))[where] = values
         if progress:
             progress(done, len(tasks))
     simulated = time.perf_counter()
@@ -199,8 +215,8 @@ def _physics_key(v: VehicleSpec) -> tuple:
 
 
 def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec], np.ndarray]:
-    """The physically distinct vehicles (first of each, in fleet order) and, per fleet row,
-    the index of its distinct vehicle."""
+    """The physically distinct vehicles (first of each, grouped by differential) and, per
+    fleet row, the index of its distinct vehicle."""
     index: dict[tuple, int] = {}
     distinct: list[VehicleSpec] = []
     owner = np.empty(len(vehicles), dtype=np.int64)
@@ -211,7 +227,12 @@ def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec
             j = index[key] = len(distinct)
             distinct.append(v)
         owner[i] = j
-    return distinct, owner
+    # Vehicles that share a differential next to each other: a chunk then needs few maps.
+    order = sorted(range(len(distinct)), key=lambda j: (distinct[j].configuration, distinct[j].final_drive_ratio,
+                                                         distinct[j].low_gear_ratio or 0.0, j))
+    rank = np.empty(len(distinct), dtype=np.int64)
+    rank[order] = np.arange(len(distinct))
+    return [distinct[j] for j in order], rank[owner]
 
 
 def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scenario],
