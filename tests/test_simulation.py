@@ -257,3 +257,17 @@ def test_trace_and_summary_paths_agree(cycle):
     for name in ("fuel_g", "miles", "wheel_energy_J", "diff_input_energy_J", "drivetrain_input_energy_J",
                  "shortfall_time_s", "shortfall_distance_m", "shortfall_steps"):
         np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-9, err_msg=name)
+
+
+def test_scalar_and_vector_redrive_agree():
+    from fleetrun.simulation import core
+    from fleetrun.simulation.params import vehicle_arrays as arrays
+
+    weak = [dataclasses.replace(CIVIC, vehicle_id=f"w{i}", peak_engine_torque_Nm=60.0 + 10 * i, rated_power_kW=20.0 + 5 * i)
+            for i in range(6)]
+    va = arrays(weak)
+    cyc = load_cycle("US06")
+    vector = core.forward_redrive(va, cyc.time_s, cyc.speed_mps, cyc.grade_pct, 0.9)
+    scalar = np.vstack([core.forward_redrive(va.subset([i]), cyc.time_s, cyc.speed_mps, cyc.grade_pct, 0.9)
+                        for i in range(6)])
+    np.testing.assert_allclose(scalar, vector, rtol=1e-12, atol=1e-12)

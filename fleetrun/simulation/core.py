@@ -323,6 +323,8 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
         v = np.maximum(v, 1e-3)
         return (F - (A + v * (B + C * v)) - grade_force[:, i - 1]) * inv_m
 
+    if va.n <= SCALAR_REDRIVE_MAX:
+        return _forward_redrive_scalar(flat, table.shape[1], dv, last, inv_m, grade_force, A, B, C, time_s, target_mps)
     v = np.empty((va.n, N))
     v[:, 0] = target_mps[0]
     vp = v[:, 0].copy()
@@ -333,3 +335,38 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
         vp = np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
         v[:, i] = vp
     return v
+
+
+SCALAR_REDRIVE_MAX = 4  # up to this many vehicles, plain Python floats beat numpy's per-call cost
+
+
+def _forward_redrive_scalar(flat, width, dv, last, inv_m, grade_force, A, B, C, time_s, target_mps):
+    """:func:`forward_redrive` for a few vehicles, one at a time with Python floats (same
+    arithmetic)."""
+    N = len(time_s)
+    out = np.empty((len(inv_m), N))
+    t = time_s.tolist()
+    cap = target_mps.tolist()
+    for k in range(len(inv_m)):
+        F = flat[k * width:(k + 1) * width].tolist()
+        a_, b_, c_, im = float(A[k]), float(B[k]), float(C[k]), float(inv_m[k])
+        gf = grade_force[k].tolist()
+        top = last - 1e-9
+
+        def accel(v, i):
+            x = min(v / dv, top)
+            j = int(x)
+            w = x - j
+            f = F[j] * (1.0 - w) + F[j + 1] * w
+            v = max(v, 1e-3)
+            return (f - (a_ + v * (b_ + c_ * v)) - gf[i - 1]) * im
+
+        row = out[k]
+        vp = cap[0]
+        row[0] = vp
+        for i in range(1, N):
+            dt = t[i] - t[i - 1]
+            guess = max(min(cap[i], vp + accel(vp, i) * dt), 0.0)
+            vp = max(min(cap[i], vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
+            row[i] = vp
+    return out
