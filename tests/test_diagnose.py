@@ -243,3 +243,11 @@ def test_benchmark_one_hour_10hz_under_60s(tmp_path):
     res = diagnose(path, out=tmp_path / "out")
     assert time.perf_counter() - t0 < 60.0
     assert {"oil_warmup", "cornering"} <= {f["effect"] for f in res["findings"]}
+
+
+def test_oil_warmup_with_measured_oil_temperature(tmp_path):
+    # with oil_temp_C the loss follows the thermometer; tau_s is fitted to the sump trace
+    rec, path = _case(tmp_path, ["oil_warmup"], 17, oil_temp_column=True)
+    res = diagnose(path, write=False)
+    assert _single_ok(rec, res), (rec.truth["effects"], res["findings"])
+    assert any(d["channel"] == "temperature" for d in res["mismatch"]["drivers"])

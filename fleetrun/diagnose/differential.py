@@ -46,6 +46,23 @@ def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
     return savgol_filter(w_rad_s, win, 2, deriv=1, delta=dt_s)
 
 
+def fit_oil_time_constant(time_s, oil_temp_C, ambient_temp_C) -> float:
+    """Time constant [s] of the first-order warm-up that best follows a measured sump trace.
+
+    ``T_oil = T_amb + 50 - 50 exp(-t / tau)`` (thesis Sec. 3.1.2 rise), least squares in tau.
+    """
+    from scipy.optimize import minimize_scalar
+
+    from fleetrun.effects.differential import oil_temperature_C
+
+    def sse(log_tau):
+        e = oil_temp_C - oil_temperature_C(time_s, ambient_temp_C, float(np.exp(log_tau)))
+        return float(e @ e)
+
+    res = minimize_scalar(sse, bounds=(np.log(30.0), np.log(7200.0)), method="bounded")
+    return float(np.exp(res.x))
+
+
 def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
     """Model output torque and marginal efficiency for measured input torque and speed."""
     from fleetrun.differential import efficiency
@@ -157,6 +174,14 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
             p = shapes[0]
             grid = [{p.name: v} for v in p.grid]
             bounds = (p.lower, p.upper)
+            if p.name == "tau_s" and "oil_temp_C" in channels:
+                # the sump thermometer replaces the first-order warm-up in the loss; tau_s is
+                # then what the thermometer shows, fitted to its trace
+                tau = fit_oil_time_constant(t0, channels["oil_temp_C"], channels["ambient_temp_C"])
+                grid = [{p.name: tau}]
+                cols = [scale * effect.basis(channels, **grid[0])]
+                lin = effect.parameter(effect.linear)
+                return Candidate(effect.id, cols, grid, lin.lower, lin.upper)
             if p.name == "tau_s":
                 # a warm-up slower than half the recording is hard to tell from a constant
                 # drag (a preload, a bearing drag): time constants up to half its length only

@@ -154,7 +154,8 @@ def generate_differential_recording(
         noise_rho: float = 0.95, offset_out_Nm: float = 0.0, offset_in_Nm: float = 0.0,
         wheel_speeds: bool = True, ambient_column: bool = True, ambient_in_sidecar: bool = False,
         vehicle_speed: bool = True, high_speed_turns: bool = False,
-        min_drive_fraction: float = 0.04) -> Recording:
+        min_drive_fraction: float = 0.04, oil_temp_column: bool = False,
+        oil_tau_s: float | None = None, noise_oil_C: float = 0.3) -> Recording:
     """A differential-level recording (CONTRACT.md) with ``effects`` hidden in the output torque.
 
     ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
@@ -217,6 +218,13 @@ def generate_differential_recording(
         meas["ambient_temp_C"] = np.full(n, ambient_temp_C)
     if vehicle_speed:
         meas["vehicle_speed_kph"] = v * 3.6
+    if oil_temp_column:
+        # the sump warms up whether or not its viscosity costs torque; with oil_warmup hidden,
+        # its own tau_s (the hidden loss and the thermometer tell the same story)
+        from fleetrun.effects.differential import oil_temperature_C
+
+        tau = oil_tau_s or next((p["tau_s"] for e, p in effect_list if e.id == "oil_warmup"), 600.0)
+        meas["oil_temp_C"] = oil_temperature_C(t, ambient_temp_C, tau) + _ar1(n, noise_rho, noise_oil_C, rng)
     meta = rig.sidecar()
     if ambient_in_sidecar:
         meta["ambient_temp_C"] = ambient_temp_C
