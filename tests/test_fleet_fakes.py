@@ -110,3 +110,13 @@ def small_fleet(path: Path) -> Path:
                  scenario("hot", ambient_temp_C=38, cycle_mix="UDDS:0.5,HWFET:0.4,US06:0.1"),
                  scenario("urban", cycle_mix="NYCC:0.3,UDDS:0.7", budget_years=3, vmt_growth_pct_per_year=-0.5)]
     return write_fleet(path, vehicles, scenarios)
+
+
+def read_csv(path, **kwargs):
+    """pandas.read_csv that gives back exactly the floats written (round-trip parsing is the
+    default from pandas 3, where asking for it is deprecated)."""
+    import pandas as pd
+
+    if int(pd.__version__.split(".")[0]) < 3:
+        kwargs.setdefault("float_precision", "round_trip")
+    return pd.read_csv(path, **kwargs)

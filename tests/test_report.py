@@ -14,7 +14,7 @@ from click.testing import CliRunner
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from fleetrun.fleet import runner
-from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
 
 SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Efficiency maps", "Inputs", "RunInfo"]
 
@@ -87,8 +87,8 @@ def test_report_sheets_and_charts(outputs):
 
 def test_report_totals_equal_csvs(outputs):
     wb = openpyxl.load_workbook(outputs / "report.xlsx")
-    results = pd.read_csv(outputs / "results.csv", float_precision="round_trip")
-    classes = pd.read_csv(outputs / "class_summary.csv", float_precision="round_trip")
+    results = read_csv(outputs / "results.csv")
+    classes = read_csv(outputs / "class_summary.csv")
     by_vehicle = table(wb["ByVehicle"])
     by_class = table(wb["ByClass"])
     pd.testing.assert_frame_equal(by_vehicle[results.columns].reset_index(drop=True), results,
@@ -177,13 +177,13 @@ def test_summary_html_self_contained_with_class_table(outputs):
     assert parsed.urls == [] and "script" not in parsed.tags and "http://" not in page.replace(
         "http://www.w3.org/2000/svg", "")
     assert parsed.svgs >= 3   # revenue and fuel charts plus the maps
-    classes = pd.read_csv(outputs / "class_summary.csv", dtype=str, keep_default_na=False, float_precision="round_trip")
+    classes = read_csv(outputs / "class_summary.csv", dtype=str, keep_default_na=False)
     assert len(parsed.rows) == len(classes)
     for html_row, (_, csv_row) in zip(parsed.rows, classes.iterrows()):
         for column, value in html_row.items():
             assert value == csv_row[column], column
     assert '<meta name="viewport"' in page and "@media print" in page
-    assert pd.read_csv(outputs / "results.csv", float_precision="round_trip").shape[0] == 12
+    assert read_csv(outputs / "results.csv").shape[0] == 12
 
 
 def test_scenario_without_vehicles_rows_is_fine(tmp_path):
@@ -191,5 +191,5 @@ def test_scenario_without_vehicles_rows_is_fine(tmp_path):
     out = tmp_path / "out"
     result = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"])
     assert result.exit_code == 0, result.stderr
-    row = pd.read_csv(out / "results.csv", float_precision="round_trip").iloc[0]
+    row = read_csv(out / "results.csv").iloc[0]
     assert row.miles_total == 0 and row.fuel_gal_total == 0 and row.mpg > 0

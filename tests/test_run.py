@@ -16,7 +16,7 @@ from click.testing import CliRunner
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from fleetrun.fleet import runner
-from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
 
 OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json"}
 RESULTS_CONTRACT = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
@@ -46,8 +46,8 @@ def test_run_writes_five_outputs(fleet_path, tmp_path):
     result = run(fleet_path, "--out", out, "--no-cache", "-q")
     assert result.exit_code == 0, result.stderr
     assert {p.name for p in out.iterdir()} == OUTPUTS
-    results = pd.read_csv(out / "results.csv", keep_default_na=False, float_precision="round_trip")
-    classes = pd.read_csv(out / "class_summary.csv", keep_default_na=False, float_precision="round_trip")
+    results = read_csv(out / "results.csv", keep_default_na=False)
+    classes = read_csv(out / "class_summary.csv", keep_default_na=False)
     assert list(results.columns[:13]) == RESULTS_CONTRACT
     assert list(classes.columns[:9]) == CLASS_CONTRACT
     assert len(results) == 3 * 4 and len(classes) == 3 * 3
@@ -62,8 +62,8 @@ def test_run_writes_five_outputs(fleet_path, tmp_path):
 def test_totals_reconcile_exactly(fleet_path, tmp_path):
     out = tmp_path / "out"
     assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0
-    results = pd.read_csv(out / "results.csv", float_precision="round_trip")
-    classes = pd.read_csv(out / "class_summary.csv", float_precision="round_trip")
+    results = read_csv(out / "results.csv")
+    classes = read_csv(out / "class_summary.csv")
     rates = {"baseline": (0.2, 0.2, 0.184, 0.244), "hot": (0.2, 0.2, 0.184, 0.244),
              "urban": (0.2, 0.2, 0.184, 0.244)}
     for row in results.itertuples():
@@ -90,7 +90,7 @@ def test_budget_years_growth_and_cycle_mix(tmp_path):
                                  vmt_growth_pct_per_year=10)])
     out = tmp_path / "out"
     assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
-    row = pd.read_csv(out / "results.csv", float_precision="round_trip").iloc[0]
+    row = read_csv(out / "results.csv").iloc[0]
     assert row.miles_total == pytest.approx(2 * 10000 * (1 + 1.1 + 1.21), rel=1e-12)
     from fleetrun.cycles import load_cycle
 
@@ -116,7 +116,7 @@ def test_scenario_filter_and_unknown_scenario(fleet_path, tmp_path):
     out = tmp_path / "out"
     ok = run(fleet_path, "--out", out, "--scenario", "hot", "--no-cache", "-q")
     assert ok.exit_code == 0, ok.stderr
-    assert set(pd.read_csv(out / "class_summary.csv", float_precision="round_trip").scenario_id) == {"hot"}
+    assert set(read_csv(out / "class_summary.csv").scenario_id) == {"hot"}
     bad = run(fleet_path, "--out", tmp_path / "o2", "--scenario", "hott", "--no-cache", "-q")
     assert bad.exit_code == 1
     assert bad.stderr.startswith("Error: ") and "did you mean 'hot'" in bad.stderr
@@ -217,8 +217,8 @@ def test_dask_engine_same_numbers(fleet_path, tmp_path):
     finally:
         cloudpickle.unregister_pickle_by_value(fakes)
     for name in ("results.csv", "class_summary.csv"):
-        a, b = pd.read_csv(local / name, float_precision="round_trip"), pd.read_csv(dask / name, float_precision="round_trip")
-        pd.testing.assert_frame_equal(a, b, check_exact=False, rtol=1e-9)
+        a, b = read_csv(local / name), read_csv(dask / name)
+        pd.testing.assert_frame_equal(a, b, check_exact=True)   # bit for bit
     assert json.loads((dask / "manifest.json").read_text())["engine"]["engine"] == "dask"
 
 
@@ -237,7 +237,7 @@ def test_rows_that_drive_alike_are_simulated_once(tmp_path):
     out = tmp_path / "out"
     assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
     assert fakes.CALLS == [(2, "UDDS", 20)]
-    results = pd.read_csv(out / "results.csv", float_precision="round_trip").set_index("vehicle_id")
+    results = read_csv(out / "results.csv").set_index("vehicle_id")
     assert results.loc["A", "mpg"] == pytest.approx(results.loc["B", "mpg"], rel=1e-14)
     assert results.loc["A", "mpg"] != pytest.approx(results.loc["C", "mpg"], rel=1e-6)
     assert json.loads((out / "manifest.json").read_text())["distinct_vehicles_simulated"] == 2
@@ -257,5 +257,5 @@ def test_heavy_vehicles_drive_their_own_cycle_mix(tmp_path):
 
     spec = read_fleet(path).vehicle("TRUCK")
     sim = fakes.fake_simulate([spec], load_cycle("HD-UDDS"))
-    row = pd.read_csv(out / "results.csv", float_precision="round_trip").set_index("vehicle_id").loc["TRUCK"]
+    row = read_csv(out / "results.csv").set_index("vehicle_id").loc["TRUCK"]
     assert row.fuel_gal_total == pytest.approx(row.miles_total * sim.fuel_gal[0] / sim.miles[0], rel=1e-12)
