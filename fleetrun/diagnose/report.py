@@ -109,7 +109,23 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     return figs
 
 
+def _where(result: dict) -> str:
+    segs = result["mismatch"]["segments"][:2]
+    drv = [d["channel"].replace("_", " ") for d in result["mismatch"]["drivers"] if d.get("significant")][:3]
+    parts = []
+    if segs:
+        parts.append("the mismatch concentrates in " + " and ".join(
+            f"{s['start_s']:.0f}-{s['end_s']:.0f} s ({100 * s['share']:.0f} %)" for s in segs))
+    if drv:
+        parts.append("it follows " + ", ".join(drv))
+    return (" " + "; ".join(parts).capitalize() + ".") if parts else ""
+
+
 def summary_sentence(result: dict) -> str:
+    return _summary(result) + _where(result)
+
+
+def _summary(result: dict) -> str:
     f = result["findings"]
     if f:
         names = " and then ".join(EFFECTS[x["effect"]].title for x in f)
