@@ -73,14 +73,16 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          chunk_size=settings.get("chunk_size"))
     handlers = batch.setup_logging(plan.log, quiet)
     try:
-        code, errors = batch.run_plan(plan, quiet=quiet)
+        code, errors, written = batch.run_plan(plan, quiet=quiet)
     finally:
         batch.teardown_logging(handlers)
+    if not quiet:
+        for item in written:
+            note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
+                    if item["warnings"] else "")
+            click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, "
+                       f"class_summary.csv, manifest.json{note}")
     if code == batch.EXIT_OK:
-        for fleet_path in plan.inputs:
-            if not quiet:
-                click.echo(f"Wrote {plan.out_dir(fleet_path)}/: report.xlsx, summary.html, results.csv, "
-                           "class_summary.csv, manifest.json")
         return
     if len(errors) == 1 and len(plan.inputs) == 1:
         message = errors[0]

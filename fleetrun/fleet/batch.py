@@ -201,19 +201,20 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     return {"fleet": fleet_path, "out": out_dir, "outputs": outputs, "result": result}
 
 
-def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str]]:
-    """Run every fleet in the plan; return (exit code, error lines)."""
+def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:
+    """Run every fleet in the plan; return (exit code, error lines, what was written)."""
     from fleetrun.fleet.engines import make_engine
 
     errors: list[str] = []
     internal = False
-    written = 0
+    written: list[dict] = []
     engine = make_engine(plan.engine, plan.scheduler)   # InputError here: nothing to run
     try:
         for fleet_path in plan.inputs:
             try:
-                run_one(plan, fleet_path, engine, progress_enabled=not quiet)
-                written += 1
+                done = run_one(plan, fleet_path, engine, progress_enabled=not quiet)
+                written.append({"fleet": fleet_path, "out": done["out"],
+                                "warnings": len(done["result"].warnings)})
             except FleetrunError as exc:
                 errors.append(str(exc))
                 log.error("%s", exc)
@@ -225,7 +226,7 @@ def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str]]:
     finally:
         engine.close()
     if not errors:
-        return EXIT_OK, []
+        return EXIT_OK, [], written
     if written:
-        return EXIT_PARTIAL, errors
-    return (EXIT_INTERNAL if internal else EXIT_INPUT), errors
+        return EXIT_PARTIAL, errors, written
+    return (EXIT_INTERNAL if internal else EXIT_INPUT), errors, written
