@@ -251,3 +251,14 @@ def test_oil_warmup_with_measured_oil_temperature(tmp_path):
     res = diagnose(path, write=False)
     assert _single_ok(rec, res), (rec.truth["effects"], res["findings"])
     assert any(d["channel"] == "temperature" for d in res["mismatch"]["drivers"])
+
+
+def test_confounded_candidates_separated_by_their_own_channel(tmp_path):
+    # turns happen at intersections, at low speed: on its own, mixed_lubrication (low-speed
+    # friction) explains part of a cornering loss; the wheel-speed channel settles it
+    rec, path = _case(tmp_path, ["cornering"], 18)
+    res = diagnose(path, write=False)
+    cand = {c["effect"]: c for c in res["candidates"]}
+    assert cand["mixed_lubrication"]["heldout_gain_vs_baseline"] > 0.05
+    assert [f["effect"] for f in res["findings"]] == ["cornering"]
+    assert cand["mixed_lubrication"]["status"] == "rejected" and res["ambiguities"] == []

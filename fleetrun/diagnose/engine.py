@@ -3,18 +3,21 @@
 The level modules (:mod:`fleetrun.diagnose.differential`, :mod:`fleetrun.diagnose.vehicle`)
 turn a recording into a :class:`Problem`; :func:`select` decides what the model is missing.
 
-Rules (docs/diagnose.md):
+Rules (docs/diagnose.md, section 5):
 1. Every testable candidate is fitted (shape parameter profiled over its grid) and scored by
    its blocked-CV held-out gain ``1 - RMSE_after / RMSE_before``.
-2. The best is accepted only if its gain beats both the ``quantile`` of the largest gain any
-   candidate reaches on circularly shifted residuals and ``min_gain`` (a 1 % floor: smaller
-   improvements do not change a forecast).
-3. A rival that beats the null too, and once in the model leaves the best nothing to add
-   beyond noise (conditional held-out SSE reduction below the same null threshold), makes
-   both ``ambiguous``; so does an untestable
-   candidate that could produce the same residual (its declared confounder, or its
-   surrogate with assumed channels fitting as well). The separating test is reported.
-4. Accepted effects join the model and the search repeats for a further effect.
+2. The best is accepted only if its held-out SSE reduction beats the ``quantile`` of the
+   largest reduction any candidate reaches on circularly shifted residuals (the residual
+   left after the model and the best candidate: a noise estimate), its gain exceeds
+   ``min_gain`` (1 %: smaller improvements do not change a forecast), and, for effects that
+   look like a sensor offset, its size exceeds the zeroing uncertainty.
+3. An untestable candidate that could produce the same residual (its declared confounder, or
+   its surrogate on assumed channels fitting as well or explaining what the best leaves)
+   makes the best ``ambiguous`` and stops the search; the separating test is reported.
+4. Accepted effects join the model (shapes re-refined jointly) and the search repeats.
+5. After the search, each accepted effect is checked against every other testable candidate
+   with the rest of the findings in the model: a rival that beats the null on its own and
+   leaves the finding nothing beyond noise makes both ``ambiguous``.
 """
 from __future__ import annotations
 
