@@ -62,3 +62,31 @@ def test_camry_cold_start_is_warmup_in_the_first_phase(tmp_path):
     assert top["start_s"] < 505
     # the warm-up fades within the first phase
     assert f["parameters"]["tau_s"] < 505
+
+
+VEHICLE_RANGES = {"warmup": {"extra_fuel_g_per_s": (0.3, 0.8), "tau_s": (100.0, 300.0)},
+                  "road_grade": {"grade_pct": (1.0, 3.0)},
+                  "accessory_load": {"power_kW": (1.0, 3.0)}}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect", list(VEHICLE_RANGES))
+def test_vehicle_rate_single_effect(tmp_path, reference, effect):
+    import numpy as np
+
+    ok = 0
+    for seed in range(10):
+        rng = np.random.default_rng(500 + seed)
+        params = {k: float(rng.uniform(*v)) for k, v in VEHICLE_RANGES[effect].items()}
+        path = generate_vehicle_recording([(effect, params)], seed=500 + seed).write(tmp_path / f"v{seed}.csv")
+        f = diagnose(path, calibrate_on=reference, write=False)["findings"]
+        ok += bool(f) and f[0]["effect"] == effect and all(
+            abs(f[0]["parameters"][k] / v - 1) <= 0.25 for k, v in params.items())
+    assert ok >= 9, f"{effect}: {ok}/10"
+
+
+@pytest.mark.slow
+def test_vehicle_rate_noise_only(tmp_path, reference):
+    ok = sum(diagnose(generate_vehicle_recording([], seed=600 + s).write(tmp_path / f"n{s}.csv"),
+                      calibrate_on=reference, write=False)["findings"] == [] for s in range(20))
+    assert ok >= 19, f"{ok}/20"

@@ -74,12 +74,24 @@ def simulated(rec: Recording, physics="thesis"):
     return spec, tr, on, fuel
 
 
-def calibrate(ref: Recording, physics="thesis") -> tuple[float, float, float]:
-    """Fuel-map scale a and idle offset b fitted on a reference recording; and its RMSE."""
+def calibrate(ref: Recording, physics="thesis") -> tuple[float, float, float, float, float]:
+    """Fuel-map scale a and idle offset b fitted on a reference recording, its RMSE, and the
+    standard errors of a and b.
+
+    The reference's residual is autocorrelated, so the least-squares covariance is inflated by
+    ``(1 + rho) / (1 - rho)`` (AR(1) with lag-1 correlation rho).
+    """
     _, _, on, fuel = simulated(ref, physics)
     y = ref.data["fuel_rate_g_per_s"].to_numpy()
     a, b = full_fit(y, [fuel, on], [(0.2, 5.0), (-5.0, 5.0)])
-    return float(a), float(b), float(np.sqrt(np.mean((y - a * fuel - b * on) ** 2)))
+    e = y - a * fuel - b * on
+    rho = 0.0
+    if e.size > 3 and np.std(e[:-1]) > 0 and np.std(e[1:]) > 0:
+        rho = float(np.clip(np.corrcoef(e[:-1], e[1:])[0, 1], 0.0, 0.999))
+    X = np.column_stack([fuel, on])
+    cov = np.linalg.pinv(X.T @ X) * float(np.var(e)) * (1 + rho) / (1 - rho)
+    se_a, se_b = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return float(a), float(b), float(np.sqrt(np.mean(e ** 2))), float(se_a), float(se_b)
 
 
 def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Problem:
@@ -94,12 +106,17 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Pr
                      "on the measured speed trace"}
     initial = []
     if ref is not None:
-        a, b, ref_rmse = calibrate(ref, physics)
+        a, b, ref_rmse, se_a, se_b = calibrate(ref, physics)
         baseline = a * fuel + b * on
+        # the calibration is only known to its standard errors: the constants may move within
+        # 3 of them on this recording, so that a calibration error is not claimed as an
+        # accessory load (a constant) or a grade (fuel ~ speed)
+        initial = [(fuel, -3 * se_a, 3 * se_a), (on, -3 * se_b, 3 * se_b)]
         notes.append(f"calibrated on {ref.path.name}: fuel = {a:.4g} x simulated + {b:.4g} g/s "
                      f"while the engine runs (reference RMSE {ref_rmse:.3g} g/s)")
         info.update({"calibrated_on": str(ref.path), "fuel_scale": round(a, 6),
-                     "idle_offset_g_per_s": round(b, 6), "reference_rmse": round(ref_rmse, 6)})
+                     "fuel_scale_se": round(se_a, 6), "idle_offset_g_per_s": round(b, 6),
+                     "idle_offset_se_g_per_s": round(se_b, 6), "reference_rmse": round(ref_rmse, 6)})
     else:
         a, b = full_fit(y, [fuel, on], [(0.2, 5.0), (-5.0, 5.0)])
         baseline = a * fuel + b * on
@@ -121,11 +138,17 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Pr
             notes.append("grade_pct recorded and simulated: road_grade tests a grade beyond it")
         shapes = effect.shape
         grid = [{shapes[0].name: g} for g in shapes[0].grid] if shapes else [{}]
+        bounds = (shapes[0].lower, shapes[0].upper) if shapes else None
+        if shapes and shapes[0].name == "tau_s":
+            # a warm-up slower than half the recording is a constant (an accessory load)
+            tau_max = max(0.5 * t0[-1], shapes[0].grid[0])
+            grid = [g for g in grid if g["tau_s"] <= tau_max]
+            bounds = (shapes[0].lower, min(shapes[0].upper, tau_max))
         lin = effect.parameter(effect.linear)
         cols = [effect.basis(ch, **sh) for sh in grid]
         candidates.append(Candidate(effect.id, cols, grid, lin.lower, lin.upper,
                                     column_for=(lambda sh, e=effect: e.basis(ch, **sh)) if shapes else None,
-                                    shape_bounds=(shapes[0].lower, shapes[0].upper) if shapes else None))
+                                    shape_bounds=bounds))
     drivers = {"speed": v, "acceleration": np.gradient(v, rec.dt_s), "time_since_start": t0,
                "torque": tr["wheel_torque_Nm"].to_numpy()}
     if "grade_pct" in df:

@@ -76,7 +76,9 @@ VEHICLE_EFFECTS = (
         signature="measured fuel above the simulation right after a cold start, fading within "
                   "minutes; follows time since start",
         seed="thesis Sec. 3.1.2 and 9.8 (temperatures fixed at operating values; Walther B.7)",
-        steady_state="zero in a warm steady state", basis=_basis_warmup),
+        steady_state="zero in a warm steady state", basis=_basis_warmup,
+        separating_test="compare with a hot start of the same vehicle (--calibrate-on): a warm-up "
+                        "is absent there, a constant load is not"),
     Effect(
         id="road_grade", level="vehicle", title="road grade missing from the drive profile",
         parameters=(Parameter("grade_pct", 1.0, -15.0, 15.0, "%",
@@ -84,7 +86,8 @@ VEHICLE_EFFECTS = (
         linear="grade_pct", channels=(),
         signature="fuel shortfall proportional to speed (m g v sin theta), also while cruising",
         seed="thesis Sec. 3.1.6 (straight, level road); seed 004 Eqs 34-38 (longitudinal balance)",
-        steady_state="adds m g v grade/100 of tractive power", basis=_basis_grade),
+        steady_state="adds m g v grade/100 of tractive power", basis=_basis_grade,
+        separating_test="record grade_pct, or drive the route in both directions"),
     Effect(
         id="accessory_load", level="vehicle", title="constant accessory power",
         parameters=(Parameter("power_kW", 1.0, 0.0, 30.0, "kW",
@@ -92,5 +95,6 @@ VEHICLE_EFFECTS = (
         linear="power_kW", channels=(),
         signature="a constant extra fuel rate whenever the engine runs, including idle",
         seed="thesis Ch. 3.2 energy balance (only road load drives the engine)",
-        steady_state="adds power_kW at the crank", basis=_basis_accessory),
+        steady_state="adds power_kW at the crank", basis=_basis_accessory,
+        separating_test="record an idle stretch with the accessories off and on"),
 )
