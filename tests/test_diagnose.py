@@ -262,3 +262,19 @@ def test_confounded_candidates_separated_by_their_own_channel(tmp_path):
     assert cand["mixed_lubrication"]["heldout_gain_vs_baseline"] > 0.05
     assert [f["effect"] for f in res["findings"]] == ["cornering"]
     assert cand["mixed_lubrication"]["status"] == "rejected" and res["ambiguities"] == []
+
+
+def test_heavy_duty_two_speed_low_range(tmp_path):
+    # any configuration: a two-speed HD axle in its low range (overall ratio 4.1 x 1.36)
+    from fleetrun.diagnose.generator import RigSpec, generate_differential_recording
+
+    rig = RigSpec(configuration="HD_DUAL", gear_ratio=4.1, low_gear_ratio=1.36, axle_gear="low",
+                  peak_engine_torque_Nm=2000.0, torque_converter_ratio=1.0,
+                  max_transmission_gear_ratio=12.8, lubricant="80W90", mass_kg=30000.0,
+                  wheel_radius_m=0.5, road_load_N=(2500.0, 40.0, 4.0))
+    rec = generate_differential_recording([("bearing_preload", {"drag_torque_Nm": 15.0})], rig=rig,
+                                          seed=3, noise_out_Nm=5.0, duration_s=900)
+    res = diagnose(rec.write(tmp_path / "hd.csv"), write=False)
+    assert [f["effect"] for f in res["findings"]] == ["bearing_preload"]
+    assert res["findings"][0]["parameters"]["drag_torque_Nm"] == pytest.approx(15.0, rel=0.1)
+    assert res["baseline"]["overall_ratio"] == pytest.approx(4.1 * 1.36)

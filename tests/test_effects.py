@@ -132,3 +132,20 @@ def test_vehicle_extra_fuel():
     # differential effects do not add fuel here
     assert np.all(vehicle_extra_fuel_g_per_s("inertia", time_s=t, vehicle_speed_mps=v,
                                              vehicle_mass_kg=1500, fuel="gasoline") == 0)
+
+
+def test_map_with_effects_cli():
+    from click.testing import CliRunner
+
+    from fleetrun.cli import cli
+
+    args = ["map", "LD_RWD", "--gear-ratio", "3.55", "--torque-fractions", "0.02,0.2",
+            "--speeds-rpm", "100,2000"]
+    base = CliRunner().invoke(cli, args)
+    more = CliRunner().invoke(cli, args + ["--with", "bearing_preload:drag_torque_Nm=5"])
+    assert base.exit_code == 0 and more.exit_code == 0, more.output
+    eta0 = [float(r.split(",")[2]) for r in base.output.strip().splitlines()[1:]]
+    eta1 = [float(r.split(",")[2]) for r in more.output.strip().splitlines()[1:]]
+    assert all(b < a for a, b in zip(eta0, eta1))
+    bad = CliRunner().invoke(cli, args + ["--with", "preload"])
+    assert bad.exit_code == 1 and "bearing_preload" in bad.output
