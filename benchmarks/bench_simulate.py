@@ -36,8 +36,15 @@ from fleetrun.simulation import simulate
 FASTSIM_PER_CORE = 90.0  # the issue's reference: FASTSim, UDDS vehicle-cycles per second per core
 
 
-def make_fleet(n: int, seed: int = 0):
-    types = read_fleet(inputs_dir() / "example_fleet.xlsx").vehicles
+def make_fleet(n: int, seed: int = 0, kind: str = "example"):
+    """``example``: the example fleet's 23 types (LD, MD, HD; the heavy ones fall behind on
+    UDDS accelerations and are re-driven); ``cars``: the four light-duty example vehicles of
+    fleetrun.simulation.examples (all follow the trace)."""
+    if kind == "cars":
+        from fleetrun.simulation.examples import AWD, CAMRY, CIVIC, F150
+        types = [F150, CAMRY, CIVIC, AWD]
+    else:
+        types = read_fleet(inputs_dir() / "example_fleet.xlsx").vehicles
     rng = np.random.default_rng(seed)
     fleet = []
     for i in range(n):
@@ -59,9 +66,9 @@ def best_of(fn, repeat):
     return best
 
 
-def run(vehicles: int, modes, cycle_name: str, repeat: int, single: int):
+def run(vehicles: int, modes, cycle_name: str, repeat: int, single: int, kind: str = "example"):
     cycle = load_cycle(cycle_name)
-    fleet = make_fleet(vehicles)
+    fleet = make_fleet(vehicles, kind=kind)
     rows = []
     with tempfile.TemporaryDirectory() as cache:
         for mode in modes:
@@ -88,7 +95,7 @@ def markdown(rows, args, info) -> str:
         "# Benchmark: drive-cycle simulation",
         "",
         f"`python benchmarks/bench_simulate.py --vehicles {args.vehicles} --cycle {args.cycle} "
-        f"--repeat {args.repeat}` on {info}.",
+        f"--fleet {args.fleet} --repeat {args.repeat}` on {info}.",
         "",
         f"{args.cycle} vehicle-cycle simulations per second (one process, one core; best of {args.repeat}).",
         "",
@@ -108,12 +115,14 @@ def main(argv=None):
     p.add_argument("--vehicles", type=int, default=1000)
     p.add_argument("--modes", nargs="+", default=["auto", "map2d", "direct"])
     p.add_argument("--cycle", default="UDDS")
+    p.add_argument("--fleet", choices=["example", "cars"], default="example",
+                   help="example: the example fleet's 23 LD/MD/HD types; cars: four light-duty cars")
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--single", type=int, default=200, help="vehicles timed one per call")
     p.add_argument("--markdown", help="also write the table here (Markdown)")
     args = p.parse_args(argv)
     info = machine()
-    rows = run(args.vehicles, args.modes, args.cycle, args.repeat, args.single)
+    rows = run(args.vehicles, args.modes, args.cycle, args.repeat, args.single, args.fleet)
     text = markdown(rows, args, info)
     sys.stdout.write(text)
     if args.markdown:
