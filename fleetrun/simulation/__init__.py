@@ -13,7 +13,8 @@ import numpy as np
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
-                                      forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table)
+                                      forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
+                                      power_speed_table)
 from fleetrun.simulation.params import vehicle_arrays
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
@@ -146,6 +147,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     name, t, v_target, grade = _cycle_arrays(cycle)
     va = vehicle_arrays(vehicles)
     V = va.n
+    if V:
+        va.power_table = power_speed_table(va)  # once for the whole call, shared by the blocks
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir, effects)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.

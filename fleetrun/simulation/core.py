@@ -32,7 +32,7 @@ DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to p
 N_POWER_TABLE = 65
 
 
-def _power_speed_table(va: VehicleArrays) -> np.ndarray:
+def power_speed_table(va: VehicleArrays) -> np.ndarray:
     """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65)."""
     x = np.linspace(0.0, 1.0, 257)[None, :]
     col = lambda a: a[:, None]  # noqa: E731
@@ -41,8 +41,8 @@ def _power_speed_table(va: VehicleArrays) -> np.ndarray:
                             col(va.n_peak_torque), col(va.idle_T_frac))
     p = np.maximum.accumulate(T * n / RPM / col(va.P_rated_kW * 1e3), axis=1)
     p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
-    # p is non-decreasing per row: the first grid index where p >= target, interpolated
-    idx = np.clip(np.array([np.searchsorted(row, p_grid) for row in p]).reshape(va.n, -1), 1, x.size - 1)
+    # p is non-decreasing per row: count of grid points below each target = its index
+    idx = np.clip((p[:, :, None] < p_grid[None, None, :]).sum(axis=1), 1, x.size - 1)
     rows = np.arange(va.n)[:, None]
     p0, p1 = p[rows, idx - 1], p[rows, idx]
     n0, n1 = n[rows, idx - 1], n[rows, idx]
@@ -162,7 +162,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     rows = np.broadcast_to(np.arange(V)[:, None], (V, N))
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
     if va.power_table is None:
-        va.power_table = _power_speed_table(va)
+        va.power_table = power_speed_table(va)
     n_power = _lookup_rows(va.power_table, rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
     n_req = np.minimum(np.maximum(col(va.shift_min_rpm), n_power), col(va.n_rated))
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
