@@ -79,11 +79,17 @@ def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_spee
     one is available: at full demand that picks the gear nearest rated speed. Returns int (V x N).
     """
     V, K = overall_ratios.shape
-    count = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int16)
-    over = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int16)
+    # compare ratios with the ratio thresholds instead of engine speeds with the speeds:
+    # one division per step instead of a multiplication per gear
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / wheel_side_speed_rpm
+    need = required_engine_speed_rpm * inv
+    limit = max_engine_speed_rpm * inv
+    count = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
+    over = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
     for k in range(K):
-        n = overall_ratios[:, k:k + 1] * wheel_side_speed_rpm
-        count += n >= required_engine_speed_rpm
-        over += n > max_engine_speed_rpm
+        ratio = overall_ratios[:, k:k + 1]
+        count += ratio >= need
+        over += ratio > limit
     top = np.asarray(n_ratios)[:, None] - 1
     return np.minimum(np.maximum(count.astype(np.intp) - 1, over), top)
