@@ -259,3 +259,14 @@ def test_heavy_vehicles_drive_their_own_cycle_mix(tmp_path):
     sim = fakes.fake_simulate([spec], load_cycle("HD-UDDS"))
     row = read_csv(out / "results.csv").set_index("vehicle_id").loc["TRUCK"]
     assert row.fuel_gal_total == pytest.approx(row.miles_total * sim.fuel_gal[0] / sim.miles[0], rel=1e-12)
+
+
+def test_outputs_get_ordinary_file_modes(fleet_path, tmp_path):
+    from fleetrun.fleet.outputs import default_file_mode
+
+    out = tmp_path / "out"
+    assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0
+    assert {oct(p.stat().st_mode & 0o777) for p in out.iterdir()} == {oct(default_file_mode())}
+    template = tmp_path / "t.xlsx"
+    assert CliRunner().invoke(cli, ["template", "-o", str(template)]).exit_code == 0
+    assert template.stat().st_mode & 0o777 == default_file_mode()

@@ -14,6 +14,13 @@ import tempfile
 from pathlib import Path
 
 
+def default_file_mode() -> int:
+    """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 @contextlib.contextmanager
 def atomic_file(path: Path):
     """Yield a temporary path beside ``path``; on success it replaces ``path``."""
@@ -24,6 +31,7 @@ def atomic_file(path: Path):
     os.close(handle)
     try:
         yield Path(temporary)
+        os.chmod(temporary, default_file_mode())
         os.replace(temporary, path)
     finally:
         if os.path.exists(temporary):

@@ -14,7 +14,6 @@ import math
 import numbers
 import os
 import re
-import shutil
 import tempfile
 import zipfile
 from collections.abc import Iterable
@@ -146,7 +145,8 @@ def append_rows(path: Path, tables: dict[str, tuple[int, int, Iterable[tuple]]])
                     for block in _rows_xml(rows, template_row + 1, letters, styles):
                         stream.write(block.encode("utf-8"))
                     stream.write((sep + tail).encode("utf-8"))
-        shutil.move(temporary, path)
+        os.chmod(temporary, os.stat(path).st_mode & 0o777)
+        os.replace(temporary, path)
     finally:
         if os.path.exists(temporary):
             os.unlink(temporary)
