@@ -37,36 +37,57 @@ STANDARD_AXLE_RATIOS = (2.56, 2.64, 2.73, 2.80, 2.85, 3.06, 3.15, 3.21, 3.23, 3.
                         3.58, 3.73, 3.91, 4.10, 4.30, 4.41, 4.63, 4.88, 5.29, 5.38, 5.57)
 
 
-def make_fleet(rows: int, path: Path, seed: int = 1) -> Path:
-    """A workbook of ``rows`` vehicle types derived from the example fleet."""
+def make_fleet(rows: int, path: Path, variants: int = 10, seed: int = 1) -> tuple[Path, int]:
+    """A workbook of ``rows`` vehicle rows derived from the example fleet, and the number of
+    physically distinct vehicles in it.
+
+    Each of the example's 23 types gets ``variants`` physical variants (test weight and road
+    load within +-5 %, axle ratio one standard step either way), like the model-year and
+    option spread of a real fleet; rows (e.g. counties x types) pick a variant and get their
+    own count and annual miles. ``variants=0`` makes every row physically distinct (worst case).
+    """
     example = load_workbook(EXAMPLE, read_only=True)
     vehicle_rows = list(example["Vehicles"].iter_rows(values_only=True))
     scenario_rows = list(example["Scenarios"].iter_rows(values_only=True))
     header, base = vehicle_rows[0], [r for r in vehicle_rows[1:] if r[0]]
     col = {name: i for i, name in enumerate(header)}
     rng = random.Random(seed)
-    wb = Workbook(write_only=True)
-    ws = wb.create_sheet("Vehicles")
-    ws.append(header)
-    for n in range(rows):
-        row = list(base[n % len(base)])
-        row[col["vehicle_id"]] = f"{row[col['vehicle_id']]}-{n:06d}"
-        row[col["count"]] = max(1, round(row[col["count"]] / max(1, rows / len(base)) * rng.uniform(0.5, 1.5)))
-        row[col["annual_miles"]] = round(row[col["annual_miles"]] * rng.uniform(0.8, 1.2))
+
+    def variant(row):
+        row = list(row)
         row[col["test_weight_kg"]] = round(row[col["test_weight_kg"]] * rng.uniform(0.95, 1.05), 1)
         for name in ("coastdown_A_lbf", "coastdown_C_lbf_per_mph2"):
-            row[col[name]] = row[col[name]] * rng.uniform(0.95, 1.05)
+            row[col[name]] = round(row[col[name]] * rng.uniform(0.95, 1.05), 5)
         ratio = row[col["final_drive_ratio"]]
         nearest = min(range(len(STANDARD_AXLE_RATIOS)), key=lambda i: abs(STANDARD_AXLE_RATIOS[i] - ratio))
         pick = min(len(STANDARD_AXLE_RATIOS) - 1, max(0, nearest + rng.choice((-1, 0, 0, 1))))
         row[col["final_drive_ratio"]] = STANDARD_AXLE_RATIOS[pick]
+        return row
+
+    pool = [[variant(b) for _ in range(variants)] for b in base] if variants else None
+    wb = Workbook(write_only=True)
+    ws = wb.create_sheet("Vehicles")
+    ws.append(header)
+    used = set()
+    for n in range(rows):
+        t = n % len(base)
+        if pool:
+            k = rng.randrange(variants)
+            row = list(pool[t][k])
+            used.add((t, k))
+        else:
+            row = variant(base[t])
+            used.add(n)
+        row[col["vehicle_id"]] = f"{row[col['vehicle_id']]}-{n:06d}"
+        row[col["count"]] = max(1, round(row[col["count"]] / max(1, rows / len(base)) * rng.uniform(0.5, 1.5)))
+        row[col["annual_miles"]] = round(row[col["annual_miles"]] * rng.uniform(0.8, 1.2))
         ws.append(row)
     scenarios = wb.create_sheet("Scenarios")
     for row in scenario_rows:
         if any(v is not None for v in row):
             scenarios.append(row)
     wb.save(path)
-    return path
+    return path, len(used)
 
 
 def measure(command: list[str], env: dict) -> tuple[float, float, int, str]:
@@ -98,6 +119,8 @@ def main():
     parser.add_argument("--rows", type=int, nargs="+", default=[1000, 10000, 100000])
     parser.add_argument("--engines", nargs="+", default=["local", "dask"])
     parser.add_argument("--mode", default="auto")
+    parser.add_argument("--variants", type=int, default=10,
+                        help="physical variants per example vehicle type (0: every row distinct)")
     parser.add_argument("--warm", action="store_true", help="also time a second run with the map cache warm")
     parser.add_argument("--markdown", type=Path, help="write the results table to this file")
     args = parser.parse_args()
@@ -109,9 +132,9 @@ def main():
     try:
         for rows in args.rows:
             built = time.perf_counter()
-            fleet = make_fleet(rows, work / f"fleet_{rows}.xlsx")
-            print(f"{rows} rows: workbook built in {time.perf_counter() - built:.1f} s "
-                  f"({fleet.stat().st_size / 1e6:.1f} MB)", flush=True)
+            fleet, distinct = make_fleet(rows, work / f"fleet_{rows}.xlsx", args.variants)
+            print(f"{rows} rows ({distinct} distinct vehicles): workbook built in "
+                  f"{time.perf_counter() - built:.1f} s ({fleet.stat().st_size / 1e6:.1f} MB)", flush=True)
             for engine in args.engines:
                 shutil.rmtree(cache, ignore_errors=True)
                 passes = ["cold", "warm"] if args.warm else ["cold"]
@@ -120,7 +143,7 @@ def main():
                     command = [sys.executable, "-m", "fleetrun", "run", str(fleet), "--out", str(out),
                                "--engine", engine, "--mode", args.mode, "-q"]
                     wall, peak, code, tail = measure(command, env)
-                    results.append({"rows": rows, "engine": engine, "cache": state, "wall_s": wall,
+                    results.append({"rows": rows, "distinct": distinct, "engine": engine, "cache": state, "wall_s": wall,
                                     "peak_mb": peak, "exit": code, "note": tail})
                     print(f"  {engine:5s} {state}: {wall:7.1f} s, peak {peak:7.0f} MB, exit {code} {tail}",
                           flush=True)
@@ -129,11 +152,11 @@ def main():
 
     if args.markdown:
         lines = [
-            "| vehicle rows | engine | map cache | wall time [s] | peak memory [MB] | exit |",
-            "|---:|---|---|---:|---:|---:|",
+            "| vehicle rows | distinct vehicles | engine | map cache | wall time [s] | peak memory [MB] | exit |",
+            "|---:|---:|---|---|---:|---:|---:|",
         ]
         for r in results:
-            lines.append(f"| {r['rows']:,} | {r['engine']} | {r['cache']} | {r['wall_s']:.1f} | "
+            lines.append(f"| {r['rows']:,} | {r['distinct']:,} | {r['engine']} | {r['cache']} | {r['wall_s']:.1f} | "
                          f"{r['peak_mb']:.0f} | {r['exit']} |")
         machine = (f"{platform.processor() or platform.machine()}, {psutil.cpu_count()} CPUs, "
                    f"{psutil.virtual_memory().total / 1e9:.0f} GB RAM, Python {platform.python_version()}")
