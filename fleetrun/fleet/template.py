@@ -34,6 +34,8 @@ INSTRUCTIONS = [
     ("Scenarios: one row per scenario.", None),
     ("cycle_mix: CYCLE:share list, shares of each vehicle's annual miles adding up to 1,", None),
     ("   e.g. UDDS:0.55,HWFET:0.45. `fleetrun cycles` lists the drive cycles; a CSV path works too.", None),
+    ("cycle_mix_MD / cycle_mix_HD (optional): the mix medium / heavy trucks drive instead,", None),
+    ("   e.g. HD-UDDS:0.6,HWFET:0.4 (a loaded truck cannot follow US06). Empty: cycle_mix.", None),
     ("budget_years: 2 = a biennium. Year y uses annual_miles x (1 + growth/100)^(y - 1).", None),
     ("Tax rates in US dollars per gallon.", None),
     ("", None),
@@ -85,7 +87,6 @@ def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
                                   error=f"Choose one of: {', '.join(column.choices)}")
             rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
             ws.add_data_validation(rule)
-    # The dual example: HD_TANDEM has no low gear; keep the example rows valid as written.
     ws.freeze_panes = "B2"
 
 
