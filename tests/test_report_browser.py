@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import re
 import shutil
+import struct
 import subprocess
 import time
 import urllib.request
@@ -21,9 +23,83 @@ from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
 pytestmark = pytest.mark.browser
 CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
-websocket = pytest.importorskip("websocket", reason="websocket-client is needed to drive Chromium")
 if CHROMIUM is None:
     pytest.skip("chromium is not installed", allow_module_level=True)
+
+
+class WebSocket:
+    """The few bits of RFC 6455 a DevTools client needs (text frames, client masking), so the
+    test needs no extra package."""
+
+    def __init__(self, url: str, timeout: float = 30):
+        import socket
+        from urllib.parse import urlparse
+
+        parts = urlparse(url)
+        self.sock = socket.create_connection((parts.hostname, parts.port), timeout=timeout)
+        key = base64.b64encode(os.urandom(16)).decode()
+        self.sock.sendall((f"GET {parts.path} HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\n"
+                           "Upgrade: websocket\r\nConnection: Upgrade\r\n"
+                           f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n").encode())
+        response = b""
+        while b"\r\n\r\n" not in response:
+            chunk = self.sock.recv(4096)
+            if not chunk:
+                raise ConnectionError("websocket handshake failed")
+            response += chunk
+        head, _, self.pending = response.partition(b"\r\n\r\n")
+        if b" 101 " not in head.split(b"\r\n", 1)[0]:
+            raise ConnectionError(head.decode(errors="replace"))
+
+    def settimeout(self, seconds):
+        self.sock.settimeout(seconds)
+
+    def _read(self, n: int) -> bytes:
+        while len(self.pending) < n:
+            chunk = self.sock.recv(max(65536, n - len(self.pending)))
+            if not chunk:
+                raise ConnectionError("websocket closed")
+            self.pending += chunk
+        data, self.pending = self.pending[:n], self.pending[n:]
+        return data
+
+    def _frame(self, opcode: int, payload: bytes) -> None:
+        mask = os.urandom(4)
+        n = len(payload)
+        header = bytes([0x80 | opcode])
+        if n < 126:
+            header += bytes([0x80 | n])
+        elif n < 1 << 16:
+            header += bytes([0x80 | 126]) + struct.pack(">H", n)
+        else:
+            header += bytes([0x80 | 127]) + struct.pack(">Q", n)
+        self.sock.sendall(header + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload)))
+
+    def send(self, text: str) -> None:
+        self._frame(0x1, text.encode())
+
+    def recv(self) -> str:
+        message = b""
+        while True:
+            first, second = self._read(2)
+            n = second & 0x7F
+            if n == 126:
+                n = struct.unpack(">H", self._read(2))[0]
+            elif n == 127:
+                n = struct.unpack(">Q", self._read(8))[0]
+            payload = self._read(n)  # servers do not mask
+            opcode = first & 0x0F
+            if opcode == 0x9:        # ping
+                self._frame(0xA, payload)
+                continue
+            if opcode == 0x8:
+                raise ConnectionError("websocket closed by the browser")
+            message += payload
+            if first & 0x80:
+                return message.decode()
+
+    def close(self):
+        self.sock.close()
 
 
 class Browser:
@@ -48,7 +124,7 @@ class Browser:
             pytest.fail("chromium did not start its DevTools endpoint")
         targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10))
         page = next(t for t in targets if t["type"] == "page")
-        self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=30)
+        self.ws = WebSocket(page["webSocketDebuggerUrl"], timeout=30)
         self.next_id = 0
         self.events: list[dict] = []
 
