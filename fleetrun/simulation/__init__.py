@@ -5,6 +5,7 @@ vehicles x steps). See docs/simulation.md for the model and its choices.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -100,6 +101,9 @@ class FleetCycleResult:
 
 
 def _cycle_arrays(cycle):
+    if isinstance(cycle, (str, os.PathLike)):
+        from fleetrun.cycles import load_cycle
+        cycle = load_cycle(cycle)
     try:
         t = np.asarray(cycle.time_s, float)
         v = np.asarray(cycle.speed_mps, float)
@@ -126,7 +130,8 @@ def _cycle_arrays(cycle):
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
              physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None) -> FleetCycleResult:
-    """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle) together.
+    """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
+    cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
     ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
     DEFAULT_MODE). ``ambient_temp_C`` is passed to the differential model when it accepts it
