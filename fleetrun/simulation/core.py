@@ -229,6 +229,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
+    # engine braking is limited to the motoring torque (friction and pumping); the brakes take
+    # the rest, so the reported engine torque is never below -T_0
+    engine_torque = np.maximum(engine_torque, -t_offset)
     fueled = ~(overrun & (engine_rpm >= col(va.fuel_cut_rpm)))
     fuel = fuel_rate_g_per_s(np.maximum(engine_torque_fuel, 0.0), engine_rpm, fueled, t_offset,
                              col(va.eta_ind), col(va.lhv))
