@@ -270,3 +270,17 @@ def test_outputs_get_ordinary_file_modes(fleet_path, tmp_path):
     template = tmp_path / "t.xlsx"
     assert CliRunner().invoke(cli, ["template", "-o", str(template)]).exit_code == 0
     assert template.stat().st_mode & 0o777 == default_file_mode()
+
+
+def test_dask_scheduler_address(fleet_path, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    local = tmp_path / "local"
+    assert run(fleet_path, "--out", local, "--no-cache", "-q").exit_code == 0
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        result = run(fleet_path, "--out", tmp_path / "remote", "--engine", "dask", "--scheduler",
+                     cluster.scheduler_address, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
+    manifest = json.loads((tmp_path / "remote" / "manifest.json").read_text())
+    assert manifest["engine"] == {"engine": "dask", "scheduler": cluster.scheduler_address}
+    assert (tmp_path / "remote" / "results.csv").read_bytes() == (local / "results.csv").read_bytes()

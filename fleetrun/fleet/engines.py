@@ -46,6 +46,7 @@ class DaskEngine:
         self._cluster = None
         try:
             if scheduler:
+                _check_reachable(scheduler)
                 self.client = Client(scheduler, timeout="10s", set_as_default=False)
             else:
                 import os
@@ -100,6 +101,19 @@ class DaskEngine:
 
     def describe(self) -> dict:
         return {"engine": "dask", "scheduler": self.scheduler or "local cluster"}
+
+
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast with OSError when nothing listens at a tcp address (distributed would retry
+    until its timeout)."""
+    import socket
+    from urllib.parse import urlparse
+
+    parts = urlparse(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls") or not parts.hostname or not parts.port:
+        return  # other transports (inproc, ucx, ...): let distributed decide
+    with socket.create_connection((parts.hostname, parts.port), timeout=timeout_s):
+        pass
 
 
 def make_engine(name: str, scheduler: str | None = None):
