@@ -248,12 +248,15 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     version. Written atomically (temp file + os.replace) so concurrent runs never see half a file.
     """
     gears = GEAR_GRID[duty_of(configuration)]
+    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    quick = (configuration, low_gear_ratio, physics, lubricant_temp_C(ambient_temp_C), str(directory))
+    if quick in _LOADED:  # already read (or built) in this process: skip hashing the key
+        return gears, _LOADED[quick]
     key = {"configuration": configuration, "physics": physics, "lubricant_temp_C": lubricant_temp_C(ambient_temp_C),
            "low_gear_ratio": low_gear_ratio, "gears": gears.tolist(), "tf": [float(TF_FORWARD[-1]), TF_FORWARD.size],
            "u": [U_MAX, N_U], "speed": [float(speed_grid(configuration)[-1]), N_SPEED], "version": __version__,
            "format": 2}
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
-    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = directory / f"map3d-{configuration}-{digest}.npz"
     if (path, digest) in _LOADED:
         return gears, _LOADED[(path, digest)]
@@ -261,7 +264,7 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
         try:
             with np.load(path) as data:
                 maps = data["maps"].astype(float)
-            _LOADED[(path, digest)] = maps
+            _LOADED[(path, digest)] = _LOADED[quick] = maps
             return gears, maps
         except Exception:  # a damaged cache file is rebuilt  # noqa: BLE001
             pass
@@ -282,7 +285,7 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     except OSError:
         pass  # an unwritable cache only costs the rebuild next time
     maps = maps.astype(np.float32).astype(float)  # the same values as a later read of the file
-    _LOADED[(path, digest)] = maps
+    _LOADED[(path, digest)] = _LOADED[quick] = maps
     return gears, maps
 
 
