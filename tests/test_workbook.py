@@ -157,9 +157,14 @@ def test_hidden_sheet_read_with_warning(tmp_path):
     path = write_fleet(tmp_path / "h.xlsx", [vehicle()])
     wb = openpyxl.load_workbook(path)
     wb["Scenarios"].sheet_state = "hidden"
+    wb["Vehicles"].row_dimensions[2].hidden = True
+    wb["Vehicles"].column_dimensions["Q"].hidden = True
     wb.save(path)
     fleet = read_fleet(path)
     assert "Scenarios: sheet is hidden; read anyway" in fleet.warnings
+    assert "Vehicles: 1 hidden row(s) (2); read anyway" in fleet.warnings
+    assert "Vehicles: hidden column(s) Q; read anyway" in fleet.warnings
+    assert len(fleet.vehicles) == 1
 
 
 def test_half_filled_row_reported_once(tmp_path):

@@ -388,6 +388,16 @@ def _cycle_label(cycle: str) -> str:
     return Path(cycle).name if cycle.lower().endswith(".csv") else cycle
 
 
+def _shipped_cycle_file(name: str):
+    """The CSV a shipped cycle is read from, when it is one (its sha256 goes in the manifest)."""
+    from pathlib import Path
+
+    from fleetrun.resources import inputs_dir
+
+    candidate = Path(inputs_dir()) / "cycles" / f"{name}.csv"
+    return candidate if candidate.is_file() else None
+
+
 def _cycle_info(names) -> dict[str, dict]:
     from pathlib import Path
 
@@ -398,9 +408,10 @@ def _cycle_info(names) -> dict[str, dict]:
         cycle = _cycle(name)
         duration = float(cycle.time_s[-1] - cycle.time_s[0])
         entry = {"name": cycle.name, "miles": float(cycle.miles), "duration_s": duration}
-        if name.lower().endswith(".csv"):
-            entry["path"] = name
-            entry["sha256"] = file_sha256(Path(name))
+        path = Path(name) if name.lower().endswith(".csv") else _shipped_cycle_file(name)
+        if path is not None:
+            entry["path"] = str(path)
+            entry["sha256"] = file_sha256(path)
         info[name] = entry
     return info
 

@@ -209,6 +209,12 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
         key = (sheet, int(match.group(2)), column_index_from_string(match.group(1))) if match else (sheet, 0, 0)
         problems.errors.append((key, f"{sheet}!{ref}: merged cells; unmerge them and give every "
                                      "row its own values"))
+    if values.hidden_rows:
+        shown = ", ".join(map(str, values.hidden_rows[:10])) + (" ..." if len(values.hidden_rows) > 10 else "")
+        problems.warn(f"{len(values.hidden_rows)} hidden row(s) ({shown}); read anyway", sheet)
+    if values.hidden_columns:
+        problems.warn("hidden column(s) " + ", ".join(get_column_letter(c) for c in values.hidden_columns[:10])
+                      + "; read anyway", sheet)
     header = values.rows[0][1] if values.rows and values.rows[0][0] == 1 else ()
     known = {c.name.lower(): c.name for c in schema}
     columns: dict[str, int] = {}

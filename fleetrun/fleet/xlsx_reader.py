@@ -48,6 +48,8 @@ class SheetInfo:
 class SheetValues:
     rows: list[tuple[int, tuple]]                       # (Excel row number, values from column A)
     merged: list[str] = field(default_factory=list)     # e.g. "B3:C3"
+    hidden_rows: list[int] = field(default_factory=list)
+    hidden_columns: list[int] = field(default_factory=list)
     uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)  # (row, col) -> "=..."
 
 
@@ -279,6 +281,8 @@ class XlsxBook:
                 row = int(r) if r else row + 1
                 col = 0
                 row_cells.clear()
+                if attrs.get("hidden") in ("1", "true"):
+                    result.hidden_rows.append(row)
             elif tag == "f":
                 buffer.clear()
                 capture = "f"
@@ -290,6 +294,10 @@ class XlsxBook:
                 capture = "t"
             elif tag == "rPh":
                 in_is = False  # a phonetic run inside an inline string is not the text
+            elif tag == "col":
+                if attrs.get("hidden") in ("1", "true"):
+                    first, last = int(attrs.get("min", 0)), int(attrs.get("max", 0))
+                    result.hidden_columns.extend(range(first, min(last, first + 1000) + 1))
             elif tag == "mergeCell":
                 ref = attrs.get("ref")
                 if ref:
