@@ -12,9 +12,11 @@ Refused: merged cells in the data, formulas whose result was never saved, duplic
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import zipfile
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 from openpyxl.utils import column_index_from_string, get_column_letter
@@ -288,8 +290,8 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
         if index is None:
             parsed[column.name] = None
             continue
-        raw = _cell(values, index)
-        formula = table.uncached.get((row_number, index))
+        raw = values[index - 1] if index <= len(values) else None
+        formula = table.uncached.get((row_number, index)) if table.uncached else None
         if formula is not None:
             problems.error(f"formula {cells.show(formula)} has no saved result; open and save the "
                            "workbook in Excel or LibreOffice (or type the value)", table.sheet,
@@ -304,7 +306,12 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             parsed[column.name] = None
             continue
         try:
-            value = _parse_cell(column, raw)
+            if column.kind == "number" and type(raw) in (int, float) and math.isfinite(raw):
+                value = float(raw)               # the common case, without the general parser
+            elif type(raw) is str:
+                value = _parse_text_cell(column, raw)
+            else:
+                value = _parse_cell(column, raw)
         except CellProblem as problem:
             problems.error(str(problem), table.sheet, row_number, index, column.name)
             ok = False
@@ -334,6 +341,12 @@ def _text_or_blank(raw) -> str:
         return "" if cells.is_blank(raw) else cells.parse_text(raw)
     except CellProblem:
         return ""
+
+
+@lru_cache(maxsize=65536)
+def _parse_text_cell(column: Column, raw: str):
+    """_parse_cell for text cells: ids differ, but choices, ratios and tyres repeat a lot."""
+    return _parse_cell(column, raw)
 
 
 def _parse_cell(column: Column, raw):
