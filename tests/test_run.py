@@ -191,8 +191,21 @@ def test_batch_config_errors(tmp_path):
 def test_plain_log_lines_when_not_a_terminal(fleet_path, tmp_path):
     result = run(fleet_path, "--out", tmp_path / "o", "--no-cache")
     assert result.exit_code == 0
-    assert "INFO fleet.xlsx:" in result.stderr and "simulation tasks (100 %)" in result.stderr
-    assert "\r" not in result.stderr
+    assert "INFO fleet.xlsx:" in result.stdout and "simulation tasks (100 %)" in result.stdout
+    assert "\r" not in result.stdout and result.stderr == ""
+
+
+def test_failed_simulation_leaves_only_the_error_on_stderr(fleet_path, tmp_path, monkeypatch):
+    from fleetrun.errors import DomainError
+
+    def refuses(vehicles, cycle, **kwargs):
+        raise DomainError(f"cannot simulate {cycle.name}")
+
+    monkeypatch.setattr(runner, "simulate_function", refuses)
+    result = run(fleet_path, "--out", tmp_path / "o")
+    assert result.exit_code == 1
+    assert result.stderr.startswith("Error: cannot simulate") and result.stderr.count("\n") == 1
+    assert "INFO fleet.xlsx" in result.stdout and not (tmp_path / "o").exists()
 
 
 def test_shortfall_becomes_a_warning(tmp_path):

@@ -14,12 +14,7 @@ def command(workbook: Path, strict: bool):
     from fleetrun.errors import InputError
     from fleetrun.fleet import read_fleet
 
-    try:
-        fleet = read_fleet(workbook)
-    except InputError as exc:
-        for warning in getattr(exc, "warnings", []):   # the warnings are worth fixing too
-            click.echo(f"Warning: {warning}", err=True)
-        raise
+    fleet = read_fleet(workbook)   # on errors, stderr holds just the one Error: message
     for warning in fleet.warnings:
         click.echo(f"Warning: {warning}", err=True)
     if strict and fleet.warnings:

@@ -146,7 +146,9 @@ class Progress:
 
 
 def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
-    """Log lines to the file (if any) and, unless quiet, to stderr when it is not a terminal."""
+    """Log lines to the file (if any) and, unless quiet, to stdout when stderr is not a
+    terminal (a terminal gets the progress bar instead). Not stderr: there a failed run leaves
+    exactly one message, the ``Error:`` line."""
     handlers: list[logging.Handler] = []
     formatter = logging.Formatter("%(asctime)s %(levelname)s %(message)s", "%Y-%m-%dT%H:%M:%S")
     formatter.converter = time.gmtime
@@ -156,9 +158,9 @@ def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
         handler.setFormatter(formatter)
         handlers.append(handler)
     if not quiet and not sys.stderr.isatty():
-        handler = logging.StreamHandler(sys.stderr)
+        handler = logging.StreamHandler(sys.stdout)
         handler.setFormatter(formatter)
-        # Errors reach stderr once, as the command's "Error: ..." message.
+        # Errors are the command's "Error: ..." message on stderr; not repeated here.
         handler.addFilter(lambda record: record.levelno < logging.ERROR)
         handlers.append(handler)
     handlers.append(logging.NullHandler())   # no "last resort" echo of records to stderr

@@ -177,8 +177,8 @@ def read_fleet(path) -> Fleet:
 
     if problems.errors:
         errors = problems.sorted_errors()
-        noun = "problem" if len(errors) == 1 else "problems"
-        head = (f"{path}: {len(errors)} {noun} in the fleet workbook; fix them and check again "
+        noun, pronoun = ("problem", "it") if len(errors) == 1 else ("problems", "them")
+        head = (f"{path}: {len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again "
                 f"with `fleetrun validate {path.name}`:")
         error = InputError("\n".join([head] + ["  " + e for e in errors]))
         error.problems = errors
