@@ -22,7 +22,7 @@ import numpy as np
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
 from fleetrun.simulation.params import VehicleArrays
-from fleetrun.simulation.road_load import road_load_N, grade_force_N
+from fleetrun.simulation.road_load import grade_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, input_torque_Nm,
                                               torque_ratio)
 
@@ -139,8 +139,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
     v_prev = np.concatenate([speed_mps[:, :1], speed_mps[:, :-1]], axis=1)
     v_avg = 0.5 * (speed_mps + v_prev)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        accel = np.where(dt > 0, (speed_mps - v_prev) / dt, 0.0)
+    inv_dt = np.concatenate([[0.0], 1.0 / np.diff(time_s)])[None, :]  # step 0 has no time
+    accel = (speed_mps - v_prev) * inv_dt
     g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
     grade = (0.5 * (grade_pct + g_prev))[None, :]
     if columns is not None:
@@ -148,7 +148,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         N = dt.shape[1]
     col = lambda a: a[:, None]  # noqa: E731
     moving = v_avg > 1e-6
-    force = (road_load_N(v_avg, col(va.A_N), col(va.B_N), col(va.C_N))
+    # road load (road_load.py; its standstill case is the where below) + inertia + grade
+    force = (col(va.A_N) + v_avg * (col(va.B_N) + col(va.C_N) * v_avg)
              + col(va.mass_kg * (1.0 + va.rot_frac)) * accel
              + grade_force_N(col(va.mass_kg), grade))
     force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
@@ -159,7 +160,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
 
     # gear: lowest engine speed with power reserve (transmission.py)
     p_need = np.maximum(force * v_avg, 0.0) / DRIVETRAIN_GUESS
-    rows = np.broadcast_to(np.arange(V)[:, None], (V, N))
+    rows = np.arange(V)[:, None]
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
     if va.power_table is None:
         va.power_table = power_speed_table(va)
@@ -174,17 +175,20 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     gear = np.where(moving, va.combo_gear.reshape(-1)[flat_k], 0)
 
     # differential
-    G_tot = col(va.final_drive) * np.where(axle_low, col(va.low_ratio), 1.0)
+    if (va.low_ratio > 1.0).any():
+        G_tot = col(va.final_drive) * np.where(axle_low, col(va.low_ratio), 1.0)
+    else:  # no two-speed axle in this block
+        G_tot = col(va.final_drive)
     diff_rpm = wheel_rpm * G_tot
     kim = col(va.kim_Nm)
     active = moving & (diff_rpm > 0)
     out_frac = np.abs(wheel_torque) / (kim * G_tot)
     diff_loss_Nm = np.maximum(solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active) - out_frac, 0.0) * kim
     diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
-    diff_torque = wheel_torque / G_tot + diff_loss_Nm
+    out_Nm = out_frac * kim  # |T_out| / G_tot: output torque referred to the input
+    diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
     with np.errstate(divide="ignore", invalid="ignore"):
-        diff_eff = np.where(diff_loss_Nm > 0, np.abs(wheel_torque / G_tot) / (np.abs(wheel_torque / G_tot) + diff_loss_Nm), 0.0)
-    diff_eff = np.where(moving, diff_eff, 0.0)
+        diff_eff = np.where(diff_loss_Nm > 0, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
 
     # gearbox
     trans_torque = np.where(moving, input_torque_Nm(diff_torque, trans_ratio, gear_eff), 0.0)
