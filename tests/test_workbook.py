@@ -281,3 +281,24 @@ def test_duty_class_cycle_mixes_checked(tmp_path):
     ok = write_fleet(tmp_path / "ok.xlsx", [vehicle()], [scenario(cycle_mix_HD="hd-udds:1")])
     s = read_fleet(ok).scenarios[0]
     assert s.mix_for("HD") == {"HD-UDDS": 1.0} and s.mix_for("MD") == s.mix_for("LD") == s.cycle_mix
+
+
+def test_shipped_example_fleet_is_clean_and_reproducible(tmp_path):
+    import subprocess
+    import sys
+
+    from fleetrun.resources import inputs_dir
+
+    shipped = inputs_dir() / "example_fleet.xlsx"
+    result = CliRunner().invoke(cli, ["validate", str(shipped)])
+    assert result.exit_code == 0 and result.stderr == "", result.stderr
+    fleet = read_fleet(shipped)
+    configurations = {v.configuration for v in fleet.vehicles}
+    assert {"LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD"} <= configurations
+    assert {"HD_RWD", "HD_DUAL", "HD_TANDEM", "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL"} <= configurations
+    assert [s.scenario_id for s in fleet.scenarios] == ["baseline", "hot_summer", "congested_urban"]
+    rebuilt = tmp_path / "rebuilt.xlsx"
+    script = inputs_dir() / "make_example_fleet.py"
+    subprocess.run([sys.executable, str(script), "-o", str(rebuilt)], check=True, capture_output=True)
+    again = read_fleet(rebuilt)
+    assert again.vehicles == fleet.vehicles and again.scenarios == fleet.scenarios

@@ -274,7 +274,7 @@ def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scen
             "vehicle_class": [v.vehicle_class for v in vehicles],
             "configuration": [v.configuration for v in vehicles],
             "fuel": fuel.astype(str),
-            "count": count,
+            "count": _whole_if_possible(count),
             "miles_total": miles_total,
             "fuel_gal_total": gallons,
             "mpg": mpg,
@@ -288,6 +288,13 @@ def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scen
     if not frames:
         return pd.DataFrame(columns=RESULTS_COLUMNS)
     return pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS]
+
+
+def _whole_if_possible(values: np.ndarray) -> np.ndarray:
+    """Counts as integers (``1000``, not ``1000.0``) unless some are fractional."""
+    if np.all(np.isfinite(values)) and np.all(values == np.round(values)) and np.all(np.abs(values) < 2**53):
+        return values.astype(np.int64)
+    return values
 
 
 def _ratio(numerator: float, denominator: float) -> float:
@@ -304,7 +311,7 @@ def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
         rows.append({
             "scenario_id": scenario_id,
             "vehicle_class": vehicle_class,
-            "vehicles": total["count"],
+            "vehicles": int(total["count"]) if group["count"].dtype.kind == "i" else total["count"],
             "miles_total": total["miles_total"],
             "fuel_gal_total": total["fuel_gal_total"],
             "mpg": _ratio(total["miles_total"], total["fuel_gal_total"]),
