@@ -67,21 +67,9 @@ def speed_grid(configuration: str) -> np.ndarray:
 
 # --------------------------------------------------------------------------- the model
 def _model():
-    try:
-        from fleetrun.differential import efficiency
-    except ImportError:  # pragma: no cover - only while the differential package is being written
-        return _interim_efficiency
+    from fleetrun.differential import efficiency
+
     return efficiency
-
-
-def _interim_efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
-                        axle_gear="high", physics="thesis", **_):  # pragma: no cover
-    """Stand-in with the real signature: constant no-load plus proportional loss."""
-    tf = np.asarray(torque_fraction, float)
-    n = np.asarray(speed_rpm, float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        eta = 1.0 - 0.03 - (0.002 + 2e-7 * n) / tf
-    return np.where(np.isfinite(eta) & (eta > 0), eta, 0.0)
 
 
 def model_supports(name: str) -> bool:
