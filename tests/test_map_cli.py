@@ -86,3 +86,9 @@ def test_failed_run_keeps_previous_output(tmp_path):
     before = out.read_text()
     assert run("map", "LD_RWD", "--gear-ratio", "3", "--speeds-rpm", "-1", "-o", str(out)).exit_code == 1
     assert out.read_text() == before
+
+
+def test_vecto_generic_refuses_light_duty():
+    result = run("map", "LD_RWD", "--gear-ratio", "3", "--physics", "vecto-generic")
+    assert result.exit_code == 1
+    assert "heavy-duty axles only" in result.output and "--physics thesis" in result.output

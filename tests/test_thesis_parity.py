@@ -128,3 +128,21 @@ def test_array_and_scalar_agree_and_shapes_broadcast():
 def test_zero_torque_gives_zero_as_b6():
     """At torque fraction 0 every stage divides a loss by zero torque: B.6 returns 0."""
     assert np.all(efficiency("LD_FWD", 0.0, [0, 1000, 4000], 3.0) == 0.0)
+
+
+def test_array_low_gear_ratios_match_scalar_calls():
+    lows = np.array([4.900735, 1.35, 4.900735, 3.0])
+    got = efficiency("HD_DUAL", 0.3, np.array([800.0, 1200.0, 1600.0, 2000.0]), 3.7, low_gear_ratio=lows,
+                     axle_gear="low")
+    for i, lo in enumerate(lows):
+        want = float(efficiency("HD_DUAL", 0.3, [800.0, 1200.0, 1600.0, 2000.0][i], 3.7, low_gear_ratio=lo,
+                                axle_gear="low"))
+        assert got[i] == want
+
+
+def test_input_torque_scale_matters_to_vecto_only():
+    thesis = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, input_torque_scale_Nm=s)) for s in (5000, 30000)]
+    assert thesis[0] == thesis[1]
+    vecto = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, physics="vecto-generic", input_torque_scale_Nm=s))
+             for s in (5000, 30000)]
+    assert vecto[0] < vecto[1]  # the same drag is a larger share of a smaller torque

@@ -67,23 +67,40 @@ def _show(values):
 
 
 def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
-               axle_gear="high", physics="thesis", oil_temp_C=None):
+               axle_gear="high", physics="thesis", oil_temp_C=None, input_torque_scale_Nm=None):
     """Differential efficiency of ``configuration`` (CONTRACT.md ids).
 
     ``torque_fraction``: input torque / Kim torque scale (thesis Sec. 5.2.1.A).
-    ``speed_rpm``: differential input speed. ``gear_ratio``: final-drive ratio (scalar or
-    array). ``oil_temp_C``: lubricant temperature (None: the baseline's own, 70 C for thesis).
-    Returns an array of the broadcast shape; 0 where a stage's losses exceed its input.
+    ``speed_rpm``: differential input speed. ``gear_ratio`` and ``low_gear_ratio``: final-drive
+    and two-speed low ratios (scalars or arrays). ``oil_temp_C``: lubricant temperature (None:
+    the baseline's own, 70 C for thesis). ``input_torque_scale_Nm``: the vehicle's Kim scale,
+    for baselines that need absolute torque (vecto-generic; None: the reference
+    differential's capacity); the thesis model maps fractions onto its reference differential
+    and ignores it. Returns an array of the broadcast shape; 0 where a stage's losses exceed
+    its input.
     """
-    config = check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio, axle_gear)
+    config = check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio,
+                          None if low_gear_ratio is None else np.min(low_gear_ratio), axle_gear)
     model = PHYSICS.get(physics)
-    tf, n, g = np.broadcast_arrays(np.asarray(torque_fraction, dtype=float),
-                                   np.asarray(speed_rpm, dtype=float), np.asarray(gear_ratio, dtype=float))
-    kwargs = dict(low_gear_ratio=low_gear_ratio, axle_gear=axle_gear, oil_temp_C=oil_temp_C)
-    if g.ndim == 0 or np.all(g == g.flat[0]):
-        return model.efficiency(config, tf, n, float(g.flat[0]) if g.size else 1.0, **kwargs)
+    low = np.nan if low_gear_ratio is None else low_gear_ratio
+    tf, n, g, lo = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
+                                         (torque_fraction, speed_rpm, gear_ratio, low)))
+    kwargs = dict(axle_gear=axle_gear, oil_temp_C=oil_temp_C, input_torque_scale_Nm=input_torque_scale_Nm)
+
+    def one(g_value, lo_value, sel=None):
+        pick = (lambda a: a) if sel is None else (lambda a: a[sel])
+        return model.efficiency(config, pick(tf), pick(n), float(g_value),
+                                low_gear_ratio=None if np.isnan(lo_value) else float(lo_value), **kwargs)
+
+    if g.size == 0:
+        return np.zeros(g.shape)
+    pairs = np.stack([g.ravel(), lo.ravel()], axis=1)
+    if np.all(pairs == pairs[0]) or (np.isnan(pairs[0, 1]) and np.all(pairs[:, 0] == pairs[0, 0])):
+        return np.broadcast_to(one(pairs[0, 0], pairs[0, 1]), g.shape).astype(float)
     out = np.empty(g.shape)
-    for value in np.unique(g):
-        sel = g == value
-        out[sel] = model.efficiency(config, tf[sel], n[sel], float(value), **kwargs)
+    keys, inverse = np.unique(np.nan_to_num(pairs, nan=-1.0), axis=0, return_inverse=True)
+    inverse = inverse.reshape(g.shape)
+    for k, (g_value, lo_value) in enumerate(keys):
+        sel = inverse == k
+        out[sel] = one(g_value, np.nan if lo_value == -1.0 else lo_value, sel)
     return out
