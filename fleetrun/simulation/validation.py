@@ -90,8 +90,21 @@ DYNO_TESTS = {
 CALIBRATION_TEST = "UDDS (hot)"
 
 
+def engine_on_rows(speed, fuel_rate):
+    """Number of leading rows to keep: the recording without its trailing engine-off run.
+
+    Every recording ends with the car standing and the fuel flow exactly 0 (engine switched
+    off after the test: the last 26 s of udds_hot, hwfet and us06 alike). The simulation cannot
+    know that and would idle there, so the segment ends at the last row with speed or fuel
+    flow (the measured sum is unchanged, it is 0 over the removed rows).
+    """
+    active = (np.asarray(speed) > 0) | (np.asarray(fuel_rate) > 0)
+    return int(np.flatnonzero(active)[-1]) + 1 if active.any() else 0
+
+
 def dyno_segment(recording: str, start_s: float, dyno_dir=None):
-    """(DriveCycle of the measured roll speed from ``start_s``, measured fuel volume [cm^3])."""
+    """(DriveCycle of the measured roll speed from ``start_s`` to the end of the engine-on
+    part, measured fuel volume [cm^3])."""
     import pandas as pd
 
     from fleetrun.cycles import DriveCycle
@@ -100,6 +113,7 @@ def dyno_segment(recording: str, start_s: float, dyno_dir=None):
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     df = pd.read_csv(folder / f"{recording}.csv")
     d = df[df.time_s >= start_s]
+    d = d.iloc[:engine_on_rows(d.vehicle_speed_mph.to_numpy(), d.fuel_rate_cc_per_s.to_numpy())]
     t = d.time_s.to_numpy() - start_s
     cycle = DriveCycle(recording, t, d.vehicle_speed_mph.to_numpy() * 0.44704, np.zeros(len(d)))
     rate = d.fuel_rate_cc_per_s.to_numpy()
@@ -108,17 +122,50 @@ def dyno_segment(recording: str, start_s: float, dyno_dir=None):
     return cycle, measured_cc
 
 
-def camry_validation(mode="auto", dyno_dir=None):
-    """Calibrate ``eta_indicated`` on the hot UDDS, predict the others. Returns a dict."""
+# EPA 2022 Test Car List, 18-AV3A configuration 1 (the sidecars' row): N/V ratio, engine rpm
+# per mph in top gear. It fixes the rolling radius: r = (top gear x axle) x 0.44704 x 60 /
+# (2 pi N/V) = 0.3257 m for 0.673 x 2.80, against 0.3344 m, half the nominal diameter of
+# 235/45R18 (215/55R17: 0.3341 m, the size does not matter), i.e. a loaded tyre 2.6 % smaller.
+EPA_N_PER_V_RPM_PER_MPH = 24.7
+
+
+def rolling_radius_factor_from_n_per_v(vehicle, n_per_v_rpm_per_mph=EPA_N_PER_V_RPM_PER_MPH):
+    """``tire_rolling_radius_factor`` that makes the top gear turn the engine at N/V."""
+    from fleetrun.simulation.tyre import rolling_radius_m
+
+    overall = float(vehicle.transmission_gear_ratios[-1]) * float(vehicle.final_drive_ratio)
+    r = overall * 0.44704 * 60.0 / (2.0 * np.pi * n_per_v_rpm_per_mph)
+    return r / rolling_radius_m(vehicle.tire_size)
+
+
+def camry_vehicle(dyno_dir=None, extra=None, **fields):
+    """The Camry's Vehicles row (sidecar of the hot UDDS) with the rolling radius of EPA's N/V
+    (``rolling_radius_factor_from_n_per_v``), optional ``extra`` overrides (simulation keys
+    such as ``pme0_a_kPa``) and replaced VehicleSpec ``fields``."""
     from fleetrun.resources import inputs_dir
-    from fleetrun.simulation import simulate
-    from fleetrun.simulation.params import engine_defaults
     from fleetrun.simulation.vehicle_file import read_vehicle_toml
 
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     vehicle = read_vehicle_toml(folder / "camry2018_udds_hot.toml")
-    eta0 = engine_defaults(vehicle.fuel, vehicle.duty_class)["eta_indicated"]
-    density = engine_defaults(vehicle.fuel, vehicle.duty_class)["density_kg_per_L"]
+    base = {"tire_rolling_radius_factor": rolling_radius_factor_from_n_per_v(vehicle)}
+    return dataclasses.replace(vehicle, extra={**base, **vehicle.extra, **(extra or {})}, **fields)
+
+
+def camry_validation(mode="auto", dyno_dir=None, vehicle=None):
+    """Calibrate ``eta_indicated`` on the hot UDDS, predict the others. Returns a dict.
+
+    ``vehicle`` (default: the sidecar row, ``camry_vehicle()``) lets the sensitivity runs
+    change one input; the calibration is the same for every variant.
+    """
+    from fleetrun.resources import inputs_dir
+    from fleetrun.simulation import simulate
+    from fleetrun.simulation.params import engine_defaults
+
+    folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
+    vehicle = camry_vehicle(folder) if vehicle is None else vehicle
+    defaults = engine_defaults(vehicle.fuel, vehicle.duty_class)
+    eta0 = float(vehicle.extra.get("eta_indicated", defaults["eta_indicated"]))
+    density = defaults["density_kg_per_L"]
     segments = {k: dyno_segment(rec, start, folder) for k, (rec, start) in DYNO_TESTS.items()}
 
     def predicted_cc(eta):
@@ -126,17 +173,98 @@ def camry_validation(mode="auto", dyno_dir=None):
         return {k: float(simulate([v], cyc, mode=mode).fuel_g[0] / density) for k, (cyc, _) in segments.items()}
 
     before = predicted_cc(eta0)
-    # fuel is exactly proportional to 1/eta_indicated (Willans line, idle fuel from the same
-    # line): one division calibrates it
-    eta_cal = eta0 * before[CALIBRATION_TEST] / segments[CALIBRATION_TEST][1]
+    if "idle_fuel_g_per_s" in vehicle.extra:
+        # fuel = C + K / eta exactly (a given idle rate does not scale with eta): two runs
+        other = predicted_cc(2.0 * eta0)
+        K = 2.0 * eta0 * (before[CALIBRATION_TEST] - other[CALIBRATION_TEST])
+        C = before[CALIBRATION_TEST] - K / eta0
+        eta_cal = K / (segments[CALIBRATION_TEST][1] - C)
+    else:
+        # fuel is exactly proportional to 1/eta_indicated (Willans line, idle fuel from the
+        # same line): one division calibrates it
+        eta_cal = eta0 * before[CALIBRATION_TEST] / segments[CALIBRATION_TEST][1]
     after = predicted_cc(eta_cal)
     rows = []
     for k, (cyc, meas) in segments.items():
-        rows.append(dict(test=k, miles=cyc.miles, measured_cc=meas, measured_mpg=cyc.miles / (meas / 3785.411784),
+        rows.append(dict(test=k, miles=cyc.miles, duration_s=float(cyc.time_s[-1]), measured_cc=meas,
+                         measured_mpg=cyc.miles / (meas / 3785.411784),
                          predicted_uncalibrated_cc=before[k], error_uncalibrated=before[k] / meas - 1.0,
                          predicted_cc=after[k], predicted_mpg=cyc.miles / (after[k] / 3785.411784),
                          error=after[k] / meas - 1.0, calibration=(k == CALIBRATION_TEST)))
     return {"eta_indicated_default": eta0, "eta_indicated_calibrated": eta_cal, "mode": mode, "tests": rows}
+
+
+def measured_idle_g_per_s(dyno_dir=None, recording="camry2018_udds_hot", density_kg_per_L=0.743):
+    """Mean measured fuel rate [g/s] over the standstill rows of the engine-on part of a test."""
+    import pandas as pd
+    from fleetrun.resources import inputs_dir
+
+    folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
+    d = pd.read_csv(folder / f"{recording}.csv")
+    d = d.iloc[:engine_on_rows(d.vehicle_speed_mph.to_numpy(), d.fuel_rate_cc_per_s.to_numpy())]
+    stop = d.vehicle_speed_mph.to_numpy() == 0
+    return float(d.fuel_rate_cc_per_s.to_numpy()[stop].mean() * density_kg_per_L)
+
+
+# EPA 2022 Test Car List rows of the same car (2.5 L, 8-speed, front drive): A, B, C, ETW [lb]
+EPA_2022_CAMRY_2L5 = {
+    "18-AV3A config 1 (used)": (26.509, 0.19851, 0.016476, 3625.0),
+    "18-AV3A config 0": (32.527, 0.22484, 0.017128, 3750.0),
+    "18-AV2A config 8": (25.587, 0.19688, 0.016371, 3625.0),
+    "18-AV2A config 10": (24.047, 0.18910, 0.016418, 3625.0),
+}
+
+
+def camry_sensitivity(mode="auto", dyno_dir=None):
+    """One input changed at a time, the same calibration on the hot UDDS each time. Rows
+    (variant, eta_indicated_calibrated, error_uncalibrated and error of each test)."""
+    base = camry_vehicle(dyno_dir)
+    variants = {"as validated": base,
+                "tyre radius = half nominal diameter (no N/V correction)":
+                    camry_vehicle(dyno_dir, extra={"tire_rolling_radius_factor": 1.0}),
+                "friction a, c = 97, 5 kPa (Heywood Eq. 13.20, no pumping term)":
+                    camry_vehicle(dyno_dir, extra={"pme0_a_kPa": 97.0, "pme0_c_kPa": 5.0}),
+                "shift_speed_min_rpm 1100, lockup_speed_rpm 1000 (8th from ~45 mph)":
+                    camry_vehicle(dyno_dir, extra={"shift_speed_min_rpm": 1100.0, "lockup_speed_rpm": 1000.0}),
+                "gear efficiency 0.97 / direct 0.985":
+                    camry_vehicle(dyno_dir, extra={"gear_efficiency": 0.97, "direct_gear_efficiency": 0.985}),
+                "idle fuel = measured on the hot UDDS":
+                    camry_vehicle(dyno_dir, extra={"idle_fuel_g_per_s": measured_idle_g_per_s(dyno_dir)})}
+    for name, (A, B, C, etw) in EPA_2022_CAMRY_2L5.items():
+        if "used" not in name:
+            variants[f"road load of {name}"] = camry_vehicle(dyno_dir, coastdown_A_lbf=A, coastdown_B_lbf_per_mph=B,
+                                                             coastdown_C_lbf_per_mph2=C, test_weight_kg=etw * 0.45359237)
+    for k in (0.9, 0.8):
+        variants[f"road load A, B, C x {k}"] = dataclasses.replace(
+            base, coastdown_A_lbf=base.coastdown_A_lbf * k, coastdown_B_lbf_per_mph=base.coastdown_B_lbf_per_mph * k,
+            coastdown_C_lbf_per_mph2=base.coastdown_C_lbf_per_mph2 * k)
+    rows = []
+    for name, v in variants.items():
+        r = camry_validation(mode, dyno_dir, vehicle=v)
+        row = dict(variant=name, eta_indicated_calibrated=r["eta_indicated_calibrated"])
+        for t in r["tests"]:
+            row[f"{t['test']} uncalibrated"] = t["error_uncalibrated"]
+            row[t["test"]] = t["error"]
+        rows.append(row)
+    return rows
+
+
+def camry_modes(result, mode="auto", dyno_dir=None):
+    """Measured and predicted (calibrated) fuel [cm^3] by driving mode of each test: standstill,
+    overrun (wheel torque <= 0 while moving), acceleration (> 0.15 m/s^2), cruise (the rest).
+    The 1 Hz fuel signal lags the speed by about a second, so the split between modes is
+    approximate; the totals are exact."""
+    out = {}
+    for k, (t, meas, sim, trace) in camry_traces(result, mode, dyno_dir, with_trace=True).items():
+        v = trace["vehicle_speed_mps"].to_numpy()
+        acc = np.r_[0.0, np.diff(v)]
+        wheel = trace["wheel_torque_Nm"].to_numpy()
+        label = np.where(v < 0.1, "standstill", np.where(wheel <= 0, "overrun",
+                         np.where(acc > 0.15, "acceleration", "cruise")))
+        out[k] = {m: dict(seconds=int(np.sum(label == m)), measured_cc=float(meas[label == m].sum()),
+                          predicted_cc=float(sim[label == m].sum()))
+                  for m in ("standstill", "overrun", "cruise", "acceleration")}
+    return out
 
 
 # ----------------------------------------------------------------------------- plots
@@ -193,33 +321,36 @@ def plot_camry(result, traces, path):
     plt.close(fig)
 
 
-def camry_traces(result, mode="auto", dyno_dir=None):
-    """Per-second measured and predicted fuel [cm^3] of each test, with the calibrated engine."""
+def camry_traces(result, mode="auto", dyno_dir=None, with_trace=False):
+    """Per-second measured and predicted fuel [cm^3] of each test, with the calibrated engine
+    (and the simulation's trace DataFrame with ``with_trace``)."""
     from fleetrun.resources import inputs_dir
     from fleetrun.simulation import simulate
     from fleetrun.simulation.params import engine_defaults
-    from fleetrun.simulation.vehicle_file import read_vehicle_toml
 
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
-    vehicle = read_vehicle_toml(folder / "camry2018_udds_hot.toml")
-    vehicle = dataclasses.replace(vehicle, extra={**vehicle.extra, "eta_indicated": result["eta_indicated_calibrated"]})
+    vehicle = camry_vehicle(folder, extra={"eta_indicated": result["eta_indicated_calibrated"]})
     density = engine_defaults(vehicle.fuel, vehicle.duty_class)["density_kg_per_L"]
     import pandas as pd
     out = {}
     for k, (rec, start) in DYNO_TESTS.items():
         cyc, _ = dyno_segment(rec, start, folder)
         df = pd.read_csv(folder / f"{rec}.csv")
-        meas = df[df.time_s >= start].fuel_rate_cc_per_s.to_numpy().copy()
+        meas = df[df.time_s >= start].fuel_rate_cc_per_s.to_numpy()[:len(cyc.time_s)].copy()
         meas[0] = 0.0
         r = simulate([vehicle], cyc, mode=mode, trace=True)
         sim = r.trace["fuel_rate_g_per_s"][0] * np.r_[0.0, np.diff(cyc.time_s)] / density
         out[k] = (cyc.time_s, meas * np.r_[0.0, np.diff(cyc.time_s)], sim)
+        if with_trace:
+            out[k] = out[k] + (r.trace_frame(0),)
     return out
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--docs", help="write the plots into DIR/img and print the tables")
+    parser.add_argument("--sensitivity", action="store_true",
+                        help="also run the Camry calibration with one input changed at a time (~1 min)")
     args = parser.parse_args(argv)
     poc = proof_of_concept()
     summary = poc.assign(gap=poc.model_efficiency - poc.c19_efficiency).groupby("vehicle", sort=False).agg(
@@ -231,6 +362,11 @@ def main(argv=None):
     print(summary.round(4).to_string())
     cam = camry_validation()
     print(json.dumps(cam, indent=1, default=float))
+    print("measured idle on the hot UDDS [g/s]:", round(measured_idle_g_per_s(), 4))
+    print("by driving mode (calibrated):", json.dumps(camry_modes(cam), indent=1, default=float))
+    if args.sensitivity:
+        import pandas as pd
+        print(pd.DataFrame(camry_sensitivity()).set_index("variant").round(4).to_string())
     if args.docs:
         img = Path(args.docs) / "img"
         img.mkdir(parents=True, exist_ok=True)
