@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fleetrun.cycles import DriveCycle, load_cycle
-from fleetrun.errors import FleetrunError, InputError
+from fleetrun.errors import InputError
 from fleetrun.simulation import TRACE_COLUMNS, simulate
 from fleetrun.simulation.engine import fuel_rate_g_per_s, full_load_torque_Nm, offset_torque_Nm
 from fleetrun.simulation.params import vehicle_arrays
@@ -216,11 +216,6 @@ def test_ambient_temperature_reaches_the_differential():
     warm = simulate([F150], load_cycle("UDDS"), mode="direct", ambient_temp_C=20.0)
     # colder (thicker) oil, lower efficiency: the thesis model's viscosity terms
     assert cold.diff_efficiency[0] < warm.diff_efficiency[0]
-
-
-def test_effects_not_supported_yet():
-    with pytest.raises(FleetrunError, match="effects are not supported in simulate yet"):
-        simulate([CAMRY], load_cycle("UDDS"), effects=("cornering",))
 
 
 @pytest.mark.parametrize("change, message", [

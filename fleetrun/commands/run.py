@@ -1,6 +1,7 @@
 """``fleetrun run``: simulate a fleet workbook over its scenarios and write the budget reports.
 
     fleetrun run FLEET.xlsx [--out DIR] [--scenario ID]... [--engine local|dask] [--scheduler ADDR]
+                 [--with EFFECT[,EFFECT...]]
     fleetrun run --config batch.toml
 
 Writes report.xlsx, summary.html, results.csv, class_summary.csv and manifest.json into DIR,
@@ -29,6 +30,9 @@ from fleetrun.fleet.engines import ENGINES
 @click.option("--physics", default=None, help="Physics baseline [thesis].")
 @click.option("--mode", type=click.Choice(["auto", "direct", "map2d", "map3d"]), default=None,
               help="Simulation mode (thesis Ch. 6) [auto].")
+@click.option("--with", "with_effects", metavar="EFFECT[,EFFECT...]", default=None,
+              help="Add physics the thesis left out (docs/effects.md), e.g. bearing_preload:drag_torque_Nm=3,warmup "
+                   "[batch: the config's 'with'].")
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Where efficiency maps are cached between runs [~/.cache/fleetrun].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write cached maps.")
@@ -36,10 +40,11 @@ from fleetrun.fleet.engines import ENGINES
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or log lines on stderr.")
 @click.pass_context
-def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, cache_dir,
+def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, class_summary.csv and manifest.json."""
+    from fleetrun.effects import parse_with
     from fleetrun.fleet import batch
 
     settings: dict = {}
@@ -49,6 +54,8 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         settings = batch.read_config(config)
     elif workbook is None:
         raise click.UsageError("give a fleet WORKBOOK (or --config batch.toml)")
+    # a misspelt effect fails here, before any fleet is read
+    effects = parse_with(with_effects) if with_effects is not None else settings.get("with", [])
     inputs = settings.get("inputs") or [workbook]
     batch_mode = config is not None
     out = out or settings.get("out") or (Path("results") if batch_mode else Path(f"run-{Path(workbook).stem}"))
@@ -69,8 +76,8 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     plan = batch.RunPlan(inputs=list(inputs), out=Path(out), per_input_dirs=batch_mode,
                          scenarios=list(scenarios) or settings.get("scenarios", []), engine=engine,
                          scheduler=scheduler, physics=physics or settings.get("physics", "thesis"),
-                         mode=mode or settings.get("mode", "auto"), cache_dir=cache, log=log_file,
-                         chunk_size=settings.get("chunk_size"))
+                         mode=mode or settings.get("mode", "auto"), effects=effects, cache_dir=cache,
+                         log=log_file, chunk_size=settings.get("chunk_size"))
     handlers = batch.setup_logging(plan.log, quiet)
     try:
         code, errors, written = batch.run_plan(plan, quiet=quiet)

@@ -1,7 +1,7 @@
 """``fleetrun simulate``: one vehicle over one drive cycle (CONTRACT.md).
 
     fleetrun simulate FLEET.xlsx --vehicle ID --cycle NAME [--scenario ID]
-                     [--mode direct|map2d|map3d] [-o trace.csv]
+                     [--mode direct|map2d|map3d] [--with EFFECT[,EFFECT...]] [-o trace.csv]
     fleetrun simulate --vehicle-file VEHICLE.toml --cycle NAME [...]
 
 Prints one JSON line (miles, fuel_gal, mpg, diff_efficiency, drivetrain_efficiency, ...) and,
@@ -47,11 +47,17 @@ def _write_atomic(frame, path: Path) -> None:
 @click.option("--physics", default="thesis", show_default=True, help="Differential physics baseline.")
 @click.option("--ambient-temp-C", "ambient_temp_C", type=float, default=None,
               help="Ambient temperature [C] (overrides the scenario's).")
+@click.option("--with", "with_effects", metavar="EFFECT[,EFFECT...]",
+              help="Add physics the thesis left out (docs/effects.md), e.g. bearing_preload:drag_torque_Nm=3,warmup.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write the per-step trace CSV here.")
-def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode, physics, ambient_temp_C, output):
+def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode, physics, ambient_temp_C,
+            with_effects, output):
     """Simulate one vehicle over a drive cycle; print a JSON summary line."""
     from fleetrun.cycles import load_cycle
+    from fleetrun.effects import parse_with
     from fleetrun.simulation import simulate
+
+    effects = parse_with(with_effects)  # a misspelt effect fails here, before any work
 
     ambient = 20.0
     if vehicle_file:
@@ -82,7 +88,8 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
     if ambient_temp_C is not None:
         ambient = ambient_temp_C
     cycle = load_cycle(cycle_name)
-    result = simulate([vehicle], cycle, mode=mode, ambient_temp_C=ambient, physics=physics, trace=bool(output))
+    result = simulate([vehicle], cycle, mode=mode, ambient_temp_C=ambient, physics=physics, effects=effects,
+                      trace=bool(output))
     if output:
         _write_atomic(result.trace_frame(0), Path(output))
     summary = result.summary(0)

@@ -23,7 +23,7 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in DIFFERENTIAL_EFFECTS + VEHICLE_EF
 
 __all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", "parse_with",
            "differential_extra_torque_Nm", "efficiency_with_effects", "steady_channels",
-           "vehicle_extra_fuel_g_per_s", "overall_ratio"]
+           "vehicle_extra_fuel_g_per_s", "overall_ratio", "as_effect_list"]
 
 
 def get_effect(name: str) -> Effect:
@@ -75,6 +75,12 @@ def parse_with(text: str | None) -> list[tuple[Effect, dict[str, float]]]:
             params[pname] = val
         out.append((effect, params))
     return out
+
+
+def as_effect_list(effects) -> list[tuple[Effect, dict[str, float]]]:
+    """``effects`` in any form the functions here accept (a ``--with`` string, ids, Effect
+    objects, (effect or id, params) pairs) as (Effect, full parameters) pairs."""
+    return _as_effect_list(effects)
 
 
 def _as_effect_list(effects) -> list[tuple[Effect, dict]]:

@@ -27,7 +27,7 @@ from fleetrun.errors import FleetrunError, InputError
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
-CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "mode", "cache_dir",
+CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "mode", "with", "cache_dir",
                "log", "chunk_size"}
 
 log = logging.getLogger("fleetrun.run")
@@ -52,6 +52,7 @@ class RunPlan:
     scheduler: str | None = None
     physics: str = "thesis"
     mode: str = "auto"
+    effects: list = field(default_factory=list)   # --with: (Effect, params) pairs from parse_with
     cache_dir: Path | None = None
     log: Path | None = None
     chunk_size: int | None = None
@@ -107,6 +108,20 @@ def read_config(path: Path) -> dict:
             if not isinstance(data[key], str):
                 raise InputError(f"'{key}' must be a string", file=path)
             config[key] = data[key]
+    if "with" in data:   # the --with effects: "a,b:p=1" or ["a", "b:p=1"]
+        value = data["with"]
+        if isinstance(value, str):
+            value = [value]
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise InputError("'with' must be a string or a list of strings of effects, e.g. "
+                             "'bearing_preload:drag_torque_Nm=3,warmup'", file=path)
+        from fleetrun.effects import parse_with
+
+        try:
+            config["with"] = [pair for item in value for pair in parse_with(item)]
+        except InputError as exc:
+            exc.file = exc.file or path
+            raise
     if "chunk_size" in data:
         if not isinstance(data["chunk_size"], int) or data["chunk_size"] < 1:
             raise InputError("'chunk_size' must be a positive whole number", file=path)
@@ -191,7 +206,7 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     log.info("%s: %d vehicle types, %d scenarios; engine %s", fleet_path.name, len(fleet.vehicles),
              len(plan.scenarios) or len(fleet.scenarios), plan.engine)
     result = run_fleet(fleet, plan.scenarios, engine=engine, physics=plan.physics, mode=plan.mode,
-                       cache_dir=str(plan.cache_dir) if plan.cache_dir else None,
+                       effects=plan.effects, cache_dir=str(plan.cache_dir) if plan.cache_dir else None,
                        progress=Progress(fleet_path.name, enabled=progress_enabled),
                        chunk_size=plan.chunk_size or CHUNK_SIZE)
     result.timings_s = {"read": read_s, **result.timings_s}

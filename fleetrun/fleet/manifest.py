@@ -20,6 +20,8 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "created_utc": result.created_utc,
         "inputs": inputs,
         "physics": result.physics,
+        # the --with effects (docs/effects.md) and their parameters: part of the physics used
+        "with": list(getattr(result, "effects", []) or []),
         "mode": result.mode,
         "engine": result.engine,
         "scenarios": [s.scenario_id for s in result.scenarios],

@@ -66,6 +66,7 @@ class SimulationTask:
     mode: str
     cache_dir: str | None
     simulate: Callable | None = None   # None: fleetrun.simulation.simulate
+    effects: tuple = ()                # --with: (effect id, params) pairs, plain data for any worker
 
 
 @dataclass
@@ -83,6 +84,7 @@ class RunResult:
     physics: str
     mode: str
     cycle_inputs: dict[str, str] = field(default_factory=dict)   # CSV path -> sha256
+    effects: list = field(default_factory=list)   # --with: [{"effect", "level", "parameters"}]
     created_utc: str = field(default_factory=lambda: _now_utc())
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
 
@@ -108,6 +110,8 @@ def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
     kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
     if task.cache_dir:
         kwargs["cache_dir"] = task.cache_dir
+    if task.effects:
+        kwargs["effects"] = [(effect, dict(params)) for effect, params in task.effects]
     found = {}
     for cycle, members in task.cycles:
         result = simulate([task.vehicles[k] for k in members], _cycle(cycle), **kwargs)
@@ -124,11 +128,17 @@ def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
 def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, physics: str = "thesis",
               mode: str = "auto", cache_dir: str | None = None,
               progress: Callable[[int, int], None] | None = None,
-              chunk_size: int = CHUNK_SIZE) -> RunResult:
-    """Simulate ``fleet`` for the scenarios named (all when none) and aggregate the results."""
+              chunk_size: int = CHUNK_SIZE, effects=()) -> RunResult:
+    """Simulate ``fleet`` for the scenarios named (all when none) and aggregate the results.
+
+    ``effects``: physics the thesis left out (``--with``; a string or ``parse_with`` pairs),
+    applied in every simulation (each cycle of a mix is driven from a cold start).
+    """
+    from fleetrun.effects import as_effect_list
     from fleetrun.fleet.engines import LocalEngine
 
     started = time.perf_counter()
+    effect_pairs = tuple((e.id, tuple(sorted(p.items()))) for e, p in as_effect_list(effects))
     scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
     engine = engine or LocalEngine()
     vehicles = fleet.vehicles
@@ -159,7 +169,8 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
             positions.append(chunk)
             tasks.append(SimulationTask(chunk=len(tasks), vehicles=tuple(distinct[j] for j in chunk),
                                         cycles=tuple(cycles), ambient_temp_C=ambient, physics=physics,
-                                        mode=mode, cache_dir=cache_dir, simulate=simulate_function))
+                                        mode=mode, cache_dir=cache_dir, simulate=simulate_function,
+                                        effects=effect_pairs))
 
     n = len(distinct)
     per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
@@ -190,7 +201,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     results = aggregate_vehicles(vehicles, scenarios, per_condition)
     classes = aggregate_classes(results)
     years = yearly_totals(results, scenarios)
-    maps, map_warnings = efficiency_maps(vehicles, physics)
+    maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
     warnings += map_warnings
     finished = time.perf_counter()
     return RunResult(
@@ -200,6 +211,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         distinct_vehicles=len(distinct),
         engine=engine.describe(), physics=physics, mode=mode,
         cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
+        effects=[{"effect": e.id, "level": e.level, "parameters": dict(p)} for e, p in as_effect_list(effect_pairs)],
     )
 
 
@@ -429,13 +441,17 @@ MAP_TORQUE_FRACTIONS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 MAP_SPEEDS_RPM = (250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000)
 
 
-def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str) -> tuple[list[dict], list[str]]:
+def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -> tuple[list[dict], list[str]]:
     """For each configuration in the fleet: efficiency over torque fraction x speed at the
-    fleet's median gear ratio (and median low ratio for two-speed axles, high gear)."""
+    fleet's median gear ratio and Kim scale (and median low ratio for two-speed axles, high
+    gear), with the steady-state part of the differential-level ``effects``."""
     try:
         from fleetrun.differential import efficiency
     except ImportError:
         return [], ["efficiency maps left out: fleetrun.differential is not available"]
+    from fleetrun.effects import as_effect_list, efficiency_with_effects
+
+    differential_effects = [(e, p) for e, p in as_effect_list(effects) if e.level == "differential"]
     maps = []
     by_config: dict[str, list[VehicleSpec]] = {}
     for v in vehicles:
@@ -447,8 +463,15 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str) -> tuple[list
         gear = float(np.median([v.final_drive_ratio for v in group]))
         lows = [v.low_gear_ratio for v in group if v.low_gear_ratio]
         low = float(np.median(lows)) if lows else None
-        eta = np.asarray(efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high",
-                                    physics=physics), dtype=float)
+        kim = float(np.median([v.kim_scale_Nm for v in group]))
+        if differential_effects:
+            eta = efficiency_with_effects(config, tf, rpm, gear, differential_effects, kim_scale_Nm=kim,
+                                          low_gear_ratio=low, axle_gear="high", physics=physics,
+                                          input_torque_scale_Nm=kim)
+        else:
+            eta = efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high", physics=physics,
+                             input_torque_scale_Nm=kim)
+        eta = np.asarray(eta, dtype=float)
         maps.append({"configuration": config, "gear_ratio": gear, "low_gear_ratio": low,
                      "axle_gear": "high", "torque_fractions": list(MAP_TORQUE_FRACTIONS),
                      "speeds_rpm": list(MAP_SPEEDS_RPM), "efficiency": eta.tolist(),

@@ -16,6 +16,8 @@ from fleetrun.simulation import diffmodes
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
+from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
+                                         vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.params import vehicle_arrays
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
@@ -66,6 +68,7 @@ class FleetCycleResult:
     shortfall_steps: np.ndarray          # steps with demand above full load (after re-drive)
     duration_s: float = 0.0
     trace: dict | None = field(default=None, repr=False)
+    effects: list = field(default_factory=list)   # the --with effects and parameters (describe_effects)
 
     @property
     def diff_efficiency(self) -> np.ndarray:
@@ -88,6 +91,7 @@ class FleetCycleResult:
             "mpg": f(self.mpg[i]), "diff_efficiency": f(self.diff_efficiency[i]),
             "drivetrain_efficiency": f(self.drivetrain_efficiency[i]),
             "shortfall_time_s": f(self.shortfall_time_s[i]), "shortfall_distance_m": f(self.shortfall_distance_m[i]),
+            "with": self.effects,
         }
 
     def trace_frame(self, i: int = 0):
@@ -134,27 +138,23 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
     ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
-    DEFAULT_MODE). ``ambient_temp_C`` is passed to the differential model when it accepts it
-    (physics="thesis" fixes the lubricant at 70 C). ``effects``: physics extensions for the
-    differential layer; a FleetrunError if the layer does not support them yet.
+    DEFAULT_MODE). ``ambient_temp_C`` sets the lubricant temperature (ambient + 50 K, thesis
+    Sec. 3.1.2) and the cold start of the effects. ``effects``: physics the thesis left out
+    (a ``--with`` string, or what ``fleetrun.effects.parse_with`` returns); they act per step
+    on top of any mode (fleetrun/simulation/effects.py, docs/simulation.md).
     """
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
     if mode not in MODES:
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
-    effects = tuple(effects or ())
-    if effects and not diffmodes.model_supports("effects"):
-        raise FleetrunError("effects are not supported in simulate yet",
-                            hint="Run without effects (the differential layer does not take them yet)")
-    if effects and mode != "direct":
-        mode = "direct"  # maps are built without effects; the effects see every step
+    effects = cycle_effects(effects)
     name, t, v_target, grade = _cycle_arrays(cycle)
     va = vehicle_arrays(vehicles)
     V = va.n
     if V:
         va.power_table = power_speed_table(va)  # once for the whole call, shared by the blocks
-    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir, effects)
+    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
     block = max(1, BLOCK_STEPS // t.size)
@@ -165,7 +165,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
             sub = rows[first:first + block]
             whole = sub.size == V
             parts.append(_run_block(va if whole else va.subset(sub), solver if whole else solver.subset(sub),
-                                    t, speed[first:first + block], v_target, grade, trace))
+                                    t, speed[first:first + block], v_target, grade, trace, effects))
         out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + ("_behind",)}
         if trace:
             out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else
@@ -200,6 +200,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     result = FleetCycleResult(
         vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
         **{key: (sums[key] if V else empty) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
+        effects=describe_effects(effects),
     )
     if trace and V:
         result.trace = sums["trace"]
@@ -211,7 +212,7 @@ SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff
               "shortfall_distance_m", "shortfall_max_speed_mps", "shortfall_steps")
 
 
-def _run_block(va, solver, t, speed, v_target, grade, trace):
+def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects()):
     """Simulate one block of vehicles at the speeds ``speed`` (V, N): per-vehicle sums (and
     the trace if asked for); ``_behind`` marks vehicles with steps above full load."""
     V, N = va.n, t.size
@@ -220,7 +221,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace):
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
     columns = None if trace else np.flatnonzero(target_avg > 0)
-    out = backward(va, t, speed, grade, solver, columns)
+    out = backward(va, t, speed, grade, solver, columns, effects)
     dt = out["dt"]
     dt_all = np.concatenate([[0.0], np.diff(t)])
     distance_m = (out["v_avg"] * dt).sum(axis=1)
@@ -235,6 +236,12 @@ def _run_block(va, solver, t, speed, v_target, grade, trace):
     if columns is not None:
         standstill_s = dt_all.sum() - dt_all[columns].sum()
         fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
+        if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
+            still = np.setdiff1d(np.arange(N), columns)
+            zeros = np.zeros((V, still.size))
+            extra = vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, step_time_since_start_s(t)[still],
+                                               zeros, zeros, 1.0)
+            fuel_g = fuel_g + (extra * dt_all[still]).sum(axis=1)
     fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
     miles = distance_m / METERS_PER_MILE
     driving = out["moving"] & (out["wheel_torque_Nm"] > 0)

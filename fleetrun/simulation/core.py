@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.simulation import diffmodes
+from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
+                                         vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.road_load import grade_force_N
@@ -63,16 +65,16 @@ def _lookup_rows(table, rows, frac):
 
 
 class DifferentialSolver:
-    """Input torque of the differential for given output torque and input speed, any mode."""
+    """Input torque of the differential's thesis chain (the baseline, without effects) for given
+    output torque and input speed, any mode."""
 
-    def __init__(self, va: VehicleArrays, mode, physics, ambient_temp_C, cache_dir, effects):
+    def __init__(self, va: VehicleArrays, mode, physics, ambient_temp_C, cache_dir):
         self.va, self.mode, self.physics = va, mode, physics
         self.ambient = ambient_temp_C
-        self.effects = tuple(effects or ())
         self.low = np.where(va.low_ratio > 1.0, va.low_ratio, np.nan)
         if mode != "direct":
             self.maps, self.map_id, self.n_max = diffmodes.vehicle_maps(
-                va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir)
+                va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir, va.kim_Nm)
 
     def subset(self, rows) -> "DifferentialSolver":
         other = object.__new__(DifferentialSolver)
@@ -108,16 +110,20 @@ class DifferentialSolver:
                                          out_frac, speed_rpm)
         result = np.empty(out_frac.shape)
         cfgs = np.array(self.va.configuration)
+        # one model call per configuration, axle range and (for physics in absolute torque) Kim
+        # scale: the model itself takes scalar scales but arrays of gear ratios
+        scales = np.array([diffmodes.map_torque_scale_Nm(self.physics, k) for k in self.va.kim_Nm], dtype=object)
         for cfg in np.unique(cfgs[vehicle]) if vehicle.size else ():
-            for low_range in (False, True):
-                sel = np.flatnonzero((cfgs[vehicle] == cfg) & (axle_low == low_range))
-                if sel.size == 0:
-                    continue
-                vv = vehicle[sel]
-                low = self.low[vv]
-                result[sel] = diffmodes.invert_direct(
-                    cfg, out_frac[sel], speed_rpm[sel], self.va.final_drive[vv],
-                    None if np.isnan(low).all() else low, low_range, self.physics, self.ambient, self.effects)
+            for scale in dict.fromkeys(scales[vehicle][cfgs[vehicle] == cfg]):
+                for low_range in (False, True):
+                    sel = np.flatnonzero((cfgs[vehicle] == cfg) & (scales[vehicle] == scale) & (axle_low == low_range))
+                    if sel.size == 0:
+                        continue
+                    vv = vehicle[sel]
+                    low = self.low[vv]
+                    result[sel] = diffmodes.invert_direct(
+                        cfg, out_frac[sel], speed_rpm[sel], self.va.final_drive[vv],
+                        None if np.isnan(low).all() else low, low_range, self.physics, self.ambient, scale)
         return result
 
 
@@ -129,11 +135,13 @@ def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, willans)
 
 
-def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None):
+def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
+             effects: CycleEffects = CycleEffects()):
     """One backward pass. ``speed_mps`` is (V, N) (each vehicle's achieved speed).
 
     ``columns``: compute only these steps (the caller skips steps where the whole block
-    stands still); the results then have shape (V, len(columns)).
+    stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
+    physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
     """
     V, N = speed_mps.shape
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
@@ -143,8 +151,10 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     accel = (speed_mps - v_prev) * inv_dt
     g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
     grade = (0.5 * (grade_pct + g_prev))[None, :]
+    since_start = step_time_since_start_s(time_s)
     if columns is not None:
         dt, v_avg, accel, grade = dt[:, columns], v_avg[:, columns], accel[:, columns], grade[:, columns]
+        since_start = since_start[columns]
         N = dt.shape[1]
     col = lambda a: a[:, None]  # noqa: E731
     moving = v_avg > 1e-6
@@ -186,9 +196,18 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     diff_loss_Nm = np.maximum(solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active) - out_frac, 0.0) * kim
     diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
     out_Nm = out_frac * kim  # |T_out| / G_tot: output torque referred to the input
+    if effects.differential:
+        # the effects' extra pinion torque, on the drive-side input at |T_out| (so on overrun
+        # the drags still take energy from the flow and J dw/dt keeps its sign)
+        pinion_accel = accel / r * G_tot
+        extra_Nm = differential_extra_torque_Nm(effects, va.configuration, out_Nm + diff_loss_Nm, diff_rpm,
+                                                pinion_accel, since_start, solver.ambient, G_tot, kim)
+        diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
     diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
     with np.errstate(divide="ignore", invalid="ignore"):
-        diff_eff = np.where(diff_loss_Nm > 0, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
+        # with inertia a decelerating pinion gives energy back: the step efficiency may exceed 1
+        turning = (active & (out_Nm + diff_loss_Nm > 0)) if effects.differential else diff_loss_Nm > 0
+        diff_eff = np.where(turning, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
 
     # gearbox
     trans_torque = np.where(moving, input_torque_Nm(diff_torque, trans_ratio, gear_eff), 0.0)
@@ -243,6 +262,11 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     at_idle = (unlocked & ~drive) & np.isfinite(idle_fuel)
     fuel = np.where(at_idle, np.broadcast_to(idle_fuel, fuel.shape), fuel)
     fuel = np.where(moving, fuel, col(idle_fuel_rate_g_per_s(va)))
+    if effects.vehicle:
+        # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
+        burning = ~moving | fueled
+        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, since_start, v_avg,
+                                                            wheel_torque * wheel_omega, burning), 0.0)
 
     wheel_power = wheel_torque * wheel_omega
     diff_in_power = diff_torque * diff_rpm / RPM

@@ -18,7 +18,13 @@ L = T_in - T_out / G_tot.
   linear interpolation in gear ratio.
 
 The output-torque axis of the inverse maps is uniform in sqrt(T_out / (kim G_tot)): road-load
-torques are a few percent of the Kim scale, so the grid is densest there.
+torques are a few percent of the Kim scale, so the grid is densest there. The model is always
+given the vehicle's Kim scale (``input_torque_scale_Nm``); the thesis baseline ignores it, so
+its maps serve every vehicle, while maps of baselines in absolute torque (vecto-generic) are
+built per Kim scale (:func:`map_torque_scale_Nm`).
+
+The maps and the direct inversion are the thesis chain only: ``--with`` effects act on top of
+them, per step (fleetrun/simulation/effects.py).
 
 Overrun and coast (T_out < 0), outside the thesis model (drive torque only): the differential
 passes the negative torque with the loss magnitude it has in drive at |T_out|, so
@@ -28,7 +34,6 @@ no-load loss). At standstill (n_in = 0) nothing turns and there is no loss.
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import os
 import tempfile
@@ -66,63 +71,41 @@ def speed_grid(configuration: str) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- the model
-def _model():
-    from fleetrun.differential import efficiency
+# Baselines whose efficiency depends on the torque *fraction* only: the thesis maps the
+# fraction onto its reference differential and ignores the vehicle's Kim scale (thesis Sec.
+# 5.2.1.A), so one map serves every vehicle. Any other baseline (vecto-generic works in
+# absolute torque) gets maps per Kim scale.
+SCALE_FREE_PHYSICS = ("thesis",)
 
-    return efficiency
 
-
-def model_supports(name: str) -> bool:
-    try:
-        params = inspect.signature(_model()).parameters
-    except (TypeError, ValueError):
-        return False
-    return name in params or any(p.kind == p.VAR_KEYWORD for p in params.values())
+def map_torque_scale_Nm(physics, kim_scale_Nm):
+    """The Kim scale a map depends on: None for scale-free physics, else the vehicle's."""
+    if str(physics).strip().lower() in SCALE_FREE_PHYSICS:
+        return None
+    return float(kim_scale_Nm)
 
 
 def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio, axle_low,
-                physics, ambient_temp_C=None, effects=()):
-    """The thesis model (``fleetrun.differential.efficiency``) for one configuration.
+                physics, ambient_temp_C=None, kim_scale_Nm=None):
+    """The differential model (``fleetrun.differential.efficiency``) for one configuration.
 
-    ``gear_ratio``/``low_gear_ratio`` may be arrays; ``axle_low`` is a bool (one range).
+    ``gear_ratio``/``low_gear_ratio`` may be arrays (the model groups by distinct pairs);
+    ``axle_low`` is a bool (one range); ``kim_scale_Nm`` is the vehicle's Kim scale, which
+    baselines in absolute torque (vecto-generic) need.
     """
-    kwargs = {"axle_gear": "low" if axle_low else "high", "physics": physics}
-    if low_gear_ratio is not None:
-        kwargs["low_gear_ratio"] = low_gear_ratio
-    if ambient_temp_C is not None and model_supports("oil_temp_C"):
-        # thesis Sec. 3.1.2: the lubricant runs 50 K above ambient (20 C ambient -> the 70 C
-        # that physics="thesis" assumes)
-        kwargs["oil_temp_C"] = lubricant_temp_C(ambient_temp_C)
-    if effects:
-        kwargs["effects"] = effects
-    f = _model()
-    tf = np.asarray(torque_fraction, float)
-    n = np.asarray(speed_rpm, float)
-    try:
-        return np.asarray(f(configuration, tf, n, gear_ratio, **kwargs), float)
-    except (TypeError, ValueError):
-        if np.ndim(gear_ratio) == 0 and (low_gear_ratio is None or np.ndim(low_gear_ratio) == 0):
-            raise
-    # the model wants scalar gear ratios: call it per distinct (G, low)
-    G = np.broadcast_to(np.asarray(gear_ratio, float), np.broadcast(tf, n).shape)
-    low = np.broadcast_to(np.asarray(low_gear_ratio if low_gear_ratio is not None else np.nan, float), G.shape)
-    out = np.zeros(G.shape)
-    tf_b, n_b = np.broadcast_to(tf, G.shape), np.broadcast_to(n, G.shape)
-    keys = np.stack([G.ravel(), low.ravel()], axis=1)
-    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
-    inv = inv.reshape(G.shape)
-    for j, (g, lo) in enumerate(uniq):
-        m = inv == j
-        kw = dict(kwargs)
-        if not np.isnan(lo):
-            kw["low_gear_ratio"] = float(lo)
-        out[m] = f(configuration, tf_b[m], n_b[m], float(g), **kw)
-    return out
+    from fleetrun.differential import efficiency
+
+    # thesis Sec. 3.1.2: the lubricant runs 50 K above ambient (20 C ambient -> the 70 C that
+    # physics="thesis" assumes); None leaves the baseline its own temperature
+    oil = None if ambient_temp_C is None else lubricant_temp_C(ambient_temp_C)
+    return np.asarray(efficiency(configuration, torque_fraction, speed_rpm, gear_ratio,
+                                 low_gear_ratio=low_gear_ratio, axle_gear="low" if axle_low else "high",
+                                 physics=physics, oil_temp_C=oil, input_torque_scale_Nm=kim_scale_Nm), float)
 
 
 # --------------------------------------------------------------------------- direct inversion
 def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio, axle_low, physics,
-                  ambient_temp_C=None, effects=(), tol=1e-10, max_iter=60):
+                  ambient_temp_C=None, kim_scale_Nm=None, tol=1e-10, max_iter=60):
     """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
 
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
@@ -138,7 +121,7 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
 
     def f(x, idx):
         eta = eta_forward(configuration, x, n[idx], G[idx], None if low is None else low[idx], axle_low,
-                          physics, ambient_temp_C, effects)
+                          physics, ambient_temp_C, kim_scale_Nm)
         return eta * x - out[idx]
 
     all_idx = np.arange(out.size)
@@ -185,11 +168,12 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
 
 
 # --------------------------------------------------------------------------- maps
-def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, ambient_temp_C=None):
+def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, ambient_temp_C=None,
+                kim_scale_Nm=None):
     """Inverse map T_in/kim on the (u = sqrt(T_out/(kim G_tot)), speed) grid, shape (N_U, N_SPEED)."""
     n_grid = speed_grid(configuration)
     eta = eta_forward(configuration, TF_FORWARD[:, None], n_grid[None, :], gear_ratio, low_gear_ratio,
-                      axle_low, physics, ambient_temp_C)
+                      axle_low, physics, ambient_temp_C, kim_scale_Nm)
     eta = np.broadcast_to(eta, (TF_FORWARD.size, n_grid.size))
     out = np.maximum.accumulate(np.nan_to_num(eta) * TF_FORWARD[:, None], axis=0)
     targets = np.linspace(0.0, U_MAX, N_U) ** 2
@@ -229,21 +213,24 @@ def default_cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "fleetrun"
 
 
-def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir=None):
+def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir=None, kim_scale_Nm=None):
     """Gear-ratio grid and inverse maps (2 ranges x gears x N_U x N_SPEED), cached on disk.
 
     Key: configuration, physics, lubricant temperature, low range ratio, grid, fleetrun
-    version. Written atomically (temp file + os.replace) so concurrent runs never see half a file.
+    version, and the Kim scale for physics that is not scale-free (``map_torque_scale_Nm``).
+    Written atomically (temp file + os.replace) so concurrent runs never see half a file.
     """
     gears = GEAR_GRID[duty_of(configuration)]
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    quick = (configuration, low_gear_ratio, physics, lubricant_temp_C(ambient_temp_C), str(directory))
+    quick = (configuration, low_gear_ratio, physics, lubricant_temp_C(ambient_temp_C), kim_scale_Nm, str(directory))
     if quick in _LOADED:  # already read (or built) in this process: skip hashing the key
         return gears, _LOADED[quick]
     key = {"configuration": configuration, "physics": physics, "lubricant_temp_C": lubricant_temp_C(ambient_temp_C),
            "low_gear_ratio": low_gear_ratio, "gears": gears.tolist(), "tf": [float(TF_FORWARD[-1]), TF_FORWARD.size],
            "u": [U_MAX, N_U], "speed": [float(speed_grid(configuration)[-1]), N_SPEED], "version": __version__,
            "format": 2}
+    if kim_scale_Nm is not None:  # only then: the keys (and cache files) of thesis maps stay as they were
+        key["input_torque_scale_Nm"] = kim_scale_Nm
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
     path = directory / f"map3d-{configuration}-{digest}.npz"
     if (path, digest) in _LOADED:
@@ -260,7 +247,8 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     maps = np.empty((2, gears.size, N_U, N_SPEED))
     for r, axle_low in enumerate(ranges):
         for i, g in enumerate(gears):
-            maps[r, i] = inverse_map(configuration, float(g), low_gear_ratio, axle_low, physics, ambient_temp_C)
+            maps[r, i] = inverse_map(configuration, float(g), low_gear_ratio, axle_low, physics, ambient_temp_C,
+                                     kim_scale_Nm)
     if len(ranges) == 1:
         maps[1] = maps[0]
     try:
@@ -277,33 +265,37 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     return gears, maps
 
 
-def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient_temp_C=None, cache_dir=None):
+def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient_temp_C=None, cache_dir=None,
+                 kim_scales_Nm=None):
     """Inverse maps per distinct differential: (maps (M, 2, N_U, N_SPEED), map index per vehicle (V,),
     top of the speed grid per map (M,)).
 
     ``low_ratios`` holds NaN for single-speed axles. map2d evaluates the model at each distinct
-    (configuration, G, low); map3d interpolates the cached gear-ratio maps linearly in G.
+    (configuration, G, low[, Kim scale]); map3d interpolates the cached gear-ratio maps linearly
+    in G. ``kim_scales_Nm`` (V,): the vehicles' Kim scales, part of the key only for physics
+    that is not scale-free (:func:`map_torque_scale_Nm`).
     """
     V = len(configurations)
     index = np.empty(V, np.intp)
     keys: dict = {}
     for v in range(V):
         low = float(low_ratios[v])
-        key = (configurations[v], float(gear_ratios[v]), None if np.isnan(low) else low)
+        scale = None if kim_scales_Nm is None else map_torque_scale_Nm(physics, kim_scales_Nm[v])
+        key = (configurations[v], float(gear_ratios[v]), None if np.isnan(low) else low, scale)
         index[v] = keys.setdefault(key, len(keys))
     maps = np.empty((len(keys), 2, N_U, N_SPEED))
     n_max = np.empty(len(keys))
     grids = {}
-    for (cfg, G, lowv), m in keys.items():
+    for (cfg, G, lowv, scale), m in keys.items():
         n_max[m] = speed_grid(cfg)[-1]
         if mode == "map2d":
-            hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C)
+            hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C, scale)
             maps[m, 0] = hi
-            maps[m, 1] = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C) if lowv is not None else hi
+            maps[m, 1] = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C, scale) if lowv is not None else hi
             continue
-        if (cfg, lowv) not in grids:
-            grids[(cfg, lowv)] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir)
-        gears, grid_maps = grids[(cfg, lowv)]
+        if (cfg, lowv, scale) not in grids:
+            grids[(cfg, lowv, scale)] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir, scale)
+        gears, grid_maps = grids[(cfg, lowv, scale)]
         if not gears[0] <= G <= gears[-1]:
             raise InputError(f"final_drive_ratio {G:g} is outside the map3d gear-ratio grid "
                              f"{gears[0]:g}-{gears[-1]:g} of {cfg}", column="final_drive_ratio", value=G,

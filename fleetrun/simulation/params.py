@@ -116,6 +116,7 @@ class VehicleArrays:
     power_reserve: np.ndarray
     fuel_cut_rpm: np.ndarray
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
+    fuel: list                      # "gasoline" / "diesel" (vehicle-level effects price extra work by it)
     power_table: np.ndarray | None = None   # filled by the simulation on first use
 
     def subset(self, rows) -> "VehicleArrays":
@@ -219,6 +220,7 @@ def _row(v: VehicleSpec) -> dict:
         reserve=_get(v, "power_reserve", eng["power_reserve"]),
         cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
         idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
+        fuel=v.fuel,
     )
 
 
@@ -244,5 +246,5 @@ def _gather(rows: list) -> VehicleArrays:
         n_peak_torque=a("n_pk"), idle_T_frac=a("idle_T"), displacement_L=a("disp"),
         pme0=np.array([r["pme0"] for r in rows], float).reshape(V, 3), eta_ind=a("eta"),
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), power_reserve=a("reserve"),
-        fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"),
+        fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
     )
