@@ -22,33 +22,15 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.diagnose.generator import Recording
-
-LBF_N = 4.4482216152605
-MPH_MPS = 0.44704
-
-#: Thesis Table 7.1 (Sec. 7.2.2): EPA coastdown A [lbf], B [lbf/mph], C [lbf/mph^2], tyre, and
-#: the thesis's estimated peak engine torque [N m] (Table 7.1, Sec. 7.2).
-THESIS_TABLE_7_1 = {
-    "Ford F-150": (21.8, 0.9315, 0.03266, "P235/75R15", 400.0),
-    "Mercedes 300E": (40.4, 0.3529, 0.01636, "195/65VR16", 219.6),
-    "Cadillac DeVille": (15.9, 0.4716, 0.02444, "P205/70R15", 372.8),
-    "Nissan 240SX": (48.1, 0.0096, 0.01809, "195/60R15", 206.1),
-}
+from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
+from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.simulation.validation import TABLE_7_1, matthews_c19
 
 
-def matthews_ld_rwd_efficiency(speed_kph):
-    """Matthews (2011) curve fit for LD RWD differentials (thesis Eq. C.19, Sec. 7.2)."""
-    s = np.asarray(speed_kph, dtype=float)
-    return np.where(s <= 150.0, 0.6652 + 3.732e-3 * s - 1.061e-5 * s ** 2, 0.987)
-
-
-def tyre_radius_m(size: str) -> float:
-    """Unloaded radius of a P-metric tyre, e.g. P235/75R15: rim/2 + width x aspect."""
-    import re
-
-    m = re.match(r"P?(\d+)/(\d+)[A-Z]*R(\d+)", size.upper())
-    width_mm, aspect, rim_in = float(m.group(1)), float(m.group(2)), float(m.group(3))
-    return rim_in * 0.0254 / 2 + width_mm / 1000 * aspect / 100
+#: Thesis Table 7.1 (Sec. 7.2.2) by vehicle name: (peak torque [N m], A [lbf], B [lbf/mph],
+#: C [lbf/mph^2], tyre): the same table the simulation's validation uses. The diagnosis uses
+#: the first four vehicles (enough to show the pattern; each takes a few seconds).
+THESIS_TABLE_7_1 = {row[0]: row[1:] for row in TABLE_7_1[:4]}
 
 
 def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
@@ -70,8 +52,8 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
     ``ambient_temp_C``: sidecar ambient (the thesis's 20 C, Sec. 3.1.2), which makes
     oil_warmup testable.
     """
-    a_lbf, b_lbf, c_lbf, tyre, peak = THESIS_TABLE_7_1[vehicle]
-    r = tyre_radius_m(tyre)
+    peak, a_lbf, b_lbf, c_lbf, tyre = THESIS_TABLE_7_1[vehicle]
+    r = rolling_radius_m(tyre)
     speeds = np.arange(5.0, 151.0, 5.0) if speeds_kph is None else np.asarray(speeds_kph, float)
     if shuffle_seed is not None:
         speeds = np.random.default_rng(shuffle_seed).permutation(speeds)
@@ -87,10 +69,9 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
         v_prev = v
     v = np.concatenate(v_list)
     t = np.arange(len(v)) / rate_hz
-    mph = v / MPH_MPS
-    force = (a_lbf + b_lbf * mph + c_lbf * mph ** 2) * LBF_N * (v > 0)
+    force = road_load_N(v, *coastdown_to_si(a_lbf, b_lbf, c_lbf)) * (v > 0)
     t_out = force * r
-    eta = matthews_ld_rwd_efficiency(v * 3.6)
+    eta = matthews_c19(v * 3.6)
     t_in = np.where(v > 0, t_out / (gear_ratio * eta), 0.0)
     n_in = v / r * gear_ratio * 60 / (2 * np.pi)
     df = pd.DataFrame({"time_s": t, "diff_input_torque_Nm": t_in, "diff_input_speed_rpm": n_in,
@@ -173,7 +154,7 @@ def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
             ax.plot(d.index, eta_with, color=color, lw=1.2,
                     label=f"{vehicle}: model + {', '.join(f['effect'] for f in found)}")
     s = np.arange(5.0, 151.0, 1.0)
-    ax.plot(s, matthews_ld_rwd_efficiency(s), color="black", lw=2.5, label="Matthews curve fit (Eq. C.19)")
+    ax.plot(s, matthews_c19(s), color="black", lw=2.5, label="Matthews curve fit (Eq. C.19)")
     ax.set_xlabel("vehicle speed [km/h]")
     ax.set_ylabel("differential efficiency")
     ax.set_title("LD RWD (thesis Sec. 7.2): dotted = thesis model, solid = model + finding")
