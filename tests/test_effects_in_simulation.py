@@ -269,6 +269,14 @@ def test_run_with_changes_results_and_the_manifest_lists_it(small_fleet_path, tm
         {"effect": "bearing_preload", "level": "differential", "parameters": {"drag_torque_Nm": 4.0}},
         {"effect": "accessory_load", "level": "vehicle", "parameters": {"power_kW": 1.0}}]
     assert json.loads((plain / "manifest.json").read_text())["with"] == []
+    # the manager's summary and the workbook's RunInfo say which physics was added
+    label = "thesis with bearing_preload (drag_torque_Nm=4); accessory_load (power_kW=1)"
+    assert label in (with_ / "summary.html").read_text()
+    assert "thesis with" not in (plain / "summary.html").read_text()
+    import openpyxl
+
+    run_info = {r[0]: r[1] for r in openpyxl.load_workbook(with_ / "report.xlsx")["RunInfo"].iter_rows(values_only=True)}
+    assert run_info["with (effects)"] == label
     # the batch config's `with` key gives the same numbers
     config = tmp_path / "batch.toml"
     config.write_text(f'inputs = ["{small_fleet_path.as_posix()}"]\nout = "batch"\ncache_dir = "{cache.as_posix()}"\n'

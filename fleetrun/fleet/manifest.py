@@ -37,3 +37,13 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
 def write_manifest(result, path: Path, outputs: dict[str, str]) -> None:
     Path(path).write_text(json.dumps(manifest_dict(result, outputs), indent=2, default=str) + "\n",
                           encoding="utf-8")
+
+
+def physics_label(info: dict) -> str:
+    """"thesis", or "thesis with bearing_preload (drag_torque_Nm=2)" when --with was used."""
+    effects = info.get("with") or []
+    if not effects:
+        return str(info["physics"])
+    parts = [f"{e['effect']} (" + ", ".join(f"{k}={v:g}" for k, v in e["parameters"].items()) + ")"
+             for e in effects]
+    return f"{info['physics']} with " + "; ".join(parts)

@@ -13,7 +13,7 @@ import jinja2
 
 from fleetrun import __version__
 from fleetrun.fleet import charts
-from fleetrun.fleet.manifest import manifest_dict
+from fleetrun.fleet.manifest import manifest_dict, physics_label
 from fleetrun.fleet.runner import CLASS_COLUMNS, RunResult, scenario_totals
 from fleetrun.resources import templates_dir
 
@@ -90,7 +90,7 @@ def render_summary(result: RunResult) -> str:
     return _environment().get_template("summary.html.j2").render(
         version=__version__, fleet_name=fleet.path.name, vehicle_types=f"{len(fleet.vehicles):,}",
         vehicles=f"{sum(v.count for v in fleet.vehicles):,.0f}", created_utc=result.created_utc,
-        physics=result.physics, mode=result.mode, engine=engine, fingerprint=fleet.sha256,
+        physics=physics_label(info), mode=result.mode, engine=engine, fingerprint=fleet.sha256,
         scenarios=cards, revenue_chart=revenue_chart, class_columns=CLASS_TABLE_COLUMNS,
         class_rows=class_rows, fuel_chart=fuel_chart, maps=maps, warnings=result.warnings,
         inputs=info["inputs"], sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")

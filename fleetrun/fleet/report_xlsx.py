@@ -356,7 +356,7 @@ def _inputs(wb, result: RunResult, bulk: dict):
 
 
 def _run_info(wb, result: RunResult):
-    from fleetrun.fleet.manifest import manifest_dict
+    from fleetrun.fleet.manifest import manifest_dict, physics_label
 
     ws = wb.create_sheet("RunInfo")
     ws.column_dimensions["A"].width = 30
@@ -364,6 +364,7 @@ def _run_info(wb, result: RunResult):
     info = manifest_dict(result)
     for key in ("fleetrun_version", "created_utc", "physics", "mode"):
         ws.append([text_cell(ws, key), text_cell(ws, info[key])])
+    ws.append([text_cell(ws, "with (effects)"), text_cell(ws, physics_label(info) if info.get("with") else "none")])
     for key, value in info["engine"].items():
         ws.append([text_cell(ws, key), text_cell(ws, value)])
     ws.append([text_cell(ws, "scenarios"), text_cell(ws, ", ".join(info["scenarios"]))])
