@@ -45,3 +45,17 @@ def test_unknown_name_error_names_the_place():
     with pytest.raises(InputError) as err:
         evaluate("r_q*2", {"r_p": 1.0}, where="axle.toml [derived] r_p_g")
     assert "axle.toml [derived] r_p_g" in str(err.value) and "r_p" in str(err.value)
+
+
+def test_effects_and_physics_share_one_registry_mechanism():
+    from fleetrun.effects import get_effect
+    from fleetrun.registry import EFFECTS, PHYSICS
+
+    import fleetrun.differential  # noqa: F401  (registers the baselines)
+
+    assert get_effect("Bearing-Preload") is EFFECTS["bearing_preload"]
+    for registry, wrong, near in ((EFFECTS, "cornerring", "cornering"), (PHYSICS, "vecto", "vecto-generic")):
+        with pytest.raises(InputError) as err:
+            registry.get(wrong)
+        assert f"did you mean '{near}'" in str(err.value)
+        assert all(name in str(err.value) for name in registry.names())

@@ -18,8 +18,10 @@ from fleetrun.effects.base import Effect, Parameter
 from fleetrun.effects.differential import DIFFERENTIAL_EFFECTS
 from fleetrun.effects.vehicle import VEHICLE_EFFECTS
 from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.registry import EFFECTS
 
-EFFECTS: dict[str, Effect] = {e.id: e for e in DIFFERENTIAL_EFFECTS + VEHICLE_EFFECTS}
+for _effect in DIFFERENTIAL_EFFECTS + VEHICLE_EFFECTS:
+    EFFECTS.register(_effect.id, _effect)
 
 __all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", "parse_with",
            "differential_extra_torque_Nm", "efficiency_with_effects", "steady_channels",
@@ -28,10 +30,7 @@ __all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", 
 
 def get_effect(name: str) -> Effect:
     """The effect called ``name`` (case-insensitive, ``-`` for ``_``)."""
-    key = name.strip().lower().replace("-", "_")
-    if key not in EFFECTS:
-        raise unknown_name_error("effect", name, EFFECTS, hint="See docs/effects.md")
-    return EFFECTS[key]
+    return EFFECTS.get(name)
 
 
 def effects_for_level(level: str) -> list[Effect]:
@@ -134,16 +133,10 @@ def differential_extra_torque_Nm(effects, channels: Mapping) -> np.ndarray:
 
 
 def _default_lubricant(configuration: str) -> str:
-    try:  # the configuration's own lubricant when the differential package provides it
-        from fleetrun.differential import canonical_configuration, configuration_lubricant  # noqa: F401
+    """The lubricant of the configuration's driving axle (ATF in a transaxle, else gear oil)."""
+    from fleetrun.differential import canonical_configuration, configuration_lubricant
 
-        return configuration_lubricant(canonical_configuration(configuration))
-    except Exception:  # noqa: BLE001 - fall back to the thesis choice below
-        pass
-    name = configuration.upper().replace("-", "_")
-    if name == "LD_FWD":
-        return "ATF"           # transaxles share the transmission fluid (thesis B.7 index 1)
-    return "75W90" if name.startswith("LD") else "80W90"
+    return configuration_lubricant(canonical_configuration(configuration))
 
 
 def overall_ratio(gear_ratio, low_gear_ratio=None, axle_gear="high") -> float:
