@@ -2,7 +2,6 @@
 workbook builders. (No tests here; pytest collects the module harmlessly.)"""
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -10,23 +9,11 @@ import openpyxl
 
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from fleetrun.fleet.template import write_template
+from fleetrun.simulation import FleetCycleResult
 
 CONFIG_ETA = {"LD_FWD": 0.96, "LD_RWD": 0.95, "LD_4WD": 0.93, "LD_AWD": 0.92, "HD_RWD": 0.955,
               "HD_DUAL": 0.94, "HD_TANDEM": 0.93, "HD_TANDEM_DUAL": 0.92, "HD_TAG": 0.95,
               "HD_TAG_DUAL": 0.935}
-
-
-@dataclass
-class FakeResult:
-    miles: np.ndarray
-    fuel_g: np.ndarray
-    fuel_gal: np.ndarray
-    mpg: np.ndarray
-    diff_input_energy_J: np.ndarray
-    diff_output_energy_J: np.ndarray
-    drivetrain_input_energy_J: np.ndarray
-    wheel_energy_J: np.ndarray
-    shortfall_s: np.ndarray
 
 
 CALLS: list = []
@@ -34,7 +21,7 @@ CALLS: list = []
 
 def fake_simulate(vehicles, cycle, *, mode="auto", ambient_temp_C=20.0, physics="thesis",
                   effects=(), trace=False, cache_dir=None):
-    """Deterministic, cycle- and temperature-dependent numbers with the real result's fields."""
+    """Deterministic, cycle- and temperature-dependent numbers in the real result type."""
     CALLS.append((len(vehicles), cycle.name, ambient_temp_C))
     n = len(vehicles)
     miles = np.full(n, float(cycle.miles))
@@ -49,8 +36,13 @@ def fake_simulate(vehicles, cycle, *, mode="auto", ambient_temp_C=20.0, physics=
     drivetrain_in = diff_in / 0.93
     shortfall = np.array([5.0 if v.vehicle_id.endswith("SLOW") and cycle.name == "US06" else 0.0
                           for v in vehicles])
-    return FakeResult(miles, fuel_gal * 2819.0, fuel_gal, miles / fuel_gal, diff_in, diff_out,
-                      drivetrain_in, wheel, shortfall)
+    zeros = np.zeros(n)
+    return FleetCycleResult(
+        vehicle_ids=[v.vehicle_id for v in vehicles], cycle=cycle.name, mode=mode, miles=miles,
+        fuel_g=fuel_gal * 2819.0, fuel_gal=fuel_gal, mpg=miles / fuel_gal, diff_input_energy_J=diff_in,
+        diff_output_energy_J=diff_out, drivetrain_input_energy_J=drivetrain_in, wheel_energy_J=wheel,
+        engine_energy_J=drivetrain_in, shortfall_time_s=shortfall, shortfall_distance_m=zeros,
+        shortfall_max_speed_mps=zeros, shortfall_steps=zeros)
 
 
 def write_fleet(path: Path, vehicles: list[dict] | None = None, scenarios: list[dict] | None = None) -> Path:
@@ -120,3 +112,23 @@ def read_csv(path, **kwargs):
     if int(pd.__version__.split(".")[0]) < 3:
         kwargs.setdefault("float_precision", "round_trip")
     return pd.read_csv(path, **kwargs)
+
+
+def run_small_fleet_with_fake(base: Path) -> Path:
+    """``fleetrun run`` on :func:`small_fleet` with the fake simulation; the output folder."""
+    import _pytest.monkeypatch
+    from click.testing import CliRunner
+
+    from fleetrun.cli import cli
+    from fleetrun.fleet import runner
+
+    patch = _pytest.monkeypatch.MonkeyPatch()
+    patch.setattr(runner, "simulate_function", fake_simulate)
+    try:
+        out = base / "out"
+        result = CliRunner().invoke(cli, ["run", str(small_fleet(base / "fleet.xlsx")), "--out", str(out),
+                                          "--no-cache", "-q"])
+        assert result.exit_code == 0, result.stderr
+    finally:
+        patch.undo()
+    return out

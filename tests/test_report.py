@@ -14,7 +14,7 @@ from click.testing import CliRunner
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from fleetrun.fleet import runner
-from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
+from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Efficiency maps", "Inputs", "RunInfo"]
 
@@ -26,19 +26,7 @@ def fake_simulation(monkeypatch):
 
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
-    import _pytest.monkeypatch
-
-    patch = _pytest.monkeypatch.MonkeyPatch()
-    patch.setattr(runner, "simulate_function", fakes.fake_simulate)
-    try:
-        base = tmp_path_factory.mktemp("report")
-        fleet = small_fleet(base / "fleet.xlsx")
-        out = base / "out"
-        result = CliRunner().invoke(cli, ["run", str(fleet), "--out", str(out), "--no-cache", "-q"])
-        assert result.exit_code == 0, result.stderr
-    finally:
-        patch.undo()
-    return out
+    return fakes.run_small_fleet_with_fake(tmp_path_factory.mktemp("report"))
 
 
 def table(ws, first_row: int = 1):

@@ -19,7 +19,7 @@ from click.testing import CliRunner
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from fleetrun.fleet import runner
-from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
+from test_fleet_fakes import scenario, vehicle, write_fleet
 
 pytestmark = pytest.mark.browser
 CHROMIUM = next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
@@ -185,19 +185,7 @@ class Browser:
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
-    import _pytest.monkeypatch
-
-    patch = _pytest.monkeypatch.MonkeyPatch()
-    patch.setattr(runner, "simulate_function", fakes.fake_simulate)
-    try:
-        base = tmp_path_factory.mktemp("browser")
-        fleet = small_fleet(base / "fleet.xlsx")
-        out = base / "out"
-        result = CliRunner().invoke(cli, ["run", str(fleet), "--out", str(out), "--no-cache", "-q"])
-        assert result.exit_code == 0, result.stderr
-    finally:
-        patch.undo()
-    return out
+    return fakes.run_small_fleet_with_fake(tmp_path_factory.mktemp("browser"))
 
 
 @pytest.fixture

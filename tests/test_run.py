@@ -214,7 +214,7 @@ def test_shortfall_becomes_a_warning(tmp_path):
     out = tmp_path / "out"
     assert run(path, "--out", out, "--no-cache", "-q").exit_code == 0
     warnings = json.loads((out / "manifest.json").read_text())["warnings"]
-    assert "vehicle CAR-SLOW cannot follow US06 (20 C); worst shortfall: s 5" in warnings
+    assert "vehicle CAR-SLOW cannot follow US06 (20 C); worst shortfall: 5 s behind the trace" in warnings
 
 
 def test_dask_engine_same_numbers(fleet_path, tmp_path):

@@ -369,6 +369,24 @@ def yearly_totals(results: pd.DataFrame, scenarios: Sequence[Scenario]) -> pd.Da
                                        "state_tax_usd", "federal_tax_usd"])
 
 
+_SHORTFALL_PHRASES = {  # the simulation's shortfall measures, in the order a reader wants them
+    "shortfall_time_s": "{:.3g} s behind the trace",
+    "shortfall_max_speed_mps": "up to {:.3g} m/s below it",
+    "shortfall_distance_m": "{:.3g} m short",
+    "shortfall_steps": "{:.3g} steps at full load",
+}
+
+
+def _phrase_order(item):
+    name = item[0]
+    return (list(_SHORTFALL_PHRASES).index(name) if name in _SHORTFALL_PHRASES else len(_SHORTFALL_PHRASES), name)
+
+
+def _shortfall_phrase(name: str, value: float) -> str:
+    template = _SHORTFALL_PHRASES.get(name)
+    return template.format(value) if template else f"{name.removeprefix('shortfall_')} {value:.3g}"
+
+
 def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
     """One line per vehicle that could not follow some cycle: which cycles, and the worst
     value of each shortfall measure the simulation reports."""
@@ -393,7 +411,7 @@ def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
     for i in sorted(by_vehicle)[:MAX_LISTED_WARNINGS]:
         entry = by_vehicle[i]
         cycles = ", ".join(f"{c} ({', '.join(t)})" for c, t in entry["cycles"].items())
-        worst = ", ".join(f"{n.removeprefix('shortfall_')} {v:.3g}" for n, v in sorted(entry["worst"].items()))
+        worst = ", ".join(_shortfall_phrase(n, v) for n, v in sorted(entry["worst"].items(), key=_phrase_order))
         lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {cycles}; worst shortfall: {worst}")
     if len(by_vehicle) > MAX_LISTED_WARNINGS:
         lines.append(f"... and {len(by_vehicle) - MAX_LISTED_WARNINGS} more vehicle types that cannot "
