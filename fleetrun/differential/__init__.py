@@ -94,11 +94,12 @@ def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gea
 
     if g.size == 0:
         return np.zeros(g.shape)
-    pairs = np.stack([g.ravel(), lo.ravel()], axis=1)
-    if np.all(pairs == pairs[0]) or (np.isnan(pairs[0, 1]) and np.all(pairs[:, 0] == pairs[0, 0])):
-        return np.broadcast_to(one(pairs[0, 0], pairs[0, 1]), g.shape).astype(float)
+    # evaluate once per distinct (gear ratio, low gear ratio); NaN (no low gear) as -1
+    pairs = np.nan_to_num(np.stack([g.ravel(), lo.ravel()], axis=1), nan=-1.0)
+    if np.all(pairs == pairs[0]):
+        return np.broadcast_to(one(g.flat[0], lo.flat[0]), g.shape).astype(float)
     out = np.empty(g.shape)
-    keys, inverse = np.unique(np.nan_to_num(pairs, nan=-1.0), axis=0, return_inverse=True)
+    keys, inverse = np.unique(pairs, axis=0, return_inverse=True)
     inverse = inverse.reshape(g.shape)
     for k, (g_value, lo_value) in enumerate(keys):
         sel = inverse == k
