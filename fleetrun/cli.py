@@ -44,6 +44,13 @@ class FleetrunGroup(click.Group):
         except FleetrunError as exc:
             click.echo(f"Error: {exc}", err=True)
             ctx.exit(1)
+        except OSError as exc:
+            # the file system refused a path the user gave (missing, a folder, no permission):
+            # a user mistake, so one Error line and exit 1, not a traceback
+            where = exc.filename or ""
+            click.echo(f"Error: {where}{': ' if where else ''}{exc.strerror or exc}. "
+                       "Check the path and its permissions", err=True)
+            ctx.exit(1)
 
 
 @click.group(cls=FleetrunGroup, context_settings={"help_option_names": ["-h", "--help"]})

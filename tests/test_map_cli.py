@@ -92,3 +92,27 @@ def test_vecto_generic_refuses_light_duty():
     result = run("map", "LD_RWD", "--gear-ratio", "3", "--physics", "vecto-generic")
     assert result.exit_code == 1
     assert "heavy-duty axles only" in result.output and "--physics thesis" in result.output
+
+
+@pytest.mark.parametrize("option", ["-o", "--plot"])
+def test_unwritable_output_path_is_an_error_not_a_traceback(option, tmp_path):
+    blocker = tmp_path / "m.csv"
+    blocker.write_text("x")
+    target = blocker / ("x.png" if option == "--plot" else "x.csv")
+    result = run("map", "LD_RWD", "--gear-ratio", "3", option, str(target))
+    assert result.exit_code == 1
+    assert result.output.startswith("Error: ") and "cannot create the output folder" in result.output
+    assert blocker.read_text() == "x"
+
+
+def test_file_system_errors_become_error_lines(monkeypatch):
+    """The CLI's last line of defence: an OSError from a user's path is an Error line, exit 1."""
+    import fleetrun.commands.map as map_command
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", "/locked/map.csv")
+
+    monkeypatch.setattr(map_command, "compute_map", refuse)
+    result = run("map", "LD_RWD", "--gear-ratio", "3")
+    assert result.exit_code == 1
+    assert result.output.startswith("Error: /locked/map.csv: Permission denied")

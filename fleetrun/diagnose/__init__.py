@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fleetrun.fleet.outputs import atomic_file, prepare_output_folder
 from fleetrun.diagnose.engine import Problem, Settings, select
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
@@ -117,8 +118,6 @@ def _clean(obj):
 
 
 def _write_atomic(path: Path, text: str) -> None:
-    from fleetrun.fleet.outputs import atomic_file
-
     with atomic_file(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
@@ -137,7 +136,7 @@ def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thes
         html = render_html(problem, result, fitted)      # everything rendered before writing
         result["timing_s"] = round(time.perf_counter() - t_start, 3)
         text = json.dumps(result, indent=2)
-        out.mkdir(parents=True, exist_ok=True)
+        prepare_output_folder(out, out)
         _write_atomic(out / "diagnosis.json", text)
         _write_atomic(out / "diagnosis.html", html)
     else:

@@ -13,6 +13,19 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from fleetrun.errors import InputError
+
+
+def prepare_output_folder(folder: Path, what: Path) -> None:
+    """Create ``folder`` (and parents) for output ``what``, or say plainly why it cannot be."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{what}: cannot create the output folder {folder} ({exc.strerror or exc})",
+                         hint="Choose an output path in a folder you can write to") from None
+    if not folder.is_dir():
+        raise InputError(f"{what}: {folder} is not a folder", hint="Choose another output path")
+
 
 def default_file_mode() -> int:
     """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
@@ -25,9 +38,15 @@ def default_file_mode() -> int:
 def atomic_file(path: Path):
     """Yield a temporary path beside ``path``; on success it replaces ``path``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix + ".tmp",
-                                         dir=path.parent)
+    prepare_output_folder(path.parent, path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a file", hint="Give a file name for the output")
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix + ".tmp",
+                                             dir=path.parent)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write here ({exc.strerror or exc})",
+                         hint="Choose an output path in a folder you can write to") from None
     os.close(handle)
     try:
         yield Path(temporary)
@@ -46,8 +65,14 @@ def staging_dir(out_dir: Path):
     fails before the move, ``out_dir`` is untouched.
     """
     out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-staging-", dir=out_dir.parent))
+    prepare_output_folder(out_dir.parent, out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: exists and is not a folder", hint="Choose another output folder")
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-staging-", dir=out_dir.parent))
+    except OSError as exc:
+        raise InputError(f"{out_dir}: cannot write here ({exc.strerror or exc})",
+                         hint="Choose an output folder you can write to") from None
     try:
         yield staging
         out_dir.mkdir(parents=True, exist_ok=True)
