@@ -36,7 +36,11 @@ class FleetrunError(Exception):
                 cell += f"row {self.row}"
             parts.append(cell)
         elif self.row is not None:
-            parts.append(f"row {self.row}")
+            parts.append(f"row {self.row}" + (f", column {self.column}" if self.column is not None else ""))
+        elif self.column is not None:
+            # in a TOML sidecar or config the "column" is a key
+            label = "key" if str(self.file or "").endswith(".toml") else "column"
+            parts.append(f"{label} {self.column}")
         return ": ".join(parts)
 
     def __str__(self) -> str:

@@ -68,8 +68,9 @@ class Recording:
 def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path]:
     meta_path = Path(meta) if meta else path.with_suffix(".toml")
     if not meta_path.is_file():
-        raise InputError("sidecar TOML not found", file=meta_path,
-                         hint=f"Write {meta_path.name} next to {path.name} (same stem) or pass --meta FILE")
+        hint = ("Check the --meta path" if meta else
+                f"Write {meta_path.name} next to {path.name} (same stem) or pass --meta FILE")
+        raise InputError("sidecar TOML not found", file=meta_path, hint=hint)
     try:
         with open(meta_path, "rb") as fh:
             return tomllib.load(fh), meta_path
@@ -204,6 +205,13 @@ def load_recording(path, meta=None) -> Recording:
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise InputError(f"sidecar key {k} must be a positive number, got {v!r}",
                                  file=meta_path, column=k, value=v)
+        try:
+            from fleetrun.differential import canonical_configuration
+
+            sidecar["configuration"] = canonical_configuration(str(sidecar["configuration"]))
+        except InputError as exc:
+            exc.file, exc.column = meta_path, "configuration"
+            raise
     else:
         speed = [c for c in VEHICLE_SPEEDS if c in columns]
         fuel = [c for c in FUEL_RATES if c in columns]

@@ -83,14 +83,19 @@ class Fleet:
             if v.vehicle_id == vehicle_id:
                 return v
         from fleetrun.errors import unknown_name_error
-        raise unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
+        error = unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
+        error.file = self.path
+        raise error
 
     def scenario(self, scenario_id: str) -> Scenario:
         for s in self.scenarios:
             if s.scenario_id == scenario_id:
                 return s
         from fleetrun.errors import unknown_name_error
-        raise unknown_name_error("scenario_id", scenario_id, [s.scenario_id for s in self.scenarios])
+        error = unknown_name_error("scenario_id", scenario_id, [s.scenario_id for s in self.scenarios],
+                                   hint="Scenario ids are in the Scenarios sheet")
+        error.file = self.path
+        raise error
 
 
 class Problems:
