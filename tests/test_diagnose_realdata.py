@@ -50,13 +50,13 @@ def test_recording_errors_name_file_row_column_and_key(tmp_path):
     rows += [f"{i},100,1000,300" for i in range(40)]
     rows[5] = "4,abc,1000,300"
     (tmp_path / "r.csv").write_text("\n".join(rows) + "\n")
-    (tmp_path / "r.toml").write_text('configuration = "LD_XYZ"\ngear_ratio = 3\npeak_engine_torque_Nm = 300\n'
-                                     'torque_converter_ratio = 3\nmax_transmission_gear_ratio = 4\n')
+    sidecar = ('configuration = "{}"\ngear_ratio = 3\npeak_engine_torque_Nm = 300\n'
+               'torque_converter_ratio = 3\nmax_transmission_gear_ratio = 4\n')
+    (tmp_path / "r.toml").write_text(sidecar.format("LD_RWD"))
     result = CliRunner().invoke(cli, ["diagnose", str(tmp_path / "r.csv"), "--out", str(tmp_path / "d")])
     assert result.exit_code == 1
     assert "r.csv: row 6, column diff_input_torque_Nm: not a number: 'abc'" in result.output
-    rows[5] = "4,100,1000,300"
-    (tmp_path / "r.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "r.toml").write_text(sidecar.format("LD_XYZ"))
     result = CliRunner().invoke(cli, ["diagnose", str(tmp_path / "r.csv"), "--out", str(tmp_path / "d")])
     assert result.exit_code == 1
     assert "r.toml: key configuration: unknown configuration 'LD_XYZ'" in result.output
