@@ -106,12 +106,13 @@ def test_cli_validate_ok_and_warnings(tmp_path):
 
 
 def test_plausibility_warnings_not_errors(tmp_path):
-    path = write_fleet(tmp_path / "p.xlsx", [vehicle(test_weight_kg=30000, annual_miles=0)],
+    path = write_fleet(tmp_path / "p.xlsx", [vehicle(test_weight_kg=30000, annual_miles=0, count=2.5)],
                        [scenario(ambient_temp_C=70, state_tax_gasoline_usd_per_gal=4.5)])
     fleet = read_fleet(path)
     text = "\n".join(fleet.warnings)
     assert "Vehicles!L2 test_weight_kg: 30000 is unusual for a LD vehicle" in text
     assert "Vehicles!F2 annual_miles: 0 miles" in text
+    assert "Vehicles!E2 count: 2.5 vehicles is not a whole number" in text
     assert "Scenarios!C2 ambient_temp_C: 70 is unusual" in text
     assert "Scenarios!G2 state_tax_gasoline_usd_per_gal: 4.5 is unusual" in text
 
@@ -138,7 +139,7 @@ def test_missing_columns_and_sheets(tmp_path):
     wb.save(path)
     problems = problems_of(path)
     assert any(p.startswith("Scenarios: sheet is missing") for p in problems)
-    assert any("missing required column(s) in row 1: peak_engine_torque_Nm" in p for p in problems)
+    assert any("Vehicles!row 1: missing required column(s) peak_engine_torque_Nm; add them to the header row" in p for p in problems)
 
 
 def test_formula_without_cached_value_and_merged_cells_refused(tmp_path):

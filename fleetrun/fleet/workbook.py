@@ -247,8 +247,8 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
         columns[name] = index
     missing = [c.name for c in schema if c.required and c.name not in columns]
     if missing:
-        problems.error(f"missing required column(s) in row 1: {', '.join(missing)}", sheet, 1,
-                       name=None)
+        problems.error(f"missing required column(s) {', '.join(missing)}; add them to the header row",
+                       sheet, 1, name=None)
     body: list[tuple[int, tuple]] = []
     headed = set(columns.values()) | set(extra.values())
     unheaded_warned: set[int] = set()
@@ -448,6 +448,9 @@ def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> 
         if value is not None and not (low <= value <= high):
             problems.warn(f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to {high:g}); "
                           "check the units", table.sheet, row, table.columns.get(name), name)
+    if p["count"] is not None and p["count"] != int(p["count"]):
+        problems.warn(f"{p['count']:g} vehicles is not a whole number; totals use it as given",
+                      table.sheet, row, table.columns.get("count"), "count")
     if p["count"] is not None and p["count"] == 0:
         problems.warn("0 vehicles: this row adds nothing", table.sheet, row,
                       table.columns.get("count"), "count")
