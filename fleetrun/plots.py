@@ -38,7 +38,8 @@ def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
     ax_map.set_ylabel("torque fraction [-]")
     ax_map.set_title("efficiency map")
     for i, frac in enumerate(tf):
-        ax_lines.plot(n, shown[i], marker="o", ms=3, label=f"{frac:g}")
+        if np.isfinite(shown[i]).any():  # a fraction where nothing drives has no line
+            ax_lines.plot(n, shown[i], marker="o", ms=3, label=f"{frac:g}")
     ax_lines.set_xlabel("differential input speed [rpm]")
     ax_lines.set_ylabel("efficiency [-]")
     ax_lines.set_ylim(lo - 0.005, min(1.0, hi + 0.005))

@@ -330,3 +330,14 @@ def test_camry_recordings_and_sidecars():
         assert len(ratios) == 8 and ratios[0] == 5.519
     for sub in ("cycles", "epa", "dyno"):
         assert (inputs_dir() / sub / "PROVENANCE.md").is_file()
+
+
+def test_cycles_takes_cycle_option_like_simulate():
+    from click.testing import CliRunner
+
+    from fleetrun.cli import cli
+
+    by_option = CliRunner().invoke(cli, ["cycles", "--cycle", "UDDS"])
+    by_argument = CliRunner().invoke(cli, ["cycles", "UDDS"])
+    assert by_option.exit_code == 0 and by_option.output == by_argument.output
+    assert CliRunner().invoke(cli, ["cycles", "--cycle", "UDDX"]).exit_code == 1

@@ -42,12 +42,15 @@ def _table(rows: list[dict], fmt: str) -> str:
               help="Print a table: duration [s], distance [mi], max and mean speed [mph].")
 @click.option("--format", "fmt", type=click.Choice(["table", "csv"]), default="table",
               show_default=True, help="Layout of the --details table.")
-def command(cycles, details, fmt):
+@click.option("--cycle", "cycle_options", multiple=True, metavar="NAME_OR_CSV",
+              help="A cycle to describe, as `simulate --cycle` takes it (same as the argument).")
+def command(cycles, details, fmt, cycle_options):
     """List the shipped drive cycles (one name per line), or describe cycles.
 
     With NAME_OR_CSV arguments (shipped names or CSV files with time_s, one speed column and
     optional grade_pct) each is loaded and validated and its details are printed.
     """
+    cycles = tuple(cycles) + tuple(cycle_options)
     if not cycles and not details:
         for name in shipped_cycles():
             click.echo(name)
