@@ -94,6 +94,8 @@ def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gea
 
     if g.size == 0:
         return np.zeros(g.shape)
+    if np.ndim(gear_ratio) == 0 and np.ndim(low) == 0:  # the common case: one vehicle, one axle
+        return one(float(gear_ratio), float(low))
     # evaluate once per distinct (gear ratio, low gear ratio); NaN (no low gear) as -1
     pairs = np.nan_to_num(np.stack([g.ravel(), lo.ravel()], axis=1), nan=-1.0)
     if np.all(pairs == pairs[0]):
