@@ -10,8 +10,6 @@ with ``-o``, writes the per-step trace CSV atomically.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import click
@@ -20,19 +18,10 @@ from fleetrun.errors import InputError
 
 
 def _write_atomic(frame, path: Path) -> None:
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError("the output folder does not exist", file=directory, hint="Create it or choose another -o path")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-            frame.to_csv(fh, index=False, float_format="%.6g", lineterminator="\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from fleetrun.fleet.outputs import atomic_file
+
+    with atomic_file(path) as tmp:
+        frame.to_csv(tmp, index=False, float_format="%.6g", lineterminator="\n")
 
 
 @click.command("simulate")

@@ -36,13 +36,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from fleetrun import __version__
 from fleetrun.errors import FleetrunError, InputError
+from fleetrun.fleet.outputs import atomic_file
 
 MODES = ("direct", "map2d", "map3d")
 ZERO_OUTPUT = 1e-8  # output torque fraction that stands for "zero" in the direct inversion
@@ -252,13 +252,10 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     if len(ranges) == 1:
         maps[1] = maps[0]
     try:
-        directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=directory)
-        with os.fdopen(fd, "wb") as fh:
+        with atomic_file(path) as tmp, open(tmp, "wb") as fh:
             # float32 on disk: 1e-7 relative, far below the 0.2 % the modes must agree to
             np.savez(fh, maps=maps.astype(np.float32), key=json.dumps(key))
-        os.replace(tmp, path)
-    except OSError:
+    except (OSError, FleetrunError):
         pass  # an unwritable cache only costs the rebuild next time
     maps = maps.astype(np.float32).astype(float)  # the same values as a later read of the file
     _LOADED[(path, digest)] = _LOADED[quick] = maps
