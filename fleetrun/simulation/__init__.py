@@ -163,9 +163,13 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         parts = []
         for first in range(0, rows.size, block):
             sub = rows[first:first + block]
-            whole = sub.size == V
-            parts.append(_run_block(va if whole else va.subset(sub), solver if whole else solver.subset(sub),
-                                    t, speed[first:first + block], v_target, grade, trace, effects))
+            if sub.size == V:
+                va_sub, solver_sub = va, solver
+            else:
+                va_sub = va.subset(sub)
+                solver_sub = solver.subset(sub, va_sub)
+            parts.append(_run_block(va_sub, solver_sub, t, speed[first:first + block], v_target, grade, trace,
+                                    effects))
         out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + ("_behind",)}
         if trace:
             out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else

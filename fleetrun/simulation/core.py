@@ -43,8 +43,12 @@ def power_speed_table(va: VehicleArrays) -> np.ndarray:
                             col(va.n_peak_torque), col(va.idle_T_frac))
     p = np.maximum.accumulate(T * n / RPM / col(va.P_rated_kW * 1e3), axis=1)
     p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
-    # p is non-decreasing per row: count of grid points below each target = its index
-    idx = np.clip((p[:, :, None] < p_grid[None, None, :]).sum(axis=1), 1, x.size - 1)
+    # p is non-decreasing per row: count of grid points below each target = its index. Counted
+    # as: each point lies below the targets from the first one above it on (a cumulative count)
+    width = p_grid.size + 1
+    first_above = np.searchsorted(p_grid, p.reshape(-1), side="right").reshape(p.shape)
+    counts = np.bincount((first_above + np.arange(va.n)[:, None] * width).reshape(-1), minlength=va.n * width)
+    idx = np.clip(np.cumsum(counts.reshape(va.n, width), axis=1)[:, :p_grid.size], 1, x.size - 1)
     rows = np.arange(va.n)[:, None]
     p0, p1 = p[rows, idx - 1], p[rows, idx]
     n0, n1 = n[rows, idx - 1], n[rows, idx]
@@ -57,11 +61,18 @@ def _lookup_rows(table, rows, frac):
     """Row-wise linear lookup on a uniform 0..1 grid: table[rows](frac)."""
     m = table.shape[1] - 1
     x = np.clip(frac, 0.0, 1.0) * m
-    i = np.minimum(x.astype(np.intp), m - 1)
+    i = x.astype(np.intp)
+    np.minimum(i, m - 1, out=i)
     w = x - i
     flat = table.reshape(-1)
     base = rows * (m + 1) + i
-    return flat[base] + w * (flat[base + 1] - flat[base])
+    lo = flat.take(base)
+    base += 1
+    hi = flat.take(base)
+    hi -= lo
+    hi *= w
+    hi += lo            # lo + w (hi - lo)
+    return hi
 
 
 class DifferentialSolver:
@@ -76,10 +87,12 @@ class DifferentialSolver:
             self.maps, self.map_id, self.n_max = diffmodes.vehicle_maps(
                 va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir, va.kim_Nm)
 
-    def subset(self, rows) -> "DifferentialSolver":
+    def subset(self, rows, va_subset: VehicleArrays | None = None) -> "DifferentialSolver":
+        """The solver for the vehicles ``rows``; ``va_subset``: ``self.va.subset(rows)`` if the
+        caller has it already."""
         other = object.__new__(DifferentialSolver)
         other.__dict__.update(self.__dict__)
-        other.va = self.va.subset(rows)
+        other.va = self.va.subset(rows) if va_subset is None else va_subset
         other.low = self.low[rows]
         if self.mode != "direct":
             other.map_id = self.map_id[rows]
@@ -93,8 +106,9 @@ class DifferentialSolver:
         """
         V, N = out_frac.shape
         if self.mode != "direct":
-            map_id = np.broadcast_to(self.map_id[:, None], (V, N))
-            n_max = np.broadcast_to(self.n_max[self.map_id][:, None], (V, N))
+            # per vehicle (V, 1), broadcast against the steps inside the lookup
+            map_id = self.map_id[:, None]
+            n_max = self.n_max[self.map_id][:, None]
             return diffmodes.interp_maps(self.maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=True)
         result = np.zeros((V, N))
         idx = np.flatnonzero(active)
@@ -145,24 +159,33 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     """
     V, N = speed_mps.shape
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
-    v_prev = np.concatenate([speed_mps[:, :1], speed_mps[:, :-1]], axis=1)
-    v_avg = 0.5 * (speed_mps + v_prev)
     inv_dt = np.concatenate([[0.0], 1.0 / np.diff(time_s)])[None, :]  # step 0 has no time
-    accel = (speed_mps - v_prev) * inv_dt
     g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
     grade = (0.5 * (grade_pct + g_prev))[None, :]
     since_start = step_time_since_start_s(time_s)
+    # the previous step's index per step (step 0: itself)
+    prev_index = np.concatenate([[0], np.arange(N - 1)])
     if columns is not None:
-        dt, v_avg, accel, grade = dt[:, columns], v_avg[:, columns], accel[:, columns], grade[:, columns]
+        # only the steps asked for (the same element-wise arithmetic on fewer columns)
+        dt, inv_dt, grade = dt[:, columns], inv_dt[:, columns], grade[:, columns]
         since_start = since_start[columns]
+        v_now = speed_mps[:, columns]
+        v_prev = speed_mps[:, prev_index[columns]]
         N = dt.shape[1]
+    else:
+        v_now = speed_mps
+        v_prev = speed_mps[:, prev_index]
+    v_avg = 0.5 * (v_now + v_prev)
+    accel = (v_now - v_prev) * inv_dt
     col = lambda a: a[:, None]  # noqa: E731
     moving = v_avg > 1e-6
+    all_moving = bool(moving.all())  # then the standstill cases below are skipped (no-ops)
     # road load (road_load.py; its standstill case is the where below) + inertia + grade
     force = (col(va.A_N) + v_avg * (col(va.B_N) + col(va.C_N) * v_avg)
              + col(va.mass_kg * (1.0 + va.rot_frac)) * accel
              + grade_force_N(col(va.mass_kg), grade))
-    force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
+    if not all_moving:
+        force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
     r = col(va.radius_m)
     wheel_torque = force * r
     wheel_omega = v_avg / r
@@ -180,9 +203,12 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
     flat_k = rows * overall.shape[1] + k
     trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
-    axle_low = va.combo_axle_low.reshape(-1)[flat_k] & moving
+    axle_low = va.combo_axle_low.reshape(-1)[flat_k]
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
-    gear = np.where(moving, va.combo_gear.reshape(-1)[flat_k], 0)
+    gear = va.combo_gear.reshape(-1)[flat_k]
+    if not all_moving:
+        axle_low &= moving
+        gear = np.where(moving, gear, 0)
 
     # differential
     if (va.low_ratio > 1.0).any():
@@ -210,7 +236,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         diff_eff = np.where(turning, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
 
     # gearbox
-    trans_torque = np.where(moving, input_torque_Nm(diff_torque, trans_ratio, gear_eff), 0.0)
+    trans_torque = input_torque_Nm(diff_torque, trans_ratio, gear_eff)
+    if not all_moving:
+        trans_torque = np.where(moving, trans_torque, 0.0)
     turbine_rpm = diff_rpm * trans_ratio
     idle = col(va.n_idle)
 
@@ -230,19 +258,22 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         engine_rpm.reshape(-1)[slipping] = pump
         engine_torque.reshape(-1)[slipping] = Tt / torque_ratio(nt / pump, va.stall_TR[vrow])
     coasting = unlocked & ~drive  # unlocked converter on overrun: the engine idles unloaded
-    engine_rpm = np.where(coasting, np.maximum(idle, turbine_rpm), engine_rpm)
-    engine_torque = np.where(coasting, 0.0, engine_torque)
+    np.copyto(engine_rpm, np.maximum(idle, turbine_rpm), where=coasting)
+    np.copyto(engine_torque, 0.0, where=coasting)
     # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
     # below idle on overrun
     manual = ~auto
     launch = col(va.launch_rpm)
     slip = manual & drive & (turbine_rpm < launch)
-    engine_rpm = np.where(slip, launch, engine_rpm)
+    np.copyto(engine_rpm, launch, where=slip)
     declutch = manual & ~drive & (turbine_rpm < idle)
-    engine_rpm = np.where(declutch, idle, engine_rpm)
-    engine_torque = np.where(declutch, 0.0, engine_torque)
-    engine_rpm = np.where(moving, np.maximum(engine_rpm, idle), idle)
-    engine_torque = np.where(moving, engine_torque, 0.0)
+    np.copyto(engine_rpm, idle, where=declutch)
+    np.copyto(engine_torque, 0.0, where=declutch)
+    if all_moving:
+        np.maximum(engine_rpm, idle, out=engine_rpm)
+    else:
+        engine_rpm = np.where(moving, np.maximum(engine_rpm, idle), idle)
+        engine_torque = np.where(moving, engine_torque, 0.0)
 
     # engine limits: full load (shortfall) and motoring (the rest is brakes)
     t_max = full_load_torque_Nm(engine_rpm, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), idle,
@@ -260,8 +291,9 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                              col(va.eta_ind), col(va.lhv))
     idle_fuel = col(va.idle_fuel_g_s)
     at_idle = (unlocked & ~drive) & np.isfinite(idle_fuel)
-    fuel = np.where(at_idle, np.broadcast_to(idle_fuel, fuel.shape), fuel)
-    fuel = np.where(moving, fuel, col(idle_fuel_rate_g_per_s(va)))
+    np.copyto(fuel, idle_fuel, where=at_idle)
+    if not all_moving:
+        fuel = np.where(moving, fuel, col(idle_fuel_rate_g_per_s(va)))
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~moving | fueled

@@ -310,19 +310,38 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
     """
     du = U_MAX / (N_U - 1)
-    u = np.sqrt(np.maximum(out_frac, 0.0)) / du
-    i = np.minimum(u.astype(np.intp), N_U - 2)
+    # in place where possible (the same arithmetic, fewer temporaries)
+    u = np.asarray(np.maximum(out_frac, 0.0), float)
+    np.sqrt(u, out=u)
+    u /= du
+    i = u.astype(np.intp)
+    np.minimum(i, N_U - 2, out=i)
     wu = u - i
     top = n_max if per_step else n_max[map_id]
-    s = np.minimum(speed_rpm * ((N_SPEED - 1) / top), N_SPEED - 1.0)
-    j = np.minimum(s.astype(np.intp), N_SPEED - 2)
+    s = np.asarray(speed_rpm * ((N_SPEED - 1) / top), float)
+    np.minimum(s, N_SPEED - 1.0, out=s)
+    j = s.astype(np.intp)
+    np.minimum(j, N_SPEED - 2, out=j)
     ws = s - j
     flat = maps.reshape(-1)
-    base = ((map_id * 2 + axle_low.astype(np.intp)) * N_U + i) * N_SPEED + j
-    m00 = flat[base]
-    m01 = flat[base + 1]
-    m10 = flat[base + N_SPEED]
-    m11 = flat[base + N_SPEED + 1]
-    a = m00 + ws * (m01 - m00)
-    b = m10 + ws * (m11 - m10)
-    return a + wu * (b - a)
+    base = map_id * 2 + axle_low.astype(np.intp)
+    base = base * N_U + i
+    base *= N_SPEED
+    base += j
+    m00 = flat.take(base)
+    base += 1
+    m01 = flat.take(base)
+    base += N_SPEED - 1
+    m10 = flat.take(base)
+    base += 1
+    m11 = flat.take(base)
+    m01 -= m00
+    m01 *= ws
+    m01 += m00          # a = m00 + ws (m01 - m00)
+    m11 -= m10
+    m11 *= ws
+    m11 += m10          # b = m10 + ws (m11 - m10)
+    m11 -= m01
+    m11 *= wu
+    m11 += m01          # a + wu (b - a)
+    return m11

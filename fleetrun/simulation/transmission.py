@@ -86,10 +86,20 @@ def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_spee
     need = required_engine_speed_rpm * inv
     limit = max_engine_speed_rpm * inv
     count = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
+    for k in range(K):
+        count += overall_ratios[:, k:k + 1] >= need
+    top = np.asarray(n_ratios)[:, None] - 1
+    if (np.ndim(need) == 2 and need.shape == limit.shape and (overall_ratios[:, :-1] >= overall_ratios[:, 1:]).all()
+            and (need <= limit).all()):
+        # ratios sorted and need <= limit: the gears above the limit are the first ``over`` of
+        # the ``count`` gears at or above need (over <= count), so max(count - 1, over) is count
+        # where the last of those is above the limit (or count is 0), else count - 1
+        res = count.astype(np.intp) - 1
+        last = np.maximum(res, 0)
+        last += np.arange(V)[:, None] * K
+        res += (count == 0) | (overall_ratios.reshape(-1).take(last) > limit)
+        return np.minimum(res, top)
     over = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
     for k in range(K):
-        ratio = overall_ratios[:, k:k + 1]
-        count += ratio >= need
-        over += ratio > limit
-    top = np.asarray(n_ratios)[:, None] - 1
+        over += overall_ratios[:, k:k + 1] > limit
     return np.minimum(np.maximum(count.astype(np.intp) - 1, over), top)
