@@ -235,7 +235,8 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     if columns is None:
         not_followed |= out["infeasible"]
     else:
-        not_followed[:, columns] |= out["infeasible"]
+        if out["infeasible"].any():
+            not_followed[:, columns] |= out["infeasible"]
     fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
     if columns is not None:
         standstill_s = dt_all.sum() - dt_all[columns].sum()

@@ -36,6 +36,12 @@ N_POWER_TABLE = 65
 
 def power_speed_table(va: VehicleArrays) -> np.ndarray:
     """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65)."""
+    # rows depend on the engine only: compute each distinct engine once (fleets repeat types)
+    engines = np.column_stack([va.n_idle, va.n_rated, va.T_peak, va.P_rated_kW, va.n_peak_torque, va.idle_T_frac])
+    if va.n > 1 and np.isfinite(engines).all():
+        _, first, inverse = np.unique(engines, axis=0, return_index=True, return_inverse=True)
+        if first.size < va.n:
+            return power_speed_table(va.subset(first))[inverse.reshape(-1)]
     x = np.linspace(0.0, 1.0, 257)[None, :]
     col = lambda a: a[:, None]  # noqa: E731
     n = col(va.n_idle) + x * col(va.n_rated - va.n_idle)
@@ -181,9 +187,14 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     moving = v_avg > 1e-6
     all_moving = bool(moving.all())  # then the standstill cases below are skipped (no-ops)
     # road load (road_load.py; its standstill case is the where below) + inertia + grade
-    force = (col(va.A_N) + v_avg * (col(va.B_N) + col(va.C_N) * v_avg)
-             + col(va.mass_kg * (1.0 + va.rot_frac)) * accel
-             + grade_force_N(col(va.mass_kg), grade))
+    # A + v (B + C v) + m (1 + f_rot) a + grade force, evaluated in place (same operations)
+    # (C order, as the sum with the grade force gave it: the per-vehicle sums add in that order)
+    force = np.multiply(col(va.C_N), v_avg, out=np.empty(v_avg.shape))
+    force += col(va.B_N)
+    force *= v_avg
+    force += col(va.A_N)
+    force += col(va.mass_kg * (1.0 + va.rot_frac)) * accel
+    force += grade_force_N(col(va.mass_kg), grade)
     if not all_moving:
         force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
     r = col(va.radius_m)
@@ -219,7 +230,10 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     kim = col(va.kim_Nm)
     active = moving & (diff_rpm > 0)
     out_frac = np.abs(wheel_torque) / (kim * G_tot)
-    diff_loss_Nm = np.maximum(solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active) - out_frac, 0.0) * kim
+    diff_loss_Nm = solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active)
+    diff_loss_Nm -= out_frac
+    np.maximum(diff_loss_Nm, 0.0, out=diff_loss_Nm)
+    diff_loss_Nm *= kim
     diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
     out_Nm = out_frac * kim  # |T_out| / G_tot: output torque referred to the input
     if effects.differential:

@@ -22,8 +22,20 @@ RPM_RAD_S = 2.0 * np.pi / 60.0
 def offset_torque_Nm(speed_rpm, displacement_L, a_kPa, b_kPa, c_kPa):
     """Willans offset torque T_0 = p_me0 V_d / (4 pi) [N m] of a four-stroke engine."""
     k = np.asarray(speed_rpm, float) / 1000.0
-    pme0_Pa = 1e3 * (a_kPa + k * (b_kPa + c_kPa * k))
-    return pme0_Pa * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi)
+    if not (isinstance(k, np.ndarray) and k.ndim and k.shape == np.broadcast_shapes(
+            k.shape, np.shape(displacement_L), np.shape(a_kPa), np.shape(b_kPa), np.shape(c_kPa))):
+        pme0_Pa = 1e3 * (a_kPa + k * (b_kPa + c_kPa * k))
+        return pme0_Pa * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi)
+    # the same arithmetic in place (vehicles x steps arrays, per-vehicle parameters)
+    t = np.multiply(c_kPa, k, out=np.empty(k.shape))
+    t += b_kPa
+    t *= k
+    t += a_kPa
+    t *= 1e3
+    t *= np.asarray(displacement_L, float)
+    t *= 1e-3
+    t /= 4.0 * np.pi
+    return t
 
 
 def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_rpm,
@@ -66,5 +78,14 @@ def fuel_rate_g_per_s(torque_Nm, speed_rpm, fueled, offset_Nm, eta_indicated, lh
     Never negative: at loads below the motoring line the engine is unfuelled.
     """
     omega = np.asarray(speed_rpm, float) * RPM_RAD_S
-    fuel_power_W = np.maximum(torque_Nm + offset_Nm, 0.0) * omega / eta_indicated
-    return np.where(fueled, fuel_power_W / (lhv_MJ_per_kg * 1e3), 0.0)
+    fuel_power_W = np.add(torque_Nm, offset_Nm)
+    if not (isinstance(fuel_power_W, np.ndarray) and fuel_power_W.ndim and fuel_power_W.shape == np.broadcast_shapes(
+            fuel_power_W.shape, np.shape(omega), np.shape(eta_indicated), np.shape(lhv_MJ_per_kg))):
+        fuel_power_W = np.maximum(fuel_power_W, 0.0) * omega / eta_indicated
+        return np.where(fueled, fuel_power_W / (lhv_MJ_per_kg * 1e3), 0.0)
+    # the same arithmetic in place (vehicles x steps arrays)
+    np.maximum(fuel_power_W, 0.0, out=fuel_power_W)
+    fuel_power_W *= omega
+    fuel_power_W /= eta_indicated
+    fuel_power_W /= lhv_MJ_per_kg * 1e3
+    return np.where(fueled, fuel_power_W, 0.0)
