@@ -203,13 +203,17 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     wheel_rpm = wheel_omega * RPM
 
     # gear: lowest engine speed with power reserve (transmission.py)
-    p_need = np.maximum(force * v_avg, 0.0) / DRIVETRAIN_GUESS
+    p_need = force * v_avg
+    np.maximum(p_need, 0.0, out=p_need)
+    p_need /= DRIVETRAIN_GUESS
     rows = np.arange(V)[:, None]
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
     if va.power_table is None:
         va.power_table = power_speed_table(va)
-    n_power = _lookup_rows(va.power_table, rows, p_need / col(va.power_reserve * va.P_rated_kW * 1e3))
-    n_req = np.minimum(np.maximum(col(va.shift_min_rpm), n_power), col(va.n_rated))
+    p_need /= col(va.power_reserve * va.P_rated_kW * 1e3)
+    n_req = _lookup_rows(va.power_table, rows, p_need)  # n_power, then clamped in place:
+    np.maximum(col(va.shift_min_rpm), n_req, out=n_req)
+    np.minimum(n_req, col(va.n_rated), out=n_req)
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
     k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
     flat_k = rows * overall.shape[1] + k
@@ -315,9 +319,12 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                                                             wheel_torque * wheel_omega, burning), 0.0)
 
     wheel_power = wheel_torque * wheel_omega
-    diff_in_power = diff_torque * diff_rpm / RPM
-    turbine_power = trans_torque * turbine_rpm / RPM
-    engine_power = engine_torque * engine_rpm / RPM
+    diff_in_power = diff_torque * diff_rpm
+    diff_in_power /= RPM
+    turbine_power = trans_torque * turbine_rpm
+    turbine_power /= RPM
+    engine_power = engine_torque * engine_rpm
+    engine_power /= RPM
     return dict(
         dt=dt, v_avg=v_avg, accel=accel, grade=np.broadcast_to(grade, (V, N)), force=force, moving=moving,
         wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
