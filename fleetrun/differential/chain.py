@@ -14,6 +14,7 @@ from fleetrun.differential.expressions import evaluate
 from fleetrun.differential.models import ReferenceModel, reference_model
 from fleetrun.errors import InputError
 from fleetrun.physics import bearings, gear_mesh, seals, windage
+from fleetrun.physics.floor import mark_negative, zero_nan
 
 # Stage parameters that steer the chain rather than feed the component.
 _CONTROL_KEYS = {"component", "label", "split"}
@@ -136,12 +137,8 @@ def evaluate_stage_chain(model: ReferenceModel, torque_fraction, speed_rpm, gear
                 torque = torque * eta_s / split if split != 1 else torque * eta_s
             eta = eta * eta_s
             # thesis B.6 EtaNTorqCorrect(eta, torque, true): negative -> NaN, NaN rides along
-            negative = eta < 0
-            eta[negative] = np.nan
-            torque[negative] = np.nan
+            eta, torque = mark_negative(eta, torque, copy=False)
         out_fraction = torque / model.capacity_torque_Nm / gear_ratio * model.output_shafts
     # thesis B.6 EtaNTorqCorrect(eta, torque, false): NaN -> 0
-    lost = np.isnan(eta)
-    eta[lost] = 0.0
-    out_fraction[lost] = 0.0
+    eta, out_fraction = zero_nan(eta, out_fraction, copy=False)
     return eta.reshape(shape), out_fraction.reshape(shape), np.broadcast_to(speed, torque.shape).reshape(shape)

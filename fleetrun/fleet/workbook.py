@@ -385,23 +385,28 @@ def _canonical_configuration(raw) -> str:
         raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
 
 
+def _first_use(parsed: dict, key: str, rows: dict, table: "_Table", row_number: int, problems: Problems) -> bool:
+    """Record the row of ``parsed[key]``; an id seen before is an error naming its first row."""
+    value = parsed.get(key)
+    if not value:
+        return True
+    if value in rows:
+        noun = key.removesuffix("_id")
+        problems.error(f"{cells.show(value)} is used again (first in row {rows[value]}); {noun} ids must be unique",
+                       table.sheet, row_number, table.columns.get(key), key)
+        return False
+    rows[value] = row_number
+    return True
+
+
 # --- Vehicles -----------------------------------------------------------------------------
 
 def _vehicles(table: _Table, problems: Problems):
-    sheet = table.sheet
     vehicles: list[VehicleSpec] = []
     rows: dict[str, int] = {}
-    col = table.columns.get
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
-        vehicle_id = parsed.get("vehicle_id")
-        if vehicle_id:
-            if vehicle_id in rows:
-                problems.error(f"{cells.show(vehicle_id)} is used again (first in row {rows[vehicle_id]}); "
-                               "vehicle ids must be unique", sheet, row_number, col("vehicle_id"), "vehicle_id")
-                ok = False
-            else:
-                rows[vehicle_id] = row_number
+        ok = _first_use(parsed, "vehicle_id", rows, table, row_number, problems) and ok
         ok = _vehicle_consistent(parsed, table, row_number, problems) and ok
         _vehicle_plausible(parsed, table, row_number, problems)
         if not ok:
@@ -468,14 +473,7 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
     known_cycles = _shipped_cycle_names()
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
-        scenario_id = parsed.get("scenario_id")
-        if scenario_id:
-            if scenario_id in rows:
-                problems.error(f"{cells.show(scenario_id)} is used again (first in row {rows[scenario_id]}); "
-                               "scenario ids must be unique", sheet, row_number, col("scenario_id"), "scenario_id")
-                ok = False
-            else:
-                rows[scenario_id] = row_number
+        ok = _first_use(parsed, "scenario_id", rows, table, row_number, problems) and ok
         mixes = {}
         for name in MIX_COLUMNS:
             if parsed[name] is not None:
