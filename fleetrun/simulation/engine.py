@@ -19,23 +19,29 @@ import numpy as np
 RPM_RAD_S = 2.0 * np.pi / 60.0
 
 
+def _result_buffer(*arrays) -> np.ndarray:
+    """An empty float array of the arguments' broadcast shape: each function below evaluates
+    its equation once, in place in this buffer (no temporaries for vehicles x steps arrays)."""
+    return np.empty(np.broadcast_shapes(*(np.shape(a) for a in arrays)))
+
+
+def _scalar_if_0d(a: np.ndarray):
+    return a if a.ndim else a[()]
+
+
 def offset_torque_Nm(speed_rpm, displacement_L, a_kPa, b_kPa, c_kPa):
-    """Willans offset torque T_0 = p_me0 V_d / (4 pi) [N m] of a four-stroke engine."""
+    """Willans offset torque T_0 = p_me0 V_d / (4 pi) [N m] of a four-stroke engine,
+    p_me0 = a + b (n/1000) + c (n/1000)^2 [kPa]."""
     k = np.asarray(speed_rpm, float) / 1000.0
-    if not (isinstance(k, np.ndarray) and k.ndim and k.shape == np.broadcast_shapes(
-            k.shape, np.shape(displacement_L), np.shape(a_kPa), np.shape(b_kPa), np.shape(c_kPa))):
-        pme0_Pa = 1e3 * (a_kPa + k * (b_kPa + c_kPa * k))
-        return pme0_Pa * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi)
-    # the same arithmetic in place (vehicles x steps arrays, per-vehicle parameters)
-    t = np.multiply(c_kPa, k, out=np.empty(k.shape))
+    t = np.multiply(c_kPa, k, out=_result_buffer(k, displacement_L, a_kPa, b_kPa, c_kPa))
     t += b_kPa
     t *= k
     t += a_kPa
-    t *= 1e3
+    t *= 1e3                                  # p_me0 [Pa]
     t *= np.asarray(displacement_L, float)
     t *= 1e-3
     t /= 4.0 * np.pi
-    return t
+    return _scalar_if_0d(t)
 
 
 def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_rpm,
@@ -48,17 +54,9 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     """
     n = np.asarray(speed_rpm, float)
     rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)
-    if not (isinstance(rise, np.ndarray) and rise.ndim and rise.shape == np.broadcast_shapes(
-            rise.shape, np.shape(peak_torque_Nm), np.shape(rated_power_kW), np.shape(rated_speed_rpm),
-            np.shape(idle_torque_fraction))):
-        torque = peak_torque_Nm * (idle_torque_fraction + (1.0 - idle_torque_fraction) * rise)
-        power_cap = rated_power_kW * 1e3 / np.maximum(n * RPM_RAD_S, 1e-9)
-        torque = np.minimum(torque, power_cap)
-        governor = np.clip((1.1 * rated_speed_rpm - n) / (0.1 * rated_speed_rpm), 0.0, 1.0)
-        return torque * governor
-    # the same arithmetic in place (vehicles x steps arrays, per-vehicle parameters)
-    torque = rise
-    torque *= 1.0 - idle_torque_fraction
+    torque = np.multiply(rise, 1.0 - idle_torque_fraction,
+                         out=_result_buffer(rise, peak_torque_Nm, rated_power_kW, rated_speed_rpm,
+                                            idle_torque_fraction))
     torque += idle_torque_fraction
     torque *= peak_torque_Nm
     power_cap = np.multiply(n, RPM_RAD_S, out=np.empty(torque.shape))
@@ -69,7 +67,7 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     governor /= 0.1 * rated_speed_rpm
     np.clip(governor, 0.0, 1.0, out=governor)
     torque *= governor
-    return torque
+    return _scalar_if_0d(torque)
 
 
 def fuel_rate_g_per_s(torque_Nm, speed_rpm, fueled, offset_Nm, eta_indicated, lhv_MJ_per_kg):
@@ -78,14 +76,10 @@ def fuel_rate_g_per_s(torque_Nm, speed_rpm, fueled, offset_Nm, eta_indicated, lh
     Never negative: at loads below the motoring line the engine is unfuelled.
     """
     omega = np.asarray(speed_rpm, float) * RPM_RAD_S
-    fuel_power_W = np.add(torque_Nm, offset_Nm)
-    if not (isinstance(fuel_power_W, np.ndarray) and fuel_power_W.ndim and fuel_power_W.shape == np.broadcast_shapes(
-            fuel_power_W.shape, np.shape(omega), np.shape(eta_indicated), np.shape(lhv_MJ_per_kg))):
-        fuel_power_W = np.maximum(fuel_power_W, 0.0) * omega / eta_indicated
-        return np.where(fueled, fuel_power_W / (lhv_MJ_per_kg * 1e3), 0.0)
-    # the same arithmetic in place (vehicles x steps arrays)
+    fuel_power_W = np.add(torque_Nm, offset_Nm,
+                          out=_result_buffer(torque_Nm, offset_Nm, omega, eta_indicated, lhv_MJ_per_kg))
     np.maximum(fuel_power_W, 0.0, out=fuel_power_W)
     fuel_power_W *= omega
     fuel_power_W /= eta_indicated
     fuel_power_W /= lhv_MJ_per_kg * 1e3
-    return np.where(fueled, fuel_power_W, 0.0)
+    return _scalar_if_0d(np.where(fueled, fuel_power_W, 0.0))
