@@ -133,7 +133,9 @@ def _thermal_plan(cycle, t, ambient_temp_C):
                 start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C))
 
 
-def _cycle_arrays(cycle):
+def _cycle_arrays(cycle, ambient_temp_C=None):
+    """Name, time, speed and grade of ``cycle`` (checked), and with ``ambient_temp_C`` also its
+    cold-start plan (:func:`_thermal_plan`)."""
     cycle = _load(cycle)
     try:
         t = np.asarray(cycle.time_s, float)
@@ -156,7 +158,9 @@ def _cycle_arrays(cycle):
     if neg.size:
         raise InputError(f"cycle '{name}': negative speed {v[neg[0]]} at time {t[neg[0]]} s",
                          column="speed", value=v[neg[0]], hint="Speeds must be >= 0")
-    return name, t, v, grade
+    if ambient_temp_C is None:
+        return name, t, v, grade
+    return name, t, v, grade, _thermal_plan(cycle, t, ambient_temp_C)
 
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
@@ -176,9 +180,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if mode not in MODES:
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
     effects = cycle_effects(effects)
-    cycle = _load(cycle)
-    name, t, v_target, grade = _cycle_arrays(cycle)
-    plan = _thermal_plan(cycle, t, ambient_temp_C)
+    name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C)
     va = vehicle_arrays(vehicles)
     V = va.n
     if V:
@@ -279,18 +281,8 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
                 fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
         phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
         cold = temp = None
-    else:  # a composed cycle: every step, engine-off soaks, the cold-start pass, sums per phase
-        rate, rpm = _every_step(va, t, columns, out, effects, plan)
-        cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan["step_soak_s"], plan["start_temp_C"],
-                                           plan["ambient_temp_C"])
-        rate += cold
-        if columns is None:  # the trace's fuel rate includes the cold-start fuel
-            out["fuel_rate_g_per_s"] += cold
-        fuel_g = (rate * dt_all).sum(axis=1)
-        steps = np.arange(N) if columns is None else columns
-        step_m = np.zeros((V, N))
-        step_m[:, steps] = out["v_avg"] * dt
-        phase_fuel_g, phase_miles = _sum_by_phase(rate * dt_all, plan), _sum_by_phase(step_m, plan) / METERS_PER_MILE
+    else:
+        fuel_g, phase_fuel_g, phase_miles, cold, temp = _phased_fuel(va, t, columns, out, effects, plan)
     fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
     miles = distance_m / METERS_PER_MILE
     driving = out["moving"] & (out["wheel_torque_Nm"] > 0)
@@ -364,6 +356,26 @@ def _every_step(va, t, columns, out, effects, plan):
     rate[:, off] = 0.0
     rpm[:, off] = 0.0
     return rate, rpm
+
+
+def _phased_fuel(va, t, columns, out, effects, plan):
+    """A composed cycle's fuel: every step, engine-off soaks, the cold-start pass
+    (thermal.py), sums per phase. Returns total fuel [g] (V,), fuel [g] and miles per phase
+    (V, phases), the cold-start fuel rate and the engine temperature (V, N); a traced pass's
+    ``out`` fuel rate gets the cold-start fuel."""
+    V, N = va.n, t.size
+    dt_all = np.concatenate([[0.0], np.diff(t)])
+    rate, rpm = _every_step(va, t, columns, out, effects, plan)
+    cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan["step_soak_s"], plan["start_temp_C"],
+                                       plan["ambient_temp_C"])
+    rate += cold
+    if columns is None:
+        out["fuel_rate_g_per_s"] += cold
+    step_m = np.zeros((V, N))
+    step_m[:, np.arange(N) if columns is None else columns] = out["v_avg"] * out["dt"]
+    step_fuel = rate * dt_all
+    return (step_fuel.sum(axis=1), _sum_by_phase(step_fuel, plan), _sum_by_phase(step_m, plan) / METERS_PER_MILE,
+            cold, temp)
 
 
 def _sum_by_phase(per_step, plan):
