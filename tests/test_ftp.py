@@ -21,7 +21,7 @@ from fleetrun.cycles import composite_per_mile, ftp_weighted_per_mile, load_cycl
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import MODES, simulate
 from fleetrun.simulation import thermal
-from fleetrun.simulation.examples import ALL, CAMRY
+from fleetrun.testing.vehicles import ALL, CAMRY
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 EPA = inputs_dir() / "epa" / "22-tstcar.csv"
