@@ -18,7 +18,7 @@ from openpyxl import load_workbook
 from fleetrun.cli import cli
 from fleetrun.simulation import simulate
 from fleetrun.simulation.diffmodes import outside_map3d_grid
-from fleetrun.simulation.examples import CIVIC
+from fleetrun.testing.vehicles import CIVIC
 from test_epa_import import epa_row, write_list
 
 # the FCA 9-speeds of the 2022 list (1.56, 1.68, 1.79), the ends of the workbook's range, and

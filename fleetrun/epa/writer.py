@@ -16,7 +16,7 @@ import xlsxwriter
 from fleetrun.cycles import shipped_cycles
 from fleetrun.epa import rules
 from fleetrun.epa.derive import ImportResult
-from fleetrun.fleet.outputs import atomic_file
+from fleetrun.fileio import atomic_file
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET
 
 MEASURED_COLUMNS = ("vehicle_id", "test", "mpg", "manufacturer", "make", "model", "model_year", "n_tests",
