@@ -15,7 +15,11 @@ CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "
 DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel")
+YES_NO = ("yes", "no")
+ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 TRANSMISSIONS = ("automatic", "manual")
+GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
+YES_NO = ("yes", "no")
 
 
 @dataclass(frozen=True)
@@ -26,6 +30,7 @@ class Column:
     note: str
     choices: tuple[str, ...] = ()
     minimum: float | None = None         # values below are errors (inclusive unless strict)
+    maximum: float | None = None         # values above are errors
     strictly_positive: bool = False
     example: tuple = ()                  # two example values for the template
 
@@ -46,8 +51,8 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("transmission_gear_ratios", "ratios", True, "comma list, first gear first",
            example=("4.62,3.04,2.06,1.66,1.26,1.00,0.85,0.69",
                     "12.8,9.25,6.76,4.9,3.58,2.61,1.89,1.38,1.00,0.73")),
-    Column("final_drive_ratio", "number", True, "differential gear ratio", strictly_positive=True,
-           example=(3.21, 3.55)),
+    Column("final_drive_ratio", "number", True, "differential gear ratio (1.2-12)", strictly_positive=True,
+           minimum=1.2, maximum=12.0, example=(3.21, 3.55)),
     Column("test_weight_kg", "number", True, "test (loaded) weight [kg]", strictly_positive=True,
            example=(1588, 29000)),
     Column("coastdown_A_lbf", "number", True, "EPA target coefficient A [lbf]", minimum=0,
@@ -69,6 +74,18 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("engine_displacement_L", "number", False, "engine displacement [L]", strictly_positive=True,
            example=(2.5, 12.8)),
     Column("lubricant", "text", False, "axle lubricant name (default: the configuration's)"),
+    # Optional identification and powertrain details (`fleetrun import-epa` fills them from
+    # the EPA Test Car List; a row without them runs on defaults).
+    Column("manufacturer", "text", False, "vehicle manufacturer (identification)"),
+    Column("make", "text", False, "make (identification)"),
+    Column("model", "text", False, "model (identification)"),
+    Column("model_year", "integer", False, "model year (identification)", strictly_positive=True),
+    Column("gearbox_type", "choice", False, "automatic (torque converter), automated_manual, cvt or manual",
+           choices=GEARBOX_TYPES),
+    Column("converter_lockup", "choice", False, "torque-converter lock-up: yes or no", choices=YES_NO),
+    Column("cylinders", "integer", False, "number of engine cylinders", strictly_positive=True),
+    Column("nv_ratio_rpm_per_mph", "number", False, "engine rpm per mph in top gear (EPA N/V)",
+           strictly_positive=True),
 )
 
 # cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty
@@ -96,6 +113,19 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=("HD-UDDS:0.5,UDDS:0.2,HWFET:0.3", "HD-UDDS:0.5,UDDS:0.2,HWFET:0.3")),
     Column("cycle_mix_HD", "cycle_mix", False, "HD vehicles' cycle mix (empty: cycle_mix)",
            example=("HD-UDDS:0.6,HWFET:0.4", "HD-UDDS:0.6,HWFET:0.4")),
+    # Budget columns (CONTRACT.md, optional): fiscal years, on-road fuel, calibration, EV fee.
+    Column("first_fiscal_year", "integer", False, "fiscal year of budget year 1, e.g. 2027 "
+           "(empty: years numbered 1, 2, ...)", strictly_positive=True, example=(2027, 2027)),
+    Column("onroad_adjustment", "onroad", False, "cycle fuel -> on-road fuel: epa_label (default; "
+           "EPA's label formulas), none, or a factor such as 1.2"),
+    Column("observed_base_gallons_gasoline", "number", False, "taxable gasoline gallons collected "
+           "in the first fiscal year (for calibration)", strictly_positive=True),
+    Column("observed_base_gallons_diesel", "number", False, "taxable diesel gallons collected "
+           "in the first fiscal year (for calibration)", strictly_positive=True),
+    Column("calibrate_to_observed", "choice", False, "yes: scale each fuel's forecast so the first "
+           "fiscal year equals the observed gallons (default no)", choices=YES_NO),
+    Column("ev_fee_usd_per_vehicle_year", "number", False, "annual fee per electric vehicle [$] "
+           "(default 0)", minimum=0),
 )
 
 # Plausibility: values outside these ranges are warned about, not refused (analysts model
@@ -114,6 +144,8 @@ PLAUSIBLE_SCENARIO = {
     "state_tax_diesel_usd_per_gal": (0.0, 1.0),
     "federal_tax_gasoline_usd_per_gal": (0.0, 1.0),
     "federal_tax_diesel_usd_per_gal": (0.0, 1.0),
+    "first_fiscal_year": (1990, 2100),
+    "ev_fee_usd_per_vehicle_year": (0.0, 1000.0),
 }
 
 
