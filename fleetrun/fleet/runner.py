@@ -146,7 +146,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
                   for cond, arrays in shortfalls.items()}
 
-    warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
+    warnings = list(fleet.warnings) + _map_grid_notes(fleet, mode) + _shortfall_warnings(vehicles, shortfalls)
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
         from fleetrun.fleet.uncertainty import read_error_model
@@ -257,7 +257,8 @@ def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
 
 
 # VehicleSpec fields that do not change how a vehicle drives a cycle.
-BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles")
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
+                      "model_year")
 
 
 def _physics_key(v: VehicleSpec) -> tuple:
@@ -299,6 +300,26 @@ _SHORTFALL_PHRASES = {  # the simulation's shortfall measures, in the order a re
 def _phrase_order(item):
     name = item[0]
     return (list(_SHORTFALL_PHRASES).index(name) if name in _SHORTFALL_PHRASES else len(_SHORTFALL_PHRASES), name)
+
+
+def _map_grid_notes(fleet: Fleet, mode: str) -> list[str]:
+    """One note listing the vehicles whose final drive ratio lies beyond the cached map3d
+    gear-ratio grid: map3d builds their maps at their own ratio (as map2d)."""
+    from fleetrun.simulation import DEFAULT_MODE
+    from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
+
+    if (DEFAULT_MODE if mode == "auto" else mode) != "map3d":
+        return []
+    outside = [v for v in fleet.vehicles if outside_map3d_grid(v.configuration, v.final_drive_ratio)]
+    if not outside:
+        return []
+    shown = ", ".join(f"{v.vehicle_id} (row {fleet.vehicle_rows.get(v.vehicle_id, '?')}: {v.final_drive_ratio:g})"
+                      for v in outside[:MAX_LISTED_WARNINGS])
+    more = f" and {len(outside) - MAX_LISTED_WARNINGS} more" if len(outside) > MAX_LISTED_WARNINGS else ""
+    grids = "; ".join(f"{duty} {g[0]:g}-{g[-1]:g}" for duty, g in GEAR_GRID.items())
+    return [f"note: {len(outside)} vehicle type(s) have a final_drive_ratio beyond the map3d gear-ratio grid "
+            f"({grids}); their differential maps are built at their own ratio, as in --mode map2d: "
+            f"{shown}{more}"]
 
 
 def _shortfall_phrase(name: str, value: float) -> str:
