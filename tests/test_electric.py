@@ -22,7 +22,7 @@ from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 KWH_PER_GALLON_EQUIVALENT = 33.705   # EPA's MPGe definition
 LB_KG = 0.45359237
 BOLT = dict(vehicle_class="Electric car", configuration="LD_FWD", fuel="electric", transmission="automatic",
-            transmission_gear_ratios="7.05", final_drive_ratio=1.0, peak_engine_torque_Nm=360,
+            transmission_gear_ratios="1", final_drive_ratio=7.05, peak_engine_torque_Nm=360,
             test_weight_kg=3875 * LB_KG, coastdown_A_lbf=30.51, coastdown_B_lbf_per_mph=0.0152,
             coastdown_C_lbf_per_mph2=0.02151, tire_size="P215/50R17")
 

@@ -15,7 +15,6 @@ CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "
 DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel", "electric")
-YES_NO = ("yes", "no")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 TRANSMISSIONS = ("automatic", "manual")
 GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
