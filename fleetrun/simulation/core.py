@@ -8,7 +8,7 @@ Per step, from the wheels back to the fuel (arrays are vehicles x steps):
 4. differential (``differential``): invert the thesis model for the input torque (direct / map2d / map3d);
 5. gearbox (``gearbox``; constant mesh efficiency), torque converter or clutch
    (``converter_or_clutch``) -> engine speed, torque;
-6. engine (``engine``): full load, Willans-line fuel, idle fuel at standstill, fuel cut-off
+6. engine (``engine``): full load, motoring, fuel (engine.py), idle fuel at standstill, fuel cut-off
    on overrun.
 
 A vehicle whose engine cannot deliver the demanded torque is re-driven forward at its
@@ -26,16 +26,18 @@ import numpy as np
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
-from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
+from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
+                                        full_load_torque_Nm, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
-from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, input_torque_Nm,
-                                              torque_ratio)
+from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
+                                              input_torque_Nm, spin_loss_Nm, torque_ratio)
 
 RPM = 60.0 / (2.0 * np.pi)          # rad/s -> rpm
 FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than this = not followed
 DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
 N_POWER_TABLE = 65
+ACCEL_SHIFT_MPS2 = 0.1               # steps accelerating faster than this use shift_speed_accel_rpm
 
 
 def power_speed_table(va: VehicleArrays) -> np.ndarray:
@@ -151,12 +153,29 @@ class DifferentialSolver:
         return result
 
 
+def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, fueled, inertial_power_W=0.0,
+                             col=lambda a: a):
+    """The fuel equation (engine.py) with each vehicle's constants; ``col`` shapes the (V,)
+    parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles x steps arrays)."""
+    terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
+                               col(va.T_peak), col(va.throttled), inertial_power_W)
+    return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
+
+
+def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a):
+    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``."""
+    c = va.fuel_constants
+    return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
+                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]), col(va.throttled))
+
+
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
-    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the Willans line at
+    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
     idle speed and zero load."""
-    t0 = offset_torque_Nm(va.n_idle, va.displacement_L, va.pme0[:, 0], va.pme0[:, 1], va.pme0[:, 2])
-    willans = fuel_rate_g_per_s(0.0, va.n_idle, True, t0, va.eta_ind, va.lhv)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, willans)
+    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                va.idle_T_frac)
+    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
 
 
 @dataclass
@@ -231,6 +250,8 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     p_need /= _col(va.power_reserve * va.P_rated_kW * 1e3)
     n_req = _lookup_rows(va.power_table, rows, p_need)  # n_power, then clamped in place:
     np.maximum(_col(va.shift_min_rpm), n_req, out=n_req)
+    # while accelerating, the schedule holds a gear up to a higher engine speed
+    np.maximum(np.where(k.accel > ACCEL_SHIFT_MPS2, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
     np.minimum(n_req, _col(va.n_rated), out=n_req)
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
     choice = choose_gear(wheel_rpm * _col(va.final_drive), n_req, _col(va.n_rated), overall, va.n_combos)
@@ -239,6 +260,12 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     axle_low = va.combo_axle_low.reshape(-1)[flat_k]
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
     gear = va.combo_gear.reshape(-1)[flat_k]
+    if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
+        cvt = _col(va.cvt)
+        ratio = cvt_ratio(wheel_rpm * _col(va.final_drive), n_req, _col(va.cvt_ratio_range[:, 0]),
+                          _col(va.cvt_ratio_range[:, 1]))
+        trans_ratio = np.where(cvt, ratio, trans_ratio)
+        gear = np.where(cvt, np.where(ratio >= _col(va.cvt_ratio_range[:, 0]), 1, 2), gear)
     if not k.all_moving:
         axle_low &= k.moving
         gear = np.where(k.moving, gear, 0)
@@ -280,21 +307,24 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
     return diff_rpm, diff_torque, diff_eff
 
 
-def gearbox(k: Kinematics, diff_torque, diff_rpm, trans_ratio, gear_eff):
-    """Gearbox input (turbine) torque and speed (constant mesh efficiency, transmission.py)."""
-    trans_torque = k.at_rest(input_torque_Nm(diff_torque, trans_ratio, gear_eff), 0.0)
-    return trans_torque, diff_rpm * trans_ratio
+def gearbox(va: VehicleArrays, k: Kinematics, diff_torque, diff_rpm, trans_ratio, gear_eff):
+    """Gearbox input (turbine) torque and speed: mesh efficiency and spin loss (transmission.py)."""
+    turbine_rpm = diff_rpm * trans_ratio
+    spin = spin_loss_Nm(turbine_rpm, _col(va.spin_loss[:, 0]), _col(va.spin_loss[:, 1]))
+    trans_torque = k.at_rest(input_torque_Nm(diff_torque, trans_ratio, gear_eff, spin), 0.0)
+    return trans_torque, turbine_rpm
 
 
 def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_rpm, gear):
-    """Engine speed and torque behind the torque converter (automatic) or clutch (manual).
+    """Engine speed and torque behind the torque converter (automatic, CVT) or clutch (manual,
+    automated manual).
 
     Returns engine speed, engine torque, the unlocked-converter mask and the drive mask.
     """
     N = trans_torque.shape[1]
     idle = _col(va.n_idle)
     auto = _col(va.automatic)
-    unlocked = auto & ((gear == 1) | (turbine_rpm < _col(va.lockup_rpm)))
+    unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, _col(va.lockup_rpm), _col(va.has_lockup))
     drive = trans_torque > 0
     engine_rpm = turbine_rpm.copy()
     engine_torque = trans_torque.copy()
@@ -330,7 +360,7 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
 def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, idling,
            wheel_power):
     """Engine limits and fuel (engine.py): full load (steps above it are infeasible), motoring
-    (engine braking; the rest is brakes), Willans fuel, idle fuel, fuel cut-off, and the
+    (engine braking; the rest is brakes), the fuel equation, idle fuel, fuel cut-off, and the
     vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun.
 
     Returns the full-load torque, the infeasible mask, the engine torque and the fuel rate.
@@ -338,9 +368,7 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     idle = _col(va.n_idle)
     t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), idle,
                                 _col(va.n_peak_torque), _col(va.idle_T_frac))
-    pme0 = va.pme0
-    t_offset = offset_torque_Nm(engine_rpm, _col(va.displacement_L), _col(pme0[:, 0]), _col(pme0[:, 1]),
-                                _col(pme0[:, 2]))
+    t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
     infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
@@ -348,8 +376,8 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     # the rest, so the reported engine torque is never below -T_0
     engine_torque = np.maximum(engine_torque, -t_offset)
     fueled = ~(overrun & (engine_rpm >= _col(va.fuel_cut_rpm)))
-    fuel = fuel_rate_g_per_s(np.maximum(engine_torque_fuel, 0.0), engine_rpm, fueled, t_offset,
-                             _col(va.eta_ind), _col(va.lhv))
+    inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
+    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col)
     idle_fuel = _col(va.idle_fuel_g_s)
     np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
     if not k.all_moving:
@@ -382,7 +410,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     wheel_power = wheel_torque * wheel_omega
     trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
     diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low)
-    trans_torque, turbine_rpm = gearbox(k, diff_torque, diff_rpm, trans_ratio, gear_eff)
+    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
     t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
                                                     wheel_power)
