@@ -47,11 +47,12 @@ def staging_dir(out_dir: Path):
         shutil.rmtree(staging, ignore_errors=True)
 
 
-OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json")
+OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
+                "manifest.json")
 
 
 def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
-    """Write the five outputs of a run into ``out_dir``, all or nothing."""
+    """Write the six outputs of a run into ``out_dir``, all or nothing."""
     from fleetrun.fleet.manifest import write_manifest
     from fleetrun.fleet.report_html import write_summary_html
     from fleetrun.fleet.report_xlsx import write_report_xlsx
@@ -61,6 +62,7 @@ def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
     with staging_dir(out_dir) as staging:
         result.results.to_csv(staging / "results.csv", index=False)
         result.classes.to_csv(staging / "class_summary.csv", index=False)
+        result.fiscal.to_csv(staging / "fiscal_summary.csv", index=False)
         write_report_xlsx(result, staging / "report.xlsx")
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}
