@@ -11,9 +11,10 @@ temperature ``T`` [C] (oil temperature = node temperature). Constants: ``models/
 - **Cooling while parked** (soak): Newton cooling toward ambient,
   ``T = T_amb + (T_end - T_amb) exp(-t / tau)``.
 - **Extra fuel while cold** (only where the warm engine burns fuel; not in fuel cut-off):
-  rubbing friction rises with the oil's viscosity, ``T_f,cold = s T_0 (nu(T)/nu(T_open))^n``
-  with ``T_0`` the Willans offset torque (friction + pumping, ``engine.offset_torque_Nm``) and
-  s its rubbing share; the extra torque costs fuel along the Willans line,
+  rubbing friction rises with the oil's viscosity, ``T_f,cold = s T_f (nu(T)/nu(T_open))^n``
+  with ``T_f`` the warm engine's friction torque (its FMEP: ``engine.motoring_torque_Nm``
+  without the closed-throttle pumping, which does not depend on the oil) and s the share of it
+  in oil films; the extra torque costs fuel along the Willans slope,
   ``dm = dT_f omega / (eta_ind LHV)``. Gasoline engines are also enriched (and their spark
   retarded to light the catalyst): ``e(T) m_dot`` with e falling linearly from ``e_25`` at
   25 C to 0 at ``T_open``. The oil's viscosity is Walther's equation
@@ -37,7 +38,8 @@ import numpy as np
 
 from fleetrun.physics.lubricant import KELVIN, walther_coefficients, walther_kinematic_viscosity_m2_s
 from fleetrun.resources import models_dir
-from fleetrun.simulation.engine import fuel_rate_g_per_s, offset_torque_Nm
+from fleetrun.simulation.core import engine_motoring_torque_Nm
+from fleetrun.simulation.engine import RPM_RAD_S, fuel_rate_g_per_s
 
 REFERENCE_COLD_C = 25.0      # engine temperature at which the enrichment share is e_25 [C]
 FIXED_POINT_TOL_G = 1e-6     # fuel per step [g]: the forward pass' iteration tolerance
@@ -114,14 +116,14 @@ def oil_viscosity_ratio(temp_C, reference_temp_C, walther_A, walther_B):
     return nu / walther_kinematic_viscosity_m2_s(reference_temp_C + KELVIN, walther_A, walther_B)
 
 
-def cold_friction_torque_Nm(offset_torque_Nm, friction_share, viscosity_ratio, viscosity_exponent):
-    """Extra friction torque of a cold engine [N m]: ``s T_0 ((nu/nu_hot)^n - 1)``.
+def cold_friction_torque_Nm(friction_torque_Nm, friction_share, viscosity_ratio, viscosity_exponent):
+    """Extra friction torque of a cold engine [N m]: ``s T_f ((nu/nu_hot)^n - 1)``.
 
-    Parameters: ``offset_torque_Nm`` the warm Willans offset T_0 (friction + pumping) [N m];
-    ``friction_share`` s, its rubbing part; ``viscosity_ratio`` nu(T)/nu(T_open);
+    Parameters: ``friction_torque_Nm`` the warm friction torque T_f (FMEP) [N m];
+    ``friction_share`` s, its part in oil films; ``viscosity_ratio`` nu(T)/nu(T_open);
     ``viscosity_exponent`` n (Burke et al. 2010: 0.52).
     """
-    return friction_share * offset_torque_Nm * (np.asarray(viscosity_ratio, float) ** viscosity_exponent - 1.0)
+    return friction_share * friction_torque_Nm * (np.asarray(viscosity_ratio, float) ** viscosity_exponent - 1.0)
 
 
 def enrichment_fraction(temp_C, thermostat_temp_C, fraction_at_25C):
@@ -178,7 +180,7 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     """Extra fuel rate of a cold engine [g/s] and the engine temperature [C], both (V, N).
 
     ``va``: the vehicles' simulation parameters (``fleetrun.simulation.params.VehicleArrays``:
-    ``displacement_L``, ``pme0``, ``eta_ind``, ``lhv``, ``fuel``); ``fuel_rate`` [g/s] and
+    ``displacement_L``, the fuel constants, ``lhv``, ``fuel``); ``fuel_rate`` [g/s] and
     ``engine_speed_rpm`` (V, N): the warm engine's, every step (0 where the engine is off);
     ``dt_s`` (N,) step durations [s]; ``step_soak_s``, ``start_temp_C``, ``ambient_temp_C``
     as for :func:`engine_temperature_C`. Fixed-point iteration: the extra fuel also heats the
@@ -224,11 +226,11 @@ def _cold_fuel_function(va, fuel_rate, engine_speed_rpm, k: ThermalConstants):
     col = lambda a: np.asarray(a, float)[:, None]  # noqa: E731
     fuels = np.array([str(f) if str(f) in k.oil_walther else "gasoline" for f in va.fuel])
     enrich = col([k.enrichment_at_25C.get(str(f), 0.0) for f in va.fuel]) * fuel_rate
-    offset = offset_torque_Nm(engine_speed_rpm, col(va.displacement_L), col(va.pme0[:, 0]), col(va.pme0[:, 1]),
-                              col(va.pme0[:, 2]))
-    # fuel of the warm rubbing friction s T_0 (where the engine burns fuel)
-    warm_friction_fuel = fuel_rate_g_per_s(k.friction_share * offset, engine_speed_rpm, fuel_rate > 0, 0.0,
-                                           col(va.eta_ind), col(va.lhv))
+    # fuel of the warm rubbing friction s T_f (where the engine burns fuel), along the Willans slope
+    friction = engine_motoring_torque_Nm(va, engine_speed_rpm, col, throttled=False)   # FMEP: no pumping
+    slope = 1.0 / col(va.fuel_constants[:, 0])   # 1 / eta_indicated (engine.fuel_coefficients)
+    warm_friction_fuel = fuel_rate_g_per_s([k.friction_share * friction * engine_speed_rpm * RPM_RAD_S], [slope],
+                                           fuel_rate > 0, col(va.lhv))
     grid = np.arange(-80.0, k.thermostat_temp_C + 0.025, 0.05)
     # the factor (nu/nu_hot)^n - 1: cold_friction_torque_Nm of a unit torque and share
     tables = {oil: cold_friction_torque_Nm(1.0, 1.0, oil_viscosity_ratio(grid, k.thermostat_temp_C, *k.oil_walther[oil]),
