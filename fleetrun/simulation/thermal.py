@@ -221,7 +221,7 @@ def _cold_fuel_function(va, fuel_rate, engine_speed_rpm, k: ThermalConstants):
     The same functions as above, arranged for the iteration: the friction fuel is linear in
     the factor ``(nu/nu_hot)^n - 1`` (>= 0 up to the thermostat), so it is the warm rubbing
     friction's fuel times that factor, tabulated against temperature per oil (0.05 K steps
-    from -80 C, linear interpolation: relative error below 1e-6).
+    from -80 C to the thermostat, linear interpolation: error below 1e-4 of the factor).
     """
     col = lambda a: np.asarray(a, float)[:, None]  # noqa: E731
     fuels = np.array([str(f) if str(f) in k.oil_walther else "gasoline" for f in va.fuel])
@@ -231,7 +231,7 @@ def _cold_fuel_function(va, fuel_rate, engine_speed_rpm, k: ThermalConstants):
     slope = 1.0 / col(va.fuel_constants[:, 0])   # 1 / eta_indicated (engine.fuel_coefficients)
     warm_friction_fuel = fuel_rate_g_per_s([k.friction_share * friction * engine_speed_rpm * RPM_RAD_S], [slope],
                                            fuel_rate > 0, col(va.lhv))
-    grid = np.arange(-80.0, k.thermostat_temp_C + 0.025, 0.05)
+    grid = np.linspace(-80.0, k.thermostat_temp_C, int(round((k.thermostat_temp_C + 80.0) / 0.05)) + 1)
     # the factor (nu/nu_hot)^n - 1: cold_friction_torque_Nm of a unit torque and share
     tables = {oil: cold_friction_torque_Nm(1.0, 1.0, oil_viscosity_ratio(grid, k.thermostat_temp_C, *k.oil_walther[oil]),
                                            k.viscosity_exponent) for oil in dict.fromkeys(fuels)}
