@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from fleetrun.errors import InputError
+from fleetrun.errors import FleetrunError, InputError
 from fleetrun.resources import models_dir
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
@@ -248,3 +248,22 @@ def _gather(rows: list) -> VehicleArrays:
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
     )
+
+
+def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, FleetrunError]]:
+    """(index, error) of each vehicle whose parameters the simulation refuses: what
+    :func:`vehicle_arrays` would raise for it. Physically equal rows are checked once, so the
+    workbook reader can run this on every row (``fleetrun validate`` catches what ``run`` refuses)."""
+    verdicts: dict = {}
+    refused = []
+    for i, v in enumerate(vehicles):
+        key = v.physics_key()
+        if key not in verdicts:
+            try:
+                _row_cached(v)
+                verdicts[key] = None
+            except FleetrunError as exc:
+                verdicts[key] = exc
+        if verdicts[key] is not None:
+            refused.append((i, verdicts[key]))
+    return refused
