@@ -30,6 +30,7 @@ CHUNK_SIZE = 128            # vehicles per simulation task: bounds memory, sprea
 MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
 SHORTFALL_TOLERANCE = 1e-6  # shortfall measures below this are rounding noise
 RESULT_FIELDS = ("miles", "fuel_gal") + ENERGY_FIELDS
+ELECTRIC = "electric"
 
 
 @dataclass(frozen=True)
@@ -138,6 +139,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
                               cache_dir=cache_dir, simulate=simulate, effects=effect_pairs)
     tasks, positions = plan_tasks(distinct, needed, template, chunk_size)
     per_condition, shortfalls = collect(engine, tasks, positions, conditions, len(distinct), progress)
+    electric_sums(distinct, needed, per_condition)
     simulated = time.perf_counter()
     per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
                      for cond, arrays in per_condition.items()}
@@ -190,6 +192,7 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
 
     conditions = list(needed)
     duties = np.array([v.duty_class for v in distinct], dtype=object)
+    duties[[v.fuel == ELECTRIC for v in distinct]] = None   # electric_sums drives those
     tasks: list[SimulationTask] = []
     positions: list[np.ndarray] = []
     for ambient in dict.fromkeys(a for _, a in conditions):
@@ -210,7 +213,8 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
 
 def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tuple[dict, dict]:
     """Run the tasks on ``engine``; per condition the per-vehicle sums and shortfall measures."""
-    per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
+    per_condition = {cond: {**{name: np.full(n, np.nan) for name in RESULT_FIELDS}, "kwh": np.zeros(n)}
+                     for cond in conditions}
     shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
         progress(0, len(tasks))
@@ -228,6 +232,28 @@ def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tupl
         if progress:
             progress(done, len(tasks))
     return per_condition, shortfalls
+
+
+def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
+    """Fill in the electric vehicles' per-cycle sums from the road-load energy model
+    (:func:`fleetrun.simulation.electric.simulate_electric`): kWh from the wall, no fuel, no
+    differential energies (the thesis model is not run for them), the battery energy spent on
+    traction as drivetrain input. Ambient temperature does not change them (not modelled)."""
+    from fleetrun.simulation.electric import simulate_electric
+
+    duties = np.array([v.duty_class if v.fuel == ELECTRIC else None for v in distinct], dtype=object)
+    for (cycle, ambient), duty_set in needed.items():
+        rows = np.flatnonzero(np.isin(duties, sorted(duty_set)))
+        if not len(rows):
+            continue
+        sums = simulate_electric([distinct[i] for i in rows], _cycle(cycle))
+        target = per_condition[(cycle, ambient)]
+        target["miles"][rows] = sums["miles"]
+        target["kwh"][rows] = sums["kwh"]
+        target["fuel_gal"][rows] = 0.0
+        target["diff_input_energy_J"][rows] = target["diff_output_energy_J"][rows] = 0.0
+        target["wheel_energy_J"][rows] = sums["wheel_energy_J"]
+        target["drivetrain_input_energy_J"][rows] = sums["drivetrain_input_energy_J"]
 
 
 def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec], np.ndarray]:

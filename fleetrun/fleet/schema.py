@@ -14,8 +14,7 @@ CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "
                   "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL")
 DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
-FUELS = ("gasoline", "diesel")
-YES_NO = ("yes", "no")
+FUELS = ("gasoline", "diesel", "electric")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 TRANSMISSIONS = ("automatic", "manual")
 GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
@@ -43,7 +42,7 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
            example=("LD_FWD", "HD_TANDEM")),
     Column("count", "number", True, "vehicles of this type", minimum=0, example=(125000, 4200)),
     Column("annual_miles", "number", True, "miles per vehicle per year", minimum=0, example=(11500, 85000)),
-    Column("fuel", "choice", True, "gasoline or diesel", choices=FUELS, example=("gasoline", "diesel")),
+    Column("fuel", "choice", True, "gasoline, diesel or electric", choices=FUELS, example=("gasoline", "diesel")),
     Column("peak_engine_torque_Nm", "number", True, "peak engine torque [N m]", strictly_positive=True,
            example=(250, 2500)),
     Column("transmission", "choice", True, "automatic or manual", choices=TRANSMISSIONS,
