@@ -335,6 +335,8 @@ def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, Fleetru
     verdicts: dict = {}
     refused = []
     for i, v in enumerate(vehicles):
+        if v.fuel == "electric":  # battery-electric rows run on fleetrun.simulation.electric, not these
+            continue
         key = v.physics_key()
         if key not in verdicts:
             try:
