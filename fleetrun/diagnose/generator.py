@@ -39,8 +39,11 @@ class RigSpec:
     road_load_N: tuple[float, float, float] = (150.0, 4.0, 0.45)  # A + B v + C v^2, SI
 
     @property
-    def kim_scale_Nm(self) -> float:
-        return self.peak_engine_torque_Nm * self.torque_converter_ratio * self.max_transmission_gear_ratio
+    def kim_torque_scale_Nm(self) -> float:
+        from fleetrun.differential import kim_torque_scale_Nm
+
+        return float(kim_torque_scale_Nm(self.peak_engine_torque_Nm, self.torque_converter_ratio,
+                                         self.max_transmission_gear_ratio))
 
     @property
     def ratio(self) -> float:
@@ -178,7 +181,7 @@ def generate_differential_recording(
     force = rig.mass_kg * a + (A + B * v + C * v ** 2) * moving
     g = rig.ratio
     t_in = np.maximum(force * rig.wheel_radius_m / (g * 0.95), 0.0)
-    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_scale_Nm), 0.0)
+    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_torque_scale_Nm), 0.0)
     w_wheel = v / rig.wheel_radius_m
     w_in = w_wheel * g
     alpha_in = np.gradient(w_in, dt)
@@ -198,7 +201,7 @@ def generate_differential_recording(
     kw = {}
     if rig.low_gear_ratio:
         kw = {"low_gear_ratio": rig.low_gear_ratio, "axle_gear": rig.axle_gear}
-    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_scale_Nm, n_rpm,
+    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_torque_scale_Nm, n_rpm,
                                 rig.gear_ratio, **kw), dtype=float)
     # stopped: no power flows, the output carries the input torque unchanged (statics);
     # driving the differential backwards (t_eff < 0) is outside the thesis model: lossless here

@@ -150,7 +150,7 @@ def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
         ax.plot(d.index, eta_model, color=color, ls=":", lw=1)
         if found:
             eff = [(get_effect(f["effect"]), f["parameters"]) for f in found]
-            eta_with = efficiency_with_effects("LD_RWD", tf, n, meta["gear_ratio"], eff, kim_scale_Nm=kim)
+            eta_with = efficiency_with_effects("LD_RWD", tf, n, meta["gear_ratio"], eff, kim_torque_scale_Nm=kim)
             ax.plot(d.index, eta_with, color=color, lw=1.2,
                     label=f"{vehicle}: model + {', '.join(f['effect'] for f in found)}")
     s = np.arange(5.0, 151.0, 1.0)

@@ -33,14 +33,6 @@ CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "
 log = logging.getLogger("fleetrun.run")
 
 
-def default_cache_dir() -> Path:
-    """Where cached efficiency maps live between runs: $FLEETRUN_CACHE or ~/.cache/fleetrun."""
-    if os.environ.get("FLEETRUN_CACHE"):
-        return Path(os.environ["FLEETRUN_CACHE"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "fleetrun"
-
-
 @dataclass
 class RunPlan:
     """One invocation of ``fleetrun run``: which fleets, where to, and how."""

@@ -413,14 +413,13 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
         gear = float(np.median([v.final_drive_ratio for v in group]))
         lows = [v.low_gear_ratio for v in group if v.low_gear_ratio]
         low = float(np.median(lows)) if lows else None
-        kim = float(np.median([v.kim_scale_Nm for v in group]))
+        kim = float(np.median([v.kim_torque_scale_Nm for v in group]))
         if differential_effects:
-            eta = efficiency_with_effects(config, tf, rpm, gear, differential_effects, kim_scale_Nm=kim,
-                                          low_gear_ratio=low, axle_gear="high", physics=physics,
-                                          input_torque_scale_Nm=kim)
+            eta = efficiency_with_effects(config, tf, rpm, gear, differential_effects, kim_torque_scale_Nm=kim,
+                                          low_gear_ratio=low, axle_gear="high", physics=physics)
         else:
             eta = efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high", physics=physics,
-                             input_torque_scale_Nm=kim)
+                             kim_torque_scale_Nm=kim)
         eta = np.asarray(eta, dtype=float)
         maps.append({"configuration": config, "gear_ratio": gear, "low_gear_ratio": low,
                      "axle_gear": "high", "torque_fractions": list(MAP_TORQUE_FRACTIONS),
