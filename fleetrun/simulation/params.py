@@ -27,6 +27,7 @@ import numpy as np
 
 from fleetrun.differential import dual_configuration_ids
 from fleetrun.errors import FleetrunError, InputError
+from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
@@ -58,6 +59,8 @@ def engine_defaults(fuel: str, duty_class: str) -> dict:
     by_duty = sets[fuel]
     duty = duty_class if duty_class in by_duty else "LD"
     values = dict(by_duty[duty])
+    fuel_props = fuel_properties(fuel)
+    values.update(lhv_MJ_per_kg=fuel_props.lhv_MJ_per_kg, density_kg_per_L=fuel_props.density_kg_per_L)
     if (models_dir() / CALIBRATION_FILE).exists():
         fitted = _toml(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
         values.update({key: fitted[key]["value"] for key in FUEL_CONSTANTS if key in fitted})
