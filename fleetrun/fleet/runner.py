@@ -395,10 +395,7 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
     """For each configuration in the fleet: efficiency over torque fraction x speed at the
     fleet's median gear ratio and Kim scale (and median low ratio for two-speed axles, high
     gear), with the steady-state part of the differential-level ``effects``."""
-    try:
-        from fleetrun.differential import efficiency
-    except ImportError:
-        return [], ["efficiency maps left out: fleetrun.differential is not available"]
+    from fleetrun.differential import efficiency
     from fleetrun.effects import as_effect_list, efficiency_with_effects
 
     differential_effects = [(e, p) for e, p in as_effect_list(effects) if e.level == "differential"]

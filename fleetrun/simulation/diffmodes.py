@@ -36,6 +36,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -251,8 +252,8 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
                 maps = data["maps"].astype(float)
             _LOADED[(path, digest)] = _LOADED[quick] = maps
             return gears, maps
-        except Exception:  # a damaged cache file is rebuilt  # noqa: BLE001
-            pass
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+            pass  # an unreadable or damaged cache file (truncated, not a zip, no maps) is rebuilt
     ranges = (False, True) if low_gear_ratio is not None else (False,)
     maps = np.empty((2, gears.size, N_U, N_SPEED))
     for r, axle_low in enumerate(ranges):
