@@ -2,7 +2,7 @@
 
     python benchmarks/bench_diagnose.py [--repeat 3]
 
-Generates the recording with fleetrun.diagnose.generator (two hidden effects, AR(1) noise,
+Generates the recording with fleetrun.testing.recordings (two hidden effects, AR(1) noise,
 offsets), then times the whole ``fleetrun diagnose`` path: reading and checking the CSV,
 baseline, locating, selection with 200 circular shifts, JSON and HTML. Prints one JSON line.
 """
@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from fleetrun.diagnose import diagnose
-from fleetrun.diagnose.generator import random_case
+from fleetrun.testing.recordings import random_case
 
 
 def main(argv=None):

@@ -1,6 +1,6 @@
 """fleetrun diagnose: recordings, selection on generated recordings, report, CLI.
 
-Generated recordings come from fleetrun.diagnose.generator with random seeds: the thesis
+Generated recordings come from fleetrun.testing.recordings with random seeds: the thesis
 model plus hidden effects, AR(1) sensor noise (rho 0.95/sample, 1.5 N m on the output) and
 sensor offsets. The full acceptance rates (issue 5, "Done when") are the slow tests at the
 end; the default run keeps one case of each kind.
@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from fleetrun.cli import cli
 from fleetrun.diagnose import diagnose
-from fleetrun.diagnose.generator import CASE_PARAMETER_RANGES, random_case
+from fleetrun.testing.recordings import CASE_PARAMETER_RANGES, random_case
 from fleetrun.diagnose.recording import load_recording
 from fleetrun.errors import InputError
 
@@ -266,7 +266,7 @@ def test_confounded_candidates_separated_by_their_own_channel(tmp_path):
 
 def test_heavy_duty_two_speed_low_range(tmp_path):
     # any configuration: a two-speed HD axle in its low range (overall ratio 4.1 x 1.36)
-    from fleetrun.diagnose.generator import RigSpec, generate_differential_recording
+    from fleetrun.testing.recordings import RigSpec, generate_differential_recording
 
     rig = RigSpec(configuration="HD_DUAL", gear_ratio=4.1, low_gear_ratio=1.36, axle_gear="low",
                   peak_engine_torque_Nm=2000.0, torque_converter_ratio=1.0,

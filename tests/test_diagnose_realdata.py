@@ -7,7 +7,7 @@ be told from `cornering` and is reported ambiguous, not claimed.
 """
 import pytest
 
-from fleetrun.diagnose.realdata import run
+from diagnose_realdata import run
 
 
 @pytest.fixture(scope="module")

@@ -62,6 +62,7 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     sel = select(problem, s)
     fitted = sel.pop("fitted_effects")
     base_heldout = sel.pop("baseline_heldout_rmse")
+    sel.pop("search")
     rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
                                 smooth_window=max(1, int(rate)),

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from fleetrun.diagnose.generator import Recording
+from fleetrun.testing.recordings import Recording
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.simulation.validation import TABLE_7_1, matthews_c19
