@@ -5,9 +5,13 @@ and attributed to `warmup`. Thesis Sec. 7.2: with wheel speeds recorded, the low
 shortfall of the model against Matthews' fit is `mixed_lubrication`; without them it cannot
 be told from `cornering` and is reported ambiguous, not claimed.
 """
+import sys
+from pathlib import Path
+
 import pytest
 
-from diagnose_realdata import run
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
+from diagnose_realdata import run  # noqa: E402  (validation/ is a folder of scripts)
 
 
 @pytest.fixture(scope="module")

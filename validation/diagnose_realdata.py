@@ -1,6 +1,6 @@
 """The two real-data diagnoses of docs/diagnose-realdata.md, reproducible.
 
-    python -m fleetrun.diagnose.realdata [--out DIR] [--img docs/img]
+    python validation/diagnose_realdata.py [--out DIR] [--img docs/img]
 
 1. **Argonne 2018 Camry, cold-start vs hot-start UDDS** (vehicle level, inputs/dyno): the cold
    recording diagnosed with ``--calibrate-on`` the hot one.

@@ -93,6 +93,8 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
         "findings": sel["findings"],
         "candidates": sel["candidates"],
         "ambiguities": sel["ambiguities"],
+        "descriptions": sel["descriptions"],
+        "unexplained": sel["unexplained"],
         "after": {"rmse": round(float(np.sqrt(np.mean(after ** 2))), 6),
                   "bias": round(float(np.mean(after)), 6)},
         "method": {"folds": s.folds, "n_shifts": s.n_shifts, "quantile": s.quantile,

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fleetrun.diagnose.openworld import review, unexplained
 from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
                                       refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
@@ -348,6 +349,19 @@ def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
     return findings, fitted
 
 
+def _open_world(s: _Search) -> tuple[list, np.ndarray, dict, list]:
+    """Final findings, their fit, what they leave unexplained, and the effects moved to
+    descriptions (:mod:`.openworld`); each demotion changes the remainder, so the review
+    repeats until nothing more is demoted."""
+    descriptions: list = []
+    findings, fitted = _final_refit(s)
+    while True:
+        left = unexplained(s.problem, s.r - fitted, s.settings, rng=s.rng, folds=s.folds)
+        if not s.accepted or not review(s, findings, left, descriptions):
+            return findings, fitted, left, descriptions
+        findings, fitted = _final_refit(s)
+
+
 def select(problem: Problem, settings: Settings | None = None) -> dict:
     """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
     st = settings or Settings()
@@ -363,7 +377,7 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
             break
     if s.accepted and not s.stopped_untestable:
         _rival_check(s)
-    findings, fitted = _final_refit(s)
+    findings, fitted, left, descriptions = _open_world(s)
     # each candidate's gain over the baseline alone (round 1), next to its gain in the final
     # round (over the model with the accepted effects): both tell the story
     if s.rounds:
@@ -373,6 +387,7 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     order = [c.id for c in problem.candidates] + list(problem.untestable)
     candidates = [s.statuses[cid] for cid in order if cid in s.statuses]
     return {"findings": findings, "candidates": candidates, "ambiguities": s.ambiguities,
+            "descriptions": descriptions, "unexplained": left,
             "significant": s.significant or bool(s.ambiguities), "threshold": s.first_threshold,
             "rounds": s.rounds, "fitted_effects": fitted,
             "baseline_heldout_rmse": s.baseline_heldout, "search": s}
