@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from fleetrun.fleet.outputs import atomic_file, prepare_output_folder
-from fleetrun.diagnose.engine import Problem, Settings, select
+from fleetrun.diagnose.engine import Problem, Settings, fitted_on, select
+from fleetrun.diagnose.integrals import integrals, phases
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.recording import load_recording
@@ -27,7 +28,7 @@ from fleetrun.errors import InputError
 SCHEMA = "fleetrun.diagnosis/1"
 
 
-def build(recording, meta=None, calibrate_on=None, physics="thesis") -> Problem:
+def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="auto") -> Problem:
     rec = load_recording(recording, meta)
     if rec.level == "differential":
         from fleetrun.diagnose.differential import build_problem
@@ -48,7 +49,7 @@ def build(recording, meta=None, calibrate_on=None, physics="thesis") -> Problem:
         ref = load_recording(calibrate_on) if calibrate_on else None
         if ref is not None and ref.level != "vehicle":
             raise InputError("--calibrate-on must be a vehicle-level recording", file=calibrate_on)
-        prob = build_problem(rec, ref, physics)
+        prob = build_problem(rec, ref, physics, residual)
     prob.baseline_info.setdefault("recording", str(rec.path))
     prob.baseline_info["_rec"] = rec
     return prob
@@ -59,10 +60,12 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     s = settings or Settings()
     t0 = time.perf_counter()
     r = problem.residual
-    sel = select(problem, s)
+    sel = select(problem.coarse or problem, s)
     fitted = sel.pop("fitted_effects")
     base_heldout = sel.pop("baseline_heldout_rmse")
-    sel.pop("search")
+    search = sel.pop("search")
+    if problem.coarse is not None:
+        fitted = fitted_on(problem, search)
     rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
                                 smooth_window=max(1, int(rate)),
@@ -77,6 +80,10 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     baseline.update(info)
     after = r - fitted
     rec = problem.baseline_info.get("_rec")
+    ig = problem.integral
+    phase_list = phases(problem.time_s, ig["moving"], ig.get("speed_mps"))
+    integral_list = integrals(problem.time_s, ig["weight"], problem.measured, problem.baseline,
+                              problem.baseline + fitted, phase_list, segs)
     from fleetrun import __version__
 
     result = {
@@ -90,6 +97,8 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
         "baseline": baseline,
         "mismatch": {"significant": significant, "segments": segs,
                      "drivers": drv},
+        "integrals": integral_list,
+        "integral_unit": ig["unit"],
         "findings": sel["findings"],
         "candidates": sel["candidates"],
         "ambiguities": sel["ambiguities"],
@@ -126,10 +135,10 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
-             settings: Settings | None = None, write=True) -> dict:
+             settings: Settings | None = None, write=True, residual="auto") -> dict:
     """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
     t_start = time.perf_counter()
-    problem = build(recording, meta, calibrate_on, physics)
+    problem = build(recording, meta, calibrate_on, physics, residual)
     result, fitted = analyse(problem, settings)
     result = _clean(result)
     if write:

@@ -53,16 +53,63 @@ class Problem:
     #: effect id -> smallest size (target units, mean over the samples it acts on) that can be
     #: told from a sensor-zeroing error; smaller fits are rejected
     offset_floor: dict = field(default_factory=dict)
+    #: for the integrals (:mod:`.integrals`): ``moving`` (bool per sample: turning with the
+    #: engine on), ``speed_mps`` (vehicle speed or None), ``weight`` (target -> rate of the
+    #: integrated quantity) and ``unit`` (of the integral)
+    integral: dict = field(default_factory=dict)
+    #: the same problem on a coarser grid (:func:`windowed`) where the selection runs, or None
+    coarse: "Problem | None" = None
 
     @property
     def residual(self) -> np.ndarray:
         return self.measured - self.baseline
 
 
+def _window_mean(x, w: int):
+    """Means over consecutive windows of ``w`` samples (the last one may be shorter)."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 0:
+        return x
+    idx = np.arange(len(x)) // w
+    return np.bincount(idx, weights=x) / np.bincount(idx)
+
+
+def windowed(problem: Problem, w: int) -> Problem:
+    """``problem`` on means over windows of ``w`` samples: target, baseline, every column and
+    channel (an integral over each window, divided by its length).
+
+    For residuals whose per-sample noise is timing: two drives of the same trace place each
+    transient a second or two apart, which a per-second difference turns into noise that a
+    window's integral does not have.
+    """
+    m = lambda x: _window_mean(x, w)  # noqa: E731
+
+    def cand(c):
+        column_for = None if c.column_for is None else (lambda sh, f=c.column_for: m(f(sh)))
+        return Candidate(c.id, [m(x) for x in c.columns], c.shapes, c.lower, c.upper,
+                         column_for=column_for, shape_bounds=c.shape_bounds)
+
+    ig = dict(problem.integral)
+    ig["moving"] = m(ig["moving"]) > 0.5
+    ig["weight"] = m(ig["weight"])
+    if ig.get("speed_mps") is not None:
+        ig["speed_mps"] = m(ig["speed_mps"])
+    return Problem(problem.level, problem.target, m(problem.time_s), m(problem.measured),
+                   m(problem.baseline), [cand(c) for c in problem.candidates],
+                   problem.untestable, {k: cand(c) for k, c in problem.surrogates.items()},
+                   problem.confound_possible, {k: m(v) for k, v in problem.driver_channels.items()},
+                   problem.baseline_info, problem.notes, problem.extra_ambiguity, problem.units,
+                   [(m(c), lo, hi) for c, lo, hi in problem.initial_terms], problem.offset_floor, ig)
+
+
 @dataclass
 class Settings:
     folds: int = 5
+    #: at least this many blocks per fold; more in long recordings so that blocks stay about
+    #: ``block_s`` long: far longer than the noise's correlation time, short enough that an
+    #: effect confined to the first minutes (a cold start) has data in several blocks
     blocks_per_fold: int = 4
+    block_s: float = 120.0
     n_shifts: int = 200
     quantile: float = 0.99
     min_gain: float = 0.01
@@ -152,6 +199,7 @@ class _Search:
     significant: bool = False
     stopped_untestable: bool = False
     baseline_heldout: float | None = None
+    initial_coefficients: list = field(default_factory=list)
 
     @property
     def r(self) -> np.ndarray:
@@ -332,6 +380,7 @@ def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
     cols = [t[0] for t in init] + [a["column"] for a in s.accepted]
     coefs = full_fit(s.r, cols, [(t[1], t[2]) for t in init]
                      + [(a["cand"].lower, a["cand"].upper) for a in s.accepted])
+    s.initial_coefficients = [float(c) for c in coefs[:len(init)]]
     for col, c in zip(cols[:len(init)], coefs[:len(init)]):
         fitted = fitted + c * col
     for a, c in zip(s.accepted, coefs[len(init):]):
@@ -347,6 +396,23 @@ def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
                          "seed": EFFECTS[a["cand"].id].seed})
         fitted = fitted + c * a["column"]
     return findings, fitted
+
+
+def fitted_on(problem: Problem, search: _Search) -> np.ndarray:
+    """The findings of ``search`` (run on ``problem.coarse``) and the moves of the calibration
+    terms, evaluated on ``problem``'s own samples."""
+    fitted = np.zeros(len(problem.time_s))
+    for (col, _, _), c in zip(problem.initial_terms, search.initial_coefficients):
+        fitted = fitted + c * col
+    by_id = {c.id: c for c in problem.candidates}
+    for a in search.accepted:
+        cand = by_id[a["cand"].id]
+        if cand.column_for is not None and a["shape"]:
+            col = cand.column_for(a["shape"])
+        else:
+            col = cand.columns[cand.shapes.index(a["shape"]) if a["shape"] in cand.shapes else 0]
+        fitted = fitted + a["coefficient"] * col
+    return fitted
 
 
 def _open_world(s: _Search) -> tuple[list, np.ndarray, dict, list]:
@@ -366,7 +432,9 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
     """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
     st = settings or Settings()
     n = len(problem.residual)
-    s = _Search(problem, st, np.random.default_rng(st.seed), fold_ids(n, st.folds, st.blocks_per_fold))
+    duration = float(problem.time_s[-1] - problem.time_s[0])
+    per_fold = max(st.blocks_per_fold, int(round(duration / (st.folds * st.block_s))))
+    s = _Search(problem, st, np.random.default_rng(st.seed), fold_ids(n, st.folds, per_fold))
     for cid, missing in problem.untestable.items():
         s.statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
                            "missing_channels": missing}

@@ -194,7 +194,10 @@ def review(search, findings: list, left: dict, descriptions: list) -> bool:
         cid = a["cand"].id
         bound = _at_bound(a["cand"], EFFECTS[cid], by_id[cid]["parameters"])
         rival = _collinear_rival(search, a)
-        if bound:
+        if a.get("coefficient", 1.0) == 0.0:
+            _demote(search, a, "ambiguous", "weak: refitted together with the other findings "
+                    "its size is zero", descriptions)
+        elif bound:
             _demote(search, a, "ambiguous", f"weak: {', '.join(bound)} at the edge of its "
                     "plausible range; the data ask for more (or less) of this effect than the "
                     "physics allows, so it describes the mismatch rather than measures it",

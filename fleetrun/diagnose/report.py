@@ -122,7 +122,37 @@ def _where(result: dict) -> str:
 
 
 def summary_sentence(result: dict) -> str:
-    return _summary(result) + _where(result)
+    """The report's first paragraph: what is left unexplained first, then the findings."""
+    return " ".join(x for x in (_unexplained_words(result), _summary(result) + _where(result),
+                                _descriptions_words(result)) if x)
+
+
+def _unexplained_words(result: dict) -> str:
+    u = result.get("unexplained") or {}
+    if not u.get("significant"):
+        return ""
+    drv = [d["channel"].replace("_", " ") for d in u.get("drivers", []) if d.get("significant")][:3]
+    what = "the model with its findings" if result["findings"] else "the model"
+    text = (f"Something the catalogue does not describe remains: after {what} the residual "
+            f"(RMSE {u['rmse']:.3g} {result.get('units', '')}) still has a part that the recorded "
+            f"channels explain beyond noise (what no function of them explains: "
+            f"{u['noise_rmse']:.3g})")
+    if drv:
+        text += "; it follows " + ", ".join(drv)
+    segs = u.get("segments", [])[:2]
+    if segs:
+        text += "; it concentrates in " + " and ".join(
+            f"{s['start_s']:.0f}-{s['end_s']:.0f} s" for s in segs)
+    return text + "."
+
+
+def _descriptions_words(result: dict) -> str:
+    d = result.get("descriptions") or []
+    if not d:
+        return ""
+    names = ", ".join(f"{EFFECTS[x['effect']].title} ({x['reason'].split(';')[0]})" for x in d)
+    return (f"Weak or ambiguous descriptions, not findings: {names}. They describe part of the "
+            "mismatch; they are not evidence that the model leaves this physics out.")
 
 
 def _summary(result: dict) -> str:
@@ -136,6 +166,8 @@ def _summary(result: dict) -> str:
         a = result["ambiguities"][0]
         return (f"The recording shows a mismatch that {' or '.join(a['effects'])} could explain; "
                 f"the data cannot tell them apart. To separate them: {a['separating_test']}.")
+    if (result.get("unexplained") or {}).get("significant"):
+        return "No effect of the catalogue explains it: the cause is not in the catalogue."
     if result["mismatch"]["significant"]:
         return ("The residual is larger than noise but none of the candidate physics explains it "
                 "better than noise could: the cause is not in the catalog.")

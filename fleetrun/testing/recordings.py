@@ -251,6 +251,7 @@ CASE_PARAMETER_RANGES = {
     "oil_warmup": {"c_w_Nm": (1.0, 1.8), "tau_s": (300.0, 900.0)},
     "bearing_drag": {"drag_1000rpm_Nm": (1.2, 2.5)},
     "mixed_lubrication": {"mu_b": (0.06, 0.12), "speed_ref_rpm": (150.0, 300.0)},
+    "mesh_friction": {"friction_excess": (0.3, 0.8)},
 }
 
 #: Rigs the cases alternate between: a light-duty RWD axle and a FWD transaxle.
