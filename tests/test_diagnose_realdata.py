@@ -6,13 +6,9 @@ with wheel speeds recorded, the low-speed shortfall of the model against Matthew
 described by `mixed_lubrication` at the bound of its friction share (a weak description);
 without them it cannot be told from `cornering` and is reported ambiguous, not claimed.
 """
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
-from diagnose_realdata import run  # noqa: E402  (validation/ is a folder of scripts)
+from validation.diagnose_realdata import run
 
 
 @pytest.fixture(scope="module")
