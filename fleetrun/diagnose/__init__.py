@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -129,23 +130,46 @@ def _clean(obj):
     return obj
 
 
-def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
-             settings: Settings | None = None, write=True, residual="auto") -> dict:
-    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+@dataclass
+class Diagnosis:
+    """A diagnosis: the problem (recording, baseline, candidates), the JSON-ready result and
+    the fitted effects in target units (for figures)."""
+
+    problem: Problem
+    result: dict
+    fitted: np.ndarray
+
+
+def diagnosis(recording, meta=None, calibrate_on=None, *, physics="thesis",
+              settings: Settings | None = None, residual="auto") -> Diagnosis:
+    """Build and analyse; nothing is written."""
     t_start = time.perf_counter()
     problem = build(recording, meta, calibrate_on, physics, residual)
     result, fitted = analyse(problem, settings)
     result = _clean(result)
-    if write:
-        from fleetrun.diagnose.report import render_html
+    result["timing_s"] = round(time.perf_counter() - t_start, 3)
+    return Diagnosis(problem, result, fitted)
 
-        out = Path(out) if out else Path(f"diagnosis-{Path(recording).stem}")
-        html = render_html(problem, result, fitted)      # everything rendered before writing
-        result["timing_s"] = round(time.perf_counter() - t_start, 3)
-        text = json.dumps(result, indent=2)
-        prepare_output_folder(out, out)
-        write_text_atomic(out / "diagnosis.json", text)
-        write_text_atomic(out / "diagnosis.html", html)
-    else:
-        result["timing_s"] = round(time.perf_counter() - t_start, 3)
-    return result
+
+def write_outputs(d: Diagnosis, out) -> None:
+    """``out/diagnosis.json`` and ``out/diagnosis.html``, rendered before anything is written."""
+    from fleetrun.diagnose.report import render_html
+
+    out = Path(out)
+    html = render_html(d.problem, d.result, d.fitted)
+    text = json.dumps(d.result, indent=2)
+    prepare_output_folder(out, out)
+    write_text_atomic(out / "diagnosis.json", text)
+    write_text_atomic(out / "diagnosis.html", html)
+
+
+def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
+             settings: Settings | None = None, write=True, residual="auto") -> dict:
+    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+    t_start = time.perf_counter()
+    d = diagnosis(recording, meta, calibrate_on, physics=physics, settings=settings,
+                  residual=residual)
+    if write:
+        write_outputs(d, out if out else Path(f"diagnosis-{Path(recording).stem}"))
+    d.result["timing_s"] = round(time.perf_counter() - t_start, 3)
+    return d.result

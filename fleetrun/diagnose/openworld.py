@@ -38,28 +38,40 @@ GENERIC_KNOTS = 6
 #: measured channels the baseline uses) does not change a forecast.
 UNEXPLAINED_MIN_GAIN = 0.05
 #: Columns closer than this (cosine of the angle, after the calibration terms) cannot be told
-#: apart by any fit: a finding with such a rival is ambiguous.
-COLLINEAR_COS = 0.99
+#: apart by any fit: a finding with such a rival is ambiguous. A rival's columns at the ends
+#: of its shape grid do not count (there the rival is itself at a bound: a weak description).
+COLLINEAR_COS = 0.995
+
+
+def _hinges(x: np.ndarray, n_knots: int) -> list[np.ndarray]:
+    """``x`` scaled to [0, 1] (first) and hinges ``max(x - q, 0)`` at ``n_knots`` inner
+    quantiles, and an indicator of a point mass at the minimum (standstill, straight driving)
+    if there is one."""
+    span = float(np.ptp(x))
+    if span <= 1e-12 * max(1.0, float(np.abs(x).max())):
+        return []
+    cols = [(x - x.min()) / span]
+    at_min = x <= x.min() + 0.02 * span
+    if 0.05 < at_min.mean() < 0.95:
+        cols.append(at_min.astype(float))
+    knots = np.unique(np.quantile(x[~at_min] if (~at_min).sum() > n_knots else x,
+                                  np.linspace(0, 1, n_knots + 2)[1:-1]))
+    cols.extend(np.maximum(x - q, 0.0) / span for q in knots)
+    return cols
 
 
 def generic_columns(channels: dict, names=None, n_knots: int = GENERIC_KNOTS) -> list[np.ndarray]:
-    """A piecewise-linear function of each channel: ``x`` and hinges ``max(x - q, 0)`` at
-    ``n_knots`` inner quantiles, plus an indicator of a point mass at the channel's minimum
-    (standstill, straight driving)."""
-    cols = []
-    for name in names if names is not None else channels:
-        x = np.asarray(channels[name], dtype=float)
-        span = float(np.ptp(x))
-        if span <= 1e-12 * max(1.0, float(np.abs(x).max())):
-            continue
-        scale = 1.0 / span
-        at_min = x <= x.min() + 0.02 * span
-        if 0.05 < at_min.mean() < 0.95:
-            cols.append(at_min.astype(float))
-        cols.append((x - x.min()) * scale)
-        knots = np.unique(np.quantile(x[~at_min] if (~at_min).sum() > n_knots else x,
-                                      np.linspace(0, 1, n_knots + 2)[1:-1]))
-        cols.extend(np.maximum(x - q, 0.0) * scale for q in knots)
+    """A piecewise-linear function of each channel (:func:`_hinges`) and, for the first two
+    of ``names``, each one times a piecewise-linear function of the other: losses in a
+    differential are often a torque times a function of speed."""
+    names = list(names if names is not None else channels)
+    per = {name: _hinges(np.asarray(channels[name], dtype=float), n_knots) for name in names}
+    cols = [c for name in names for c in per[name]]
+    usable = [name for name in names if per[name]]
+    if len(usable) >= 2:
+        a, b = usable[:2]
+        cols.extend(per[a][0] * c for c in per[b])    # x_a (scaled) x f(x_b)
+        cols.extend(per[b][0] * c for c in per[a][1:])
     return cols
 
 
@@ -145,7 +157,7 @@ def _collinear_rival(search, a) -> str | None:
     for c in search.problem.candidates:
         if c.id == a["cand"].id or na == 0:
             continue
-        for x in c.columns:
+        for x in c.columns[1:-1] if len(c.columns) > 2 else c.columns:
             xc = clean(x)
             nc = np.linalg.norm(xc)
             if nc > 0 and abs(xa @ xc) / (na * nc) > COLLINEAR_COS:
@@ -186,8 +198,11 @@ def review(search, findings: list, left: dict, descriptions: list) -> bool:
 
     generic = []
     if left["significant"]:
-        names = [d["channel"] for d in left["drivers"] if d["significant"]]
-        generic = generic_columns(search.problem.driver_channels, names) if names else []
+        # the channels the remainder follows; if none does on its own beyond the drivers'
+        # null (a remainder that follows several channels at once), all of them, strongest first
+        names = [d["channel"] for d in left["drivers"] if d["significant"]] or \
+            [d["channel"] for d in left["drivers"]]
+        generic = generic_columns(search.problem.driver_channels, names)
     keep = []
     by_id = {f["effect"]: f for f in findings}
     for a in search.accepted:

@@ -147,6 +147,49 @@ class Recording:
         return path
 
 
+def _rig_channels(prof: Profile, rig: RigSpec, dt: float, ambient_temp_C: float,
+                  min_drive_fraction: float):
+    """Pinion torque and speed, wheel speeds and the effects' channels for a drive profile:
+    road load plus mass x acceleration at the wheels, through the overall ratio."""
+    t, v = prof.time_s, prof.speed_mps
+    a = np.gradient(v, dt)
+    a = np.convolve(a, np.ones(5) / 5, mode="same")  # drivers do not jerk at 10 Hz
+    A, B, C = rig.road_load_N
+    moving = v > 0.05
+    force = rig.mass_kg * a + (A + B * v + C * v ** 2) * moving
+    g = rig.ratio
+    t_in = np.maximum(force * rig.wheel_radius_m / (g * 0.95), 0.0)
+    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_scale_Nm), 0.0)
+    w_wheel = v / rig.wheel_radius_m
+    w_in = w_wheel * g
+    # wheel speeds in a turn of curvature k: w_L,R = w (1 -/+ k track / 2)
+    dw = np.abs(prof.turn_curvature_per_m) * rig.track_m * w_wheel
+    w_left = w_wheel * (1 - prof.turn_curvature_per_m * rig.track_m / 2)
+    w_right = w_wheel * (1 + prof.turn_curvature_per_m * rig.track_m / 2)
+    channels = {"time_s": t, "input_torque_Nm": t_in, "input_speed_rad_s": w_in,
+                "input_accel_rad_s2": np.gradient(w_in, dt), "wheel_speed_difference_rad_s": dw,
+                "ambient_temp_C": np.full_like(t, ambient_temp_C), "gear_ratio": g,
+                "lubricant": rig.lubricant}
+    return channels, moving, w_left, w_right
+
+
+def _output_torque(rig: RigSpec, t_in, d_t, n_rpm, moving):
+    """Half-shaft torque sum through the thesis chain with the extra pinion loss ``d_t``."""
+    from fleetrun.differential import efficiency
+
+    g = rig.ratio
+    t_eff = t_in - d_t
+    kw = {}
+    if rig.low_gear_ratio:
+        kw = {"low_gear_ratio": rig.low_gear_ratio, "axle_gear": rig.axle_gear}
+    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_scale_Nm, n_rpm,
+                                rig.gear_ratio, **kw), dtype=float)
+    # stopped: no power flows, the output carries the input torque unchanged (statics);
+    # driving the differential backwards (t_eff < 0) is outside the thesis model: lossless here
+    t_out = np.where(t_eff > 0, g * eta * t_eff, g * t_eff)
+    return np.where(moving, t_out, g * t_in), eta
+
+
 def generate_differential_recording(
         effects=(), *, rig: RigSpec | None = None, duration_s: float = 1800.0,
         rate_hz: float = 10.0, seed: int = 0, ambient_temp_C: float = 8.0,
@@ -162,53 +205,25 @@ def generate_differential_recording(
     ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
     coefficient ``noise_rho`` per sample on output torque, input torque and speed; offsets are
     constant sensor biases. ``hidden_loss(channels) -> extra input torque [N m]`` adds a
-    loss outside the catalogue (:data:`OUT_OF_CATALOGUE`). ``min_drive_fraction`` keeps a light positive pinion torque while
-    moving (Kim-scale fraction) so the reverse power flow the thesis model does not cover
-    never occurs.
+    loss outside the catalogue (:data:`OUT_OF_CATALOGUE`). ``min_drive_fraction`` keeps a
+    light positive pinion torque while moving (Kim-scale fraction) so the reverse power flow
+    the thesis model does not cover never occurs.
     """
-    from fleetrun.differential import efficiency
-
     rig = rig or RigSpec()
     rng = np.random.default_rng(seed)
     prof = drive_profile(duration_s, rate_hz, rng, high_speed_turns=high_speed_turns)
     t, v = prof.time_s, prof.speed_mps
     dt = 1.0 / rate_hz
-    a = np.gradient(v, dt)
-    a = np.convolve(a, np.ones(5) / 5, mode="same")  # drivers do not jerk at 10 Hz
-    A, B, C = rig.road_load_N
-    moving = v > 0.05
-    force = rig.mass_kg * a + (A + B * v + C * v ** 2) * moving
-    g = rig.ratio
-    t_in = np.maximum(force * rig.wheel_radius_m / (g * 0.95), 0.0)
-    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_scale_Nm), 0.0)
-    w_wheel = v / rig.wheel_radius_m
-    w_in = w_wheel * g
-    alpha_in = np.gradient(w_in, dt)
-    # wheel speeds in a turn of curvature k: w_L,R = w (1 -/+ k track / 2)
-    dw = np.abs(prof.turn_curvature_per_m) * rig.track_m * w_wheel
-    w_left = w_wheel * (1 - prof.turn_curvature_per_m * rig.track_m / 2)
-    w_right = w_wheel * (1 + prof.turn_curvature_per_m * rig.track_m / 2)
-    channels = {"time_s": t, "input_torque_Nm": t_in, "input_speed_rad_s": w_in,
-                "input_accel_rad_s2": alpha_in, "wheel_speed_difference_rad_s": dw,
-                "ambient_temp_C": np.full_like(t, ambient_temp_C), "gear_ratio": g,
-                "lubricant": rig.lubricant}
+    channels, moving, w_left, w_right = _rig_channels(prof, rig, dt, ambient_temp_C, min_drive_fraction)
+    t_in, w_in, g = channels["input_torque_Nm"], channels["input_speed_rad_s"], rig.ratio
     effect_list = _as_effect_list(effects)
     d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
     d_t = np.broadcast_to(d_t, t.shape)
     if hidden_loss is not None:
         d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_scale_Nm": rig.kim_scale_Nm,
                                                  "dt_s": dt}), t.shape)
-    t_eff = t_in - d_t
     n_rpm = w_in * 60 / (2 * np.pi)
-    kw = {}
-    if rig.low_gear_ratio:
-        kw = {"low_gear_ratio": rig.low_gear_ratio, "axle_gear": rig.axle_gear}
-    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_scale_Nm, n_rpm,
-                                rig.gear_ratio, **kw), dtype=float)
-    # stopped: no power flows, the output carries the input torque unchanged (statics);
-    # driving the differential backwards (t_eff < 0) is outside the thesis model: lossless here
-    t_out = np.where(t_eff > 0, g * eta * t_eff, g * t_eff)
-    t_out = np.where(moving, t_out, g * t_in)
+    t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
     n = len(t)
     meas = {
         "time_s": t,
