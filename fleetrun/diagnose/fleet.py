@@ -150,11 +150,15 @@ def _udds_bag_cycles():
     return parts
 
 
+def _amounts(fuel_g, fuel_gal, miles) -> dict:
+    return {"g": np.asarray(fuel_g, float), "gal": np.asarray(fuel_gal, float), "mi": np.asarray(miles, float)}
+
+
 def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
-    """Fuel [g] and miles per vehicle and test, ``{"warm": {test: (g, mi)}, "full": {...}}``,
-    and the engine-on seconds per mile ``"s_per_mi": {test: (V,)}``. The FTP composite by
-    EPA's bag weighting (its seconds per mile: a constant load weighs the same in both
-    halves, (bag 1 + bag 2) / their miles)."""
+    """Fuel [g, gal] and miles per vehicle and test, ``{"warm": {test: {"g", "gal", "mi"}},
+    "full": {...}}``, and the engine-on seconds per mile ``"s_per_mi": {test: (V,)}``. The FTP
+    composite by EPA's bag weighting (its seconds per mile: a constant load weighs the same
+    in both halves, (bag 1 + bag 2) / their miles)."""
     from fleetrun.cycles import ftp_weighted_per_mile, load_cycle
     from fleetrun.simulation import simulate
 
@@ -165,26 +169,28 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
     warm, full, seconds = {}, {}, {}
     for name, cycle in bags.items():
         r = run(cycle)
-        warm[name] = (np.asarray(r.fuel_g, float), np.asarray(r.miles, float))
+        warm[name] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
         seconds[name] = float(cycle.time_s[-1] - cycle.time_s[0])
     warm["bag3"], seconds["bag3"] = warm["bag1"], seconds["bag1"]
     ftp = run("FTP")
     for name in ("bag1", "bag2", "bag3"):
-        full[name] = (np.asarray(ftp.phases[name]["fuel_g"], float), np.asarray(ftp.phases[name]["miles"], float))
+        ph = ftp.phases[name]
+        full[name] = _amounts(ph["fuel_g"], ph["fuel_gal"], ph["miles"])
     out = {"warm": {}, "full": {}, "s_per_mi": {}}
     for key, model in (("warm", warm), ("full", full)):
+        bag = [model[b] for b in ("bag1", "bag2", "bag3")]
+        miles = [b["mi"] for b in bag]
         for name in ("bag1", "bag2", "bag3"):
             out[key][f"FTP:{name}"] = model[name]
-        g = [model[b][0] for b in ("bag1", "bag2", "bag3")]
-        m = [model[b][1] for b in ("bag1", "bag2", "bag3")]
-        out[key]["FTP"] = (ftp_weighted_per_mile(*g, *m) * sum(m), sum(m))
+        out[key]["FTP"] = {unit: ftp_weighted_per_mile(*[b[unit] for b in bag], *miles) * sum(miles)
+                           for unit in ("g", "gal")} | {"mi": sum(miles)}
     for name in ("bag1", "bag2", "bag3"):
-        out["s_per_mi"][f"FTP:{name}"] = seconds[name] / warm[name][1]
-    out["s_per_mi"]["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"][1] + warm["bag2"][1])
+        out["s_per_mi"][f"FTP:{name}"] = seconds[name] / warm[name]["mi"]
+    out["s_per_mi"]["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"]["mi"] + warm["bag2"]["mi"])
     for test in ("HWFET", "US06"):
         cyc = load_cycle(test)
         r = run(cyc)
-        out["warm"][test] = out["full"][test] = (np.asarray(r.fuel_g, float), np.asarray(r.miles, float))
+        out["warm"][test] = out["full"][test] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
         out["s_per_mi"][test] = float(cyc.time_s[-1] - cyc.time_s[0]) / np.asarray(r.miles, float)
     return out
 
@@ -213,8 +219,7 @@ def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 
     def gpm(model, v, t):
-        g, m = sim[model][t]
-        return g[v] / m[v]
+        return sim[model][t]["g"][v] / sim[model][t]["mi"][v]
 
     warm = np.array([gpm("warm", v, t) for v, t in zip(rows_v, rows_t)])
     full = np.array([gpm("full", v, t) for v, t in zip(rows_v, rows_t)])
@@ -240,3 +245,310 @@ PARAMETERS = {
     "cylinder_deactivation": ("cruise_saving_share", 0.0, 0.5, "-",
                               "share of the fuel saved while cruising, engines of 6+ cylinders"),
 }
+
+
+# ----------------------------------------------------------------------------- fitting
+def manufacturer_folds(manufacturer: np.ndarray, k: int) -> np.ndarray:
+    """Fold of each row: whole manufacturers dealt, largest first, to the fold with the
+    fewest rows so far (every manufacturer is held out once, with all its vehicles)."""
+    names, counts = np.unique(manufacturer, return_counts=True)
+    load = np.zeros(k)
+    fold_of = {}
+    for i in np.argsort(-counts, kind="stable"):
+        f = int(np.argmin(load))
+        fold_of[names[i]] = f
+        load[f] += counts[i]
+    return np.array([fold_of[m] for m in manufacturer])
+
+
+def _fit(r, X, lo, hi, w=None):
+    """Bounded least squares of ``r`` on the columns of ``X`` (rows, p)."""
+    w = np.ones(len(r)) if w is None else w
+    Xw = X * w[:, None]
+    return _solve_bounded(Xw.T @ X, Xw.T @ r, lo, hi)
+
+
+def heldout_prediction(r, X, lo, hi, folds) -> np.ndarray:
+    """Each row predicted from a fit on the other manufacturers' rows."""
+    pred = np.zeros(len(r))
+    for f in np.unique(folds):
+        test = folds == f
+        b = _fit(r[~test], X[~test], lo, hi)
+        pred[test] = X[test] @ b
+    return pred
+
+
+def relative_error(r, fitted) -> np.ndarray:
+    """Predicted mpg / measured - 1 for a model that predicts ``fitted`` of ``r``."""
+    return np.exp(r - fitted) - 1.0
+
+
+def _mae(err, tests, test=None) -> float:
+    sel = np.ones(len(err), bool) if test is None else tests == test
+    return float(np.mean(np.abs(err[sel]))) if sel.any() else float("nan")
+
+
+@dataclass
+class _Model:
+    effects: list                         # candidate ids in the model
+    X: np.ndarray                         # (rows, 1 + len(effects)): scale, then effects
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+def _model(prob: FleetProblem, effects) -> _Model:
+    cols = [np.ones(len(prob.residual))] + [prob.candidates[e] for e in effects]
+    lo = np.array([-np.inf] + [PARAMETERS[e][1] for e in effects])
+    hi = np.array([np.inf] + [PARAMETERS[e][2] for e in effects])
+    return _Model(list(effects), np.column_stack(cols), lo, hi)
+
+
+def _score(prob, model, folds, r=None) -> float:
+    """Held-out MAE of the relative error over all rows."""
+    r = prob.residual if r is None else r
+    pred = heldout_prediction(r, model.X, model.lo, model.hi, folds)
+    return float(np.mean(np.abs(relative_error(r, pred))))
+
+
+def _null_gain(prob, base: _Model, cand: str, folds, settings, rng) -> np.ndarray:
+    """Held-out MAE gains of ``cand`` with its column shuffled among the vehicles of each
+    test (the per-test pattern kept, the link to each vehicle broken)."""
+    col = prob.candidates[cand]
+    groups = [np.flatnonzero(prob.test == t) for t in np.unique(prob.test)]
+    before = _score(prob, base, folds)
+    gains = np.zeros(settings.n_perm)
+    lo, hi = np.r_[base.lo, PARAMETERS[cand][1]], np.r_[base.hi, PARAMETERS[cand][2]]
+    for i in range(settings.n_perm):
+        shuffled = col.copy()
+        for idx in groups:
+            shuffled[idx] = col[rng.permutation(idx)]
+        m = _Model(base.effects + [cand], np.column_stack([base.X, shuffled]), lo, hi)
+        gains[i] = 1 - _score(prob, m, folds) / before
+    return gains
+
+
+def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, list, _Model]:
+    """Forward selection by held-out (by manufacturer) MAE; accepted ids, candidate statuses
+    and the final model."""
+    rng = np.random.default_rng(settings.seed)
+    folds = manufacturer_folds(prob.manufacturer, settings.folds)
+    model = _model(prob, [])
+    statuses = {c: {"effect": c, "status": "rejected"} for c in prob.candidates}
+    statuses.update({c: {"effect": c, "status": "untestable", "reason": why} for c, why in prob.untestable.items()})
+    accepted = []
+    for _ in range(settings.max_effects):
+        rest = [c for c in prob.candidates if c not in accepted]
+        if not rest:
+            break
+        before = _score(prob, model, folds)
+        gains = {c: 1 - _score(prob, _model(prob, accepted + [c]), folds) / before for c in rest}
+        for c in rest:
+            statuses[c]["heldout_gain"] = round(gains[c], 5)
+        best = max(rest, key=gains.get)
+        null = _null_gain(prob, model, best, folds, settings, rng)
+        threshold = max(float(np.quantile(null, settings.quantile)), settings.min_gain)
+        statuses[best]["null_threshold"] = round(threshold, 5)
+        if gains[best] <= threshold:
+            break
+        accepted.append(best)
+        statuses[best]["status"] = "accepted"
+        model = _model(prob, accepted)
+    return accepted, [statuses[c] for c in list(prob.candidates) + list(prob.untestable)], model
+
+
+def test_table(prob: FleetProblem, r, fitted_heldout, fitted_all) -> dict:
+    """Per test: rows, mean error (all data fitted) and held-out MAE."""
+    out = {}
+    for t in TESTS:
+        sel = prob.test == t
+        if not sel.any():
+            continue
+        out[t] = {"n": int(sel.sum()),
+                  "mean_error": round(float(np.mean(relative_error(r[sel], fitted_all[sel]))), 5),
+                  "heldout_mae": round(_mae(relative_error(r, fitted_heldout), prob.test, t), 5)}
+    return out
+
+
+# ----------------------------------------------------------------------------- unexplained
+def _property_bins(values: np.ndarray, n_bins: int = 6) -> tuple[np.ndarray, list]:
+    """Bin index per vehicle and bin labels: quantile bins of a number, categories of a text
+    (fewer than 10 vehicles: "other"); unknown values get their own bin."""
+    if values.dtype == object:
+        text = np.array(["unknown" if v is None else str(v) for v in values], dtype=object)
+        names, counts = np.unique(text, return_counts=True)
+        keep = set(names[counts >= 10])
+        text = np.array([v if v in keep else "other" for v in text], dtype=object)
+        labels = sorted(set(text))
+        return np.array([labels.index(v) for v in text]), labels
+    ok = np.isfinite(values)
+    if ok.sum() < 2 * n_bins:
+        return np.zeros(len(values), int), ["all"]
+    edges = np.unique(np.quantile(values[ok], np.linspace(0, 1, n_bins + 1)[1:-1]))
+    idx = np.where(ok, np.searchsorted(edges, np.where(ok, values, 0.0), side="right"), len(edges) + 1)
+    bounds = np.r_[np.nanmin(values), edges, np.nanmax(values)]
+    labels = [f"{bounds[i]:.3g}-{bounds[i + 1]:.3g}" for i in range(len(edges) + 1)] + ["unknown"]
+    return idx, labels
+
+
+def _eta2(e: np.ndarray, idx: np.ndarray) -> float:
+    nb = int(idx.max()) + 1
+    cnt = np.bincount(idx, minlength=nb)
+    s = np.bincount(idx, weights=e, minlength=nb)
+    ok = cnt > 0
+    total = float(np.sum((e - e.mean()) ** 2))
+    between = float(np.sum(cnt[ok] * (s[ok] / cnt[ok] - e.mean()) ** 2))
+    return between / total if total > 0 else 0.0
+
+
+def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) -> dict:
+    """What the held-out errors ``err`` (per row) still show: tests whose mean error stands
+    out (manufacturer-clustered t > 3 and more than 2 %), vehicle properties whose bins
+    explain the per-vehicle mean error beyond shuffled errors."""
+    rng = np.random.default_rng(settings.seed + 1)
+    tests = []
+    for t in TESTS:
+        sel = prob.test == t
+        if sel.sum() < 10:
+            continue
+        means = np.array([err[sel & (prob.manufacturer == m)].mean()
+                          for m in np.unique(prob.manufacturer[sel])])
+        mean = float(err[sel].mean())
+        se = float(np.std(means, ddof=1) / np.sqrt(len(means))) if len(means) > 2 else np.inf
+        if abs(mean) > 0.02 and abs(mean) > 3 * se:
+            tests.append({"test": t, "mean_error": round(mean, 5), "clustered_se": round(se, 5)})
+    vehicles = np.unique(prob.vehicle)
+    e_v = np.array([err[prob.vehicle == v].mean() for v in vehicles])
+    bins = {name: _property_bins(prob.properties[name][vehicles]) for name in PROPERTIES
+            if name in prob.properties}
+    null = np.max([[_eta2(rng.permutation(e_v), idx) for idx, _ in bins.values()]
+                   for _ in range(settings.n_perm)], axis=1)
+    thr = float(np.quantile(null, settings.quantile))
+    drivers = []
+    for name, (idx, labels) in bins.items():
+        st = _eta2(e_v, idx)
+        profile = [{"bin": labels[i], "n": int((idx == i).sum()), "mean_error": round(float(e_v[idx == i].mean()), 5)}
+                   for i in range(len(labels)) if (idx == i).any()]
+        drivers.append({"property": name, "strength": round(st, 4), "significant": bool(st > thr),
+                        "null_threshold": round(thr, 4), "profile": profile})
+    drivers.sort(key=lambda d: -d["strength"])
+    return {"significant": bool(tests) or any(d["significant"] for d in drivers),
+            "tests": [t["test"] for t in tests], "test_details": tests, "drivers": drivers}
+
+
+# ----------------------------------------------------------------------------- the diagnosis
+def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> FleetProblem:
+    """Read the workbook and the measured results, simulate, and set up the residuals."""
+    from fleetrun.fleet.workbook import read_fleet
+
+    fleet = read_fleet(fleet_path)
+    vehicles = fleet.vehicles
+    ids = [v.vehicle_id for v in vehicles]
+    index = {vid: i for i, vid in enumerate(ids)}
+    measured = read_measured(measured_path, ids)
+    used = sorted({index[vid] for vid, _ in measured})
+    sub = [vehicles[i] for i in used]
+    pos = {i: k for k, i in enumerate(used)}
+    sim = simulate_fleet(sub, ambient_temp_C=ambient_temp_C)
+    rows = sorted(measured, key=lambda key: (index[key[0]], TESTS.index(key[1])))
+    rows_v = np.array([pos[index[vid]] for vid, _ in rows])
+    rows_t = np.array([t for _, t in rows], dtype=object)
+    mpg = np.array([measured[key][0] for key in rows])
+    makers = np.array([measured[key][1] or str(getattr(sub[v], "manufacturer", "") or "").lower()
+                       for key, v in zip(rows, rows_v)], dtype=object)
+    if np.any(makers == ""):
+        vid = rows[int(np.flatnonzero(makers == "")[0])][0]
+        raise InputError(f"no manufacturer for vehicle '{vid}'", file=measured_path, column="manufacturer",
+                         hint="Give a manufacturer column (errors are held out by manufacturer)")
+
+    def residual(model):
+        # measured fuel per mile over simulated = simulated mpg / measured mpg
+        sim_mpg = np.array([sim[model][t]["mi"][v] / sim[model][t]["gal"][v] for v, t in zip(rows_v, rows_t)])
+        return np.log(sim_mpg / mpg)
+
+    cols, untestable = candidate_columns(sim, rows_v, rows_t, sub)
+    return FleetProblem([v.vehicle_id for v in sub], rows_v, rows_t, makers, residual("warm"),
+                        residual("full"), cols, untestable, vehicle_properties(sub))
+
+
+def _finding(prob, effect, coef, before, after, settings) -> dict:
+    """One accepted effect for the JSON: parameters, the tests it is in, errors, words."""
+    name, _, _, unit, meaning = PARAMETERS[effect]
+    col = prob.candidates[effect]
+    added = {t: float(coef * np.mean(col[prob.test == t])) for t in TESTS if (prob.test == t).any()}
+    tests = [t for t, a in added.items() if abs(a) > settings.test_share]
+    by_test = {t: {"heldout_mae_before": round(before[t]["heldout_mae"], 5),
+                   "heldout_mae_after": round(after[t]["heldout_mae"], 5),
+                   "fuel_added": round(added[t], 5)} for t in added}
+    where = ", ".join(f"{t} {100 * added[t]:+.1f} %" for t in tests) or "no test by more than 1 %"
+    absent = ", ".join(t for t in ("FTP:bag3", "HWFET", "US06") if t in added and t not in tests)
+    text = (f"{effect} with {name} = {coef:.3g} {unit} ({meaning}) for the whole fleet: it adds "
+            f"fuel where the measured results ask for it ({where})"
+            + (f", and not in {absent}" if absent else "") + ". ")
+    if "FTP" in before and "FTP" in after:
+        text += (f"The FTP composite's held-out error (by manufacturer) goes from "
+                 f"{100 * before['FTP']['heldout_mae']:.2f} % to {100 * after['FTP']['heldout_mae']:.2f} %.")
+    return {"effect": effect, "parameters": {name: round(float(coef), 6)}, "tests": tests,
+            "by_test": by_test, "explanation": text}
+
+
+def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> dict:
+    """The fleet diagnosis as the JSON of CONTRACT.md (``fleetrun.fleet-diagnosis/1``)."""
+    st = settings or FleetSettings()
+    folds = manufacturer_folds(prob.manufacturer, st.folds)
+    r = prob.residual
+
+    def tables(effects, res=r):
+        m = _model(prob, effects)
+        held = heldout_prediction(res, m.X, m.lo, m.hi, folds)
+        coef = _fit(res, m.X, m.lo, m.hi)
+        return test_table(prob, res, held, m.X @ coef), held, coef
+
+    base_tests, base_held, base_coef = tables([])
+    accepted, candidates, _ = select_effects(prob, st)
+    findings, before = [], base_tests
+    for k, effect in enumerate(accepted):
+        after, held, coef = tables(accepted[:k + 1])
+        f = _finding(prob, effect, coef[k + 1], before, after, st)
+        f["heldout_mae_before"] = round(float(np.mean(np.abs(relative_error(r, tables(accepted[:k])[1])))), 5)
+        f["heldout_mae_after"] = round(float(np.mean(np.abs(relative_error(r, held)))), 5)
+        findings.append(f)
+        before = after
+    final_tests, final_held, final_coef = tables(accepted)
+    full_tests, full_held, full_coef = tables([], prob.residual_full)
+    return {"schema": SCHEMA, "vehicles": int(len(prob.vehicle_ids)),
+            "manufacturers": int(len(np.unique(prob.manufacturer))), "rows": int(len(r)),
+            "baseline": {"model": "fleetrun simulation with a warm engine on every test (cold-start "
+                                  "model off), one global fuel scale fitted",
+                         "fuel_scale": round(float(np.exp(base_coef[0])), 5), "tests": base_tests},
+            "findings": findings, "candidates": candidates,
+            "after": {"fuel_scale": round(float(np.exp(final_coef[0])), 5), "tests": final_tests},
+            "unexplained": unexplained(prob, relative_error(r, final_held), st),
+            "full_model": {"model": "fleetrun simulation with its cold-start model (FTP), one "
+                                    "global fuel scale fitted",
+                           "fuel_scale": round(float(np.exp(full_coef[0])), 5), "tests": full_tests,
+                           "unexplained": unexplained(prob, relative_error(prob.residual_full, full_held), st)},
+            "method": {"folds": st.folds, "held_out": "manufacturer", "n_perm": st.n_perm,
+                       "quantile": st.quantile, "min_gain": st.min_gain},
+            "notes": prob.notes}
+
+
+def diagnose_fleet(fleet_path, measured_path, out=None, *, settings: FleetSettings | None = None,
+                   write=True) -> dict:
+    """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``."""
+    from fleetrun import __version__
+    from fleetrun.fileio import prepare_output_folder, write_text_atomic
+
+    t0 = time.perf_counter()
+    prob = build_fleet_problem(fleet_path, measured_path)
+    result = analyse_fleet(prob, settings)
+    result["version"] = __version__
+    result["timing_s"] = round(time.perf_counter() - t0, 3)
+    if write:
+        from fleetrun.diagnose.fleet_report import render_fleet_html
+
+        out = Path(out) if out else Path(f"diagnosis-{Path(fleet_path).stem}")
+        html = render_fleet_html(prob, result)
+        prepare_output_folder(out, out)
+        write_text_atomic(out / "diagnosis.json", json.dumps(result, indent=2))
+        write_text_atomic(out / "diagnosis.html", html)
+    return result
