@@ -13,15 +13,18 @@ the simulation leaves out show up as a pattern across tests and vehicles. Steps
    cold-start thermal model (:mod:`fleetrun.simulation.thermal`, on the FTP).
 2. **Residual** per vehicle and test: ``r = ln(measured fuel per mile / simulated)`` =
    ``ln(simulated mpg / measured mpg)``; errors are reported as predicted mpg / measured - 1.
-   One global constant (a fuel-map scale) is always fitted.
+   One global constant (a fuel-map scale) is always fitted, on the hot-engine tests only
+   (bag 2, bag 3, HWFET, US06: the fleet's hot-start reference, as ``--calibrate-on`` for one
+   recording), so that it cannot absorb a cold start.
 3. **Candidates** (:func:`candidate_columns`), each with one global parameter for the whole
-   fleet: ``warmup`` (a scale on the thermal model's cold-start fuel), ``accessory_load``
+   fleet: ``warmup`` (a cold start's extra fuel as a share of bag 1's), ``warmup_thermal``
+   (a scale on the simulation's own cold-start model), ``accessory_load``
    (constant power while the engine runs), ``cylinder_deactivation`` (a share of the fuel
    saved while cruising, on engines of 6 or more cylinders).
 4. **Selection** by held-out error, held out by manufacturer (:func:`manufacturer_folds`): a
    candidate is accepted only if it lowers the held-out mean absolute error by more than
-   ``min_gain`` and by more than the same candidate does with its column shuffled across
-   vehicles (the ``quantile`` of ``n_perm`` shuffles).
+   ``min_gain`` and the improvement holds across manufacturers (paired one-sided t test,
+   each manufacturer one observation, beyond the ``quantile``).
 5. **What stays unexplained** (:func:`unexplained`): the held-out residual by test and by
    vehicle property (specific power, displacement, drive, transmission, weight, cylinders),
    each against a shuffled null; also against the full model.
@@ -50,7 +53,7 @@ PROPERTIES = ("specific_power_W_per_kg", "engine_displacement_L", "drive", "tran
 @dataclass
 class FleetSettings:
     folds: int = 5
-    n_perm: int = 200
+    n_perm: int = 200                    # shuffles of the unexplained-by-property null
     quantile: float = 0.99
     min_gain: float = 0.01
     max_effects: int = 3
@@ -214,6 +217,17 @@ def cruise_share(test: str) -> float:
     return float(np.mean(((np.abs(a) < 0.15) & (v > 8.0))[keep]))
 
 
+def _bag1_share_column(warm, rows_v, rows_t) -> np.ndarray:
+    """Relative extra fuel per unit extra share of bag 1's fuel: 1 in bag 1; in the FTP
+    composite its 0.43-weighted part (40 CFR 86.144: 0.43 (Y1 + Y2) / (D1 + D2) + ...)."""
+    g = {b: warm[f"FTP:{b}"]["g"] for b in ("bag1", "bag2", "bag3")}
+    mi = {b: warm[f"FTP:{b}"]["mi"] for b in ("bag1", "bag2", "bag3")}
+    composite = warm["FTP"]["g"] / warm["FTP"]["mi"]
+    in_ftp = 0.43 * g["bag1"] / (mi["bag1"] + mi["bag2"]) / composite
+    return np.array([1.0 if t == "FTP:bag1" else (in_ftp[v] if t == "FTP" else 0.0)
+                     for v, t in zip(rows_v, rows_t)])
+
+
 def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     """Each candidate's effect on ``r`` per unit of its global parameter, per row."""
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
@@ -224,7 +238,8 @@ def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     warm = np.array([gpm("warm", v, t) for v, t in zip(rows_v, rows_t)])
     full = np.array([gpm("full", v, t) for v, t in zip(rows_v, rows_t)])
     cols, untestable = {}, {}
-    cols["warmup"] = full / warm - 1.0
+    cols["warmup"] = _bag1_share_column(sim["warm"], rows_v, rows_t)
+    cols["warmup_thermal"] = full / warm - 1.0
     gpj = np.array([marginal_fuel_g_per_J(vehicles[v].fuel) for v in rows_v])
     s_per_mi = np.array([sim["s_per_mi"][t][v] for v, t in zip(rows_v, rows_t)])
     cols["accessory_load"] = 1000.0 * gpj * s_per_mi / warm
@@ -239,8 +254,10 @@ def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
 
 #: Global parameter of each candidate: name, bounds, unit, meaning.
 PARAMETERS = {
-    "warmup": ("scale", 0.0, 5.0, "-", "the cold-start fuel of the thermal model "
-               "(fleetrun/simulation/thermal.py, models/thermal.toml) times this"),
+    "warmup": ("bag1_extra_share", 0.0, 1.0, "-", "extra fuel of a cold start as a share of the "
+               "warm engine's fuel over FTP bag 1 (0-505 s after the start)"),
+    "warmup_thermal": ("scale", 0.0, 5.0, "-", "the cold-start fuel of the simulation's thermal "
+                       "model (fleetrun/simulation/thermal.py, models/thermal.toml) times this"),
     "accessory_load": ("power_kW", 0.0, 10.0, "kW", "constant accessory power while the engine runs"),
     "cylinder_deactivation": ("cruise_saving_share", 0.0, 0.5, "-",
                               "share of the fuel saved while cruising, engines of 6+ cylinders"),
@@ -261,19 +278,22 @@ def manufacturer_folds(manufacturer: np.ndarray, k: int) -> np.ndarray:
     return np.array([fold_of[m] for m in manufacturer])
 
 
-def _fit(r, X, lo, hi, w=None):
-    """Bounded least squares of ``r`` on the columns of ``X`` (rows, p)."""
-    w = np.ones(len(r)) if w is None else w
-    Xw = X * w[:, None]
-    return _solve_bounded(Xw.T @ X, Xw.T @ r, lo, hi)
+def _fit(r, X, lo, hi, hot):
+    """The fuel scale (column 0) from the hot-engine rows ``hot``, then the effects (bounded
+    least squares) on what is left over all rows."""
+    a = float(np.mean(r[hot])) if hot.any() else float(np.mean(r))
+    if X.shape[1] == 1:
+        return np.array([a])
+    Xe, y = X[:, 1:], r - a
+    return np.r_[a, _solve_bounded(Xe.T @ Xe, Xe.T @ y, lo[1:], hi[1:])]
 
 
-def heldout_prediction(r, X, lo, hi, folds) -> np.ndarray:
+def heldout_prediction(r, X, lo, hi, folds, hot) -> np.ndarray:
     """Each row predicted from a fit on the other manufacturers' rows."""
     pred = np.zeros(len(r))
     for f in np.unique(folds):
         test = folds == f
-        b = _fit(r[~test], X[~test], lo, hi)
+        b = _fit(r[~test], X[~test], lo, hi, hot[~test])
         pred[test] = X[test] @ b
     return pred
 
@@ -296,6 +316,11 @@ class _Model:
     hi: np.ndarray
 
 
+#: Tests without a cold start: the fleet's hot-engine reference, where the fuel scale is
+#: calibrated (as ``--calibrate-on`` a hot start for one recording).
+HOT_TESTS = ("FTP:bag2", "FTP:bag3", "HWFET", "US06")
+
+
 def _model(prob: FleetProblem, effects) -> _Model:
     cols = [np.ones(len(prob.residual))] + [prob.candidates[e] for e in effects]
     lo = np.array([-np.inf] + [PARAMETERS[e][1] for e in effects])
@@ -303,36 +328,34 @@ def _model(prob: FleetProblem, effects) -> _Model:
     return _Model(list(effects), np.column_stack(cols), lo, hi)
 
 
-def _score(prob, model, folds, r=None) -> float:
-    """Held-out MAE of the relative error over all rows."""
-    r = prob.residual if r is None else r
-    pred = heldout_prediction(r, model.X, model.lo, model.hi, folds)
-    return float(np.mean(np.abs(relative_error(r, pred))))
+def _heldout_errors(prob, model, folds) -> np.ndarray:
+    pred = heldout_prediction(prob.residual, model.X, model.lo, model.hi, folds,
+                              np.isin(prob.test, HOT_TESTS))
+    return np.abs(relative_error(prob.residual, pred))
 
 
-def _null_gain(prob, base: _Model, cand: str, folds, settings, rng) -> np.ndarray:
-    """Held-out MAE gains of ``cand`` with its column shuffled among the vehicles of each
-    test (the per-test pattern kept, the link to each vehicle broken)."""
-    col = prob.candidates[cand]
-    groups = [np.flatnonzero(prob.test == t) for t in np.unique(prob.test)]
-    before = _score(prob, base, folds)
-    gains = np.zeros(settings.n_perm)
-    lo, hi = np.r_[base.lo, PARAMETERS[cand][1]], np.r_[base.hi, PARAMETERS[cand][2]]
-    for i in range(settings.n_perm):
-        shuffled = col.copy()
-        for idx in groups:
-            shuffled[idx] = col[rng.permutation(idx)]
-        m = _Model(base.effects + [cand], np.column_stack([base.X, shuffled]), lo, hi)
-        gains[i] = 1 - _score(prob, m, folds) / before
-    return gains
+def manufacturer_t(prob, before: np.ndarray, after: np.ndarray) -> float:
+    """t statistic of the held-out absolute errors' improvement across manufacturers (each
+    manufacturer one paired observation: its mean before minus its mean after)."""
+    makers = np.unique(prob.manufacturer)
+    d = np.array([before[prob.manufacturer == m].mean() - after[prob.manufacturer == m].mean()
+                  for m in makers])
+    sd = float(np.std(d, ddof=1)) if len(d) > 2 else 0.0
+    if sd == 0.0:
+        return float("inf") if d.mean() > 0 else 0.0
+    return float(d.mean() / (sd / np.sqrt(len(d))))
 
 
-def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, list, _Model]:
-    """Forward selection by held-out (by manufacturer) MAE; accepted ids, candidate statuses
-    and the final model."""
-    rng = np.random.default_rng(settings.seed)
+def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, list]:
+    """Forward selection by held-out (by manufacturer) MAE: the best candidate is accepted if
+    it lowers the MAE by more than ``min_gain`` and its improvement holds across
+    manufacturers (paired one-sided t beyond the ``quantile`` of Student's t). Accepted ids
+    and candidate statuses."""
+    from scipy.stats import t as student_t
+
     folds = manufacturer_folds(prob.manufacturer, settings.folds)
-    model = _model(prob, [])
+    makers = len(np.unique(prob.manufacturer))
+    t_crit = float(student_t.ppf(settings.quantile, max(makers - 1, 1)))
     statuses = {c: {"effect": c, "status": "rejected"} for c in prob.candidates}
     statuses.update({c: {"effect": c, "status": "untestable", "reason": why} for c, why in prob.untestable.items()})
     accepted = []
@@ -340,20 +363,22 @@ def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, l
         rest = [c for c in prob.candidates if c not in accepted]
         if not rest:
             break
-        before = _score(prob, model, folds)
-        gains = {c: 1 - _score(prob, _model(prob, accepted + [c]), folds) / before for c in rest}
+        before = _heldout_errors(prob, _model(prob, accepted), folds)
+        after = {c: _heldout_errors(prob, _model(prob, accepted + [c]), folds) for c in rest}
         for c in rest:
-            statuses[c]["heldout_gain"] = round(gains[c], 5)
-        best = max(rest, key=gains.get)
-        null = _null_gain(prob, model, best, folds, settings, rng)
-        threshold = max(float(np.quantile(null, settings.quantile)), settings.min_gain)
-        statuses[best]["null_threshold"] = round(threshold, 5)
-        if gains[best] <= threshold:
+            statuses[c]["heldout_gain"] = round(float(1 - after[c].mean() / before.mean()), 5)
+            statuses[c]["manufacturer_t"] = round(manufacturer_t(prob, before, after[c]), 3)
+            m = _model(prob, accepted + [c])
+            coef = _fit(prob.residual, m.X, m.lo, m.hi, np.isin(prob.test, HOT_TESTS))[-1]
+            statuses[c]["parameters"] = {PARAMETERS[c][0]: round(float(coef), 6)}
+        best = max(rest, key=lambda c: statuses[c]["heldout_gain"])
+        if statuses[best]["heldout_gain"] <= settings.min_gain or statuses[best]["manufacturer_t"] <= t_crit:
             break
         accepted.append(best)
         statuses[best]["status"] = "accepted"
-        model = _model(prob, accepted)
-    return accepted, [statuses[c] for c in list(prob.candidates) + list(prob.untestable)], model
+    for c in statuses.values():
+        c.setdefault("t_threshold", round(t_crit, 3))
+    return accepted, [statuses[c] for c in list(prob.candidates) + list(prob.untestable)]
 
 
 def test_table(prob: FleetProblem, r, fitted_heldout, fitted_all) -> dict:
@@ -497,14 +522,16 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
     folds = manufacturer_folds(prob.manufacturer, st.folds)
     r = prob.residual
 
+    hot = np.isin(prob.test, HOT_TESTS)
+
     def tables(effects, res=r):
         m = _model(prob, effects)
-        held = heldout_prediction(res, m.X, m.lo, m.hi, folds)
-        coef = _fit(res, m.X, m.lo, m.hi)
+        held = heldout_prediction(res, m.X, m.lo, m.hi, folds, hot)
+        coef = _fit(res, m.X, m.lo, m.hi, hot)
         return test_table(prob, res, held, m.X @ coef), held, coef
 
     base_tests, base_held, base_coef = tables([])
-    accepted, candidates, _ = select_effects(prob, st)
+    accepted, candidates = select_effects(prob, st)
     findings, before = [], base_tests
     for k, effect in enumerate(accepted):
         after, held, coef = tables(accepted[:k + 1])
@@ -518,16 +545,18 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
     return {"schema": SCHEMA, "vehicles": int(len(prob.vehicle_ids)),
             "manufacturers": int(len(np.unique(prob.manufacturer))), "rows": int(len(r)),
             "baseline": {"model": "fleetrun simulation with a warm engine on every test (cold-start "
-                                  "model off), one global fuel scale fitted",
+                                  "model off), one global fuel scale calibrated on the hot-engine "
+                                  "tests (" + ", ".join(HOT_TESTS) + ")",
                          "fuel_scale": round(float(np.exp(base_coef[0])), 5), "tests": base_tests},
             "findings": findings, "candidates": candidates,
             "after": {"fuel_scale": round(float(np.exp(final_coef[0])), 5), "tests": final_tests},
             "unexplained": unexplained(prob, relative_error(r, final_held), st),
             "full_model": {"model": "fleetrun simulation with its cold-start model (FTP), one "
-                                    "global fuel scale fitted",
+                                    "global fuel scale calibrated on the hot-engine tests",
                            "fuel_scale": round(float(np.exp(full_coef[0])), 5), "tests": full_tests,
                            "unexplained": unexplained(prob, relative_error(prob.residual_full, full_held), st)},
             "method": {"folds": st.folds, "held_out": "manufacturer", "n_perm": st.n_perm,
+                       "hot_tests": list(HOT_TESTS),
                        "quantile": st.quantile, "min_gain": st.min_gain},
             "notes": prob.notes}
 
