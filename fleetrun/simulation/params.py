@@ -71,9 +71,15 @@ def transmission_defaults(gearbox_type: str) -> dict:
     return dict(sets[gearbox_type])
 
 
+def _optional(v: VehicleSpec, key: str):
+    """An optional Vehicles column: the VehicleSpec field, else a key of ``extra`` (vehicle TOMLs)."""
+    value = getattr(v, key, None)
+    return (v.extra or {}).get(key) if value is None else value
+
+
 def gearbox_type(v: VehicleSpec) -> str:
     """The optional ``gearbox_type`` column, else the CONTRACT ``transmission`` (automatic/manual)."""
-    value = (v.extra or {}).get("gearbox_type")
+    value = _optional(v, "gearbox_type")
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return v.transmission
     text = str(value).strip().lower().replace("-", "_").replace(" ", "_")
@@ -84,7 +90,7 @@ def gearbox_type(v: VehicleSpec) -> str:
 
 
 def _yes_no(v: VehicleSpec, key: str, default: bool) -> bool:
-    value = (v.extra or {}).get(key)
+    value = _optional(v, key)
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return default
     text = str(value).strip().lower()
@@ -243,7 +249,7 @@ def _row(v: VehicleSpec) -> dict:
                eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
-    cylinders = _get(v, "cylinders", default_cylinders(disp))
+    cylinders = float(v.cylinders) if v.cylinders else _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
         hi, lo = max(gears), min(gears)
