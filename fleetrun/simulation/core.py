@@ -158,11 +158,13 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
 
 
-def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a):
-    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``."""
+def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None):
+    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``;
+    ``throttled=False``: the friction alone (no closed-throttle pumping)."""
     c = va.fuel_constants
     return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
-                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]), col(va.throttled))
+                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]),
+                              col(va.throttled) if throttled is None else throttled)
 
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
