@@ -15,7 +15,6 @@ from fleetrun import __version__
 from fleetrun.fleet import charts, report_text
 from fleetrun.fleet.changes import describe as describe_changes
 from fleetrun.fleet.manifest import manifest_dict, physics_label
-from fleetrun.fleet.report_xlsx import efficiency_scale
 from fleetrun.fleet.runner import RunResult
 from fleetrun.fleet.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
@@ -97,7 +96,7 @@ def _fiscal_groups(result: RunResult) -> list[dict]:
 
 
 def _maps(result: RunResult) -> tuple[list[dict], dict]:
-    low, high = efficiency_scale(result.maps)
+    low, high = charts.efficiency_scale(result.maps)
     maps = []
     for m in result.maps:
         title = f"{m['configuration']}, gear ratio {m['gear_ratio']:g}"

@@ -24,6 +24,7 @@ from openpyxl.utils import get_column_letter
 from openpyxl.worksheet.page import PageMargins
 from openpyxl.worksheet.properties import PageSetupProperties
 
+from fleetrun.fleet.charts import efficiency_scale
 from fleetrun.fleet.runner import RunResult
 from fleetrun.fleet.totals import scenario_totals, yearly_totals
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
@@ -385,12 +386,6 @@ def _fiscal(wb, result: RunResult):
         t.font = Font(bold=True)
         ws.append([t])
         _table(ws, calibration, widths=False)
-
-
-def efficiency_scale(maps) -> tuple[float, float]:
-    """One colour scale for every map: the lowest and highest efficiency of all of them."""
-    values = [v for m in maps for row in m["efficiency"] for v in row if math.isfinite(v)]
-    return (min(values), max(values)) if values else (0.0, 1.0)
 
 
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table
