@@ -21,7 +21,8 @@ from fleetrun.errors import FleetrunError
 EXIT_INTERNAL = 4
 
 # Command modules in fleetrun/commands, in the order `fleetrun --help` lists them.
-COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa")
+COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa",
+            "diagnose-fleet")
 
 
 class FleetrunGroup(click.Group):
