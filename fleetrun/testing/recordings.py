@@ -223,7 +223,7 @@ def generate_differential_recording(
     d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
     d_t = np.broadcast_to(d_t, t.shape)
     if hidden_loss is not None:
-        d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_scale_Nm": rig.kim_scale_Nm,
+        d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_torque_scale_Nm": rig.kim_torque_scale_Nm,
                                                  "dt_s": dt}), t.shape)
     n_rpm = w_in * 60 / (2 * np.pi)
     t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
