@@ -374,6 +374,40 @@ def plots(err, pred, table, folder):
     plt.close(fig)
 
 
+def _with(spec, **extra):
+    return dataclasses.replace(spec, extra={**spec.extra, **extra})
+
+
+#: Drivetrain pieces switched off one at a time (the fuel constants refitted each time).
+DRIVETRAIN_ABLATION = {
+    "CVT driven as its 10 stepped ratios": lambda v: dataclasses.replace(v, gearbox_type="automatic")
+    if v.gearbox_type == "cvt" else v,
+    "no spin loss (constant gear efficiency 0.955 / 0.975 as before)": lambda v: _with(
+        v, spin_loss_Nm_at_0=0.0, spin_loss_Nm_per_krpm=0.0, gear_efficiency=0.955, direct_gear_efficiency=0.975),
+    "converter_lockup ignored (every converter locks)": lambda v: dataclasses.replace(v, converter_lockup="yes"),
+    "no later shifts while accelerating": lambda v: _with(v, shift_speed_accel_rpm=0.0),
+}
+
+
+def ablation(specs, table, r):
+    """Held-out summaries with one piece of the model left out: each fuel term (refit without
+    it) and each drivetrain piece (re-simulated, refit)."""
+    lines = []
+    for j, name in enumerate(FUEL_TERMS[1:], start=1):
+        cols = [i for i in range(len(FUEL_TERMS)) if i != j]
+        pred, _ = held_out(r["d"], table, cols)
+        lines.append(_summary_line(f"without the {name} term", summaries(relative_errors(pred, table))))
+    for name, change in DRIVETRAIN_ABLATION.items():
+        variant = run([change(v) for v in specs], table)
+        lines.append(_summary_line(name, summaries(variant["err"])))
+    return lines
+
+
+def _summary_line(label, s):
+    return "| " + label + " | " + " | ".join(
+        f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
+
+
 def run(specs, table):
     """Dataset, held-out predictions, final fit and summaries."""
     d = build_dataset(specs, table)
@@ -418,10 +452,8 @@ def main(argv=None):
     if args.plots:
         plots(r["err"], r["pred"], table, args.plots)
     if args.ablation:
-        for j, name in enumerate(FUEL_TERMS[1:], start=1):
-            cols = [i for i in range(len(FUEL_TERMS)) if i != j]
-            pred, _ = held_out(r["d"], table, cols)
-            print_summaries(f"without {name}", summaries(relative_errors(pred, table)))
+        for line in ablation(specs, table, r):
+            print(line, flush=True)
     if args.write:
         write_calibration_toml(r["final"], r["folds"], ROOT / "models" / "engine_calibration.toml", len(specs))
         write_error_toml(s, ROOT / "models" / "fuel_economy_error.toml")
