@@ -51,8 +51,11 @@ OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv
                 "manifest.json")
 
 
-def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
-    """Write the six outputs of a run into ``out_dir``, all or nothing."""
+def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
+    """Write the six outputs of a run into ``out_dir``, all or nothing. ``earlier``: the
+    manifest of the run already there, whose files are then kept in ``earlier-runs/``
+    (:func:`fleetrun.fleet.changes.keep_earlier_run`); None replaces it."""
+    from fleetrun.fleet.changes import keep_earlier_run
     from fleetrun.fleet.manifest import write_manifest
     from fleetrun.fleet.report_html import write_summary_html
     from fleetrun.fleet.report_xlsx import write_report_xlsx
@@ -60,6 +63,8 @@ def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
 
     out_dir = Path(out_dir)
     with staging_dir(out_dir) as staging:
+        if earlier is not None:
+            keep_earlier_run(out_dir, staging, earlier, OUTPUT_FILES)
         result.results.to_csv(staging / "results.csv", index=False)
         result.classes.to_csv(staging / "class_summary.csv", index=False)
         result.fiscal.to_csv(staging / "fiscal_summary.csv", index=False)
