@@ -493,6 +493,8 @@ def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> 
     if duty is None:
         return
     for name, ranges in PLAUSIBLE_VEHICLE.items():
+        if name == "final_drive_ratio" and p["fuel"] == "electric":
+            continue   # an electric drive's single reduction (7-10:1) is its final drive
         low, high = ranges[duty]
         value = p[name]
         if value is not None and not (low <= value <= high):
