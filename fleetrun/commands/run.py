@@ -38,7 +38,7 @@ from fleetrun.fleet.engines import ENGINES
 @click.option("--no-cache", is_flag=True, help="Do not read or write cached maps.")
 @click.option("--log", "log_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar or log lines on stderr.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, log lines or summary on stdout or stderr (errors still go to stderr).")
 @click.pass_context
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, quiet):

@@ -78,6 +78,16 @@ class Fleet:
     vehicle_rows: dict[str, int] = field(default_factory=dict)    # vehicle_id -> Excel row
     scenario_rows: dict[str, int] = field(default_factory=dict)
 
+    def input_files(self) -> list[Path]:
+        """The files besides the workbook that a run of this fleet reads (cycle CSVs)."""
+        found = {}
+        for s in self.scenarios:
+            for mix in (s.cycle_mix, s.cycle_mix_MD, s.cycle_mix_HD):
+                for name in mix or {}:
+                    if name.lower().endswith(".csv"):
+                        found[name] = Path(name)
+        return list(found.values())
+
     def vehicle(self, vehicle_id: str) -> VehicleSpec:
         for v in self.vehicles:
             if v.vehicle_id == vehicle_id:
