@@ -89,9 +89,11 @@ def test_cli_validate_one_error_message_first_line_counts(tmp_path):
     assert result.stderr.startswith("Error: ")
     assert result.stderr.count("Error:") == 1
     first, *lines = result.stderr.strip().splitlines()
-    assert "2 problems" in first and "bad.xlsx" in first
-    assert lines == ["  Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number",
-                     "  Vehicles!E3 count: -1 must be at least 0"]
+    # CONTRACT.md: the first line names the file, sheet, cell and value; the others follow
+    assert first == f"Error: {path}: Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number"
+    assert lines == ["  Vehicles!E3 count: -1 must be at least 0",
+                     "2 problems in the fleet workbook; fix them and check again with "
+                     "`fleetrun validate bad.xlsx`"]
     assert "Traceback" not in result.output + result.stderr
 
 

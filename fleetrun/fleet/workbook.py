@@ -30,7 +30,7 @@ from fleetrun.fleet.schema import (DUAL_CONFIGURATIONS, PLAUSIBLE_SCENARIO, PLAU
 from fleetrun.vehicle import VehicleSpec
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
-MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 are normalised (with a warning)
+MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 (0.99) are normalised (with a warning)
 MIX_COLUMNS = ("cycle_mix", "cycle_mix_MD", "cycle_mix_HD")
 
 
@@ -193,9 +193,10 @@ def read_fleet(path) -> Fleet:
     if problems.errors:
         errors = problems.sorted_errors()
         noun, pronoun = ("problem", "it") if len(errors) == 1 else ("problems", "them")
-        head = (f"{path}: {len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again "
-                f"with `fleetrun validate {path.name}`:")
-        error = InputError("\n".join([head] + ["  " + e for e in errors]))
+        # CONTRACT.md: the first line names file, sheet, cell and value; the others follow
+        tail = (f"{len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again with "
+                f"`fleetrun validate {path.name}`")
+        error = InputError("\n".join([f"{path}: {errors[0]}"] + ["  " + e for e in errors[1:]] + [tail]))
         error.problems = errors
         error.warnings = problems.sorted_warnings()
         raise error
@@ -543,7 +544,7 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
     if not ok:
         return None
     total = sum(resolved.values())
-    if abs(total - 1.0) > MIX_SUM_TOLERANCE:
+    if abs(total - 1.0) > MIX_SUM_TOLERANCE + 1e-9:   # 0.33 x 3 sums to 0.99 + 1e-17
         problems.error(f"shares add up to {total:g}, not 1 (they are shares of the annual miles)",
                        sheet, row, index, column)
         return None
