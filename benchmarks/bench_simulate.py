@@ -39,9 +39,9 @@ FASTSIM_PER_CORE = 90.0  # the issue's reference: FASTSim, UDDS vehicle-cycles p
 def make_fleet(n: int, seed: int = 0, kind: str = "example"):
     """``example``: the example fleet's 23 types (LD, MD, HD; the heavy ones fall behind on
     UDDS accelerations and are re-driven); ``cars``: the four light-duty example vehicles of
-    fleetrun.simulation.examples (all follow the trace)."""
+    fleetrun.testing.vehicles (all follow the trace)."""
     if kind == "cars":
-        from fleetrun.simulation.examples import AWD, CAMRY, CIVIC, F150
+        from fleetrun.testing.vehicles import AWD, CAMRY, CIVIC, F150
         types = [F150, CAMRY, CIVIC, AWD]
     else:
         types = read_fleet(inputs_dir() / "example_fleet.xlsx").vehicles

@@ -11,6 +11,11 @@ their sources, unit conversions and checked durations/distances are in
 - ``NYCC``, ``HD-UDDS`` (EPA UDDSHDV) from the EPA schedules embedded in zahner_potentiostat
   1.1.2 (MIT), converted from mph.
 
+A *composed* cycle (``inputs/cycles/<NAME>.toml``; ``FTP``) joins parts of shipped schedules
+into named phases with engine-off soaks between them (:class:`CyclePhase`); its fuel economy
+is a weighted composite of the phases (:func:`composite_fuel_per_mile`, EPA's bag weighting
+for the FTP).
+
 A user cycle is a CSV with ``time_s`` and exactly one speed column (``vehicle_speed_kph``,
 ``vehicle_speed_mph``, ``vehicle_speed_mps``, ``speed_mps``, ``speed_kph`` or ``speed_mph``) and
 an optional ``grade_pct``; other columns are ignored, so a vehicle-level recording
@@ -49,19 +54,41 @@ TIME_COLUMN = "time_s"
 GRADE_COLUMN = "grade_pct"
 
 
+@dataclass(frozen=True)
+class CyclePhase:
+    """A named part of a composed cycle (an FTP "bag"), on the cycle's own time axis.
+
+    The phase holds the steps that lie within [``start_s``, ``end_s``] [s] (step i covers
+    [t(i-1), t(i)]). ``soak_before_s`` [s]: engine-off time before the phase starts; ``inf`` is
+    a cold start after a full soak to ambient, 0 that the engine runs on from the phase before.
+    Steps that lie in no phase are the engine-off soaks (40 CFR 86.135-12(a): the FTP's hot
+    start follows the end of the cold start test by 10 minutes).
+    """
+
+    name: str
+    start_s: float
+    end_s: float
+    soak_before_s: float = 0.0
+
+
 @dataclass(frozen=True, eq=False)
 class DriveCycle:
     """A speed schedule.
 
     ``time_s`` [s] strictly increasing (need not start at 0 or be evenly spaced),
     ``speed_mps`` [m/s] >= 0, ``grade_pct`` [%]; all 1-D float arrays of the same length >= 2,
-    stored read-only.
+    stored read-only. ``phases``: the :class:`CyclePhase` parts of a composed cycle (empty for
+    a plain schedule, which is driven with a warm engine, as EPA's HWFET and US06 are after
+    their preconditioning); ``composite``: the rule that weights the phases' fuel (a key of
+    :data:`COMPOSITE_RULES`; "" = fuel per mile of the whole cycle).
     """
 
     name: str
     time_s: np.ndarray
     speed_mps: np.ndarray
     grade_pct: np.ndarray
+    phases: tuple = ()
+    composite: str = ""
 
     def __post_init__(self):
         arrays = {}
@@ -108,6 +135,24 @@ class DriveCycle:
         """Average speed including stops [m/s]: distance / duration (EPA's 'average speed')."""
         return self.distance_m / self.duration_s if self.duration_s > 0 else 0.0
 
+    def step_phase(self) -> np.ndarray:
+        """Index into ``phases`` of each step (N,): -1 for a step in no phase (an engine-off
+        soak). Step 0 (no time) belongs to the first phase; all 0 for a plain cycle."""
+        t = self.time_s
+        index = np.zeros(t.size, dtype=np.intp)
+        if not self.phases:
+            return index
+        index[1:] = -1
+        tol = 1e-9 * max(1.0, float(np.max(np.abs(t))))
+        for k, phase in enumerate(self.phases):
+            inside = (t[:-1] >= phase.start_s - tol) & (t[1:] <= phase.end_s + tol)
+            index[1:][inside] = k
+        return index
+
+    def engine_off_steps(self) -> np.ndarray:
+        """Steps (N,) of the engine-off soaks between phases (bool)."""
+        return self.step_phase() < 0
+
     def __repr__(self) -> str:
         return (f"DriveCycle({self.name!r}, {len(self.time_s)} points, "
                 f"{self.duration_s:g} s, {self.miles:.3f} mi)")
@@ -137,7 +182,9 @@ def _shipped_files() -> dict[str, Path]:
         raise FleetrunError("the shipped drive cycles are missing", file=folder,
                             hint="Reinstall fleetrun; its inputs/cycles data folder "
                                  "was not installed")
-    return {p.stem: p for p in folder.glob("*.csv")}
+    found = {p.stem: p for p in folder.glob("*.toml")}   # composed cycles (FTP)
+    found.update({p.stem: p for p in folder.glob("*.csv")})
+    return found
 
 
 def shipped_cycles() -> list[str]:
@@ -164,7 +211,7 @@ def load_cycle(name_or_path) -> DriveCycle:
     if isinstance(name_or_path, DriveCycle):
         return name_or_path
     if isinstance(name_or_path, os.PathLike):
-        return read_cycle_csv(Path(name_or_path))
+        return _read_cycle_file(Path(name_or_path))
     if not isinstance(name_or_path, str):
         raise InputError(f"a drive cycle is a shipped name or a CSV path, "
                          f"not {type(name_or_path).__name__}", value=name_or_path)
@@ -173,18 +220,110 @@ def load_cycle(name_or_path) -> DriveCycle:
         raise unknown_name_error("drive cycle", name_or_path, shipped_cycles(),
                                  hint="Give a shipped cycle name or the path of a CSV file")
     if _looks_like_path(text):
-        return read_cycle_csv(Path(text))
+        return _read_cycle_file(Path(text))
     files = _shipped_files()
     by_norm = {_norm(n): n for n in files}
     if _norm(text) in by_norm:
         name = by_norm[_norm(text)]
-        return read_cycle_csv(files[name], name=name)
+        return _read_cycle_file(files[name], name=name)
     if Path(text).is_file():
         return read_cycle_csv(Path(text))
     raise unknown_name_error(
         "drive cycle", text, shipped_cycles(),
         hint="Names are case-insensitive; or give the path of a CSV file with time_s and "
              "one speed column (e.g. speed_mps)")
+
+
+def _read_cycle_file(path: Path, name: str | None = None) -> DriveCycle:
+    """A composed cycle (.toml) or a schedule CSV."""
+    if path.suffix.lower() == ".toml":
+        return read_composed_cycle(path, name=name)
+    return read_cycle_csv(path, name=name)
+
+
+# ----------------------------------------------------------------------------- composed cycles
+
+def ftp_weighted_per_mile(bag1, bag2, bag3, miles1, miles2, miles3):
+    """EPA's FTP weighting of the three bags: an amount per mile (fuel [g or gal] per mile).
+
+    40 CFR 86.144-94(a): ``Y_wm = 0.43 (Y_ct + Y_s) / (D_ct + D_s) + 0.57 (Y_ht + Y_s) /
+    (D_ht + D_s)`` with Y the bag's mass (ct = cold transient, bag 1; s = stabilised, bag 2;
+    ht = hot transient, bag 3) and D its measured distance [mi]. 40 CFR 600.113 computes the
+    city fuel economy from these weighted grams per mile (carbon balance), so the weighting
+    applies to fuel per mile, not to mpg: composite mpg = 1 / (weighted gallons per mile).
+    Works element-wise on arrays (one value per vehicle).
+    """
+    return 0.43 * (bag1 + bag2) / (miles1 + miles2) + 0.57 * (bag3 + bag2) / (miles3 + miles2)
+
+
+#: Composite rules by name: (phase names in the rule's argument order, function).
+COMPOSITE_RULES = {"ftp": (("bag1", "bag2", "bag3"), ftp_weighted_per_mile)}
+
+
+def composite_per_mile(rule: str, amounts: dict, miles: dict):
+    """An amount per mile over a composed cycle's phases: ``amounts`` and ``miles`` map phase
+    names to values (arrays over vehicles). ``rule`` "" = total amount / total miles; otherwise
+    the :data:`COMPOSITE_RULES` entry (the FTP: :func:`ftp_weighted_per_mile`)."""
+    if not rule:
+        return sum(amounts.values()) / sum(miles.values())
+    names, weighting = COMPOSITE_RULES[rule]
+    return weighting(*(amounts[n] for n in names), *(miles[n] for n in names))
+
+
+def read_composed_cycle(path, name: str | None = None) -> DriveCycle:
+    """A composed cycle from its TOML (``inputs/cycles/FTP.toml`` documents the keys): the
+    phases' parts of shipped schedules joined on one time axis, soaks as engine-off gaps."""
+    import tomllib
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            spec = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"cannot read the composed drive cycle ({exc})", file=path,
+                         hint="Fix the TOML file") from None
+    rule = spec.get("composite", "")
+    if rule and rule not in COMPOSITE_RULES:
+        raise unknown_name_error("composite rule", rule, list(COMPOSITE_RULES))
+    specs = spec.get("phase") or []
+    if not specs:
+        raise InputError("a composed drive cycle needs at least one [[phase]]", file=path,
+                         hint="Add [[phase]] tables with name, cycle, start_s, end_s")
+    parts, phases, end = [], [], 0.0
+    for k, ph in enumerate(specs):
+        t, v, g, phase = _phase_part(path, ph, end, first=(k == 0))
+        parts.append((t, v, g))
+        phases.append(phase)
+        end = phase.end_s
+    t, v, g = (np.concatenate([p[i] for p in parts]) for i in range(3))
+    return DriveCycle(name=name or path.stem, time_s=t, speed_mps=v, grade_pct=g,
+                      phases=tuple(phases), composite=rule)
+
+
+def _phase_part(path, ph: dict, previous_end_s: float, first: bool):
+    """One phase's samples on the composed time axis, and its CyclePhase."""
+    try:
+        name, base = str(ph["name"]), load_cycle(str(ph["cycle"]))
+        start, stop, soak = float(ph["start_s"]), float(ph["end_s"]), float(ph.get("soak_before_s", 0.0))
+    except KeyError as exc:
+        raise InputError(f"a [[phase]] lacks the key {exc}", file=path,
+                         hint="Each phase needs name, cycle, start_s and end_s") from None
+    sel = (base.time_s >= start - 1e-9) & (base.time_s <= stop + 1e-9)
+    if sel.sum() < 2 or not soak >= 0:
+        raise InputError(f"phase '{name}': {start:g}-{stop:g} s of {base.name} holds no step, "
+                         f"or soak_before_s = {soak:g} is negative", file=path)
+    t, v, g = base.time_s[sel], base.speed_mps[sel], base.grade_pct[sel]
+    if first:
+        offset = -t[0]
+    elif soak == 0:  # the engine runs on: this phase's first sample is the last one before
+        offset = previous_end_s - t[0]
+        t, v, g = t[1:], v[1:], g[1:]
+    else:  # the soak is one engine-off step at rest
+        if v[0] != 0:
+            raise InputError(f"phase '{name}' follows a soak but does not start at rest", file=path)
+        offset = previous_end_s + soak - t[0]
+    t = t + offset
+    return t, v, g, CyclePhase(name, float(t[0] if first or soak else previous_end_s), float(t[-1]), soak)
 
 
 # ----------------------------------------------------------------------------- CSV reading
@@ -348,7 +487,8 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0) -> DriveCycle:
     t[-1] = min(t[-1], t1)  # guard the last point against rounding past the end
     v = np.interp(t, cycle.time_s, cycle.speed_mps)
     g = np.interp(t, cycle.time_s, cycle.grade_pct)
-    return DriveCycle(name=cycle.name, time_s=t, speed_mps=v, grade_pct=g)
+    return DriveCycle(name=cycle.name, time_s=t, speed_mps=v, grade_pct=g, phases=cycle.phases,
+                      composite=cycle.composite)
 
 
 def cycle_summary(cycle: DriveCycle) -> dict:

@@ -51,7 +51,7 @@ def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
 
 def save_figure(fig, path) -> None:
     """Save ``fig`` atomically as PNG or SVG (by the file's suffix)."""
-    from fleetrun.fleet.outputs import atomic_file
+    from fleetrun.fileio import atomic_file
 
     path = Path(path)
     if path.suffix.lower() not in PLOT_FORMATS:

@@ -165,7 +165,7 @@ def heavy_rows() -> list[dict]:
 
 
 def build(output: Path) -> Path:
-    from fleetrun.fleet.outputs import atomic_file
+    from fleetrun.fileio import atomic_file
     from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
     from fleetrun.fleet.template import build_template
 

@@ -20,7 +20,7 @@ from fleetrun.effects import efficiency_with_effects, parse_with
 from fleetrun.fleet.workbook import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import SUM_FIELDS, diffmodes, simulate
-from fleetrun.simulation.examples import ALL, CAMRY, F150, HD_DUAL, HD_TRUCK
+from fleetrun.testing.vehicles import ALL, CAMRY, F150, HD_DUAL, HD_TRUCK
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 RAD_PER_RPM = 2 * np.pi / 60

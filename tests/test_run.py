@@ -275,7 +275,7 @@ def test_heavy_vehicles_drive_their_own_cycle_mix(tmp_path):
 
 
 def test_outputs_get_ordinary_file_modes(fleet_path, tmp_path):
-    from fleetrun.fleet.outputs import default_file_mode
+    from fleetrun.fileio import default_file_mode
 
     out = tmp_path / "out"
     assert run(fleet_path, "--out", out, "--no-cache", "-q").exit_code == 0

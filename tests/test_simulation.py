@@ -15,7 +15,7 @@ from fleetrun.simulation.params import vehicle_arrays
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N, tractive_force_N
 from fleetrun.simulation.transmission import converter_speed_ratio, input_torque_Nm, torque_ratio
 from fleetrun.simulation.tyre import rolling_radius_m, tire_diameter_m
-from fleetrun.simulation.examples import ALL, CAMRY, CIVIC, F150, HD_DUAL
+from fleetrun.testing.vehicles import ALL, CAMRY, CIVIC, F150, HD_DUAL
 
 CONTRACT_TRACE = ("time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm",
                   "diff_input_speed_rpm", "diff_efficiency", "gear", "engine_speed_rpm",

@@ -9,7 +9,7 @@ from fleetrun.fleet.workbook import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import DEFAULT_MODE, simulate
 from fleetrun.simulation import diffmodes
-from fleetrun.simulation.examples import ALL
+from fleetrun.testing.vehicles import ALL
 
 TOLERANCE = 0.002  # the requirement: 0.2 % of direct on cycle fuel
 

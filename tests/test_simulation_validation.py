@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrun.simulation.validation import (DYNO_TESTS, TABLE_7_1, camry_modes, camry_validation, camry_vehicle,
+from validation.simulation import (DYNO_TESTS, TABLE_7_1, camry_modes, camry_validation, camry_vehicle,
                                             dyno_segment, engine_on_rows, matthews_c19, proof_of_concept)
 
 

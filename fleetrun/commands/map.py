@@ -133,9 +133,8 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
         title = f"{config}, gear ratio {g:g}" + (f", low {low:g} ({axle_gear})" if low is not None else "")
         save_figure(efficiency_map_figure(tfs, speeds, eta, f"{title}, physics {physics}"), plot)
     if output:
-        from fleetrun.fleet.outputs import atomic_file
+        from fleetrun.fileio import write_text_atomic
 
-        with atomic_file(output) as tmp:
-            tmp.write_text(text)
+        write_text_atomic(output, text)
     else:
         click.echo(text, nl=False)

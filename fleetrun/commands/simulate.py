@@ -18,7 +18,7 @@ from fleetrun.errors import InputError
 
 
 def _write_atomic(frame, path: Path) -> None:
-    from fleetrun.fleet.outputs import atomic_file
+    from fleetrun.fileio import atomic_file
 
     with atomic_file(path) as tmp:
         frame.to_csv(tmp, index=False, float_format="%.6g", lineterminator="\n")
@@ -54,7 +54,7 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
             raise click.UsageError("give FLEET.xlsx or --vehicle-file, not both")
         if scenario_id:
             raise click.UsageError("--scenario needs FLEET.xlsx")
-        from fleetrun.simulation.vehicle_file import read_vehicle_toml
+        from fleetrun.fleet.vehicle_file import read_vehicle_toml
         vehicle = read_vehicle_toml(vehicle_file)
     else:
         if not fleet_file:

@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrun.fleet.outputs import atomic_file, prepare_output_folder
 from fleetrun.diagnose.engine import Problem, Settings, select
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.recording import load_recording
 from fleetrun.errors import InputError
+from fleetrun.fileio import prepare_output_folder, write_text_atomic
 
 SCHEMA = "fleetrun.diagnosis/1"
 
@@ -117,11 +117,6 @@ def _clean(obj):
     return obj
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    with atomic_file(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
 def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
              settings: Settings | None = None, write=True) -> dict:
     """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
@@ -137,8 +132,8 @@ def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thes
         result["timing_s"] = round(time.perf_counter() - t_start, 3)
         text = json.dumps(result, indent=2)
         prepare_output_folder(out, out)
-        _write_atomic(out / "diagnosis.json", text)
-        _write_atomic(out / "diagnosis.html", html)
+        write_text_atomic(out / "diagnosis.json", text)
+        write_text_atomic(out / "diagnosis.html", html)
     else:
         result["timing_s"] = round(time.perf_counter() - t_start, 3)
     return result

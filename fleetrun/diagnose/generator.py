@@ -283,7 +283,7 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
     from fleetrun.resources import inputs_dir
     from fleetrun.simulation import simulate
-    from fleetrun.simulation.vehicle_file import read_vehicle_toml
+    from fleetrun.fleet.vehicle_file import read_vehicle_toml
 
     vehicle_toml = vehicle_toml or inputs_dir() / "dyno" / "camry2018_udds_hot.toml"
     spec = read_vehicle_toml(vehicle_toml)

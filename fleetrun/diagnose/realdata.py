@@ -24,7 +24,7 @@ import pandas as pd
 from fleetrun.diagnose.generator import Recording
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
 from fleetrun.simulation.tyre import rolling_radius_m
-from fleetrun.simulation.validation import TABLE_7_1, matthews_c19
+from validation.simulation import TABLE_7_1, matthews_c19
 
 
 #: Thesis Table 7.1 (Sec. 7.2.2) by vehicle name: (peak torque [N m], A [lbf], B [lbf/mph],

@@ -426,13 +426,17 @@ def _cycle_label(cycle: str) -> str:
 
 
 def _shipped_cycle_file(name: str):
-    """The CSV a shipped cycle is read from, when it is one (its sha256 goes in the manifest)."""
+    """The CSV (or a composed cycle's TOML) a shipped cycle is read from (its sha256 goes in
+    the manifest)."""
     from pathlib import Path
 
     from fleetrun.resources import inputs_dir
 
-    candidate = Path(inputs_dir()) / "cycles" / f"{name}.csv"
-    return candidate if candidate.is_file() else None
+    for suffix in (".csv", ".toml"):
+        candidate = Path(inputs_dir()) / "cycles" / f"{name}{suffix}"
+        if candidate.is_file():
+            return candidate
+    return None
 
 
 def _cycle_info(names) -> dict[str, dict]:

@@ -48,7 +48,7 @@ INSTRUCTIONS = [
 
 def write_template(path: Path) -> None:
     """Write the template workbook to ``path`` (atomically)."""
-    from fleetrun.fleet.outputs import atomic_file
+    from fleetrun.fileio import atomic_file
 
     workbook = build_template()
     with atomic_file(Path(path)) as temporary:

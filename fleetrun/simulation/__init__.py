@@ -19,6 +19,7 @@ from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, Differ
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.params import vehicle_arrays
+from fleetrun.simulation.thermal import cold_start_extra_fuel, start_temperature_C, thermal_constants
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
 
@@ -38,8 +39,9 @@ TRACE_COLUMNS = (
     "target_speed_mps", "grade_pct", "tractive_force_N", "wheel_speed_rpm", "axle_range",
     "transmission_input_torque_Nm", "transmission_input_speed_rpm", "converter_unlocked",
     "engine_max_torque_Nm", "wheel_power_W", "diff_loss_W", "transmission_loss_W", "converter_loss_W",
-    "engine_power_W", "not_followed",
+    "engine_power_W", "not_followed", "phase", "engine_temp_C", "cold_start_fuel_g_per_s",
 )
+PHASE_FIELDS = ("phase_fuel_g", "phase_miles")   # (V, phases) sums; one phase for a plain cycle
 
 
 @dataclass
@@ -69,6 +71,10 @@ class FleetCycleResult:
     duration_s: float = 0.0
     trace: dict | None = field(default=None, repr=False)
     effects: list = field(default_factory=list)   # the --with effects and parameters (describe_effects)
+    # a composed cycle (FTP): per phase {"miles", "fuel_g", "fuel_gal", "mpg"} arrays over
+    # vehicles; then miles, fuel_g, fuel_gal and mpg above are the composite (see phase_results)
+    phases: dict = field(default_factory=dict)
+    composite: str = ""
 
     @property
     def diff_efficiency(self) -> np.ndarray:
@@ -92,6 +98,9 @@ class FleetCycleResult:
             "drivetrain_efficiency": f(self.drivetrain_efficiency[i]),
             "shortfall_time_s": f(self.shortfall_time_s[i]), "shortfall_distance_m": f(self.shortfall_distance_m[i]),
             "with": self.effects,
+            **({"composite": self.composite,
+                "phases": {p: {k: f(a[i]) for k, a in arrays.items()} for p, arrays in self.phases.items()}}
+               if self.phases else {}),
         }
 
     def trace_frame(self, i: int = 0):
@@ -104,10 +113,30 @@ class FleetCycleResult:
                              for c in TRACE_COLUMNS})
 
 
-def _cycle_arrays(cycle):
+def _load(cycle):
     if isinstance(cycle, (str, os.PathLike)):
         from fleetrun.cycles import load_cycle
         cycle = load_cycle(cycle)
+    return cycle
+
+
+def _thermal_plan(cycle, t, ambient_temp_C):
+    """What the cold-start pass needs for a composed cycle (None for a plain cycle, which is
+    driven with a warm engine): step phases, engine-off soak time per step, start temperature."""
+    phases = tuple(getattr(cycle, "phases", ()) or ())
+    if not phases:
+        return None
+    step_phase = cycle.step_phase()
+    dt_all = np.concatenate([[0.0], np.diff(t)])
+    return dict(phases=phases, composite=str(getattr(cycle, "composite", "")), step_phase=step_phase,
+                step_soak_s=np.where(step_phase < 0, dt_all, 0.0), ambient_temp_C=float(ambient_temp_C),
+                start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C))
+
+
+def _cycle_arrays(cycle, ambient_temp_C=None):
+    """Name, time, speed and grade of ``cycle`` (checked), and with ``ambient_temp_C`` also its
+    cold-start plan (:func:`_thermal_plan`)."""
+    cycle = _load(cycle)
     try:
         t = np.asarray(cycle.time_s, float)
         v = np.asarray(cycle.speed_mps, float)
@@ -129,7 +158,9 @@ def _cycle_arrays(cycle):
     if neg.size:
         raise InputError(f"cycle '{name}': negative speed {v[neg[0]]} at time {t[neg[0]]} s",
                          column="speed", value=v[neg[0]], hint="Speeds must be >= 0")
-    return name, t, v, grade
+    if ambient_temp_C is None:
+        return name, t, v, grade
+    return name, t, v, grade, _thermal_plan(cycle, t, ambient_temp_C)
 
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
@@ -149,7 +180,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if mode not in MODES:
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
     effects = cycle_effects(effects)
-    name, t, v_target, grade = _cycle_arrays(cycle)
+    name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C)
     va = vehicle_arrays(vehicles)
     V = va.n
     if V:
@@ -169,8 +200,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                 va_sub = va.subset(sub)
                 solver_sub = solver.subset(sub, va_sub)
             parts.append(_run_block(va_sub, solver_sub, t, speed[first:first + block], v_target, grade, trace,
-                                    effects))
-        out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + ("_behind",)}
+                                    effects, plan))
+        out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + PHASE_FIELDS + ("_behind",)}
         if trace:
             out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else
                                   np.concatenate([p["trace"][key] for p in parts])) for key in parts[0]["trace"]}
@@ -193,7 +224,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
         again = run(behind, achieved)
-        for key in SUM_FIELDS + ("_behind",):
+        for key in SUM_FIELDS + PHASE_FIELDS + ("_behind",):
             sums[key][behind] = again[key]
         if trace:
             for key, arr in again["trace"].items():
@@ -206,6 +237,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         **{key: (sums[key] if V else empty) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
         effects=describe_effects(effects),
     )
+    if plan is not None:
+        phase_results(result, plan, sums if V else {k: np.zeros((0, len(plan["phases"]))) for k in PHASE_FIELDS},
+                      va.density if V else empty)
     if trace and V:
         result.trace = sums["trace"]
     return result
@@ -216,9 +250,10 @@ SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff
               "shortfall_distance_m", "shortfall_max_speed_mps", "shortfall_steps")
 
 
-def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects()):
+def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(), plan=None):
     """Simulate one block of vehicles at the speeds ``speed`` (V, N): per-vehicle sums (and
-    the trace if asked for); ``_behind`` marks vehicles with steps above full load."""
+    the trace if asked for); ``_behind`` marks vehicles with steps above full load. ``plan``:
+    a composed cycle's cold-start plan (:func:`_thermal_plan`), None for a plain cycle."""
     V, N = va.n, t.size
     speed = np.asarray(speed)
     # Without a trace, steps where the trace stands still (and so every vehicle, which is
@@ -237,16 +272,17 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     else:
         if out["infeasible"].any():
             not_followed[:, columns] |= out["infeasible"]
-    fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
-    if columns is not None:
-        standstill_s = dt_all.sum() - dt_all[columns].sum()
-        fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
-        if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
-            still = np.setdiff1d(np.arange(N), columns)
-            zeros = np.zeros((V, still.size))
-            extra = vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, step_time_since_start_s(t)[still],
-                                               zeros, zeros, 1.0)
-            fuel_g = fuel_g + (extra * dt_all[still]).sum(axis=1)
+    if plan is None:
+        fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
+        if columns is not None:
+            standstill_s = dt_all.sum() - dt_all[columns].sum()
+            fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
+            if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
+                fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
+        phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
+        cold = temp = None
+    else:
+        fuel_g, phase_fuel_g, phase_miles, cold, temp = _phased_fuel(va, t, columns, out, effects, plan)
     fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
     miles = distance_m / METERS_PER_MILE
     driving = out["moving"] & (out["wheel_torque_Nm"] > 0)
@@ -263,6 +299,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         shortfall_time_s=(not_followed * dt_all).sum(axis=1), shortfall_distance_m=target_m - distance_m,
         shortfall_max_speed_mps=np.maximum(deficit.max(axis=1), 0.0),
         shortfall_steps=out["infeasible"].sum(axis=1), _behind=out["infeasible"].any(axis=1),
+        phase_fuel_g=phase_fuel_g, phase_miles=phase_miles,
     )
     if trace:
         sums["trace"] = {
@@ -280,7 +317,104 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
             "wheel_power_W": out["wheel_power_W"], "diff_loss_W": out["diff_loss_W"],
             "transmission_loss_W": out["transmission_loss_W"], "converter_loss_W": out["converter_loss_W"],
             "engine_power_W": out["engine_power_W"], "not_followed": not_followed,
+            **_thermal_trace(V, N, plan, cold, temp),
             # internals for tests (not written to CSV)
             "_v_avg": out["v_avg"], "_accel": out["accel"], "_dt": np.broadcast_to(dt, (V, N)), "_driving": driving,
         }
     return sums
+
+
+def _still(N, columns):
+    """The steps the block skipped (the whole block stands still there)."""
+    return np.setdiff1d(np.arange(N), columns)
+
+
+def _still_effects_fuel(va, t, columns, effects):
+    """Fuel rate (V, len(still)) of the vehicle-level effects at rest in the skipped steps."""
+    still = _still(t.size, columns)
+    zeros = np.zeros((va.n, still.size))
+    return vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, step_time_since_start_s(t)[still], zeros, zeros,
+                                      1.0)
+
+
+def _every_step(va, t, columns, out, effects, plan):
+    """The warm engine's fuel rate and speed (V, N) in every step: the skipped steps idle (with
+    the vehicle-level effects' fuel at rest), engine-off soak steps burn nothing and stand still.
+    Sets the soak steps of ``out`` (a traced pass computes them as idle) to engine off."""
+    V, N = va.n, t.size
+    off = plan["step_phase"] < 0
+    if columns is None:
+        out["fuel_rate_g_per_s"][:, off] = 0.0
+        out["engine_speed_rpm"][:, off] = 0.0
+        return out["fuel_rate_g_per_s"].copy(), out["engine_speed_rpm"].copy()
+    rate = np.repeat(idle_fuel_rate_g_per_s(va)[:, None], N, axis=1)
+    rpm = np.repeat(va.n_idle[:, None], N, axis=1)
+    if effects.vehicle:
+        rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)
+    rate[:, columns] = out["fuel_rate_g_per_s"]
+    rpm[:, columns] = out["engine_speed_rpm"]
+    rate[:, off] = 0.0
+    rpm[:, off] = 0.0
+    return rate, rpm
+
+
+def _phased_fuel(va, t, columns, out, effects, plan):
+    """A composed cycle's fuel: every step, engine-off soaks, the cold-start pass
+    (thermal.py), sums per phase. Returns total fuel [g] (V,), fuel [g] and miles per phase
+    (V, phases), the cold-start fuel rate and the engine temperature (V, N); a traced pass's
+    ``out`` fuel rate gets the cold-start fuel."""
+    V, N = va.n, t.size
+    dt_all = np.concatenate([[0.0], np.diff(t)])
+    rate, rpm = _every_step(va, t, columns, out, effects, plan)
+    cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan["step_soak_s"], plan["start_temp_C"],
+                                       plan["ambient_temp_C"])
+    rate += cold
+    if columns is None:
+        out["fuel_rate_g_per_s"] += cold
+    step_m = np.zeros((V, N))
+    step_m[:, np.arange(N) if columns is None else columns] = out["v_avg"] * out["dt"]
+    step_fuel = rate * dt_all
+    return (step_fuel.sum(axis=1), _sum_by_phase(step_fuel, plan), _sum_by_phase(step_m, plan) / METERS_PER_MILE,
+            cold, temp)
+
+
+def _sum_by_phase(per_step, plan):
+    """Sums (V, phases) of a per-step quantity (V, N) over each phase's steps."""
+    index = plan["step_phase"]
+    return np.stack([per_step[:, index == k].sum(axis=1) for k in range(len(plan["phases"]))], axis=1)
+
+
+def _thermal_trace(V, N, plan, cold, temp):
+    """The trace's phase, engine temperature and cold-start fuel columns (a plain cycle: no
+    phase name, a warm engine, no extra fuel)."""
+    if plan is None:
+        return {"phase": np.full((V, N), ""), "engine_temp_C": np.full((V, N), thermal_constants().thermostat_temp_C),
+                "cold_start_fuel_g_per_s": np.zeros((V, N))}
+    names = np.array([p.name for p in plan["phases"]] + [""])   # index -1: the soak, no phase
+    return {"phase": np.broadcast_to(names[plan["step_phase"]], (V, N)), "engine_temp_C": temp,
+            "cold_start_fuel_g_per_s": cold}
+
+
+def phase_results(result: FleetCycleResult, plan, sums, density_kg_per_L):
+    """Fill ``result.phases`` (per phase: miles, fuel_g, fuel_gal, mpg) and set its miles,
+    fuel_g, fuel_gal and mpg to the composite: the cycle's miles driven, and fuel at the
+    composite rate per mile (:func:`fleetrun.cycles.composite_per_mile`, for the FTP EPA's bag
+    weighting, 40 CFR 86.144), so that ``mpg = miles / fuel_gal`` is the composite mpg and
+    fuel per mile is what a budget multiplies by miles."""
+    from fleetrun.cycles import composite_per_mile
+
+    to_gal = 1.0 / (1000.0 * np.asarray(density_kg_per_L, float) * LITERS_PER_GALLON)
+    fuel, miles = {}, {}
+    for k, phase in enumerate(plan["phases"]):
+        fuel[phase.name], miles[phase.name] = sums["phase_fuel_g"][:, k], sums["phase_miles"][:, k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mpg = np.where(fuel[phase.name] > 0, miles[phase.name] / (fuel[phase.name] * to_gal), np.nan)
+        result.phases[phase.name] = {"miles": miles[phase.name], "fuel_g": fuel[phase.name],
+                                     "fuel_gal": fuel[phase.name] * to_gal, "mpg": mpg}
+    result.composite = plan["composite"]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grams_per_mile = composite_per_mile(plan["composite"], fuel, miles)
+        result.miles = sum(miles.values()) if miles else result.miles
+        result.fuel_g = grams_per_mile * result.miles
+        result.fuel_gal = result.fuel_g * to_gal
+        result.mpg = np.where(result.fuel_gal > 0, result.miles / result.fuel_gal, np.nan)

@@ -42,7 +42,7 @@ import numpy as np
 
 from fleetrun import __version__
 from fleetrun.errors import FleetrunError, InputError
-from fleetrun.fleet.outputs import atomic_file
+from fleetrun.fileio import atomic_file
 
 MODES = ("direct", "map2d", "map3d")
 ZERO_OUTPUT = 1e-8  # output torque fraction that stands for "zero" in the direct inversion

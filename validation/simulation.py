@@ -8,7 +8,7 @@
    hot-start UDDS, HWFET and US06, after calibrating one constant (the Willans slope
    ``eta_indicated``) on the hot-start UDDS only.
 
-    python -m fleetrun.simulation.validation [--docs DIR]     prints results; writes the plots
+    PYTHONPATH=. python validation/simulation.py [--docs DIR]     prints results; writes the plots
 """
 from __future__ import annotations
 
@@ -143,7 +143,7 @@ def camry_vehicle(dyno_dir=None, extra=None, **fields):
     (``rolling_radius_factor_from_n_per_v``), optional ``extra`` overrides (simulation keys
     such as ``pme0_a_kPa``) and replaced VehicleSpec ``fields``."""
     from fleetrun.resources import inputs_dir
-    from fleetrun.simulation.vehicle_file import read_vehicle_toml
+    from fleetrun.fleet.vehicle_file import read_vehicle_toml
 
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     vehicle = read_vehicle_toml(folder / "camry2018_udds_hot.toml")

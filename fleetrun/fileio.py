@@ -1,0 +1,63 @@
+"""Atomic file writing: the bottom-layer I/O every other layer uses (simulation's map cache,
+fleet reports, diagnose, plots, commands).
+
+A file is written to a temporary name in its destination folder (same filesystem, so the final
+``os.replace`` is atomic) and renamed only once complete: a failed write leaves no half-written
+file and keeps the previous good one. Imports nothing of fleetrun but :mod:`fleetrun.errors`.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+from fleetrun.errors import InputError
+
+
+def prepare_output_folder(folder: Path, what: Path) -> None:
+    """Create ``folder`` (and parents) for output ``what``, or say plainly why it cannot be."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{what}: cannot create the output folder {folder} ({exc.strerror or exc})",
+                         hint="Choose an output path in a folder you can write to") from None
+    if not folder.is_dir():
+        raise InputError(f"{what}: {folder} is not a folder", hint="Choose another output path")
+
+
+def default_file_mode() -> int:
+    """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path):
+    """Yield a temporary path beside ``path``; on success it replaces ``path``."""
+    path = Path(path)
+    prepare_output_folder(path.parent, path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a file", hint="Give a file name for the output")
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix + ".tmp",
+                                             dir=path.parent)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write here ({exc.strerror or exc})",
+                         hint="Choose an output path in a folder you can write to") from None
+    os.close(handle)
+    try:
+        yield Path(temporary)
+        os.chmod(temporary, default_file_mode())
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_file(path) as temporary:
+        temporary.write_text(text, encoding="utf-8")

@@ -1,0 +1,210 @@
+"""Engine temperature and the extra fuel of a cold engine: cold start, warm-up, soak.
+
+One lumped thermal node per engine stands for its coolant, oil and the metal they wet, at one
+temperature ``T`` [C] (oil temperature = node temperature). Constants: ``models/thermal.toml``
+(literature defaults; global, never per vehicle).
+
+- **Warm-up while running** (first law, losses to ambient neglected until the thermostat
+  opens): ``C dT/dt = f m_dot LHV``, so ``T = min(T_start + f LHV M / C, T_open)`` with M the
+  fuel burned since the start [g] and ``C = c_L V_d`` the node's heat capacity, scaled with
+  displacement. Once at ``T_open`` the radiator holds T there while the engine runs.
+- **Cooling while parked** (soak): Newton cooling toward ambient,
+  ``T = T_amb + (T_end - T_amb) exp(-t / tau)``.
+- **Extra fuel while cold** (only where the warm engine burns fuel; not in fuel cut-off):
+  rubbing friction rises with the oil's viscosity, ``T_f,cold = s T_0 (nu(T)/nu(T_open))^n``
+  with ``T_0`` the Willans offset torque (friction + pumping, ``engine.offset_torque_Nm``) and
+  s its rubbing share; the extra torque costs fuel along the Willans line,
+  ``dm = dT_f omega / (eta_ind LHV)``. Gasoline engines are also enriched (and their spark
+  retarded to light the catalyst): ``e(T) m_dot`` with e falling linearly from ``e_25`` at
+  25 C to 0 at ``T_open``. The oil's viscosity is Walther's equation
+  (:mod:`fleetrun.physics.lubricant`, thesis Eqs 5.13-5.14) through two points of an
+  SAE 0W-20 (gasoline) or 5W-30 (diesel) oil.
+
+The drive-cycle simulation (docs/simulation.md, "Cold start") runs the backward pass with a
+warm engine, then one forward pass over time here: the temperature from the heat released so
+far, then the cold-fuel correction, iterated because the extra fuel also heats the engine.
+A plain cycle is driven warm (as EPA's HWFET and US06 after their preconditioning): T stays at
+``T_open`` and nothing is added. A composed cycle (FTP) starts each phase after its soak.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from fleetrun.physics.lubricant import KELVIN, walther_coefficients, walther_kinematic_viscosity_m2_s
+from fleetrun.resources import models_dir
+from fleetrun.simulation.engine import fuel_rate_g_per_s, offset_torque_Nm
+
+REFERENCE_COLD_C = 25.0      # engine temperature at which the enrichment share is e_25 [C]
+FIXED_POINT_TOL_G = 1e-9     # fuel per step [g]: the forward pass' iteration tolerance
+FIXED_POINT_MAX_ITER = 20
+
+
+@dataclass(frozen=True)
+class ThermalConstants:
+    """The cold-start model's constants (``models/thermal.toml``)."""
+    heat_fraction: float
+    heat_capacity_J_per_K_per_L: float
+    thermostat_temp_C: float
+    soak_time_constant_s: float
+    friction_share: float
+    viscosity_exponent: float
+    oil_walther: dict            # fuel -> (A, B) of Walther's equation
+    enrichment_at_25C: dict      # fuel -> e_25
+
+
+@lru_cache(maxsize=None)
+def thermal_constants() -> ThermalConstants:
+    """``models/thermal.toml`` as :class:`ThermalConstants`."""
+    with open(models_dir() / "thermal.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    engine, friction = data["engine"], data["friction"]
+    oils = {fuel: walther_coefficients(o["nu1_cSt"], o["T1_K"], o["nu2_cSt"], o["T2_K"])
+            for fuel, o in data["oil"].items()}
+    return ThermalConstants(
+        heat_fraction=float(engine["heat_fraction"]),
+        heat_capacity_J_per_K_per_L=1e3 * float(engine["heat_capacity_kJ_per_K_per_L"]),
+        thermostat_temp_C=float(engine["thermostat_temp_C"]),
+        soak_time_constant_s=float(engine["soak_time_constant_s"]),
+        friction_share=float(friction["share"]), viscosity_exponent=float(friction["viscosity_exponent"]),
+        oil_walther=oils, enrichment_at_25C={k: float(v) for k, v in data["enrichment"].items()})
+
+
+# ----------------------------------------------------------------------------- physics
+
+def engine_heat_capacity_J_per_K(displacement_L, capacity_J_per_K_per_L):
+    """Heat capacity of the lumped engine node [J/K]: ``c_L x V_d`` (scaled with engine size).
+
+    Parameters: ``displacement_L`` [L]; ``capacity_J_per_K_per_L`` [J/(K L)].
+    """
+    return np.asarray(displacement_L, float) * capacity_J_per_K_per_L
+
+
+def warmed_temperature_C(start_temp_C, heat_J, heat_capacity_J_per_K, thermostat_temp_C):
+    """Engine temperature [C] after ``heat_J`` [J] went into the node since ``start_temp_C``
+    [C], held at ``thermostat_temp_C`` [C] once reached (radiator): ``min(T0 + Q / C, T_open)``.
+
+    First law for one lumped node, losses to ambient neglected before the thermostat opens.
+    An engine already above ``thermostat_temp_C`` stays where it is.
+    """
+    start = np.asarray(start_temp_C, float)
+    warmed = start + np.asarray(heat_J, float) / heat_capacity_J_per_K
+    return np.where(start >= thermostat_temp_C, start, np.minimum(warmed, thermostat_temp_C))
+
+
+def soaked_temperature_C(end_temp_C, ambient_temp_C, soak_s, time_constant_s):
+    """Engine temperature [C] after ``soak_s`` [s] parked: Newton cooling toward ambient,
+    ``T_amb + (T_end - T_amb) exp(-t / tau)``; ``soak_s = inf`` gives ambient (a cold start).
+
+    Parameters: ``end_temp_C`` [C] when the engine stopped, ``ambient_temp_C`` [C],
+    ``soak_s`` [s], ``time_constant_s`` [s].
+    """
+    decay = math.exp(-soak_s / time_constant_s) if math.isfinite(soak_s) else 0.0
+    return ambient_temp_C + (np.asarray(end_temp_C, float) - ambient_temp_C) * decay
+
+
+def oil_viscosity_ratio(temp_C, reference_temp_C, walther_A, walther_B):
+    """Kinematic viscosity of the engine oil at ``temp_C`` over that at ``reference_temp_C``
+    (both [C]), Walther's equation with coefficients A, B (thesis Eq. 5.14)."""
+    nu = walther_kinematic_viscosity_m2_s(np.asarray(temp_C, float) + KELVIN, walther_A, walther_B)
+    return nu / walther_kinematic_viscosity_m2_s(reference_temp_C + KELVIN, walther_A, walther_B)
+
+
+def cold_friction_torque_Nm(offset_torque_Nm, friction_share, viscosity_ratio, viscosity_exponent):
+    """Extra friction torque of a cold engine [N m]: ``s T_0 ((nu/nu_hot)^n - 1)``.
+
+    Parameters: ``offset_torque_Nm`` the warm Willans offset T_0 (friction + pumping) [N m];
+    ``friction_share`` s, its rubbing part; ``viscosity_ratio`` nu(T)/nu(T_open);
+    ``viscosity_exponent`` n (Burke et al. 2010: 0.52).
+    """
+    return friction_share * offset_torque_Nm * (np.asarray(viscosity_ratio, float) ** viscosity_exponent - 1.0)
+
+
+def enrichment_fraction(temp_C, thermostat_temp_C, fraction_at_25C):
+    """Cold enrichment as a share of the warm fuel rate: ``e_25 (T_open - T) / (T_open - 25)``,
+    0 at and above ``thermostat_temp_C`` [C], rising linearly as the engine gets colder
+    (Taylor & Stewart 2001, SAE 2001-01-0221: the bag 1 penalty grows linearly as ambient
+    falls)."""
+    cold = (thermostat_temp_C - np.asarray(temp_C, float)) / (thermostat_temp_C - REFERENCE_COLD_C)
+    return fraction_at_25C * np.maximum(cold, 0.0)
+
+
+# ----------------------------------------------------------------------------- forward pass
+
+def start_temperature_C(first_soak_s, ambient_temp_C, constants: ThermalConstants | None = None):
+    """Engine temperature [C] when a cycle starts: a warm engine (``T_open``) soaked for
+    ``first_soak_s`` [s] (``inf`` = a cold start at ambient; 0 = warm)."""
+    k = constants or thermal_constants()
+    return float(soaked_temperature_C(k.thermostat_temp_C, ambient_temp_C, first_soak_s, k.soak_time_constant_s))
+
+
+def engine_temperature_C(fuel_g, heat_capacity_J_per_K, lhv_MJ_per_kg, start_temp_C, step_soak_s,
+                         ambient_temp_C, constants: ThermalConstants | None = None):
+    """Engine temperature [C] at the start of each step (V, N): the heat of the fuel burned so
+    far (:func:`warmed_temperature_C`), Newton cooling in engine-off steps
+    (:func:`soaked_temperature_C`; an engine-off step holds the temperature at its end).
+
+    Parameters: ``fuel_g`` (V, N) fuel burned in each step [g]; ``heat_capacity_J_per_K`` and
+    ``lhv_MJ_per_kg`` (V,); ``start_temp_C`` (V,) or scalar [C]; ``step_soak_s`` (N,) engine-off
+    time of each step [s] (0 while running); ``ambient_temp_C`` [C].
+    """
+    k = constants or thermal_constants()
+    V, N = fuel_g.shape
+    heat_J = fuel_g * (k.heat_fraction * np.asarray(lhv_MJ_per_kg, float) * 1e3)[:, None]
+    capacity = np.asarray(heat_capacity_J_per_K, float)[:, None]
+    temps = np.empty((V, N))
+    seg_start = np.broadcast_to(np.asarray(start_temp_C, float), (V,)).astype(float)[:, None]
+    first = 0
+    for off in list(np.flatnonzero(np.asarray(step_soak_s) > 0)) + [N]:
+        if off > first:
+            heat = np.cumsum(heat_J[:, first:off], axis=1)
+            so_far = np.concatenate([np.zeros((V, 1)), heat[:, :-1]], axis=1)
+            temps[:, first:off] = warmed_temperature_C(seg_start, so_far, capacity, k.thermostat_temp_C)
+            seg_start = warmed_temperature_C(seg_start, heat[:, -1:], capacity, k.thermostat_temp_C)
+        if off < N:
+            seg_start = soaked_temperature_C(seg_start, ambient_temp_C, float(step_soak_s[off]),
+                                             k.soak_time_constant_s)
+            temps[:, off] = seg_start[:, 0]
+        first = off + 1
+    return temps
+
+
+def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, start_temp_C, ambient_temp_C,
+                          constants: ThermalConstants | None = None):
+    """Extra fuel rate of a cold engine [g/s] and the engine temperature [C], both (V, N).
+
+    ``va``: the vehicles' simulation parameters (``fleetrun.simulation.params.VehicleArrays``:
+    ``displacement_L``, ``pme0``, ``eta_ind``, ``lhv``, ``fuel``); ``fuel_rate`` [g/s] and
+    ``engine_speed_rpm`` (V, N): the warm engine's, every step (0 where the engine is off);
+    ``dt_s`` (N,) step durations [s]; ``step_soak_s``, ``start_temp_C``, ``ambient_temp_C``
+    as for :func:`engine_temperature_C`. Fixed-point iteration: the extra fuel also heats the
+    engine, so the temperature is recomputed from warm + extra fuel until the extra fuel per
+    step changes by less than 1e-9 g.
+    """
+    k = constants or thermal_constants()
+    col = lambda a: np.asarray(a, float)[:, None]  # noqa: E731
+    fuels = [str(f) for f in va.fuel]
+    walther = np.array([k.oil_walther.get(f, k.oil_walther["gasoline"]) for f in fuels])
+    enrich = col([k.enrichment_at_25C.get(f, 0.0) for f in fuels])
+    capacity = engine_heat_capacity_J_per_K(va.displacement_L, k.heat_capacity_J_per_K_per_L)
+    offset = offset_torque_Nm(engine_speed_rpm, col(va.displacement_L), col(va.pme0[:, 0]), col(va.pme0[:, 1]),
+                              col(va.pme0[:, 2]))
+    burning = fuel_rate > 0
+    dt = np.asarray(dt_s, float)[None, :]
+    extra = np.zeros_like(fuel_rate)
+    for _ in range(FIXED_POINT_MAX_ITER):
+        temp = engine_temperature_C((fuel_rate + extra) * dt, capacity, va.lhv, start_temp_C, step_soak_s,
+                                    ambient_temp_C, k)
+        ratio = oil_viscosity_ratio(temp, k.thermostat_temp_C, walther[:, :1], walther[:, 1:])
+        friction = cold_friction_torque_Nm(offset, k.friction_share, ratio, k.viscosity_exponent)
+        new = fuel_rate_g_per_s(friction, engine_speed_rpm, burning, 0.0, col(va.eta_ind), col(va.lhv))
+        new += enrichment_fraction(temp, k.thermostat_temp_C, enrich) * fuel_rate
+        converged = np.max(np.abs(new - extra) * dt, initial=0.0) <= FIXED_POINT_TOL_G
+        extra = new
+        if converged:
+            break
+    return extra, temp
