@@ -114,21 +114,29 @@ def read_csv(path, **kwargs):
     return pd.read_csv(path, **kwargs)
 
 
-def run_small_fleet_with_fake(base: Path) -> Path:
-    """``fleetrun run`` on :func:`small_fleet` with the fake simulation; the output folder."""
-    import _pytest.monkeypatch
+ERROR_FIXTURE = Path(__file__).parent / "data" / "fuel_economy_error_fixture.toml"
+
+
+def injected(simulate=fake_simulate, error_model=ERROR_FIXTURE) -> dict:
+    """What the tests hand ``fleetrun run`` through click's context object: the stand-in
+    simulation and the fixture error distribution (None: no ranges)."""
+    from fleetrun.fleet.uncertainty import read_error_model
+
+    return {"simulate": simulate, "error_model": read_error_model(error_model) if error_model else None}
+
+
+def invoke_run(*args, simulate=fake_simulate, error_model=ERROR_FIXTURE):
+    """``fleetrun run ARGS`` in-process with the stand-in simulation injected."""
     from click.testing import CliRunner
 
     from fleetrun.cli import cli
-    from fleetrun.fleet import runner
 
-    patch = _pytest.monkeypatch.MonkeyPatch()
-    patch.setattr(runner, "simulate_function", fake_simulate)
-    try:
-        out = base / "out"
-        result = CliRunner().invoke(cli, ["run", str(small_fleet(base / "fleet.xlsx")), "--out", str(out),
-                                          "--no-cache", "-q"])
-        assert result.exit_code == 0, result.stderr
-    finally:
-        patch.undo()
+    return CliRunner().invoke(cli, ["run", *map(str, args)], obj=injected(simulate, error_model))
+
+
+def run_small_fleet_with_fake(base: Path) -> Path:
+    """``fleetrun run`` on :func:`small_fleet` with the fake simulation; the output folder."""
+    out = base / "out"
+    result = invoke_run(small_fleet(base / "fleet.xlsx"), "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
     return out

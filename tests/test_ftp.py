@@ -237,7 +237,7 @@ def test_run_uses_the_composite(tmp_path):
     """In `fleetrun run` a vehicle's FTP share is driven at the composite fuel per mile."""
     path = write_fleet(tmp_path / "fleet.xlsx", [vehicle("CAR-1")],
                        [scenario("city", cycle_mix="FTP:1", ambient_temp_C=5, budget_years=1,
-                                 vmt_growth_pct_per_year=0)])
+                                 vmt_growth_pct_per_year=0, onroad_adjustment="none")])
     out = tmp_path / "out"
     r = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--cache-dir", str(tmp_path / "c"), "-q"])
     assert r.exit_code == 0, r.output

@@ -28,7 +28,7 @@ from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
 ROOT = Path(__file__).resolve().parents[1]
 PENDING = pytest.mark.xfail(strict=True, reason="issue 9: fixed in a later step of this branch")
-OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json"}
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
 
 
 def invoke(*args):
@@ -200,7 +200,7 @@ def test_csv_outputs_neutralise_formula_text(tmp_path, fake_simulation):
     path = write_fleet(tmp_path / "f.xlsx", rows, [scenario("=1+1")])
     result = invoke("run", path, "--out", tmp_path / "out", "-q", "--no-cache")
     assert result.exit_code == 0, result.stderr
-    for name in ("results.csv", "class_summary.csv"):
+    for name in ("results.csv", "class_summary.csv", "fiscal_summary.csv"):
         with open(tmp_path / "out" / name, newline="", encoding="utf-8") as handle:
             table = list(csv.reader(handle))
         for row in table[1:]:

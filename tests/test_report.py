@@ -16,12 +16,8 @@ from fleetrun.cli import cli
 from fleetrun.fleet import runner
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
-SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Efficiency maps", "Inputs", "RunInfo"]
-
-
-@pytest.fixture(autouse=True)
-def fake_simulation(monkeypatch):
-    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
+          "RunInfo"]
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +106,7 @@ def test_labels_are_text_in_excel_and_escaped_in_html(tmp_path):
                        [vehicle(evil_id, vehicle_class=evil_class), vehicle("B", vehicle_class="+1+2")],
                        [scenario("<b>s</b>", description="<img src=x onerror=alert(1)>")])
     out = tmp_path / "out"
-    result = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"])
+    result = fakes.invoke_run(path, "--out", out, "--no-cache", "-q")
     assert result.exit_code == 0, result.stderr
     wb = openpyxl.load_workbook(out / "report.xlsx")
     seen = 0
@@ -177,7 +173,7 @@ def test_summary_html_self_contained_with_class_table(outputs):
 def test_scenario_without_vehicles_rows_is_fine(tmp_path):
     path = write_fleet(tmp_path / "z.xlsx", [vehicle(count=0)], [scenario()])
     out = tmp_path / "out"
-    result = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"])
+    result = fakes.invoke_run(path, "--out", out, "--no-cache", "-q")
     assert result.exit_code == 0, result.stderr
     row = read_csv(out / "results.csv").iloc[0]
     assert row.miles_total == 0 and row.fuel_gal_total == 0 and row.mpg > 0

@@ -234,12 +234,11 @@ def test_summary_fits_a_phone_and_prints(browser, run_dir):
 
 
 def test_hostile_labels_stay_text_in_the_browser(browser, tmp_path, monkeypatch):
-    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
     label = '<img src=x onerror="console.error(1)"><script>console.error(2)</script>'
     path = write_fleet(tmp_path / "evil.xlsx", [vehicle(vehicle_class=label)],
                        [scenario(description=label)])
     out = tmp_path / "out"
-    assert CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--no-cache", "-q"]).exit_code == 0
+    assert fakes.invoke_run(path, "--out", out, "--no-cache", "-q").exit_code == 0
     open_page(browser, out / "summary.html")
     assert browser.problems() == []
     assert browser.evaluate("document.querySelectorAll('img, script').length") == 0

@@ -18,7 +18,7 @@ from fleetrun.cli import cli
 from fleetrun.fleet import runner
 from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
 
-OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json"}
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
 RESULTS_CONTRACT = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
                     "miles_total", "fuel_gal_total", "mpg", "diff_efficiency", "drivetrain_efficiency",
                     "state_tax_usd", "federal_tax_usd"]
@@ -27,13 +27,12 @@ CLASS_CONTRACT = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fu
 
 
 @pytest.fixture(autouse=True)
-def fake_simulation(monkeypatch):
-    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+def fake_simulation():
     fakes.CALLS.clear()
 
 
-def run(*args):
-    return CliRunner().invoke(cli, ["run", *map(str, args)])
+def run(*args, **injected):
+    return fakes.invoke_run(*args, **injected)
 
 
 @pytest.fixture
@@ -41,7 +40,7 @@ def fleet_path(tmp_path):
     return small_fleet(tmp_path / "fleet.xlsx")
 
 
-def test_run_writes_five_outputs(fleet_path, tmp_path):
+def test_run_writes_six_outputs(fleet_path, tmp_path):
     out = tmp_path / "out"
     result = run(fleet_path, "--out", out, "--no-cache", "-q")
     assert result.exit_code == 0, result.stderr
@@ -94,15 +93,22 @@ def test_budget_years_growth_and_cycle_mix(tmp_path):
     assert row.miles_total == pytest.approx(2 * 10000 * (1 + 1.1 + 1.21), rel=1e-12)
     from fleetrun.cycles import load_cycle
 
-    v = runner.simulate_function
+    v = fakes.fake_simulate
     per_mile = 0.0
     from fleetrun.fleet import read_fleet
 
     spec = read_fleet(path).vehicles[0]
+    # on-road fuel by EPA's derived 5-cycle formulas, 40 CFR 600.210-12(a)(2): city (UDDS)
+    # 1/mpg = 0.003259 + 1.1805/mpg, highway (HWFET) 1/mpg = 0.001376 + 1.3466/mpg
+    label = {"UDDS": (0.003259, 1.1805), "HWFET": (0.001376, 1.3466)}
+    cycle_per_mile = 0.0
     for name, share in (("UDDS", 0.25), ("HWFET", 0.75)):
         sim = v([spec], load_cycle(name))
-        per_mile += share * sim.fuel_gal[0] / sim.miles[0]
+        gal_per_mile = sim.fuel_gal[0] / sim.miles[0]
+        cycle_per_mile += share * gal_per_mile
+        per_mile += share * (label[name][0] + label[name][1] * gal_per_mile)
     assert row.fuel_gal_total == pytest.approx(row.miles_total * per_mile, rel=1e-12)
+    assert row.fuel_gal_cycle_total == pytest.approx(row.miles_total * cycle_per_mile, rel=1e-12)
 
 
 def test_each_cycle_and_temperature_simulated_once(fleet_path, tmp_path):
@@ -201,8 +207,7 @@ def test_failed_simulation_leaves_only_the_error_on_stderr(fleet_path, tmp_path,
     def refuses(vehicles, cycle, **kwargs):
         raise DomainError(f"cannot simulate {cycle.name}")
 
-    monkeypatch.setattr(runner, "simulate_function", refuses)
-    result = run(fleet_path, "--out", tmp_path / "o")
+    result = run(fleet_path, "--out", tmp_path / "o", simulate=refuses)
     assert result.exit_code == 1
     assert result.stderr.startswith("Error: cannot simulate") and result.stderr.count("\n") == 1
     assert "INFO fleet.xlsx" in result.stdout and not (tmp_path / "o").exists()

@@ -4,8 +4,8 @@
                  [--with EFFECT[,EFFECT...]]
     fleetrun run --config batch.toml
 
-Writes report.xlsx, summary.html, results.csv, class_summary.csv and manifest.json into DIR,
-all or nothing. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial, 4 internal).
+Writes report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and
+manifest.json into DIR, all or nothing. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial, 4 internal).
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ from fleetrun.fleet.engines import ENGINES
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
-    report.xlsx, summary.html, results.csv, class_summary.csv and manifest.json."""
+    report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
     from fleetrun.effects import parse_with
     from fleetrun.fleet import batch
 
@@ -78,6 +78,11 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          scheduler=scheduler, physics=physics or settings.get("physics", "thesis"),
                          mode=mode or settings.get("mode", "auto"), effects=effects, cache_dir=cache,
                          log=log_file, chunk_size=settings.get("chunk_size"))
+    # What a caller injects through click's context object (tests: a stand-in simulation, a
+    # fixture error distribution); the command line itself never sets it.
+    injected = ctx.obj or {}
+    plan.simulate = injected.get("simulate")
+    plan.error_model = injected.get("error_model", plan.error_model)
     handlers = batch.setup_logging(plan.log, quiet)
     try:
         code, errors, written = batch.run_plan(plan, quiet=quiet)
@@ -88,7 +93,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
             note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
                     if item["warnings"] else "")
             click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, "
-                       f"class_summary.csv, manifest.json{note}")
+                       f"class_summary.csv, fiscal_summary.csv, manifest.json{note}")
     if code == batch.EXIT_OK:
         return
     if len(errors) == 1 and len(plan.inputs) == 1:

@@ -56,6 +56,8 @@ class RunPlan:
     cache_dir: Path | None = None
     log: Path | None = None
     chunk_size: int | None = None
+    simulate: object = None               # the simulation function (None: fleetrun.simulation.simulate)
+    error_model: object = "default"       # measured fuel-economy error (run_fleet's error_model)
 
     def out_dir(self, fleet_path: Path) -> Path:
         return self.out / fleet_path.stem if self.per_input_dirs else self.out
@@ -210,7 +212,8 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     result = run_fleet(fleet, plan.scenarios, engine=engine, physics=plan.physics, mode=plan.mode,
                        effects=plan.effects, cache_dir=str(plan.cache_dir) if plan.cache_dir else None,
                        progress=Progress(fleet_path.name, enabled=progress_enabled),
-                       chunk_size=plan.chunk_size or CHUNK_SIZE)
+                       chunk_size=plan.chunk_size or CHUNK_SIZE, simulate=plan.simulate,
+                       error_model=plan.error_model)
     result.timings_s = {"read": read_s, **result.timings_s}
     written_at = time.perf_counter()
     outputs = write_run_outputs(result, out_dir)

@@ -75,6 +75,21 @@ def parse_choice(value, choices) -> str:
     raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
 
 
+def parse_onroad(value):
+    """``epa_label``, ``none`` or a positive factor (on-road fuel = factor x cycle fuel)."""
+    if isinstance(value, str):
+        text = value.strip().lower().replace("-", "_")
+        if text in ("epa_label", "none"):
+            return text
+    try:
+        factor = parse_number(value)
+    except CellProblem:
+        raise CellProblem(f"{show(value)} is not epa_label, none or a factor such as 1.2") from None
+    if factor <= 0:
+        raise CellProblem(f"{show(value)} must be a factor greater than 0 (or epa_label, none)")
+    return factor
+
+
 _RATIO_SPLIT = re.compile(r"[,;\s]+")
 
 

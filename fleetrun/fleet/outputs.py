@@ -10,7 +10,8 @@ from pathlib import Path
 
 from fleetrun.errors import InputError
 
-OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "manifest.json")
+OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
+                "manifest.json")
 
 # OWASP, "CSV Injection": a cell starting with one of these is taken as a formula by Excel,
 # LibreOffice and Google Sheets. Such text cells get a leading apostrophe.
@@ -50,7 +51,7 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
 
 
 def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
-    """Write the five outputs of a run into ``out_dir``, all or nothing (the folder changes as
+    """Write the six outputs of a run into ``out_dir``, all or nothing (the folder changes as
     one step: :func:`fleetrun.output_folder.new_output_folder`)."""
     from fleetrun.fleet.manifest import write_manifest
     from fleetrun.fleet.report_html import write_summary_html
@@ -63,6 +64,7 @@ def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
     with new_output_folder(out_dir, replaces=OUTPUT_FILES) as staging:
         write_csv(result.results, staging / "results.csv")
         write_csv(result.classes, staging / "class_summary.csv")
+        write_csv(result.fiscal, staging / "fiscal_summary.csv")
         write_report_xlsx(result, staging / "report.xlsx")
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}

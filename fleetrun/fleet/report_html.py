@@ -14,7 +14,8 @@ import jinja2
 from fleetrun import __version__
 from fleetrun.fleet import charts
 from fleetrun.fleet.manifest import manifest_dict, physics_label
-from fleetrun.fleet.runner import CLASS_COLUMNS, RunResult, scenario_totals
+from fleetrun.fleet.runner import RunResult
+from fleetrun.fleet.totals import CLASS_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
 
 CLASS_TABLE_COLUMNS = CLASS_COLUMNS[:9]   # the class_summary.csv contract columns

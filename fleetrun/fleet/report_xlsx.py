@@ -22,7 +22,8 @@ from openpyxl.formatting.rule import ColorScaleRule
 from openpyxl.styles import Alignment, Font, PatternFill
 from openpyxl.utils import get_column_letter
 
-from fleetrun.fleet.runner import RunResult, scenario_totals
+from fleetrun.fleet.runner import RunResult
+from fleetrun.fleet.totals import scenario_totals, yearly_totals
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 
 HEADER_FONT = Font(bold=True, color="FFFFFF")
@@ -37,6 +38,10 @@ FORMATS = {
     "diff_input_energy_J": "0.000E+00", "diff_output_energy_J": "0.000E+00",
     "drivetrain_input_energy_J": "0.000E+00", "wheel_energy_J": "0.000E+00",
     "change_pct": "+0.00%;-0.00%;0.00%", "efficiency": "0.000",
+    "miles": "#,##0", "fuel_gal": "#,##0", "fuel_gal_low": "#,##0", "fuel_gal_high": "#,##0",
+    "fuel_gal_low_total": "#,##0", "fuel_gal_high_total": "#,##0", "fuel_gal_cycle_total": "#,##0",
+    "fuel_gal_uncalibrated_total": "#,##0", "co2_t": "#,##0", "kwh": "#,##0", "ev_fee_usd": '"$"#,##0',
+    "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.000", "scale": "0.0000",
 }
 
 
@@ -118,6 +123,7 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
         _by_class(wb, result)
         _by_vehicle(wb, result, bulk)
         _comparison(wb, result)
+        _fiscal(wb, result)
         _maps(wb, result)
         _inputs(wb, result, bulk)
         _run_info(wb, result)
@@ -239,13 +245,13 @@ def _comparison(wb, result: RunResult):
     t = text_cell(ws, "By budget year")
     t.font = Font(bold=True)
     ws.append([t])
-    years = result.years
+    years = yearly_totals(result.fiscal)
     _header(ws, list(years.columns))
     for row in years.itertuples(index=False, name=None):
         ws.append([_value(ws, v, FORMATS.get(c)) for v, c in zip(row, years.columns)])
     if len(years):
         # Revenue per year, one series per scenario.
-        pivot = years.pivot_table(index="year", columns="scenario_id", values="state_tax_usd",
+        pivot = years.pivot_table(index="fiscal_year", columns="scenario_id", values="state_tax_usd",
                                   aggfunc="sum", sort=False)
         ws.append([])
         pivot_row = year_title_row + len(years) + 3
@@ -261,6 +267,22 @@ def _comparison(wb, result: RunResult):
         chart.set_categories(Reference(ws, min_col=1, min_row=pivot_row + 1, max_row=pivot_row + len(pivot)))
         chart.height, chart.width = 8, 16
         ws.add_chart(chart, "J2")
+
+
+def _fiscal(wb, result: RunResult):
+    """Fiscal year x fuel x class (fiscal_summary.csv) and the calibration to collections."""
+    ws = wb.create_sheet("Fiscal years")
+    frame = result.fiscal
+    _widths(ws, list(frame.columns), minimum=12)
+    ws.freeze_panes = "E2"
+    _table(ws, frame, widths=False)
+    calibration = result.calibration
+    if calibration is not None and len(calibration):
+        ws.append([])
+        t = text_cell(ws, "Calibration to collections: model vs observed taxable gallons, first fiscal year")
+        t.font = Font(bold=True)
+        ws.append([t])
+        _table(ws, calibration, widths=False)
 
 
 def _maps(wb, result: RunResult):

@@ -1,23 +1,15 @@
 """Simulate a fleet over its scenarios and aggregate fuel, efficiency and fuel-tax revenue.
 
-How the numbers are put together (also in docs/report.md):
+Every vehicle type is simulated once per distinct (drive cycle, ambient temperature) that the
+chosen scenarios use, in chunks of vehicles (the unit of work for both engines). The budget
+arithmetic (on-road fuel, mixes, budget years, taxes, calibration, fiscal years, ranges) is
+in :mod:`fleetrun.fleet.totals` and :mod:`fleetrun.fleet.budget` (also docs/report.md).
 
-- Every vehicle type is simulated once per distinct (drive cycle, ambient temperature) that
-  the chosen scenarios use, in chunks of vehicles (the unit of work for both engines).
-- A scenario's ``cycle_mix`` shares are shares of each vehicle's annual miles (MD and HD
-  vehicles drive ``cycle_mix_MD`` / ``cycle_mix_HD`` where the scenario gives them). Fuel per mile on
-  the mix is ``sum_c share_c * fuel_gal_c / miles_c``; likewise each energy per mile.
-- Budget miles per vehicle are ``annual_miles * sum_{y=1..Y} (1 + g)^(y-1)``; totals are over
-  ``count`` vehicles. Gallons = miles x gallons per mile; taxes = gallons x the rate of the
-  vehicle's fuel; mpg = miles / gallons.
-- ``diff_efficiency`` = differential output energy / input energy and ``drivetrain_efficiency``
-  = wheel energy / drivetrain input energy, both summed over the mix's miles (energy-weighted).
-- Class rows are exact sums (``math.fsum``) of their vehicle rows; class mpg and efficiencies
-  are ratios of those sums.
+``diff_efficiency`` = differential output energy / input energy and ``drivetrain_efficiency``
+= wheel energy / drivetrain input energy, both summed over the mix's miles (energy-weighted).
 """
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -27,28 +19,17 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.fleet.schema import DUTY_CLASSES
+from fleetrun.fleet.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
+                                   aggregate_vehicles, fiscal_summary)
 from fleetrun.fleet.workbook import Fleet, Scenario
 from fleetrun.vehicle import VehicleSpec
+
+__all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "RESULTS_COLUMNS", "CLASS_COLUMNS"]
 
 CHUNK_SIZE = 128            # vehicles per simulation task: bounds memory, spreads work
 MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
 SHORTFALL_TOLERANCE = 1e-6  # shortfall measures below this are rounding noise
-ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
-                 "wheel_energy_J")
 RESULT_FIELDS = ("miles", "fuel_gal") + ENERGY_FIELDS
-
-RESULTS_COLUMNS = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
-                   "miles_total", "fuel_gal_total", "mpg", "diff_efficiency",
-                   "drivetrain_efficiency", "state_tax_usd", "federal_tax_usd",
-                   # beyond the contract: what the efficiencies are ratios of
-                   "diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
-                   "wheel_energy_J", "duty_class"]
-CLASS_COLUMNS = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
-                 "diff_efficiency", "state_tax_usd", "federal_tax_usd",
-                 "drivetrain_efficiency", "vehicle_types"]
-
-# Tests replace this to run the runner without the simulation package.
-simulate_function: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -75,7 +56,7 @@ class RunResult:
     scenarios: list[Scenario]
     results: pd.DataFrame
     classes: pd.DataFrame
-    years: pd.DataFrame
+    fiscal: pd.DataFrame                       # fiscal_summary.csv
     cycles: dict[str, dict]
     maps: list[dict]
     warnings: list[str]
@@ -87,6 +68,8 @@ class RunResult:
     effects: list = field(default_factory=list)   # --with: [{"effect", "level", "parameters"}]
     created_utc: str = field(default_factory=lambda: _now_utc())
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
+    calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
+    error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
 
 
 def _now_utc() -> str:
@@ -128,11 +111,15 @@ def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
 def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, physics: str = "thesis",
               mode: str = "auto", cache_dir: str | None = None,
               progress: Callable[[int, int], None] | None = None,
-              chunk_size: int = CHUNK_SIZE, effects=()) -> RunResult:
+              chunk_size: int = CHUNK_SIZE, effects=(), simulate: Callable | None = None,
+              error_model="default") -> RunResult:
     """Simulate ``fleet`` for the scenarios named (all when none) and aggregate the results.
 
     ``effects``: physics the thesis left out (``--with``; a string or ``parse_with`` pairs),
     applied in every simulation (each cycle of a mix is driven from a cold start).
+    ``simulate``: the simulation function (default ``fleetrun.simulation.simulate``; tests pass
+    a stand-in). ``error_model``: the measured fuel-economy error behind the ranges
+    (:func:`fleetrun.fleet.uncertainty.read_error_model`; ``"default"`` reads models/, None: no ranges).
     """
     from fleetrun.effects import as_effect_list
     from fleetrun.fleet.engines import LocalEngine
@@ -145,13 +132,62 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     # Rows that differ only in id, class, count or miles drive the same: simulate each
     # distinct physical vehicle once and hand its per-vehicle results to every such row.
     distinct, owner = distinct_vehicles(vehicles)
-    # Each distinct (cycle, ambient) is simulated once, for the vehicles whose duty class
-    # drives that cycle in some scenario at that temperature.
+    needed = needed_conditions(scenarios)
+    conditions = list(needed)
+    template = SimulationTask(chunk=0, vehicles=(), cycles=(), ambient_temp_C=0.0, physics=physics, mode=mode,
+                              cache_dir=cache_dir, simulate=simulate, effects=effect_pairs)
+    tasks, positions = plan_tasks(distinct, needed, template, chunk_size)
+    per_condition, shortfalls = collect(engine, tasks, positions, conditions, len(distinct), progress)
+    simulated = time.perf_counter()
+    per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
+                     for cond, arrays in per_condition.items()}
+    shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
+                  for cond, arrays in shortfalls.items()}
+
+    warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
+    cycles = _cycle_info({cycle for cycle, _ in conditions})
+    if error_model == "default":
+        from fleetrun.fleet.uncertainty import read_error_model
+
+        error_model = read_error_model()
+    if error_model is None:
+        warnings.append("totals carry no range: no measured fuel-economy error "
+                        "(models/fuel_economy_error.toml) in this installation")
+    results, calibration = aggregate_vehicles(vehicles, scenarios, per_condition, error_model)
+    classes = aggregate_classes(results)
+    fiscal = fiscal_summary(results, scenarios)
+    maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
+    warnings += map_warnings
+    finished = time.perf_counter()
+    return RunResult(
+        fleet=fleet, scenarios=scenarios, results=results, classes=classes, fiscal=fiscal,
+        calibration=calibration, error_model=error_model,
+        cycles=cycles, maps=maps, warnings=warnings,
+        timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
+        distinct_vehicles=len(distinct),
+        engine=engine.describe(), physics=physics, mode=mode,
+        cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
+        effects=[{"effect": e.id, "level": e.level, "parameters": dict(p)} for e, p in as_effect_list(effect_pairs)],
+    )
+
+
+def needed_conditions(scenarios) -> dict[tuple[str, float], set[str]]:
+    """Each distinct (cycle, ambient) the scenarios use, with the duty classes that drive it:
+    simulated once, for those vehicles only."""
     needed: dict[tuple[str, float], set[str]] = {}
     for s in scenarios:
         for duty in DUTY_CLASSES:
             for cycle in s.mix_for(duty):
                 needed.setdefault((cycle, s.ambient_temp_C), set()).add(duty)
+    return needed
+
+
+def plan_tasks(distinct, needed: dict, template: SimulationTask,
+               chunk_size: int) -> tuple[list[SimulationTask], list[np.ndarray]]:
+    """Chunks of vehicles per temperature, each with the cycles its members drive there, and
+    each chunk's positions among ``distinct``. ``template`` carries the shared settings."""
+    from dataclasses import replace
+
     conditions = list(needed)
     duties = np.array([v.duty_class for v in distinct], dtype=object)
     tasks: list[SimulationTask] = []
@@ -167,12 +203,13 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
                 if len(wanted):
                     cycles.append((cycle, tuple(int(k) for k in wanted)))
             positions.append(chunk)
-            tasks.append(SimulationTask(chunk=len(tasks), vehicles=tuple(distinct[j] for j in chunk),
-                                        cycles=tuple(cycles), ambient_temp_C=ambient, physics=physics,
-                                        mode=mode, cache_dir=cache_dir, simulate=simulate_function,
-                                        effects=effect_pairs))
+            tasks.append(replace(template, chunk=len(tasks), vehicles=tuple(distinct[j] for j in chunk),
+                                 cycles=tuple(cycles), ambient_temp_C=ambient))
+    return tasks, positions
 
-    n = len(distinct)
+
+def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tuple[dict, dict]:
+    """Run the tasks on ``engine``; per condition the per-vehicle sums and shortfall measures."""
     per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
     shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
@@ -190,29 +227,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
                     shortfalls[cond].setdefault(name, np.zeros(n))[where] = values
         if progress:
             progress(done, len(tasks))
-    simulated = time.perf_counter()
-    per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
-                     for cond, arrays in per_condition.items()}
-    shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
-                  for cond, arrays in shortfalls.items()}
-
-    warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
-    cycles = _cycle_info({cycle for cycle, _ in conditions})
-    results = aggregate_vehicles(vehicles, scenarios, per_condition)
-    classes = aggregate_classes(results)
-    years = yearly_totals(results, scenarios)
-    maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
-    warnings += map_warnings
-    finished = time.perf_counter()
-    return RunResult(
-        fleet=fleet, scenarios=scenarios, results=results, classes=classes, years=years,
-        cycles=cycles, maps=maps, warnings=warnings,
-        timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
-        distinct_vehicles=len(distinct),
-        engine=engine.describe(), physics=physics, mode=mode,
-        cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
-        effects=[{"effect": e.id, "level": e.level, "parameters": dict(p)} for e, p in as_effect_list(effect_pairs)],
-    )
+    return per_condition, shortfalls
 
 
 # VehicleSpec fields that do not change how a vehicle drives a cycle.
@@ -245,128 +260,6 @@ def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec
     rank = np.empty(len(distinct), dtype=np.int64)
     rank[order] = np.arange(len(distinct))
     return [distinct[j] for j in order], rank[owner]
-
-
-def aggregate_vehicles(vehicles: Sequence[VehicleSpec], scenarios: Sequence[Scenario],
-                       per_condition: dict) -> pd.DataFrame:
-    """One row per scenario x vehicle: budget totals over ``count`` vehicles and budget years."""
-    count = np.array([v.count for v in vehicles], dtype=float)
-    annual = np.array([v.annual_miles for v in vehicles], dtype=float)
-    fuel = np.array([v.fuel for v in vehicles], dtype=object)
-    duty_of = np.array([v.duty_class for v in vehicles], dtype=object)
-    frames = []
-    for s in scenarios:
-        per_mile = {name: np.zeros(len(vehicles)) for name in ("fuel_gal",) + ENERGY_FIELDS}
-        for duty in DUTY_CLASSES:
-            rows = duty_of == duty
-            if not rows.any():
-                continue
-            for cycle, share in s.mix_for(duty).items():
-                sim = per_condition[(cycle, s.ambient_temp_C)]
-                for name in per_mile:
-                    per_mile[name][rows] += share * (sim[name][rows] / sim["miles"][rows])
-        miles_total = count * annual * s.mile_factor()
-        gallons = miles_total * per_mile["fuel_gal"]
-        energy = {name: miles_total * per_mile[name] for name in ENERGY_FIELDS}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # A row with no miles still gets its per-vehicle mpg and efficiencies.
-            mpg = np.where(miles_total > 0, miles_total / gallons, 1.0 / per_mile["fuel_gal"])
-            diff_eff = np.where(energy["diff_input_energy_J"] > 0,
-                                energy["diff_output_energy_J"] / energy["diff_input_energy_J"],
-                                per_mile["diff_output_energy_J"] / per_mile["diff_input_energy_J"])
-            dt_eff = np.where(energy["drivetrain_input_energy_J"] > 0,
-                              energy["wheel_energy_J"] / energy["drivetrain_input_energy_J"],
-                              per_mile["wheel_energy_J"] / per_mile["drivetrain_input_energy_J"])
-        state_rate = np.where(fuel == "gasoline", s.state_tax_gasoline_usd_per_gal, s.state_tax_diesel_usd_per_gal)
-        federal_rate = np.where(fuel == "gasoline", s.federal_tax_gasoline_usd_per_gal,
-                                s.federal_tax_diesel_usd_per_gal)
-        frames.append(pd.DataFrame({
-            "scenario_id": s.scenario_id,
-            "vehicle_id": [v.vehicle_id for v in vehicles],
-            "vehicle_class": [v.vehicle_class for v in vehicles],
-            "configuration": [v.configuration for v in vehicles],
-            "fuel": fuel.astype(str),
-            "count": _whole_if_possible(count),
-            "miles_total": miles_total,
-            "fuel_gal_total": gallons,
-            "mpg": mpg,
-            "diff_efficiency": diff_eff,
-            "drivetrain_efficiency": dt_eff,
-            "state_tax_usd": gallons * state_rate,
-            "federal_tax_usd": gallons * federal_rate,
-            **energy,
-            "duty_class": [v.duty_class for v in vehicles],
-        }))
-    if not frames:
-        return pd.DataFrame(columns=RESULTS_COLUMNS)
-    return pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS]
-
-
-def _whole_if_possible(values: np.ndarray) -> np.ndarray:
-    """Counts as integers (``1000``, not ``1000.0``) unless some are fractional."""
-    if np.all(np.isfinite(values)) and np.all(values == np.round(values)) and np.all(np.abs(values) < 2**53):
-        return values.astype(np.int64)
-    return values
-
-
-def _ratio(numerator: float, denominator: float) -> float:
-    return numerator / denominator if denominator > 0 else float("nan")
-
-
-def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per scenario x vehicle_class: exact sums of the vehicle rows."""
-    rows = []
-    for (scenario_id, vehicle_class), group in results.groupby(["scenario_id", "vehicle_class"], sort=False):
-        total = {name: math.fsum(group[name]) for name in
-                 ("count", "miles_total", "fuel_gal_total", "state_tax_usd", "federal_tax_usd")
-                 + ENERGY_FIELDS}
-        rows.append({
-            "scenario_id": scenario_id,
-            "vehicle_class": vehicle_class,
-            "vehicles": int(total["count"]) if group["count"].dtype.kind == "i" else total["count"],
-            "miles_total": total["miles_total"],
-            "fuel_gal_total": total["fuel_gal_total"],
-            "mpg": _ratio(total["miles_total"], total["fuel_gal_total"]),
-            "diff_efficiency": _ratio(total["diff_output_energy_J"], total["diff_input_energy_J"]),
-            "state_tax_usd": total["state_tax_usd"],
-            "federal_tax_usd": total["federal_tax_usd"],
-            "drivetrain_efficiency": _ratio(total["wheel_energy_J"], total["drivetrain_input_energy_J"]),
-            "vehicle_types": len(group),
-        })
-    return pd.DataFrame(rows, columns=CLASS_COLUMNS)
-
-
-def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
-    """One row per scenario: the fleet totals (sums of the class rows)."""
-    rows = []
-    for scenario_id, group in classes.groupby("scenario_id", sort=False):
-        miles = math.fsum(group["miles_total"])
-        gallons = math.fsum(group["fuel_gal_total"])
-        state = math.fsum(group["state_tax_usd"])
-        federal = math.fsum(group["federal_tax_usd"])
-        rows.append({"scenario_id": scenario_id, "vehicles": math.fsum(group["vehicles"]),
-                     "miles_total": miles, "fuel_gal_total": gallons, "mpg": _ratio(miles, gallons),
-                     "state_tax_usd": state, "federal_tax_usd": federal,
-                     "total_tax_usd": state + federal})
-    return pd.DataFrame(rows, columns=["scenario_id", "vehicles", "miles_total", "fuel_gal_total",
-                                       "mpg", "state_tax_usd", "federal_tax_usd", "total_tax_usd"])
-
-
-def yearly_totals(results: pd.DataFrame, scenarios: Sequence[Scenario]) -> pd.DataFrame:
-    """Per scenario and budget year: miles, gallons and taxes (year y scales by (1+g)^(y-1))."""
-    rows = []
-    for s in scenarios:
-        group = results[results["scenario_id"] == s.scenario_id]
-        factor = s.mile_factor()
-        g = s.vmt_growth_pct_per_year / 100.0
-        sums = {name: math.fsum(group[name]) for name in
-                ("miles_total", "fuel_gal_total", "state_tax_usd", "federal_tax_usd")}
-        for year in range(1, s.budget_years + 1):
-            share = (1.0 + g) ** (year - 1) / factor
-            rows.append({"scenario_id": s.scenario_id, "year": year,
-                         **{name: value * share for name, value in sums.items()}})
-    return pd.DataFrame(rows, columns=["scenario_id", "year", "miles_total", "fuel_gal_total",
-                                       "state_tax_usd", "federal_tax_usd"])
 
 
 _SHORTFALL_PHRASES = {  # the simulation's shortfall measures, in the order a reader wants them

@@ -15,6 +15,8 @@ CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "
 DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel")
+YES_NO = ("yes", "no")
+ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 TRANSMISSIONS = ("automatic", "manual")
 
 
@@ -96,6 +98,19 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=("HD-UDDS:0.5,UDDS:0.2,HWFET:0.3", "HD-UDDS:0.5,UDDS:0.2,HWFET:0.3")),
     Column("cycle_mix_HD", "cycle_mix", False, "HD vehicles' cycle mix (empty: cycle_mix)",
            example=("HD-UDDS:0.6,HWFET:0.4", "HD-UDDS:0.6,HWFET:0.4")),
+    # Budget columns (CONTRACT.md, optional): fiscal years, on-road fuel, calibration, EV fee.
+    Column("first_fiscal_year", "integer", False, "fiscal year of budget year 1, e.g. 2027 "
+           "(empty: years numbered 1, 2, ...)", strictly_positive=True, example=(2027, 2027)),
+    Column("onroad_adjustment", "onroad", False, "cycle fuel -> on-road fuel: epa_label (default; "
+           "EPA's label formulas), none, or a factor such as 1.2"),
+    Column("observed_base_gallons_gasoline", "number", False, "taxable gasoline gallons collected "
+           "in the first fiscal year (for calibration)", strictly_positive=True),
+    Column("observed_base_gallons_diesel", "number", False, "taxable diesel gallons collected "
+           "in the first fiscal year (for calibration)", strictly_positive=True),
+    Column("calibrate_to_observed", "choice", False, "yes: scale each fuel's forecast so the first "
+           "fiscal year equals the observed gallons (default no)", choices=YES_NO),
+    Column("ev_fee_usd_per_vehicle_year", "number", False, "annual fee per electric vehicle [$] "
+           "(default 0)", minimum=0),
 )
 
 # Plausibility: values outside these ranges are warned about, not refused (analysts model
@@ -114,6 +129,8 @@ PLAUSIBLE_SCENARIO = {
     "state_tax_diesel_usd_per_gal": (0.0, 1.0),
     "federal_tax_gasoline_usd_per_gal": (0.0, 1.0),
     "federal_tax_diesel_usd_per_gal": (0.0, 1.0),
+    "first_fiscal_year": (1990, 2100),
+    "ev_fee_usd_per_vehicle_year": (0.0, 1000.0),
 }
 
 

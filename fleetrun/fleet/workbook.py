@@ -48,6 +48,12 @@ class Scenario:
     federal_tax_diesel_usd_per_gal: float
     cycle_mix_MD: dict[str, float] | None = None   # None: MD vehicles drive cycle_mix
     cycle_mix_HD: dict[str, float] | None = None   # None: HD vehicles drive cycle_mix
+    first_fiscal_year: int | None = None             # None: budget years numbered 1, 2, ...
+    onroad_adjustment: str | float = "epa_label"    # "epa_label", "none" or a factor
+    observed_base_gallons_gasoline: float | None = None
+    observed_base_gallons_diesel: float | None = None
+    calibrate_to_observed: bool = False
+    ev_fee_usd_per_vehicle_year: float = 0.0
     extra: dict = field(default_factory=dict, compare=False)
 
     def mix_for(self, duty_class: str) -> dict[str, float]:
@@ -56,11 +62,19 @@ class Scenario:
         return own or self.cycle_mix
 
     def state_tax_usd_per_gal(self, fuel: str) -> float:
-        return self.state_tax_gasoline_usd_per_gal if fuel == "gasoline" else self.state_tax_diesel_usd_per_gal
+        """The state fuel-tax rate of ``fuel`` (0 for electric: no gallons)."""
+        return {"gasoline": self.state_tax_gasoline_usd_per_gal,
+                "diesel": self.state_tax_diesel_usd_per_gal}.get(fuel, 0.0)
 
     def federal_tax_usd_per_gal(self, fuel: str) -> float:
-        return (self.federal_tax_gasoline_usd_per_gal if fuel == "gasoline"
-                else self.federal_tax_diesel_usd_per_gal)
+        """The federal fuel-tax rate of ``fuel`` (0 for electric)."""
+        return {"gasoline": self.federal_tax_gasoline_usd_per_gal,
+                "diesel": self.federal_tax_diesel_usd_per_gal}.get(fuel, 0.0)
+
+    def observed_base_gallons(self, fuel: str) -> float | None:
+        """Taxable gallons of ``fuel`` collected in the first fiscal year, if given."""
+        return {"gasoline": self.observed_base_gallons_gasoline,
+                "diesel": self.observed_base_gallons_diesel}.get(fuel)
 
     def mile_factor(self) -> float:
         """Budget-period miles per unit of annual miles: sum over y of (1 + g)^(y - 1)."""
@@ -378,6 +392,8 @@ def _parse_cell(column: Column, raw):
         return cells.parse_ratios(raw)
     if column.kind == "cycle_mix":
         return cells.parse_cycle_mix(raw)
+    if column.kind == "onroad":
+        return cells.parse_onroad(raw)
     if column.name == "tire_size":
         return cells.parse_tire_size(raw)
     return cells.parse_text(raw)
@@ -506,9 +522,25 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
                               sheet, row_number, col(name), name)
         fields = {c.name: parsed[c.name] for c in SCENARIO_COLUMNS}
         fields["description"] = fields["description"] or ""
+        if not _budget_fields(fields, table, row_number, problems):
+            continue
         fields.update(mixes)
         scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
     return scenarios, rows
+
+
+def _budget_fields(fields: dict, table: _Table, row: int, problems: Problems) -> bool:
+    """Defaults of the optional budget columns; calibration needs observed gallons."""
+    fields["onroad_adjustment"] = fields["onroad_adjustment"] or "epa_label"
+    fields["ev_fee_usd_per_vehicle_year"] = fields["ev_fee_usd_per_vehicle_year"] or 0.0
+    fields["calibrate_to_observed"] = fields["calibrate_to_observed"] == "yes"
+    observed = (fields["observed_base_gallons_gasoline"], fields["observed_base_gallons_diesel"])
+    if fields["calibrate_to_observed"] and all(g is None for g in observed):
+        problems.error("is yes, but neither observed_base_gallons_gasoline nor observed_base_gallons_diesel "
+                       "is given; fill in the gallons collected in the first fiscal year, or set it to no",
+                       table.sheet, row, table.columns.get("calibrate_to_observed"), "calibrate_to_observed")
+        return False
+    return True
 
 
 def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, problems: Problems,

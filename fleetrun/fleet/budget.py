@@ -1,0 +1,177 @@
+"""Budget arithmetic: on-road fuel, tax rates, CO2, fiscal years, calibration and exact sums.
+
+One owner for each budget fact (constants in ``models/budget.toml``, with their sources):
+
+- on-road fuel from cycle fuel: EPA's derived 5-cycle label formulas (40 CFR 600.210-12(a)(2)),
+  ``none`` or a scenario factor (:func:`onroad_gal_per_mile`);
+- tax rates per fuel: :meth:`fleetrun.fleet.workbook.Scenario.state_tax_usd_per_gal` and
+  ``federal_tax_usd_per_gal``, looked up for arrays by :func:`tax_rates`;
+- CO2 per gallon (EPA-420-F-11-041): :func:`co2_t`;
+- budget year y -> fiscal year ``first_fiscal_year + y - 1`` and its share of the budget
+  period's miles ``(1 + g)^(y - 1) / sum_k (1 + g)^(k - 1)`` (:func:`year_shares`);
+- parts that add up exactly to a total (:func:`exact_parts`), so fiscal-year rows reconcile
+  with results.csv to the last bit.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from functools import lru_cache
+
+import numpy as np
+
+from fleetrun.resources import models_dir
+
+CITY, HIGHWAY = "city", "highway"
+KM_PER_MILE = 1.609344
+GRAMS_PER_TONNE = 1e6
+
+
+@lru_cache(maxsize=None)
+def constants() -> dict:
+    """``models/budget.toml``."""
+    with open(models_dir() / "budget.toml", "rb") as handle:
+        return tomllib.load(handle)
+
+
+def epa_label_gal_per_mile(cycle_gal_per_mile, intercept_gal_per_mile: float, slope: float):
+    """On-road fuel per mile from dynamometer fuel per mile, EPA's derived 5-cycle form.
+
+    40 CFR 600.210-12(a)(2): ``1 / mpg_label = intercept + slope / mpg_cycle``, i.e.
+    ``gal/mi on road = intercept + slope x gal/mi on the cycle``.
+
+    Parameters
+    ----------
+    cycle_gal_per_mile : array_like
+        Dynamometer (cycle) fuel per mile [gal/mi].
+    intercept_gal_per_mile : float
+        City 0.003259, highway 0.001376 [gal/mi].
+    slope : float
+        City 1.1805, highway 1.3466 [-].
+    """
+    return intercept_gal_per_mile + slope * np.asarray(cycle_gal_per_mile, dtype=float)
+
+
+def cycle_kind(name: str, mean_speed_kph: float) -> str:
+    """``city`` or ``highway``: which label formula a drive cycle gets (models/budget.toml)."""
+    rules = constants()["onroad"]["cycle_kind"]
+    upper = name.upper()
+    if upper in {c.upper() for c in rules["city"]}:
+        return CITY
+    if upper in {c.upper() for c in rules["highway"]}:
+        return HIGHWAY
+    return CITY if mean_speed_kph < rules["city_below_mean_speed_kph"] else HIGHWAY
+
+
+def onroad_label(setting) -> str:
+    """How a scenario turns cycle fuel into on-road fuel, in words for the reports."""
+    if setting == "epa_label":
+        return ("EPA label adjustment (40 CFR 600.210-12 derived 5-cycle: city 1/mpg = 0.003259 + "
+                "1.1805/mpg, highway 1/mpg = 0.001376 + 1.3466/mpg; light-duty only; EVs kWh / 0.7)")
+    if setting == "none":
+        return "none (dynamometer cycle fuel)"
+    return f"factor {float(setting):g} x cycle fuel"
+
+
+def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.ndarray:
+    """On-road fuel (or energy) per mile for one cycle.
+
+    Parameters
+    ----------
+    cycle_gal_per_mile : array_like
+        Cycle fuel per mile of each vehicle [gal/mi] (kWh/mi for electric rows).
+    setting : str or float
+        The scenario's ``onroad_adjustment``: ``epa_label``, ``none`` or a factor.
+    kind : str
+        ``city`` or ``highway`` (:func:`cycle_kind`).
+    adjusted : array_like of bool
+        Rows the EPA label formula applies to (light-duty); the others keep cycle fuel.
+    """
+    cycle = np.asarray(cycle_gal_per_mile, dtype=float)
+    if setting == "none":
+        return cycle.copy()
+    if setting != "epa_label":
+        return float(setting) * cycle
+    coefficients = constants()["onroad"]["epa_label"][kind]
+    label = epa_label_gal_per_mile(cycle, coefficients["intercept_gal_per_mile"], coefficients["slope"])
+    return np.where(np.asarray(adjusted, dtype=bool), label, cycle)
+
+
+def electric_onroad_factor(setting) -> float:
+    """On-road / dynamometer energy of an electric vehicle: 1 / 0.7 for the EPA label."""
+    if setting == "none":
+        return 1.0
+    if setting != "epa_label":
+        return float(setting)
+    return 1.0 / constants()["onroad"]["epa_label"]["electric"]["label_factor"]
+
+
+def label_adjusted_duty(duty_classes) -> np.ndarray:
+    """Which rows the EPA label formulas apply to (light-duty, models/budget.toml)."""
+    adjusted = constants()["onroad"]["epa_label"]["duty_classes"]["adjusted"]
+    return np.isin(np.asarray(duty_classes, dtype=object), adjusted)
+
+
+def tax_rates(scenario, fuels) -> tuple[np.ndarray, np.ndarray]:
+    """State and federal rates [$/gal] for each row's fuel, from the scenario's one owner."""
+    fuels = np.asarray(fuels, dtype=object)
+    state = np.zeros(len(fuels))
+    federal = np.zeros(len(fuels))
+    for fuel in set(fuels.tolist()):
+        rows = fuels == fuel
+        state[rows] = scenario.state_tax_usd_per_gal(fuel)
+        federal[rows] = scenario.federal_tax_usd_per_gal(fuel)
+    return state, federal
+
+
+def co2_g_per_gal(fuel: str) -> float:
+    """Tailpipe CO2 per gallon burned (EPA-420-F-11-041)."""
+    return float(constants()["co2_g_per_gal"][fuel])
+
+
+def co2_t(fuel_gal, fuel: str):
+    """CO2 [t] from ``fuel_gal`` gallons of ``fuel``: gallons x g/gal / 1e6."""
+    return np.asarray(fuel_gal, dtype=float) * co2_g_per_gal(fuel) / GRAMS_PER_TONNE
+
+
+def fiscal_years(scenario) -> list[int]:
+    """The fiscal year of each budget year (budget year numbers 1..Y without a first year)."""
+    first = scenario.first_fiscal_year
+    start = int(first) if first is not None else 1
+    return [start + y for y in range(scenario.budget_years)]
+
+
+def year_shares(scenario) -> np.ndarray:
+    """Each budget year's share of the budget period's miles: (1+g)^(y-1) / sum_k (1+g)^(k-1)."""
+    g = scenario.vmt_growth_pct_per_year / 100.0
+    weights = np.array([(1.0 + g) ** y for y in range(scenario.budget_years)])
+    return weights / scenario.mile_factor()
+
+
+def exact_parts(parts, total: float) -> list[float]:
+    """``parts`` with the last one moved by a few units in the last place so that
+    ``math.fsum(parts) == total`` exactly (the parts are shares of ``total`` computed apart)."""
+    parts = [float(p) for p in parts]
+    if not parts or not math.isfinite(total):
+        return parts
+    last = total - math.fsum(parts[:-1])
+    parts[-1] = last
+    for _ in range(64):
+        error = math.fsum(parts) - total
+        if error == 0.0:
+            break
+        parts[-1] = float(np.nextafter(parts[-1], -math.inf if error > 0 else math.inf))
+    return parts
+
+
+def display_round(value: float, low: float | None = None, high: float | None = None) -> float:
+    """``value`` rounded to the digit the range can support: the power of ten at or below a
+    tenth of the range's width (4 significant digits without a range)."""
+    if value is None or not math.isfinite(value) or value == 0:
+        return value
+    width = (high - low) if (low is not None and high is not None and math.isfinite(high - low)) else 0.0
+    if width > 0:
+        step = 10.0 ** math.floor(math.log10(width / 10.0))
+    else:
+        step = 10.0 ** (math.floor(math.log10(abs(value))) - 3)
+    return round(value / step) * step
