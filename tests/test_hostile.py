@@ -23,7 +23,6 @@ from click.testing import CliRunner
 
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
-from fleetrun.fleet import runner
 from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,8 +39,13 @@ def first_line(result) -> str:
 
 
 @pytest.fixture
-def fake_simulation(monkeypatch):
-    monkeypatch.setattr(runner, "simulate_function", fakes.fake_simulate)
+def fake_simulation():
+    """``fleetrun run`` below uses the stand-in simulation (test_fleet_fakes)."""
+    return fakes.fake_simulate
+
+
+def run_fake(*args):
+    return fakes.invoke_run(*args)
 
 
 # --- data loss --------------------------------------------------------------------------------
@@ -52,7 +56,7 @@ def test_out_never_overwrites_the_input_workbook(tmp_path, fake_simulation):
     folder.mkdir()
     workbook = small_fleet(folder / "report.xlsx")
     before = workbook.read_bytes()
-    result = invoke("run", workbook, "--out", folder, "-q", "--no-cache")
+    result = run_fake(workbook, "--out", folder, "-q", "--no-cache")
     assert result.exit_code == 1, result.output
     line = first_line(result)
     assert line.startswith("Error:") and "report.xlsx" in line and "--out" in line
@@ -66,7 +70,7 @@ def test_out_keeps_other_files_of_the_folder(tmp_path, fake_simulation):
     workbook = small_fleet(folder / "fleet.xlsx")
     (folder / "notes.txt").write_text("mine")
     before = workbook.read_bytes()
-    result = invoke("run", workbook, "--out", folder, "-q", "--no-cache")
+    result = run_fake(workbook, "--out", folder, "-q", "--no-cache")
     assert result.exit_code == 0, result.stderr
     assert workbook.read_bytes() == before and (folder / "notes.txt").read_text() == "mine"
     assert OUTPUTS <= {p.name for p in folder.iterdir()}
@@ -198,7 +202,7 @@ def test_csv_outputs_neutralise_formula_text(tmp_path, fake_simulation):
     rows = [vehicle(f"V{i}", vehicle_class=label) for i, label in enumerate(labels)]
     rows[0]["vehicle_id"] = '=HYPERLINK("http://evil")'
     path = write_fleet(tmp_path / "f.xlsx", rows, [scenario("=1+1")])
-    result = invoke("run", path, "--out", tmp_path / "out", "-q", "--no-cache")
+    result = run_fake(path, "--out", tmp_path / "out", "-q", "--no-cache")
     assert result.exit_code == 0, result.stderr
     for name in ("results.csv", "class_summary.csv", "fiscal_summary.csv"):
         with open(tmp_path / "out" / name, newline="", encoding="utf-8") as handle:
@@ -233,7 +237,7 @@ def test_locked_output_file_leaves_the_previous_run_whole(tmp_path, fake_simulat
     """Before: results.csv locked (Excel on Windows) -> exit 4, 3 new and 2 old files."""
     fleet = small_fleet(tmp_path / "fleet.xlsx")
     out = tmp_path / "out"
-    assert invoke("run", fleet, "--out", out, "-q", "--no-cache").exit_code == 0
+    assert run_fake(fleet, "--out", out, "-q", "--no-cache").exit_code == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     real_replace, real_rename = os.replace, os.rename
 
@@ -250,7 +254,7 @@ def test_locked_output_file_leaves_the_previous_run_whole(tmp_path, fake_simulat
     monkeypatch.setattr(os, "replace", locked)
     monkeypatch.setattr(os, "rename", locked_rename)
     scenario_changed = write_fleet(tmp_path / "fleet.xlsx", None, [scenario("other")])
-    result = invoke("run", scenario_changed, "--out", out, "-q", "--no-cache")
+    result = run_fake(scenario_changed, "--out", out, "-q", "--no-cache")
     monkeypatch.undo()
     assert result.exit_code == 1, result.stderr
     assert first_line(result).startswith("Error:") and str(out) in first_line(result)
@@ -264,7 +268,7 @@ def test_leftover_staging_folders_cleaned_by_the_next_run(tmp_path, fake_simulat
     leftover = tmp_path / ".out-staging-k1ll3d"
     leftover.mkdir()
     (leftover / "results.csv").write_text("partial")
-    assert invoke("run", fleet, "--out", tmp_path / "out", "-q", "--no-cache").exit_code == 0
+    assert run_fake(fleet, "--out", tmp_path / "out", "-q", "--no-cache").exit_code == 0
     assert not leftover.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 
@@ -272,8 +276,6 @@ def test_leftover_staging_folders_cleaned_by_the_next_run(tmp_path, fake_simulat
 KILLER = """
 import os, sys
 import test_fleet_fakes as fakes
-from fleetrun.fleet import runner
-runner.simulate_function = fakes.fake_simulate
 folder, when = sys.argv[1], int(sys.argv[2])
 moves = [0]
 def dying(name):
@@ -286,8 +288,8 @@ def dying(name):
         return real(source, target, *args, **kwargs)
     return move
 os.replace, os.rename = dying("replace"), dying("rename")
-from fleetrun.cli import main
-main(sys.argv[3:])
+from fleetrun.cli import cli
+cli.main(sys.argv[3:], prog_name="fleetrun", obj=fakes.injected())
 """
 
 
@@ -321,7 +323,7 @@ def test_disk_full_is_an_input_error_naming_the_output(tmp_path, fake_simulation
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(report_html, "write_summary_html", full)
-    result = invoke("run", fleet, "--out", tmp_path / "out", "-q", "--no-cache")
+    result = run_fake(fleet, "--out", tmp_path / "out", "-q", "--no-cache")
     assert result.exit_code == 1, result.stderr
     line = first_line(result)
     assert line.startswith("Error:") and "No space left" in line and str(tmp_path / "out") in line
@@ -336,7 +338,7 @@ def test_unwritable_output_parent_exit_1_with_path(tmp_path, fake_simulation):
     parent.mkdir()
     parent.chmod(0o500)
     try:
-        result = invoke("run", fleet, "--out", parent / "out", "-q", "--no-cache")
+        result = run_fake(fleet, "--out", parent / "out", "-q", "--no-cache")
     finally:
         parent.chmod(0o700)
     assert result.exit_code == 1
@@ -421,7 +423,7 @@ def test_mix_of_thirds_is_normalised_with_a_warning(tmp_path):
 
 def test_quiet_says_what_it_silences_and_silences_it(tmp_path, fake_simulation):
     """Before: the help said -q silences stderr, while log lines went to stdout when piped."""
-    help_text = invoke("run", "--help").output
+    help_text = run_fake("--help").output
     assert "stdout" in help_text.split("--quiet", 1)[1].split("\n  -", 1)[0]
-    result = invoke("run", small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "o", "-q", "--no-cache")
+    result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "o", "-q", "--no-cache")
     assert result.exit_code == 0 and result.stdout == "" and result.stderr == ""
