@@ -14,7 +14,7 @@ from fleetrun import __version__
 from fleetrun.errors import FleetrunError
 
 # Command modules in fleetrun/commands, in the order `fleetrun --help` lists them.
-COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose")
+COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa")
 
 
 class FleetrunGroup(click.Group):
@@ -31,9 +31,10 @@ class FleetrunGroup(click.Group):
         if name not in COMMANDS:
             return None
         try:
-            module = importlib.import_module(f"fleetrun.commands.{name}")
+            module_name = f"fleetrun.commands.{name.replace('-', '_')}"
+            module = importlib.import_module(module_name)
         except ModuleNotFoundError as exc:
-            if exc.name == f"fleetrun.commands.{name}":
+            if exc.name == module_name:
                 return None  # command not part of this build
             raise
         return module.command

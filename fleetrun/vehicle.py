@@ -34,6 +34,15 @@ class VehicleSpec:
     rated_speed_rpm: float | None = None
     engine_displacement_L: float | None = None
     lubricant: str | None = None
+    # identification and powertrain details (optional; fleetrun import-epa fills them)
+    manufacturer: str | None = None
+    make: str | None = None
+    model: str | None = None
+    model_year: int | None = None
+    gearbox_type: str | None = None      # automatic, automated_manual, cvt, manual
+    converter_lockup: str | None = None  # "yes" / "no"
+    cylinders: int | None = None
+    nv_ratio_rpm_per_mph: float | None = None   # EPA N/V: engine rpm per mph in top gear
     extra: dict = field(default_factory=dict, compare=False)
 
     @property

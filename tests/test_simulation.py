@@ -10,10 +10,12 @@ import pytest
 from fleetrun.cycles import DriveCycle, load_cycle
 from fleetrun.errors import InputError
 from fleetrun.simulation import TRACE_COLUMNS, simulate
-from fleetrun.simulation.engine import fuel_rate_g_per_s, full_load_torque_Nm, offset_torque_Nm
+from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s, full_load_torque_Nm,
+                                        motoring_torque_Nm, stroke_m)
 from fleetrun.simulation.params import vehicle_arrays
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N, tractive_force_N
-from fleetrun.simulation.transmission import converter_speed_ratio, input_torque_Nm, torque_ratio
+from fleetrun.simulation.transmission import (converter_speed_ratio, converter_unlocked, cvt_ratio, input_torque_Nm,
+                                              spin_loss_Nm, torque_ratio)
 from fleetrun.simulation.tyre import rolling_radius_m, tire_diameter_m
 from fleetrun.testing.vehicles import ALL, CAMRY, CIVIC, F150, HD_DUAL
 
@@ -55,13 +57,29 @@ def test_road_load_conversion_hand_computed():
     assert F == pytest.approx(1015.0 + 1000 * 9.80665 * 0.05 / np.sqrt(1 + 0.05**2), rel=1e-12)
 
 
-def test_willans_fuel_hand_computed():
-    # 100 N m at 2000 rpm, 2.0 L, p_me0 = 100 + 10*2 + 4*4 = 136 kPa -> T0 = 136e3*2e-3/(4 pi)
-    T0 = offset_torque_Nm(2000.0, 2.0, 100.0, 10.0, 4.0)
-    assert T0 == pytest.approx(136e3 * 2e-3 / (4 * np.pi), rel=1e-12)
-    rate = fuel_rate_g_per_s(100.0, 2000.0, True, T0, 0.38, 42.9)
-    assert rate == pytest.approx((100 + T0) * 2000 * 2 * np.pi / 60 / 0.38 / 42.9e3, rel=1e-12)
-    assert fuel_rate_g_per_s(-50.0, 2000.0, False, T0, 0.38, 42.9) == 0.0  # fuel cut-off
+def test_fuel_equation_hand_computed():
+    # engine.py: m_dot LHV = [P_b (1 + k L) + (f0 + fcm c_m + fpk bmep_max + pth (1 - L)) V_d w / 4pi
+    #                         + P_acc + k_tr P_inertia+] / eta, written out by hand for one point:
+    # 100 N m of 200 N m full load at 2000 rpm, 2.0 L in 4 square cylinders, T_peak 250 N m
+    S = stroke_m(2.0, 4)
+    assert np.pi / 4 * S**3 * 4 == pytest.approx(2.0e-3, rel=1e-12)          # V_d = 4 x pi/4 B^2 S, B = S
+    w = 2000 * 2 * np.pi / 60
+    cm = 2 * S * 2000 / 60
+    consts = dict(eta_indicated=0.4, high_load_factor=0.2, fmep_0_kPa=50.0, fmep_piston_speed_kPa_s_per_m=5.0,
+                  fmep_peak_fraction=0.05, pmep_throttle_kPa=80.0, accessory_power_W=300.0, transient_factor=0.7)
+    terms = fuel_power_terms_W(100.0, 2000.0, 200.0, 2.0, S, 250.0, True, 5000.0)
+    rate = fuel_rate_g_per_s(terms, fuel_coefficients(*consts.values()), True, 42.9)
+    mep_W = 2.0e-3 * w / (4 * np.pi) * 1e3                                    # W per kPa
+    by_hand = (100 * w * (1 + 0.2 * 0.5) + (50 + 5 * cm + 80 * 0.5) * mep_W + 0.05 * 250 * w + 300 + 0.7 * 5000) / 0.4
+    assert rate == pytest.approx(by_hand / 42.9e3, rel=1e-12)
+    # diesel (unthrottled): no pumping term; fuel cut-off: nothing
+    terms_d = fuel_power_terms_W(100.0, 2000.0, 200.0, 2.0, S, 250.0, False, 5000.0)
+    assert fuel_rate_g_per_s(terms_d, fuel_coefficients(*consts.values()), True, 42.9) == pytest.approx(
+        (by_hand - 80 * 0.5 * mep_W / 0.4) / 42.9e3, rel=1e-12)
+    assert fuel_rate_g_per_s(terms, fuel_coefficients(*consts.values()), False, 42.9) == 0.0
+    # motoring torque: friction + closed-throttle pumping
+    T_m = motoring_torque_Nm(2000.0, 2.0, S, 250.0, 50.0, 5.0, 0.05, 80.0, True)
+    assert T_m == pytest.approx((50 + 5 * cm + 80) * 1e3 * 2e-3 / (4 * np.pi) + 0.05 * 250, rel=1e-12)
 
 
 def test_full_load_curve_shape():
@@ -90,6 +108,22 @@ def test_gearbox_loss_same_magnitude_on_overrun():
     overrun = input_torque_Nm(-100.0, 2.0, 0.95)
     assert drive == pytest.approx(100 / (2 * 0.95))
     assert drive - 50.0 == pytest.approx(overrun + 50.0)  # same loss, either direction
+    # the spin loss drags in either direction: a + b n / 1000, none at standstill
+    spin = spin_loss_Nm(np.array([0.0, 2000.0]), 2.0, 1.0)
+    assert list(spin) == [0.0, 4.0]
+    assert input_torque_Nm(-100.0, 2.0, 0.95, 4.0) == pytest.approx(overrun + 4.0)
+
+
+def test_cvt_meets_the_schedule_within_its_range():
+    r = cvt_ratio(np.array([0.0, 500.0, 1000.0, 4000.0]), 1500.0, 2.6, 0.4)
+    np.testing.assert_allclose(r, [2.6, 2.6, 1.5, 0.4])
+
+
+def test_converter_without_lockup_clutch_never_locks():
+    first = np.array([True, False, False])
+    n = np.array([3000.0, 3000.0, 800.0])
+    assert list(converter_unlocked(first, n, 1200.0, True)) == [True, False, True]
+    assert list(converter_unlocked(first, n, 1200.0, False)) == [True, True, True]
 
 
 # ----------------------------------------------------------------------------- whole cycle
@@ -118,12 +152,14 @@ def test_energy_balance_per_step(udds_traces):
     eta = tr["diff_efficiency"][driving]
     np.testing.assert_allclose(tr["diff_loss_W"][driving], tr["wheel_power_W"][driving] * (1 / eta - 1),
                                rtol=1e-9, atol=1e-6)
-    # gearbox loss from the constant mesh efficiency of the gear in use
+    # gearbox loss from the mesh efficiency of the gear in use plus the spin loss a + b n / 1000
     rows = np.broadcast_to(np.arange(va.n)[:, None], driving.shape)[driving]
     P_d = tr["diff_input_torque_Nm"][driving] * tr["diff_input_speed_rpm"][driving] * 2 * np.pi / 60
     gear = tr["gear"][driving]
     eff = np.array([va.combo_gear_eff[r][np.flatnonzero(va.combo_gear[r] == g)[0]] for r, g in zip(rows, gear)])
-    np.testing.assert_allclose(tr["transmission_loss_W"][driving], P_d * (1 / eff - 1), rtol=1e-9, atol=1e-6)
+    n_in = tr["transmission_input_speed_rpm"][driving]
+    spin_W = (va.spin_loss[rows, 0] + va.spin_loss[rows, 1] * n_in / 1000) * n_in * 2 * np.pi / 60
+    np.testing.assert_allclose(tr["transmission_loss_W"][driving], P_d * (1 / eff - 1) + spin_W, rtol=1e-9, atol=1e-6)
     # locked converter / engaged clutch: no slip loss; slipping: never a gain
     locked = driving & ~tr["converter_unlocked"] & (tr["engine_speed_rpm"] == tr["transmission_input_speed_rpm"])
     assert np.all(np.abs(tr["converter_loss_W"][locked]) < 1e-6)

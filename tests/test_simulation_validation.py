@@ -57,23 +57,30 @@ def test_camry_calibration_on_hot_udds_only(camry):
     assert tests["UDDS (hot)"]["calibration"] and not tests["HWFET"]["calibration"]
     assert not tests["US06"]["calibration"]
     assert tests["UDDS (hot)"]["error"] == pytest.approx(0.0, abs=1e-9)
-    assert camry["eta_indicated_default"] == 0.38
-    # measured: 0.4394; the fitted Willans slope is that of an efficient modern SI engine
-    # (A25A-FKS: ~40 % peak brake efficiency), not an outlier
-    assert camry["eta_indicated_calibrated"] == pytest.approx(0.4394, abs=0.002)
+    # the default is the fleet-wide calibration (models/engine_calibration.toml); the Camry's own
+    # slope comes out 14 % above it: its engine (A25A-FKS, ~40 % peak brake efficiency) is more
+    # efficient than the fleet's average, as Toyota's vehicles are in docs/validation-epa.md
+    from fleetrun.simulation.params import engine_defaults
+
+    assert camry["eta_indicated_default"] == engine_defaults("gasoline", "LD")["eta_indicated"]
+    assert camry["eta_indicated_calibrated"] / camry["eta_indicated_default"] == pytest.approx(1.143, abs=0.005)
 
 
 def test_camry_prediction_errors(camry):
-    """Measured results (docs/validation-simulation.md): US06 within the 5 % target (-1.3 %),
-    HWFET over-predicted by 8.4 % (outside the target; reported, not tuned away)."""
+    """Fuel vs Argonne's measurement (docs/validation-simulation.md). With the fleet-wide
+    constants alone (nothing fitted to this car): +14.3 % hot UDDS, +8.9 % HWFET, +4.7 % US06
+    fuel. After the one-constant calibration on its hot UDDS: HWFET -4.8 % (within the 5 %
+    target; +8.4 % with the earlier generic engine), US06 -8.4 % (outside it; -1.3 % before):
+    the fleet's acceleration term prices this car's accelerations too high. Tolerance 0.5
+    point: the map modes differ from direct by < 0.1 %, the rest is the model itself."""
     tests = {t["test"]: t for t in camry["tests"]}
-    assert abs(tests["US06"]["error"]) < 0.05
-    assert tests["US06"]["error"] == pytest.approx(-0.013, abs=0.005)
-    assert tests["HWFET"]["error"] == pytest.approx(0.084, abs=0.005)
-    assert tests["HWFET"]["error"] > 0.05          # the target is missed; this must not go unnoticed
-    assert tests["UDDS (hot)"]["error_uncalibrated"] == pytest.approx(0.156, abs=0.005)
-    assert tests["HWFET"]["error_uncalibrated"] == pytest.approx(0.253, abs=0.005)
-    assert tests["US06"]["error_uncalibrated"] == pytest.approx(0.141, abs=0.005)
+    assert tests["HWFET"]["error"] == pytest.approx(-0.048, abs=0.005)
+    assert abs(tests["HWFET"]["error"]) < 0.05
+    assert tests["US06"]["error"] == pytest.approx(-0.084, abs=0.005)
+    assert tests["US06"]["error"] < -0.05          # the target is missed; this must not go unnoticed
+    assert tests["UDDS (hot)"]["error_uncalibrated"] == pytest.approx(0.143, abs=0.005)
+    assert tests["HWFET"]["error_uncalibrated"] == pytest.approx(0.089, abs=0.005)
+    assert tests["US06"]["error_uncalibrated"] == pytest.approx(0.047, abs=0.005)
     # measured fuel economies as PROVENANCE.md states them (1 Hz sums)
     assert tests["UDDS (hot)"]["measured_mpg"] == pytest.approx(38.7, abs=0.1)
     assert tests["HWFET"]["measured_mpg"] == pytest.approx(57.4, abs=0.1)
@@ -107,13 +114,14 @@ def test_camry_tyre_radius_from_epa_n_over_v():
     assert n_per_mph == pytest.approx(24.7, abs=0.01)
 
 
-def test_camry_hwfet_excess_is_steady_cruise(camry):
-    """The HWFET excess sits in cruise (measured +12 %), not in accelerations (+3 %)."""
+def test_camry_hwfet_gap_is_steady_cruise(camry):
+    """After the hot-UDDS calibration the HWFET gap sits in cruise (-8.3 %; +12.3 % with the
+    earlier generic engine), not in accelerations (+3.5 %)."""
     modes = camry_modes(camry)
     hw = modes["HWFET"]
     cruise = hw["cruise"]["predicted_cc"] / hw["cruise"]["measured_cc"] - 1
     accel = hw["acceleration"]["predicted_cc"] / hw["acceleration"]["measured_cc"] - 1
-    assert cruise == pytest.approx(0.123, abs=0.01)
+    assert cruise == pytest.approx(-0.083, abs=0.01)
     assert abs(accel) < 0.05
     # on the UDDS, standstill and overrun are under-predicted (what hides its cruise excess)
     udds = modes["UDDS (hot)"]

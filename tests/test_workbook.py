@@ -42,7 +42,7 @@ def test_template_has_instructions_dropdowns_and_examples(tmp_path):
     header = [c.value for c in ws[1]]
     lists = {dv.formula1 for dv in ws.data_validations.dataValidation}
     assert any("LD_FWD" in f and "HD_TAG_DUAL" in f for f in lists)
-    assert '"gasoline,diesel"' in lists and '"automatic,manual"' in lists
+    assert '"gasoline,diesel,electric"' in lists and '"automatic,manual"' in lists
     assert ws.max_row == 3 and header[0] == "vehicle_id"
     again = CliRunner().invoke(cli, ["template", "-o", str(path)])
     assert again.exit_code == 1 and again.stderr.startswith("Error:") and "--force" in again.stderr
@@ -72,7 +72,7 @@ def test_every_problem_reported_at_once_with_cell_and_value(tmp_path):
     problems = problems_of(path)
     assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number" in problems
     assert "Vehicles!E3 count: -3 must be at least 0" in problems
-    assert "Vehicles!G3 fuel: 'kerosene' is not one of gasoline, diesel" in problems
+    assert "Vehicles!G3 fuel: 'kerosene' is not one of gasoline, diesel, electric" in problems
     assert any(p.startswith("Vehicles!A4 vehicle_id: 'A' is used again (first in row 2)") for p in problems)
     assert any(p.startswith("Vehicles!D5 configuration: 'LD_FWD' does not fit duty_class HD") for p in problems)
     assert any(p.startswith("Vehicles!S6 low_gear_ratio: is empty, but HD_DUAL") for p in problems)

@@ -141,7 +141,7 @@ def rolling_radius_factor_from_n_per_v(vehicle, n_per_v_rpm_per_mph=EPA_N_PER_V_
 def camry_vehicle(dyno_dir=None, extra=None, **fields):
     """The Camry's Vehicles row (sidecar of the hot UDDS) with the rolling radius of EPA's N/V
     (``rolling_radius_factor_from_n_per_v``), optional ``extra`` overrides (simulation keys
-    such as ``pme0_a_kPa``) and replaced VehicleSpec ``fields``."""
+    such as ``transient_factor``) and replaced VehicleSpec ``fields``."""
     from fleetrun.resources import inputs_dir
     from fleetrun.fleet.vehicle_file import read_vehicle_toml
 
@@ -222,8 +222,10 @@ def camry_sensitivity(mode="auto", dyno_dir=None):
     variants = {"as validated": base,
                 "tyre radius = half nominal diameter (no N/V correction)":
                     camry_vehicle(dyno_dir, extra={"tire_rolling_radius_factor": 1.0}),
-                "friction a, c = 97, 5 kPa (Heywood Eq. 13.20, no pumping term)":
-                    camry_vehicle(dyno_dir, extra={"pme0_a_kPa": 97.0, "pme0_c_kPa": 5.0}),
+                "no acceleration term (transient_factor 0)":
+                    camry_vehicle(dyno_dir, extra={"transient_factor": 0.0}),
+                "no throttle pumping (pmep_throttle_kPa 0)":
+                    camry_vehicle(dyno_dir, extra={"pmep_throttle_kPa": 0.0}),
                 "shift_speed_min_rpm 1100, lockup_speed_rpm 1000 (8th from ~45 mph)":
                     camry_vehicle(dyno_dir, extra={"shift_speed_min_rpm": 1100.0, "lockup_speed_rpm": 1000.0}),
                 "gear efficiency 0.97 / direct 0.985":

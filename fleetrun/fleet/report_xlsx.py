@@ -40,7 +40,7 @@ FORMATS = {
     "change_pct": "+0.00%;-0.00%;0.00%", "efficiency": "0.000",
     "miles": "#,##0", "fuel_gal": "#,##0", "fuel_gal_low": "#,##0", "fuel_gal_high": "#,##0",
     "fuel_gal_low_total": "#,##0", "fuel_gal_high_total": "#,##0", "fuel_gal_cycle_total": "#,##0",
-    "fuel_gal_uncalibrated_total": "#,##0", "co2_t": "#,##0", "kwh": "#,##0", "ev_fee_usd": '"$"#,##0',
+    "fuel_gal_uncalibrated_total": "#,##0", "co2_t": "#,##0", "kwh": "#,##0", "kwh_total": "#,##0", "ev_fee_usd": '"$"#,##0',
     "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.000", "scale": "0.0000",
 }
 

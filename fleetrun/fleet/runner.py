@@ -30,6 +30,7 @@ CHUNK_SIZE = 128            # vehicles per simulation task: bounds memory, sprea
 MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
 SHORTFALL_TOLERANCE = 1e-6  # shortfall measures below this are rounding noise
 RESULT_FIELDS = ("miles", "fuel_gal") + ENERGY_FIELDS
+ELECTRIC = "electric"
 
 
 @dataclass(frozen=True)
@@ -138,13 +139,14 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
                               cache_dir=cache_dir, simulate=simulate, effects=effect_pairs)
     tasks, positions = plan_tasks(distinct, needed, template, chunk_size)
     per_condition, shortfalls = collect(engine, tasks, positions, conditions, len(distinct), progress)
+    electric_sums(distinct, needed, per_condition)
     simulated = time.perf_counter()
     per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
                      for cond, arrays in per_condition.items()}
     shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
                   for cond, arrays in shortfalls.items()}
 
-    warnings = list(fleet.warnings) + _shortfall_warnings(vehicles, shortfalls)
+    warnings = list(fleet.warnings) + _map_grid_notes(fleet, mode) + _shortfall_warnings(vehicles, shortfalls)
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
         from fleetrun.fleet.uncertainty import read_error_model
@@ -190,6 +192,7 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
 
     conditions = list(needed)
     duties = np.array([v.duty_class for v in distinct], dtype=object)
+    duties[[v.fuel == ELECTRIC for v in distinct]] = None   # electric_sums drives those
     tasks: list[SimulationTask] = []
     positions: list[np.ndarray] = []
     for ambient in dict.fromkeys(a for _, a in conditions):
@@ -210,7 +213,8 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
 
 def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tuple[dict, dict]:
     """Run the tasks on ``engine``; per condition the per-vehicle sums and shortfall measures."""
-    per_condition = {cond: {name: np.full(n, np.nan) for name in RESULT_FIELDS} for cond in conditions}
+    per_condition = {cond: {**{name: np.full(n, np.nan) for name in RESULT_FIELDS}, "kwh": np.zeros(n)}
+                     for cond in conditions}
     shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
         progress(0, len(tasks))
@@ -230,8 +234,31 @@ def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tupl
     return per_condition, shortfalls
 
 
+def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
+    """Fill in the electric vehicles' per-cycle sums from the road-load energy model
+    (:func:`fleetrun.simulation.electric.simulate_electric`): kWh from the wall, no fuel, no
+    differential energies (the thesis model is not run for them), the battery energy spent on
+    traction as drivetrain input. Ambient temperature does not change them (not modelled)."""
+    from fleetrun.simulation.electric import simulate_electric
+
+    duties = np.array([v.duty_class if v.fuel == ELECTRIC else None for v in distinct], dtype=object)
+    for (cycle, ambient), duty_set in needed.items():
+        rows = np.flatnonzero(np.isin(duties, sorted(duty_set)))
+        if not len(rows):
+            continue
+        sums = simulate_electric([distinct[i] for i in rows], _cycle(cycle))
+        target = per_condition[(cycle, ambient)]
+        target["miles"][rows] = sums["miles"]
+        target["kwh"][rows] = sums["kwh"]
+        target["fuel_gal"][rows] = 0.0
+        target["diff_input_energy_J"][rows] = target["diff_output_energy_J"][rows] = 0.0
+        target["wheel_energy_J"][rows] = sums["wheel_energy_J"]
+        target["drivetrain_input_energy_J"][rows] = sums["drivetrain_input_energy_J"]
+
+
 # VehicleSpec fields that do not change how a vehicle drives a cycle.
-BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles")
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
+                      "model_year")
 
 
 def _physics_key(v: VehicleSpec) -> tuple:
@@ -273,6 +300,26 @@ _SHORTFALL_PHRASES = {  # the simulation's shortfall measures, in the order a re
 def _phrase_order(item):
     name = item[0]
     return (list(_SHORTFALL_PHRASES).index(name) if name in _SHORTFALL_PHRASES else len(_SHORTFALL_PHRASES), name)
+
+
+def _map_grid_notes(fleet: Fleet, mode: str) -> list[str]:
+    """One note listing the vehicles whose final drive ratio lies beyond the cached map3d
+    gear-ratio grid: map3d builds their maps at their own ratio (as map2d)."""
+    from fleetrun.simulation import DEFAULT_MODE
+    from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
+
+    if (DEFAULT_MODE if mode == "auto" else mode) != "map3d":
+        return []
+    outside = [v for v in fleet.vehicles if outside_map3d_grid(v.configuration, v.final_drive_ratio)]
+    if not outside:
+        return []
+    shown = ", ".join(f"{v.vehicle_id} (row {fleet.vehicle_rows.get(v.vehicle_id, '?')}: {v.final_drive_ratio:g})"
+                      for v in outside[:MAX_LISTED_WARNINGS])
+    more = f" and {len(outside) - MAX_LISTED_WARNINGS} more" if len(outside) > MAX_LISTED_WARNINGS else ""
+    grids = "; ".join(f"{duty} {g[0]:g}-{g[-1]:g}" for duty, g in GEAR_GRID.items())
+    return [f"note: {len(outside)} vehicle type(s) have a final_drive_ratio beyond the map3d gear-ratio grid "
+            f"({grids}); their differential maps are built at their own ratio, as in --mode map2d: "
+            f"{shown}{more}"]
 
 
 def _shortfall_phrase(name: str, value: float) -> str:

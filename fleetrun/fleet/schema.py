@@ -14,10 +14,11 @@ CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "
                   "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL")
 DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
-FUELS = ("gasoline", "diesel")
-YES_NO = ("yes", "no")
+FUELS = ("gasoline", "diesel", "electric")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 TRANSMISSIONS = ("automatic", "manual")
+GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
+YES_NO = ("yes", "no")
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class Column:
     note: str
     choices: tuple[str, ...] = ()
     minimum: float | None = None         # values below are errors (inclusive unless strict)
+    maximum: float | None = None         # values above are errors
     strictly_positive: bool = False
     example: tuple = ()                  # two example values for the template
 
@@ -40,7 +42,7 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
            example=("LD_FWD", "HD_TANDEM")),
     Column("count", "number", True, "vehicles of this type", minimum=0, example=(125000, 4200)),
     Column("annual_miles", "number", True, "miles per vehicle per year", minimum=0, example=(11500, 85000)),
-    Column("fuel", "choice", True, "gasoline or diesel", choices=FUELS, example=("gasoline", "diesel")),
+    Column("fuel", "choice", True, "gasoline, diesel or electric", choices=FUELS, example=("gasoline", "diesel")),
     Column("peak_engine_torque_Nm", "number", True, "peak engine torque [N m]", strictly_positive=True,
            example=(250, 2500)),
     Column("transmission", "choice", True, "automatic or manual", choices=TRANSMISSIONS,
@@ -48,8 +50,8 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("transmission_gear_ratios", "ratios", True, "comma list, first gear first",
            example=("4.62,3.04,2.06,1.66,1.26,1.00,0.85,0.69",
                     "12.8,9.25,6.76,4.9,3.58,2.61,1.89,1.38,1.00,0.73")),
-    Column("final_drive_ratio", "number", True, "differential gear ratio", strictly_positive=True,
-           example=(3.21, 3.55)),
+    Column("final_drive_ratio", "number", True, "differential gear ratio (1.2-12)", strictly_positive=True,
+           minimum=1.2, maximum=12.0, example=(3.21, 3.55)),
     Column("test_weight_kg", "number", True, "test (loaded) weight [kg]", strictly_positive=True,
            example=(1588, 29000)),
     Column("coastdown_A_lbf", "number", True, "EPA target coefficient A [lbf]", minimum=0,
@@ -71,6 +73,18 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("engine_displacement_L", "number", False, "engine displacement [L]", strictly_positive=True,
            example=(2.5, 12.8)),
     Column("lubricant", "text", False, "axle lubricant name (default: the configuration's)"),
+    # Optional identification and powertrain details (`fleetrun import-epa` fills them from
+    # the EPA Test Car List; a row without them runs on defaults).
+    Column("manufacturer", "text", False, "vehicle manufacturer (identification)"),
+    Column("make", "text", False, "make (identification)"),
+    Column("model", "text", False, "model (identification)"),
+    Column("model_year", "integer", False, "model year (identification)", strictly_positive=True),
+    Column("gearbox_type", "choice", False, "automatic (torque converter), automated_manual, cvt or manual",
+           choices=GEARBOX_TYPES),
+    Column("converter_lockup", "choice", False, "torque-converter lock-up: yes or no", choices=YES_NO),
+    Column("cylinders", "integer", False, "number of engine cylinders", strictly_positive=True),
+    Column("nv_ratio_rpm_per_mph", "number", False, "engine rpm per mph in top gear (EPA N/V)",
+           strictly_positive=True),
 )
 
 # cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty

@@ -41,10 +41,11 @@ RESULTS_COLUMNS = ["scenario_id", "vehicle_id", "vehicle_class", "configuration"
                    "wheel_energy_J", "duty_class",
                    # budget: cycle (dynamometer) and uncalibrated fuel, the range, CO2
                    "fuel_gal_cycle_total", "fuel_gal_uncalibrated_total", "fuel_gal_low_total",
-                   "fuel_gal_high_total"]
+                   "fuel_gal_high_total", "kwh_total", "ev_fee_usd"]
 CLASS_COLUMNS = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
                  "diff_efficiency", "state_tax_usd", "federal_tax_usd",
-                 "drivetrain_efficiency", "vehicle_types", "fuel_gal_low_total", "fuel_gal_high_total"]
+                 "drivetrain_efficiency", "vehicle_types", "fuel_gal_low_total", "fuel_gal_high_total",
+                 "kwh_total", "ev_fee_usd"]
 FISCAL_COLUMNS = ["scenario_id", "fiscal_year", "fuel", "vehicle_class", "miles", "fuel_gal",
                   "fuel_gal_low", "fuel_gal_high", "co2_t", "kwh", "state_tax_usd", "federal_tax_usd",
                   "ev_fee_usd"]
@@ -53,6 +54,7 @@ FISCAL_SOURCES = {"miles": "miles_total", "fuel_gal": "fuel_gal_total", "fuel_ga
                   "fuel_gal_high": "fuel_gal_high_total", "kwh": "kwh_total",
                   "state_tax_usd": "state_tax_usd", "federal_tax_usd": "federal_tax_usd",
                   "ev_fee_usd": "ev_fee_usd"}
+ELECTRIC = "electric"
 CALIBRATION_COLUMNS = ["scenario_id", "fuel", "fiscal_year", "model_gallons", "observed_gallons",
                        "model_to_observed", "calibrated", "scale"]
 
@@ -72,12 +74,14 @@ def _cycle_kind(cycle: str) -> str:
                              cycle_mean_speed_kph(cycle))
 
 
-def mix_per_mile(s, duty_of: np.ndarray, per_condition: dict, error_model=None) -> dict[str, np.ndarray]:
+def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
+                 error_model=None) -> dict[str, np.ndarray]:
     """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, the range's
-    gallons per mile and the energies per mile."""
+    gallons per mile, on-road kWh per mile (electric rows) and the energies per mile."""
     n = len(duty_of)
-    adjusted = budget.label_adjusted_duty(duty_of)
-    names = ("fuel_gal_cycle", "fuel_gal", "fuel_gal_low", "fuel_gal_high") + ENERGY_FIELDS
+    adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
+    kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
+    names = ("fuel_gal_cycle", "fuel_gal", "fuel_gal_low", "fuel_gal_high", "kwh") + ENERGY_FIELDS
     per_mile = {name: np.zeros(n) for name in names}
     for duty in DUTY_CLASSES:
         rows = duty_of == duty
@@ -96,6 +100,7 @@ def mix_per_mile(s, duty_of: np.ndarray, per_condition: dict, error_model=None) 
                 elif name != "fuel_gal_cycle":
                     gpm = budget.onroad_gal_per_mile(gpm, s.onroad_adjustment, kind, adjusted[rows])
                 per_mile[name][rows] += share * gpm
+            per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)
     return per_mile
@@ -143,7 +148,7 @@ def scenario_frame(s, vehicles, per_condition: dict, error_model=None) -> tuple[
     annual = np.array([v.annual_miles for v in vehicles], dtype=float)
     fuel = np.array([v.fuel for v in vehicles], dtype=object)
     duty_of = np.array([v.duty_class for v in vehicles], dtype=object)
-    per_mile = mix_per_mile(s, duty_of, per_condition, error_model)
+    per_mile = mix_per_mile(s, duty_of, fuel, per_condition, error_model)
     miles_total = count * annual * s.mile_factor()
     raw = miles_total * per_mile["fuel_gal"]
     scales, calibration_rows = calibration(s, fuel, raw)
@@ -163,7 +168,10 @@ def scenario_frame(s, vehicles, per_condition: dict, error_model=None) -> tuple[
         "state_tax_usd": gallons * state_rate, "federal_tax_usd": gallons * federal_rate, **energy,
         "duty_class": duty_of.astype(str), "fuel_gal_cycle_total": miles_total * per_mile["fuel_gal_cycle"],
         "fuel_gal_uncalibrated_total": raw, "fuel_gal_low_total": low, "fuel_gal_high_total": high,
+        "kwh_total": miles_total * per_mile["kwh"],
+        "ev_fee_usd": np.where(fuel == ELECTRIC, count * s.ev_fee_usd_per_vehicle_year * s.budget_years, 0.0),
     })
+    frame.loc[fuel == ELECTRIC, "mpg"] = np.nan   # no gallons: kwh_total instead
     return frame, calibration_rows
 
 
@@ -205,23 +213,26 @@ def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
     for (scenario_id, vehicle_class), group in results.groupby(["scenario_id", "vehicle_class"], sort=False):
         total = {name: _fsum(group[name]) for name in
                  ("count", "miles_total", "fuel_gal_total", "state_tax_usd", "federal_tax_usd",
-                  "fuel_gal_low_total", "fuel_gal_high_total") + ENERGY_FIELDS}
+                  "fuel_gal_low_total", "fuel_gal_high_total", "kwh_total", "ev_fee_usd") + ENERGY_FIELDS}
+        fuel_miles = math.fsum(group["miles_total"][group["fuel"] != ELECTRIC])
         rows.append({
             "scenario_id": scenario_id, "vehicle_class": vehicle_class,
             "vehicles": int(total["count"]) if group["count"].dtype.kind == "i" else total["count"],
             "miles_total": total["miles_total"], "fuel_gal_total": total["fuel_gal_total"],
-            "mpg": _ratio(total["miles_total"], total["fuel_gal_total"]),
+            "mpg": _ratio(fuel_miles, total["fuel_gal_total"]),   # miles of fuel-burning vehicles
             "diff_efficiency": _ratio(total["diff_output_energy_J"], total["diff_input_energy_J"]),
             "state_tax_usd": total["state_tax_usd"], "federal_tax_usd": total["federal_tax_usd"],
             "drivetrain_efficiency": _ratio(total["wheel_energy_J"], total["drivetrain_input_energy_J"]),
             "vehicle_types": len(group), "fuel_gal_low_total": total["fuel_gal_low_total"],
-            "fuel_gal_high_total": total["fuel_gal_high_total"],
+            "fuel_gal_high_total": total["fuel_gal_high_total"], "kwh_total": total["kwh_total"],
+            "ev_fee_usd": total["ev_fee_usd"],
         })
     return pd.DataFrame(rows, columns=CLASS_COLUMNS)
 
 
 SCENARIO_TOTAL_COLUMNS = ["scenario_id", "vehicles", "miles_total", "fuel_gal_total", "fuel_gal_low_total",
-                          "fuel_gal_high_total", "mpg", "state_tax_usd", "federal_tax_usd", "total_tax_usd"]
+                          "fuel_gal_high_total", "mpg", "state_tax_usd", "federal_tax_usd", "total_tax_usd",
+                          "kwh_total", "ev_fee_usd"]
 
 
 def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
@@ -232,12 +243,14 @@ def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
         gallons = math.fsum(group["fuel_gal_total"])
         state = math.fsum(group["state_tax_usd"])
         federal = math.fsum(group["federal_tax_usd"])
+        burned = group["mpg"] * group["fuel_gal_total"]          # miles of fuel-burning vehicles
         rows.append({"scenario_id": scenario_id, "vehicles": math.fsum(group["vehicles"]),
                      "miles_total": miles, "fuel_gal_total": gallons,
                      "fuel_gal_low_total": _fsum(group["fuel_gal_low_total"]),
                      "fuel_gal_high_total": _fsum(group["fuel_gal_high_total"]),
-                     "mpg": _ratio(miles, gallons), "state_tax_usd": state, "federal_tax_usd": federal,
-                     "total_tax_usd": state + federal})
+                     "mpg": _ratio(math.fsum(burned[np.isfinite(burned)]), gallons), "state_tax_usd": state,
+                     "federal_tax_usd": federal, "total_tax_usd": state + federal,
+                     "kwh_total": math.fsum(group["kwh_total"]), "ev_fee_usd": math.fsum(group["ev_fee_usd"])})
     return pd.DataFrame(rows, columns=SCENARIO_TOTAL_COLUMNS)
 
 

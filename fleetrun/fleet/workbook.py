@@ -356,6 +356,10 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
                 problems.error(f"{cells.show(raw)} must be at least {cells.show(float(column.minimum))}",
                                table.sheet, row_number, index, column.name)
                 ok = False
+            elif column.maximum is not None and value > column.maximum:
+                problems.error(f"{cells.show(raw)} must be at most {cells.show(float(column.maximum))}",
+                               table.sheet, row_number, index, column.name)
+                ok = False
         if column.kind == "integer" and column.strictly_positive and value <= 0:
             problems.error(f"{cells.show(raw)} must be at least 1", table.sheet, row_number, index,
                            column.name)

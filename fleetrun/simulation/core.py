@@ -22,16 +22,18 @@ import numpy as np
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
-from fleetrun.simulation.engine import full_load_torque_Nm, fuel_rate_g_per_s, offset_torque_Nm
+from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
+                                        full_load_torque_Nm, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.road_load import grade_force_N
-from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, input_torque_Nm,
-                                              torque_ratio)
+from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
+                                              input_torque_Nm, spin_loss_Nm, torque_ratio)
 
 RPM = 60.0 / (2.0 * np.pi)          # rad/s -> rpm
 FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than this = not followed
 DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
 N_POWER_TABLE = 65
+ACCEL_SHIFT_MPS2 = 0.1               # steps accelerating faster than this use shift_speed_accel_rpm
 
 
 def power_speed_table(va: VehicleArrays) -> np.ndarray:
@@ -147,12 +149,29 @@ class DifferentialSolver:
         return result
 
 
+def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, fueled, inertial_power_W=0.0,
+                             col=lambda a: a):
+    """The fuel equation (engine.py) with each vehicle's constants; ``col`` shapes the (V,)
+    parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles x steps arrays)."""
+    terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
+                               col(va.T_peak), col(va.throttled), inertial_power_W)
+    return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
+
+
+def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a):
+    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``."""
+    c = va.fuel_constants
+    return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
+                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]), col(va.throttled))
+
+
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
-    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the Willans line at
+    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
     idle speed and zero load."""
-    t0 = offset_torque_Nm(va.n_idle, va.displacement_L, va.pme0[:, 0], va.pme0[:, 1], va.pme0[:, 2])
-    willans = fuel_rate_g_per_s(0.0, va.n_idle, True, t0, va.eta_ind, va.lhv)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, willans)
+    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                va.idle_T_frac)
+    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
 
 
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
@@ -213,6 +232,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     p_need /= col(va.power_reserve * va.P_rated_kW * 1e3)
     n_req = _lookup_rows(va.power_table, rows, p_need)  # n_power, then clamped in place:
     np.maximum(col(va.shift_min_rpm), n_req, out=n_req)
+    # while accelerating, the schedule holds a gear up to a higher engine speed
+    np.maximum(np.where(accel > ACCEL_SHIFT_MPS2, col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
     np.minimum(n_req, col(va.n_rated), out=n_req)
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
     k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
@@ -221,6 +242,12 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     axle_low = va.combo_axle_low.reshape(-1)[flat_k]
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
     gear = va.combo_gear.reshape(-1)[flat_k]
+    if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
+        cvt = col(va.cvt)
+        ratio = cvt_ratio(wheel_rpm * col(va.final_drive), n_req, col(va.cvt_ratio_range[:, 0]),
+                          col(va.cvt_ratio_range[:, 1]))
+        trans_ratio = np.where(cvt, ratio, trans_ratio)
+        gear = np.where(cvt, np.where(ratio >= col(va.cvt_ratio_range[:, 0]), 1, 2), gear)
     if not all_moving:
         axle_low &= moving
         gear = np.where(moving, gear, 0)
@@ -254,15 +281,16 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         diff_eff = np.where(turning, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
 
     # gearbox
-    trans_torque = input_torque_Nm(diff_torque, trans_ratio, gear_eff)
+    turbine_rpm = diff_rpm * trans_ratio
+    spin = spin_loss_Nm(turbine_rpm, col(va.spin_loss[:, 0]), col(va.spin_loss[:, 1]))
+    trans_torque = input_torque_Nm(diff_torque, trans_ratio, gear_eff, spin)
     if not all_moving:
         trans_torque = np.where(moving, trans_torque, 0.0)
-    turbine_rpm = diff_rpm * trans_ratio
     idle = col(va.n_idle)
 
-    # torque converter (automatic) or clutch (manual)
+    # torque converter (automatic, CVT) or clutch (manual, automated manual)
     auto = col(va.automatic)
-    unlocked = auto & ((gear == 1) | (turbine_rpm < col(va.lockup_rpm)))
+    unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, col(va.lockup_rpm), col(va.has_lockup))
     drive = trans_torque > 0
     engine_rpm = turbine_rpm.copy()
     engine_torque = trans_torque.copy()
@@ -296,8 +324,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     # engine limits: full load (shortfall) and motoring (the rest is brakes)
     t_max = full_load_torque_Nm(engine_rpm, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), idle,
                                 col(va.n_peak_torque), col(va.idle_T_frac))
-    pme0 = va.pme0
-    t_offset = offset_torque_Nm(engine_rpm, col(va.displacement_L), col(pme0[:, 0]), col(pme0[:, 1]), col(pme0[:, 2]))
+    t_offset = engine_motoring_torque_Nm(va, engine_rpm, col)
     infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
@@ -305,8 +332,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     # the rest, so the reported engine torque is never below -T_0
     engine_torque = np.maximum(engine_torque, -t_offset)
     fueled = ~(overrun & (engine_rpm >= col(va.fuel_cut_rpm)))
-    fuel = fuel_rate_g_per_s(np.maximum(engine_torque_fuel, 0.0), engine_rpm, fueled, t_offset,
-                             col(va.eta_ind), col(va.lhv))
+    inertial_W = col(va.mass_kg * (1.0 + va.rot_frac)) * accel * v_avg
+    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, col)
     idle_fuel = col(va.idle_fuel_g_s)
     at_idle = (unlocked & ~drive) & np.isfinite(idle_fuel)
     np.copyto(fuel, idle_fuel, where=at_idle)

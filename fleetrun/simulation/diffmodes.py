@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from fleetrun import __version__
-from fleetrun.errors import FleetrunError, InputError
+from fleetrun.errors import FleetrunError
 from fleetrun.fileio import atomic_file
 
 MODES = ("direct", "map2d", "map3d")
@@ -262,6 +262,22 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     return gears, maps
 
 
+def outside_map3d_grid(configuration: str, gear_ratio: float) -> bool:
+    """Whether ``gear_ratio`` lies beyond the cached map3d gear-ratio grid of the configuration's
+    duty (``GEAR_GRID``); map3d then uses maps built at the vehicle's own ratio (as map2d)."""
+    gears = GEAR_GRID[duty_of(configuration)]
+    return not gears[0] <= float(gear_ratio) <= gears[-1]
+
+
+def own_ratio_maps(configuration, gear_ratio, low_gear_ratio, physics, ambient_temp_C=None, kim_scale_Nm=None):
+    """Inverse maps (2, N_U, N_SPEED) of both axle ranges at the vehicle's own gear ratio (map2d)."""
+    high = inverse_map(configuration, gear_ratio, low_gear_ratio, False, physics, ambient_temp_C, kim_scale_Nm)
+    if low_gear_ratio is None:
+        return np.stack([high, high])
+    low = inverse_map(configuration, gear_ratio, low_gear_ratio, True, physics, ambient_temp_C, kim_scale_Nm)
+    return np.stack([high, low])
+
+
 def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient_temp_C=None, cache_dir=None,
                  kim_scales_Nm=None):
     """Inverse maps per distinct differential: (maps (M, 2, N_U, N_SPEED), map index per vehicle (V,),
@@ -269,7 +285,8 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
 
     ``low_ratios`` holds NaN for single-speed axles. map2d evaluates the model at each distinct
     (configuration, G, low[, Kim scale]); map3d interpolates the cached gear-ratio maps linearly
-    in G. ``kim_scales_Nm`` (V,): the vehicles' Kim scales, part of the key only for physics
+    in G, and builds a vehicle's own maps as map2d does when G lies beyond the grid
+    (:func:`outside_map3d_grid`; the run notes those vehicles in its warnings). ``kim_scales_Nm`` (V,): the vehicles' Kim scales, part of the key only for physics
     that is not scale-free (:func:`map_torque_scale_Nm`).
     """
     V = len(configurations)
@@ -285,18 +302,13 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
     grids = {}
     for (cfg, G, lowv, scale), m in keys.items():
         n_max[m] = speed_grid(cfg)[-1]
-        if mode == "map2d":
-            hi = inverse_map(cfg, G, lowv, False, physics, ambient_temp_C, scale)
-            maps[m, 0] = hi
-            maps[m, 1] = inverse_map(cfg, G, lowv, True, physics, ambient_temp_C, scale) if lowv is not None else hi
+        if mode == "map2d" or outside_map3d_grid(cfg, G):
+            # map2d, or a ratio beyond the cached grid: the maps at the vehicle's own ratio
+            maps[m] = own_ratio_maps(cfg, G, lowv, physics, ambient_temp_C, scale)
             continue
         if (cfg, lowv, scale) not in grids:
             grids[(cfg, lowv, scale)] = map3d(cfg, lowv, physics, ambient_temp_C, cache_dir, scale)
         gears, grid_maps = grids[(cfg, lowv, scale)]
-        if not gears[0] <= G <= gears[-1]:
-            raise InputError(f"final_drive_ratio {G:g} is outside the map3d gear-ratio grid "
-                             f"{gears[0]:g}-{gears[-1]:g} of {cfg}", column="final_drive_ratio", value=G,
-                             hint="Use --mode map2d or direct for this vehicle")
         i = min(int(np.searchsorted(gears, G, side="right")) - 1, gears.size - 2)
         w = (G - gears[i]) / (gears[i + 1] - gears[i])
         maps[m] = (1.0 - w) * grid_maps[:, i] + w * grid_maps[:, i + 1]

@@ -1,41 +1,139 @@
-"""Engine: full-load torque curve and fuel rate (Willans line), gasoline and diesel.
+"""Engine: full-load torque curve, friction, pumping and fuel rate (gasoline and diesel).
 
-Fuel (Willans line; Heywood 1988, Sec. 13.5; Guzzella & Sciarretta 2013, Eq. 3.9): the fuel
-power is the engine's brake power plus a speed-dependent offset (friction and pumping),
-divided by an indicated efficiency,
+Fuel (a Willans line whose offset is built from Chen-Flynn friction, throttle pumping and an
+accessory load, and whose slope rises at high load):
 
-    m_dot = (T_e + T_0(n)) * omega / (eta_ind * LHV),   T_0 = p_me0(n) V_d / (4 pi),
+    m_dot LHV = [ P_b (1 + k_hl L) + (FMEP + PMEP) V_d omega / (4 pi) + P_acc + k_tr P_acc+ ] / eta_ind
 
-with the offset mean effective pressure p_me0 = a + b (n/1000) + c (n/1000)^2 (the
-Chen-Flynn / Patton-Nitschke-Heywood form). Idle fuel is the same line at idle speed and
-zero load unless the vehicle gives ``idle_fuel_g_per_s``; on overrun above the fuel cut-off
-speed the injectors are shut (m_dot = 0). Displacement, rated power and speed default from
-peak torque (``models/engines.toml``) when the row leaves them blank.
+- P_b = T_e omega the brake power (T_e >= 0), L = T_e / T_max(n) the load fraction;
+- FMEP = f_0 + f_cm c_m + f_pk bmep_max: Chen & Flynn (SAE 650733, 1965; Heywood 1988,
+  Eq. 13.16) write the friction mean effective pressure as A + B p_max + C c_m + D c_m^2 with
+  c_m = 2 S n the mean piston speed and p_max the peak cylinder pressure; here p_max is taken
+  in proportion to the engine's peak brake mean effective pressure bmep_max = 4 pi T_peak / V_d
+  (a boosted engine of high specific torque has higher peak pressures and bearing loads), and
+  the c_m^2 term is left out (the certification cycles do not separate it from c_m). The
+  same linear-in-c_m friction appears in the JRC CO2MPAS normalised fuel map,
+  BMEP = (a + b c_m + c c_m^2) FuMEP - (l + l2 c_m^2);
+- PMEP = p_th (1 - L) for throttled (spark-ignition) engines: the intake is throttled to the
+  load, so the pumping work falls from about p_th at closed throttle to 0 at full load
+  (Heywood 1988, Sec. 13.3); unthrottled diesels have PMEP = 0;
+- P_acc: a constant accessory load (alternator, pumps) while the engine runs (EPA ALPHA
+  models it as a constant electrical plus mechanical accessory power);
+- k_hl: the fall of efficiency towards full load (enrichment and spark retard of gasoline
+  engines; smoke-limited injection of diesels): the Willans slope rises by k_hl at full load;
+- P_acc+ = max(m (1 + f_rot) a v, 0), the power going into the vehicle's kinetic energy, and
+  k_tr the extra fuel an acceleration costs beyond its brake work: the acceleration term of
+  the ARRB power-based fuel model (Bowyer, Akcelik & Biggs 1985, ARRB Special Report 39;
+  Akcelik & Besley 2003), which lumps what a backward model at 1 Hz does not resolve during
+  accelerations: transient enrichment and wall-wetting (Heywood 1988, Sec. 7.6), converter
+  slip and the lower gears of real shift schedules while accelerating, the engine's own
+  inertia. Fitted on the EPA list, it is what separates the city and US06 fuel from the
+  highway's (docs/validation-epa.md).
+
+The equation is linear in the eight coefficients (1, k_hl, f_0, f_cm, f_pk, p_th, P_acc, k_tr)
+/ eta_ind, so :func:`fuel_power_terms_W` returns its terms and :func:`fuel_rate_g_per_s`
+weights them: the fleet-wide calibration (validation/epa_fuel_economy.py) sums the same terms
+over each cycle and fits the coefficients by least squares. Idle is the same equation at idle
+speed and zero load unless the vehicle gives ``idle_fuel_g_per_s``; on overrun above the fuel
+cut-off speed the injectors are shut. Engine braking is limited to the motoring torque
+(friction and closed-throttle pumping, :func:`motoring_torque_Nm`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 RPM_RAD_S = 2.0 * np.pi / 60.0
+FUEL_TERMS = ("brake", "brake_high_load", "friction", "friction_piston_speed", "friction_peak_pressure",
+              "pumping", "accessory", "transient")
 
 
-def offset_torque_Nm(speed_rpm, displacement_L, a_kPa, b_kPa, c_kPa):
-    """Willans offset torque T_0 = p_me0 V_d / (4 pi) [N m] of a four-stroke engine."""
-    k = np.asarray(speed_rpm, float) / 1000.0
-    if not (isinstance(k, np.ndarray) and k.ndim and k.shape == np.broadcast_shapes(
-            k.shape, np.shape(displacement_L), np.shape(a_kPa), np.shape(b_kPa), np.shape(c_kPa))):
-        pme0_Pa = 1e3 * (a_kPa + k * (b_kPa + c_kPa * k))
-        return pme0_Pa * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi)
-    # the same arithmetic in place (vehicles x steps arrays, per-vehicle parameters)
-    t = np.multiply(c_kPa, k, out=np.empty(k.shape))
-    t += b_kPa
-    t *= k
-    t += a_kPa
-    t *= 1e3
-    t *= np.asarray(displacement_L, float)
-    t *= 1e-3
-    t /= 4.0 * np.pi
-    return t
+def stroke_m(displacement_L, cylinders, bore_stroke_ratio=1.0):
+    """Stroke S [m] of ``cylinders`` equal cylinders of bore B = ratio x S sweeping ``displacement_L``.
+
+    V_cyl = pi/4 B^2 S  ->  S = (4 V_cyl / (pi ratio^2))^(1/3); square engines (ratio 1) by default.
+    """
+    v_cyl = np.asarray(displacement_L, float) * 1e-3 / np.asarray(cylinders, float)
+    return np.cbrt(4.0 * v_cyl / (np.pi * np.asarray(bore_stroke_ratio, float) ** 2))
+
+
+def mean_piston_speed_m_s(speed_rpm, stroke_m):
+    """Mean piston speed c_m = 2 S n [m/s] (Heywood 1988, Eq. 2.2)."""
+    return 2.0 * np.asarray(stroke_m, float) * np.asarray(speed_rpm, float) / 60.0
+
+
+def mep_power_W_per_kPa(speed_rpm, displacement_L):
+    """Power [W] of 1 kPa of mean effective pressure in a four-stroke engine: V_d omega / (4 pi)."""
+    return np.asarray(displacement_L, float) * 1e-3 * np.asarray(speed_rpm, float) * RPM_RAD_S * 1e3 / (4.0 * np.pi)
+
+
+def load_fraction(torque_Nm, max_torque_Nm):
+    """L = T_e / T_max in [0, 1] (0 on overrun)."""
+    return np.clip(np.maximum(torque_Nm, 0.0) / np.maximum(max_torque_Nm, 1e-9), 0.0, 1.0)
+
+
+def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stroke_m, peak_torque_Nm, throttled,
+                       inertial_power_W=0.0):
+    """The eight terms of the fuel equation (module docstring), in the order of FUEL_TERMS.
+
+    Parameters
+    ----------
+    torque_Nm : brake torque T_e (negative on overrun: no brake power).
+    speed_rpm : engine speed n.
+    max_torque_Nm : full-load torque at n (:func:`full_load_torque_Nm`).
+    displacement_L, stroke_m, peak_torque_Nm : the engine's V_d, S and T_peak.
+    throttled : bool, True for spark-ignition (gasoline) engines.
+    inertial_power_W : m (1 + f_rot) a v of the vehicle (only its positive part counts).
+
+    Returns a list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
+    x c_m [m/s], T_peak omega (the bmep_max term: f_pk bmep_max V_d omega / (4 pi) = f_pk T_peak
+    omega), mep power x (1 - L) for throttled engines, 1, max(inertial power, 0).
+    """
+    n = np.asarray(speed_rpm, float)
+    omega = n * RPM_RAD_S
+    brake = np.maximum(torque_Nm, 0.0) * omega
+    load = load_fraction(torque_Nm, max_torque_Nm)
+    mep = mep_power_W_per_kPa(n, displacement_L)
+    return [brake, brake * load, mep, mep * mean_piston_speed_m_s(n, stroke_m), peak_torque_Nm * omega,
+            np.where(throttled, mep * (1.0 - load), 0.0), np.ones(np.shape(mep)),
+            np.broadcast_to(np.maximum(inertial_power_W, 0.0), np.shape(mep))]
+
+
+def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m,
+                      fmep_peak_fraction, pmep_throttle_kPa, accessory_power_W, transient_factor):
+    """Weights of :func:`fuel_power_terms_W`: (1, k_hl, f_0, f_cm, f_pk, p_th, P_acc, k_tr) / eta_ind.
+
+    Parameters (units as in the names; fitted fleet-wide in models/engine_calibration.toml):
+    eta_indicated (Willans slope), high_load_factor (k_hl), fmep_0_kPa (f_0),
+    fmep_piston_speed_kPa_s_per_m (f_cm), fmep_peak_fraction (f_pk, of bmep_max),
+    pmep_throttle_kPa (p_th), accessory_power_W (P_acc), transient_factor (k_tr).
+    """
+    parts = (1.0, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction,
+             pmep_throttle_kPa, accessory_power_W, transient_factor)
+    return [np.asarray(p, float) / eta_indicated for p in parts]
+
+
+def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
+    """Fuel rate [g/s] = sum(coefficient x term) / LHV; 0 where ``fueled`` is False (fuel cut-off).
+
+    Never negative. ``terms`` from :func:`fuel_power_terms_W`, ``coefficients`` from
+    :func:`fuel_coefficients` (arrays that broadcast against the terms).
+    """
+    shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
+    power = np.zeros(shape)
+    for term, c in zip(terms, coefficients):   # in place: vehicles x steps arrays
+        power += term * c
+    np.maximum(power, 0.0, out=power)
+    power /= np.asarray(lhv_MJ_per_kg, float) * 1e3
+    return np.where(fueled, power, 0.0)
+
+
+def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep_0_kPa,
+                       fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction, pmep_throttle_kPa, throttled):
+    """Torque [N m] to turn the unfuelled engine: friction plus closed-throttle pumping,
+    (FMEP + PMEP(L=0)) V_d / (4 pi) with FMEP as in the module docstring."""
+    cm = mean_piston_speed_m_s(speed_rpm, stroke_m)
+    fmep_kPa = fmep_0_kPa + fmep_piston_speed_kPa_s_per_m * cm + np.where(throttled, pmep_throttle_kPa, 0.0)
+    return fmep_kPa * 1e3 * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi) + fmep_peak_fraction * peak_torque_Nm
 
 
 def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_rpm,
@@ -70,22 +168,3 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     np.clip(governor, 0.0, 1.0, out=governor)
     torque *= governor
     return torque
-
-
-def fuel_rate_g_per_s(torque_Nm, speed_rpm, fueled, offset_Nm, eta_indicated, lhv_MJ_per_kg):
-    """Willans-line fuel rate [g/s]; 0 where ``fueled`` is False (deceleration fuel cut-off).
-
-    Never negative: at loads below the motoring line the engine is unfuelled.
-    """
-    omega = np.asarray(speed_rpm, float) * RPM_RAD_S
-    fuel_power_W = np.add(torque_Nm, offset_Nm)
-    if not (isinstance(fuel_power_W, np.ndarray) and fuel_power_W.ndim and fuel_power_W.shape == np.broadcast_shapes(
-            fuel_power_W.shape, np.shape(omega), np.shape(eta_indicated), np.shape(lhv_MJ_per_kg))):
-        fuel_power_W = np.maximum(fuel_power_W, 0.0) * omega / eta_indicated
-        return np.where(fueled, fuel_power_W / (lhv_MJ_per_kg * 1e3), 0.0)
-    # the same arithmetic in place (vehicles x steps arrays)
-    np.maximum(fuel_power_W, 0.0, out=fuel_power_W)
-    fuel_power_W *= omega
-    fuel_power_W /= eta_indicated
-    fuel_power_W /= lhv_MJ_per_kg * 1e3
-    return np.where(fueled, fuel_power_W, 0.0)

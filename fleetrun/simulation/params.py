@@ -8,7 +8,12 @@ docs/simulation.md):
 - displacement [L] = 4 pi T_peak / bmep_at_peak (when ``engine_displacement_L`` is blank);
 - rated speed from the set; rated power = rated_power_factor x T_peak x omega_rated;
 - torque-converter stall torque ratio = ``VehicleSpec.converter_ratio`` (the thesis'
-  "maximum torque converter torque ratio", Sec. 5.2.1.C, default 3.0 automatic).
+  "maximum torque converter torque ratio", Sec. 5.2.1.C, default 3.0 automatic);
+- the fuel-equation constants (``fleetrun/simulation/engine.py``) of light-duty engines from
+  the fleet-wide calibration ``models/engine_calibration.toml`` where it has them;
+- cylinders (when blank): the nearest of 3, 4, 6, 8 to displacement / 0.55 L; stroke = bore;
+- the gearbox kind: the optional ``gearbox_type`` column (automatic, automated_manual, cvt,
+  manual), else ``transmission``; a ``converter_lockup`` of ``no`` keeps the converter unlocked.
 """
 from __future__ import annotations
 
@@ -22,6 +27,7 @@ import numpy as np
 
 from fleetrun.errors import InputError
 from fleetrun.resources import models_dir
+from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
@@ -35,21 +41,68 @@ def _toml(name: str) -> dict:
         return tomllib.load(fh)
 
 
+CALIBRATION_FILE = "engine_calibration.toml"
+GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
+FUEL_CONSTANTS = ("eta_indicated", "high_load_factor", "fmep_0_kPa", "fmep_piston_speed_kPa_s_per_m",
+                  "fmep_peak_fraction", "pmep_throttle_kPa", "accessory_power_W", "transient_factor")
+
+
 def engine_defaults(fuel: str, duty_class: str) -> dict:
+    """The engine set of ``models/engines.toml`` for the fuel and duty class, with the fitted
+    constants of ``models/engine_calibration.toml`` (``[<fuel>.<duty>.constants]``) on top."""
     sets = _toml("engines.toml")
     if fuel not in sets:
         raise InputError(f"unknown fuel '{fuel}'", column="fuel", value=fuel,
                          hint="Use gasoline or diesel")
     by_duty = sets[fuel]
-    return dict(by_duty.get(duty_class, by_duty["LD"]))
+    duty = duty_class if duty_class in by_duty else "LD"
+    values = dict(by_duty[duty])
+    if (models_dir() / CALIBRATION_FILE).exists():
+        fitted = _toml(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
+        values.update({key: fitted[key]["value"] for key in FUEL_CONSTANTS if key in fitted})
+    return values
 
 
-def transmission_defaults(transmission: str) -> dict:
+def transmission_defaults(gearbox_type: str) -> dict:
     sets = _toml("transmissions.toml")
-    if transmission not in sets:
-        raise InputError(f"unknown transmission '{transmission}'", column="transmission",
-                         value=transmission, hint="Use automatic or manual")
-    return dict(sets[transmission])
+    if gearbox_type not in sets:
+        raise InputError(f"unknown gearbox_type '{gearbox_type}'", column="gearbox_type",
+                         value=gearbox_type, hint="Use " + ", ".join(GEARBOX_TYPES))
+    return dict(sets[gearbox_type])
+
+
+def gearbox_type(v: VehicleSpec) -> str:
+    """The optional ``gearbox_type`` column, else the CONTRACT ``transmission`` (automatic/manual)."""
+    value = (v.extra or {}).get("gearbox_type")
+    if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
+        return v.transmission
+    text = str(value).strip().lower().replace("-", "_").replace(" ", "_")
+    if text not in GEARBOX_TYPES:
+        raise InputError(f"vehicle '{v.vehicle_id}': unknown gearbox_type '{value}'", column="gearbox_type",
+                         value=value, hint="Use " + ", ".join(GEARBOX_TYPES))
+    return text
+
+
+def _yes_no(v: VehicleSpec, key: str, default: bool) -> bool:
+    value = (v.extra or {}).get(key)
+    if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
+        return default
+    text = str(value).strip().lower()
+    if text in ("yes", "y", "true", "1"):
+        return True
+    if text in ("no", "n", "false", "0"):
+        return False
+    raise InputError(f"vehicle '{v.vehicle_id}': {key} must be yes or no", column=key, value=value,
+                     hint="Write yes or no")
+
+
+def default_cylinders(displacement_L: float) -> int:
+    """The nearest of 3, 4, 6, 8 cylinders to displacement / 0.55 L (light-duty practice:
+    0.45-0.65 L per cylinder)."""
+    return min((3, 4, 6, 8), key=lambda c: abs(c - displacement_L / 0.55))
+
+
+CVT_STEPS = 12  # a CVT's range as geometric steps for the full-load table and the first guess
 
 
 def canonical(configuration: str) -> str:
@@ -95,7 +148,11 @@ class VehicleArrays:
     combo_gear: np.ndarray          # (V, K) 1-based transmission gear
     combo_gear_eff: np.ndarray      # (V, K)
     n_combos: np.ndarray
-    automatic: np.ndarray           # bool
+    automatic: np.ndarray           # bool: torque converter (automatic and CVT)
+    cvt: np.ndarray                 # bool: continuously variable (ratio range = first..last combo)
+    cvt_ratio_range: np.ndarray     # (V, 2) largest, smallest transmission ratio (CVT rows)
+    has_lockup: np.ndarray          # bool: the converter has a lock-up clutch
+    spin_loss: np.ndarray           # (V, 2) gearbox spin loss a [N m], b [N m per 1000 rpm]
     stall_TR: np.ndarray
     K_tc: np.ndarray
     lockup_rpm: np.ndarray
@@ -108,11 +165,13 @@ class VehicleArrays:
     n_peak_torque: np.ndarray
     idle_T_frac: np.ndarray
     displacement_L: np.ndarray
-    pme0: np.ndarray                # (V, 3) kPa
-    eta_ind: np.ndarray
+    stroke_m: np.ndarray
+    throttled: np.ndarray           # bool: spark ignition (gasoline)
+    fuel_constants: np.ndarray      # (V, 8) params.FUEL_CONSTANTS (engine.fuel_coefficients)
     lhv: np.ndarray
     density: np.ndarray
     shift_min_rpm: np.ndarray
+    shift_accel_rpm: np.ndarray     # lowest engine speed while accelerating
     power_reserve: np.ndarray
     fuel_cut_rpm: np.ndarray
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
@@ -172,7 +231,8 @@ def _row(v: VehicleSpec) -> dict:
     """One vehicle's checked parameters with defaults filled in."""
     _check(v)
     eng = engine_defaults(v.fuel, v.duty_class)
-    trn = transmission_defaults(v.transmission)
+    box = gearbox_type(v)
+    trn = transmission_defaults(box)
     cfg = canonical(v.configuration)
     dual = cfg in DUAL_CONFIGURATIONS
     low = float(v.low_gear_ratio) if dual else 1.0
@@ -183,16 +243,21 @@ def _row(v: VehicleSpec) -> dict:
                eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+    cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
+    if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
+        hi, lo = max(gears), min(gears)
+        gears = tuple(hi * (lo / hi) ** (i / (CVT_STEPS - 1)) for i in range(CVT_STEPS)) if hi > lo else (hi,)
     g_eff = _get(v, "gear_efficiency", trn["gear_efficiency"])
-    d_eff = _get(v, "direct_gear_efficiency", trn["direct_gear_efficiency"])
+    d_eff = _get(v, "direct_gear_efficiency", trn.get("direct_gear_efficiency", g_eff))
     combos = []
     for i, g in enumerate(gears):
-        eff = d_eff if abs(g - 1.0) < 0.02 else g_eff
+        eff = d_eff if abs(g - 1.0) < 0.02 and box != "cvt" else g_eff
         combos.append((g, False, i + 1, eff, g))
         if dual:
             combos.append((g, True, i + 1, eff, g * low))
     combos.sort(key=lambda c: -c[4])
+    converter = box in ("automatic", "cvt")
     return dict(
         cfg=cfg,
         mass=float(v.test_weight_kg),
@@ -200,8 +265,11 @@ def _row(v: VehicleSpec) -> dict:
         coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
         radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
         fd=float(v.final_drive_ratio), low=low, kim=v.kim_scale_Nm, combos=combos,
-        auto=v.transmission == "automatic",
-        stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio),
+        auto=converter, cvt=box == "cvt", cvt_range=(max(gears), min(gears)),
+        lockup_clutch=_yes_no(v, "converter_lockup", True),
+        spin=(_get(v, "spin_loss_Nm_at_0", trn["spin_loss_Nm_at_0"]),
+              _get(v, "spin_loss_Nm_per_krpm", trn["spin_loss_Nm_per_krpm"])),
+        stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio if converter else 1.0),
         # a converter that stalls above the engine's torque band could never hold full
         # torque: the default stall speed is at most 3/4 of rated speed
         stall_rpm=_get(v, "stall_speed_rpm", min(trn.get("stall_speed_rpm", 2000.0), 0.75 * n_rated)),
@@ -210,13 +278,13 @@ def _row(v: VehicleSpec) -> dict:
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
         n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
         idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
-        disp=disp,
-        pme0=(_get(v, "pme0_a_kPa", eng["pme0_a_kPa"]), _get(v, "pme0_b_kPa", eng["pme0_b_kPa"]),
-              _get(v, "pme0_c_kPa", eng["pme0_c_kPa"])),
-        eta=_get(v, "eta_indicated", eng["eta_indicated"]),
+        disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
+        throttled=v.fuel == "gasoline",
+        fuel_constants=tuple(_get(v, key, eng[key]) for key in FUEL_CONSTANTS),
         lhv=_get(v, "lhv_MJ_per_kg", eng["lhv_MJ_per_kg"]),
         rho=_get(v, "density_kg_per_L", eng["density_kg_per_L"]),
-        shift=_get(v, "shift_speed_min_rpm", eng["shift_speed_min_rpm"]),
+        shift=_get(v, "shift_speed_min_rpm", trn.get("shift_speed_min_rpm", eng["shift_speed_min_rpm"])),
+        shift_accel=_get(v, "shift_speed_accel_rpm", trn.get("shift_speed_accel_rpm", 0.0)),
         reserve=_get(v, "power_reserve", eng["power_reserve"]),
         cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
         idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
@@ -240,11 +308,15 @@ def _gather(rows: list) -> VehicleArrays:
         final_drive=a("fd"), low_ratio=a("low"), kim_Nm=a("kim"),
         combo_trans_ratio=ctr, combo_axle_low=clow, combo_gear=cg, combo_gear_eff=ceff,
         n_combos=np.array([len(r["combos"]) for r in rows]),
-        automatic=np.array([r["auto"] for r in rows], bool), stall_TR=a("stall_TR"),
+        automatic=np.array([r["auto"] for r in rows], bool), cvt=np.array([r["cvt"] for r in rows], bool),
+        cvt_ratio_range=np.array([r["cvt_range"] for r in rows], float).reshape(V, 2),
+        has_lockup=np.array([r["lockup_clutch"] for r in rows], bool),
+        spin_loss=np.array([r["spin"] for r in rows], float).reshape(V, 2), stall_TR=a("stall_TR"),
         K_tc=a("stall_rpm") / np.sqrt(T_peak), lockup_rpm=a("lockup"), launch_rpm=a("launch"),
         T_peak=T_peak, P_rated_kW=a("P"), n_rated=a("n_rated"), n_idle=a("n_idle"),
         n_peak_torque=a("n_pk"), idle_T_frac=a("idle_T"), displacement_L=a("disp"),
-        pme0=np.array([r["pme0"] for r in rows], float).reshape(V, 3), eta_ind=a("eta"),
-        lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), power_reserve=a("reserve"),
+        stroke_m=a("stroke"), throttled=np.array([r["throttled"] for r in rows], bool),
+        fuel_constants=np.array([r["fuel_constants"] for r in rows], float).reshape(V, len(FUEL_CONSTANTS)),
+        lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
     )

@@ -12,9 +12,9 @@ temperature ``T`` [C] (oil temperature = node temperature). Constants: ``models/
   ``T = T_amb + (T_end - T_amb) exp(-t / tau)``.
 - **Extra fuel while cold** (only where the warm engine burns fuel; not in fuel cut-off):
   rubbing friction rises with the oil's viscosity, ``T_f,cold = s T_0 (nu(T)/nu(T_open))^n``
-  with ``T_0`` the Willans offset torque (friction + pumping, ``engine.offset_torque_Nm``) and
-  s its rubbing share; the extra torque costs fuel along the Willans line,
-  ``dm = dT_f omega / (eta_ind LHV)``. Gasoline engines are also enriched (and their spark
+  with ``T_0`` the warm motoring torque (friction + closed-throttle pumping,
+  ``engine.motoring_torque_Nm``) and s its rubbing share; the extra torque costs fuel along the
+  Willans slope, ``dm = dT_f omega / (eta_ind LHV)``. Gasoline engines are also enriched (and their spark
   retarded to light the catalyst): ``e(T) m_dot`` with e falling linearly from ``e_25`` at
   25 C to 0 at ``T_open``. The oil's viscosity is Walther's equation
   (:mod:`fleetrun.physics.lubricant`, thesis Eqs 5.13-5.14) through two points of an
@@ -37,7 +37,8 @@ import numpy as np
 
 from fleetrun.physics.lubricant import KELVIN, walther_coefficients, walther_kinematic_viscosity_m2_s
 from fleetrun.resources import models_dir
-from fleetrun.simulation.engine import fuel_rate_g_per_s, offset_torque_Nm
+from fleetrun.simulation.core import engine_motoring_torque_Nm
+from fleetrun.simulation.engine import RPM_RAD_S, fuel_rate_g_per_s
 
 REFERENCE_COLD_C = 25.0      # engine temperature at which the enrichment share is e_25 [C]
 FIXED_POINT_TOL_G = 1e-9     # fuel per step [g]: the forward pass' iteration tolerance
@@ -178,7 +179,7 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     """Extra fuel rate of a cold engine [g/s] and the engine temperature [C], both (V, N).
 
     ``va``: the vehicles' simulation parameters (``fleetrun.simulation.params.VehicleArrays``:
-    ``displacement_L``, ``pme0``, ``eta_ind``, ``lhv``, ``fuel``); ``fuel_rate`` [g/s] and
+    ``displacement_L``, the fuel constants, ``lhv``, ``fuel``); ``fuel_rate`` [g/s] and
     ``engine_speed_rpm`` (V, N): the warm engine's, every step (0 where the engine is off);
     ``dt_s`` (N,) step durations [s]; ``step_soak_s``, ``start_temp_C``, ``ambient_temp_C``
     as for :func:`engine_temperature_C`. Fixed-point iteration: the extra fuel also heats the
@@ -191,8 +192,8 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     walther = np.array([k.oil_walther.get(f, k.oil_walther["gasoline"]) for f in fuels])
     enrich = col([k.enrichment_at_25C.get(f, 0.0) for f in fuels])
     capacity = engine_heat_capacity_J_per_K(va.displacement_L, k.heat_capacity_J_per_K_per_L)
-    offset = offset_torque_Nm(engine_speed_rpm, col(va.displacement_L), col(va.pme0[:, 0]), col(va.pme0[:, 1]),
-                              col(va.pme0[:, 2]))
+    offset = engine_motoring_torque_Nm(va, engine_speed_rpm, col)
+    slope = 1.0 / col(va.fuel_constants[:, 0])   # 1 / eta_indicated
     burning = fuel_rate > 0
     dt = np.asarray(dt_s, float)[None, :]
     extra = np.zeros_like(fuel_rate)
@@ -201,7 +202,7 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
                                     ambient_temp_C, k)
         ratio = oil_viscosity_ratio(temp, k.thermostat_temp_C, walther[:, :1], walther[:, 1:])
         friction = cold_friction_torque_Nm(offset, k.friction_share, ratio, k.viscosity_exponent)
-        new = fuel_rate_g_per_s(friction, engine_speed_rpm, burning, 0.0, col(va.eta_ind), col(va.lhv))
+        new = fuel_rate_g_per_s([friction * engine_speed_rpm * RPM_RAD_S], [slope], burning, col(va.lhv))
         new += enrichment_fraction(temp, k.thermostat_temp_C, enrich) * fuel_rate
         converged = np.max(np.abs(new - extra) * dt, initial=0.0) <= FIXED_POINT_TOL_G
         extra = new

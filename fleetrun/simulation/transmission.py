@@ -59,14 +59,51 @@ def capacity_factor(stall_speed_rpm, peak_torque_Nm, stall_torque_ratio=None):
     return np.asarray(stall_speed_rpm, float) / np.sqrt(np.asarray(peak_torque_Nm, float))
 
 
-def input_torque_Nm(output_torque_Nm, ratio, efficiency):
-    """Gearbox input torque for a demanded output torque (constant mesh efficiency).
+def input_torque_Nm(output_torque_Nm, ratio, efficiency, spin_loss_Nm=0.0):
+    """Gearbox input torque for a demanded output torque: mesh efficiency plus spin loss.
 
-    Drive: T_in = T_out / (r eta). Overrun (T_out < 0) is given the same loss magnitude as
-    drive at |T_out|: T_in = T_out / r + (1 - eta) |T_out| / (r eta).
+    Drive: T_in = T_out / (r eta) + T_spin. Overrun (T_out < 0) is given the same mesh loss
+    magnitude as drive at |T_out|: T_in = T_out / r + (1 - eta) |T_out| / (r eta) + T_spin.
+    The spin loss (:func:`spin_loss_Nm`) drags in either direction. This is the structure of
+    EPA ALPHA's transmission model (gear-mesh efficiency times a speed-dependent spin and pump
+    loss; Newman, Kargul & Barba, SAE 2015-01-1142) with one efficiency per gear kind.
     """
     T = np.asarray(output_torque_Nm, float)
-    return T / ratio + (1.0 - efficiency) * np.abs(T) / (ratio * efficiency)
+    return T / ratio + (1.0 - efficiency) * np.abs(T) / (ratio * efficiency) + spin_loss_Nm
+
+
+def spin_loss_Nm(input_speed_rpm, spin_loss_Nm_at_0, spin_loss_Nm_per_krpm):
+    """Gearbox spin and pump loss torque at the input [N m]: a + b n / 1000 (0 at standstill).
+
+    Parameters
+    ----------
+    input_speed_rpm : gearbox input (turbine) speed n.
+    spin_loss_Nm_at_0 : a, the pump and drag torque extrapolated to zero speed.
+    spin_loss_Nm_per_krpm : b, its rise per 1000 rpm (oil churning and clutch drag).
+    """
+    n = np.asarray(input_speed_rpm, float)
+    return np.where(n > 0, spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0, 0.0)
+
+
+def cvt_ratio(wheel_side_speed_rpm, required_engine_speed_rpm, max_ratio, min_ratio):
+    """Ratio of a continuously variable transmission: the engine speed the schedule asks for.
+
+    The same economy schedule as the stepped gearboxes (lowest engine speed with power
+    reserve, n_req), but met exactly, r = n_req / n_out, within the variator's range
+    [min_ratio, max_ratio] (the largest ratio at launch and at low speed). This is how
+    backward simulators drive a CVT on an operating line (e.g. FASTSim's and ADVISOR's CVT:
+    engine speed chosen for the power demand, ratio follows).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.asarray(required_engine_speed_rpm, float) / np.asarray(wheel_side_speed_rpm, float)
+    return np.clip(np.where(np.isfinite(r), r, max_ratio), min_ratio, max_ratio)
+
+
+def converter_unlocked(first_gear, turbine_speed_rpm, lockup_speed_rpm, has_lockup):
+    """Where an automatic's torque converter slips: always without a lock-up clutch (the EPA
+    list's ``Transmission Lockup?`` = N), else in first gear (at launch) and below the lock-up
+    turbine speed."""
+    return ~np.asarray(has_lockup, bool) | first_gear | (turbine_speed_rpm < lockup_speed_rpm)
 
 
 def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_speed_rpm, overall_ratios, n_ratios):
