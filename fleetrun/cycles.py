@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -225,13 +226,19 @@ def load_cycle(name_or_path) -> DriveCycle:
     by_norm = {_norm(n): n for n in files}
     if _norm(text) in by_norm:
         name = by_norm[_norm(text)]
-        return _read_cycle_file(files[name], name=name)
+        return _shipped_cycle(files[name], name)
     if Path(text).is_file():
         return read_cycle_csv(Path(text))
     raise unknown_name_error(
         "drive cycle", text, shipped_cycles(),
         hint="Names are case-insensitive; or give the path of a CSV file with time_s and "
              "one speed column (e.g. speed_mps)")
+
+
+@lru_cache(maxsize=64)
+def _shipped_cycle(path: Path, name: str) -> DriveCycle:
+    """A shipped cycle, read once per process (a DriveCycle's arrays are read-only)."""
+    return _read_cycle_file(path, name=name)
 
 
 def _read_cycle_file(path: Path, name: str | None = None) -> DriveCycle:

@@ -9,6 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 
+# VehicleSpec fields that do not change how a vehicle drives a cycle.
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
+                      "model_year")
+
+
 @dataclass(frozen=True)
 class VehicleSpec:
     vehicle_id: str
@@ -44,6 +49,14 @@ class VehicleSpec:
     cylinders: int | None = None
     nv_ratio_rpm_per_mph: float | None = None   # EPA N/V: engine rpm per mph in top gear
     extra: dict = field(default_factory=dict, compare=False)
+
+    def physics_key(self) -> tuple:
+        """What decides how the vehicle drives a cycle: every field but BOOKKEEPING_FIELDS
+        (rows equal in this key simulate once)."""
+        fields = tuple((name, value) for name, value in vars(self).items()
+                       if name not in BOOKKEEPING_FIELDS and name != "extra")
+        extra = tuple(sorted((k, repr(x)) for k, x in self.extra.items()))
+        return fields + (("extra", extra),)
 
     @property
     def converter_ratio(self) -> float:

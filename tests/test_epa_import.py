@@ -271,3 +271,21 @@ def test_real_list_cli_then_validate(tmp_path):
     assert set(csv["vehicle_id"]) <= ids
     both = csv.pivot_table(index="vehicle_id", columns="test", values="mpg")
     assert both[["FTP", "HWFET"]].notna().all(axis=1).mean() > 0.95
+
+
+def test_imported_powertrain_columns_reach_the_simulation(tmp_path):
+    """The agreed optional columns the importer writes (gearbox_type, converter_lockup,
+    cylinders) are what the simulation's parameters use, read back from the workbook."""
+    from fleetrun.simulation.engine import stroke_m
+    from fleetrun.simulation.params import vehicle_arrays
+
+    rows = [epa_row(**{"Test Vehicle ID": "CVT1", "Tested Transmission Type Code": "CVT", "# of Gears": 1,
+                       "Transmission Lockup?": "N", "# of Cylinders and Rotors": 6}),
+            epa_row(**{"Test Vehicle ID": "DCT1", "Tested Transmission Type Code": "AMS", "# of Gears": 7})]
+    out = tmp_path / "fleet.xlsx"
+    assert invoke(write_list(tmp_path / "l.csv", rows), "-o", out).exit_code == 0
+    cvt, dct = read_fleet(out).vehicles
+    arrays = vehicle_arrays([cvt, dct])
+    assert arrays.cvt.tolist() == [True, False] and arrays.automatic.tolist() == [True, False]
+    assert arrays.has_lockup.tolist() == [False, True]
+    assert arrays.stroke_m[0] == pytest.approx(stroke_m(2.487, 6))

@@ -246,3 +246,19 @@ def test_run_uses_the_composite(tmp_path):
     spec = read_fleet(path).vehicles[0]
     direct = simulate([spec], "FTP", ambient_temp_C=5.0)
     assert row.mpg == pytest.approx(direct.mpg[0], rel=1e-9)
+
+
+def test_thermal_constants_can_be_varied_per_call():
+    """The calibration's handle (simulate(..., thermal=...)): without enrichment and with
+    friction independent of viscosity (n = 0) a cold start costs nothing; a larger heat capacity
+    (slower warm-up) costs more."""
+    import dataclasses
+
+    k = thermal.thermal_constants()
+    free = dataclasses.replace(k, viscosity_exponent=0.0, enrichment_at_25C={"gasoline": 0.0, "diesel": 0.0})
+    r = simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=free).phases
+    first, _ = _warm_udds_bags(CAMRY, 0.0)
+    assert r["bag1"]["fuel_g"][0] == pytest.approx(first, rel=1e-12)
+    base = simulate([CAMRY], "FTP", ambient_temp_C=0.0).phases["bag1"]["fuel_g"][0]
+    slow = dataclasses.replace(k, heat_capacity_J_per_K_per_L=2 * k.heat_capacity_J_per_K_per_L)
+    assert simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=slow).phases["bag1"]["fuel_g"][0] > base

@@ -72,3 +72,25 @@ def test_validate_refuses_ratios_the_model_cannot_take(low_axle_fleet, value):
         text = result.stderr
         assert text.startswith("Error: ") and str(low_axle_fleet) in text
         assert f"Vehicles!{letter}3 final_drive_ratio: {value:g} must be at" in text
+
+
+def test_validate_names_the_cell_the_simulation_would_refuse(low_axle_fleet):
+    """An extra column the simulation reads (gear_efficiency overrides models/transmissions.toml)
+    holding text: the simulation's own check, reported by validate at its cell, and run stops
+    with the same line before simulating."""
+    book = load_workbook(low_axle_fleet)
+    sheet = book["Vehicles"]
+    column = sheet.max_column + 1
+    sheet.cell(row=1, column=column, value="gear_efficiency")
+    sheet.cell(row=2, column=column, value="abc")
+    book.save(low_axle_fleet)
+    letter = sheet.cell(row=2, column=column).column_letter
+    lines = []
+    for command in ("validate", "run"):
+        result = CliRunner().invoke(cli, [command, str(low_axle_fleet)])
+        assert result.exit_code == 1 and "Traceback" not in result.stderr
+        assert result.stderr.startswith(f"Error: {low_axle_fleet}: 1 problem")
+        line = next(t for t in result.stderr.splitlines() if "gear_efficiency" in t)
+        assert f"Vehicles!{letter}2 gear_efficiency:" in line and "'abc'" in line
+        lines.append(line)
+    assert lines[0] == lines[1]

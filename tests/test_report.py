@@ -16,7 +16,7 @@ from fleetrun.cli import cli
 from fleetrun.fleet import runner
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
-SHEETS = ["Summary", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
+SHEETS = ["Summary", "Assumptions", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
           "RunInfo"]
 
 
@@ -177,3 +177,97 @@ def test_scenario_without_vehicles_rows_is_fine(tmp_path):
     assert result.exit_code == 0, result.stderr
     row = read_csv(out / "results.csv").iloc[0]
     assert row.miles_total == 0 and row.fuel_gal_total == 0 and row.mpg > 0
+
+
+def _cell(wb, ref: str):
+    """The cell an absolute chart reference such as 'Efficiency maps'!$B$17 names."""
+    sheet, _, address = ref.rpartition("!")
+    return wb[sheet.strip("'")][address.replace("$", "")]
+
+
+def _cells(wb, ref: str):
+    sheet, _, address = ref.rpartition("!")
+    cells = wb[sheet.strip("'")][address.replace("$", "")]
+    return [c for row in cells for c in row]
+
+
+def test_efficiency_map_charts_point_at_the_rows_and_columns_their_legend_names(outputs):
+    """Issue 12: the map charts were one row off (legend showing efficiencies, first torque
+    row dropped, an empty row included). Read every series back and follow its references."""
+    from fleetrun.fleet.runner import MAP_SPEEDS_RPM, MAP_TORQUE_FRACTIONS
+
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    charts = wb["Efficiency maps"]._charts
+    assert len(charts) == 4   # LD_4WD, LD_FWD, LD_RWD, HD_TANDEM_DUAL
+    for chart in charts:
+        assert [s.tx.strRef for s in chart.series].count(None) == 0
+        legends = [_cell(wb, s.tx.strRef.f).value for s in chart.series]
+        assert legends == [f"{speed:g} rpm" for speed in MAP_SPEEDS_RPM]
+        for series, speed in zip(chart.series, MAP_SPEEDS_RPM):
+            legend = _cell(wb, series.tx.strRef.f)
+            values = _cells(wb, series.val.numRef.f)
+            categories = _cells(wb, series.cat.numRef.f)
+            # the values sit in the legend's column, directly below it, one per torque fraction
+            assert {c.column for c in values} == {legend.column}
+            assert [c.row for c in values] == list(range(legend.row + 1, legend.row + 1 + len(MAP_TORQUE_FRACTIONS)))
+            assert [c.value for c in categories] == list(MAP_TORQUE_FRACTIONS)
+            assert [c.row for c in categories] == [c.row for c in values]
+            # they are the losses (1 - efficiency) of the efficiency table above, same column
+            table_rows = len(MAP_TORQUE_FRACTIONS) + 1
+            efficiency = [wb["Efficiency maps"].cell(row=c.row - table_rows, column=c.column).value for c in values]
+            assert wb["Efficiency maps"].cell(row=legend.row - table_rows, column=legend.column).value == f"{speed:g} rpm"
+            assert [c.value for c in values] == [1.0 - e for e in efficiency]
+
+
+def test_every_chart_has_axis_titles_a_zero_based_value_axis_and_human_legends(outputs):
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    seen = 0
+    for ws in wb.worksheets:
+        for chart in ws._charts:
+            seen += 1
+            assert chart.x_axis.title is not None and chart.y_axis.title is not None, ws.title
+            assert chart.y_axis.scaling.min == 0, ws.title
+            for series in chart.series:
+                label = (series.tx.v if series.tx.v is not None else _cell(wb, series.tx.strRef.f).value)
+                assert "_" not in label, (ws.title, label)   # no field names such as state_tax_usd
+    assert seen == 7
+
+
+def test_every_sheet_has_a_page_setup(outputs):
+    wb = openpyxl.load_workbook(outputs / "report.xlsx")
+    for ws in wb.worksheets:
+        assert ws.sheet_properties.pageSetUpPr.fitToPage, ws.title
+        assert ws.page_setup.fitToWidth == 1, ws.title
+        assert ws.page_setup.orientation in ("landscape", "portrait"), ws.title
+    assert wb["Summary"].page_setup.fitToHeight == 1            # the Summary prints on one page
+    for name in ("ByClass", "ByVehicle", "Fiscal years"):
+        assert wb[name].print_title_rows == "$1:$1"             # the header row on every page
+    assert wb["ByClass"]["G2"].number_format == "0.00%"         # diff_efficiency in percent
+
+
+SOFFICE = next((p for p in map(__import__("shutil").which, ("soffice", "libreoffice")) if p), None)
+PDFTOTEXT = __import__("shutil").which("pdftotext")
+
+
+@pytest.mark.skipif(SOFFICE is None or PDFTOTEXT is None,
+                    reason="LibreOffice (libreoffice-calc-nogui) and poppler-utils are not installed")
+def test_report_prints_through_libreoffice(outputs, tmp_path):
+    """LibreOffice's PDF export: the Summary is one page, each sheet starts a page, and each
+    efficiency map (its two tables) stays on one page."""
+    import subprocess
+
+    subprocess.run([SOFFICE, "--headless", "--convert-to", "pdf", "--outdir", str(tmp_path),
+                    str(outputs / "report.xlsx")], check=True, capture_output=True, timeout=180,
+                   env={**__import__("os").environ, "HOME": str(tmp_path)})
+    pdf = tmp_path / "report.pdf"
+    text = subprocess.run([PDFTOTEXT, "-layout", str(pdf), "-"], check=True, capture_output=True,
+                          text=True).stdout
+    pages = text.split("\f")
+    assert "Fleet fuel and fuel-tax forecast" in pages[0] and "Headline" in pages[0]
+    assert "Summary, page 1 of" in pages[0] and "Assumptions, page 2 of" in pages[1]
+    maps = [p for p in pages if "gear ratio" in p and "vehicle type(s)" in p]
+    assert len(maps) == 4
+    for page in maps:
+        assert "efficiency \\ torque fraction" in page and "loss \\ torque fraction" in page
+        assert page.count("4000 rpm") >= 3   # both tables' headers and the chart legend
+    assert len(pages) <= 16

@@ -216,12 +216,45 @@ def test_summary_no_console_errors_and_class_table_equals_csv(browser, run_dir):
         for column, (value, text) in shown.items():
             assert value == expected[column], column
             if column not in ("scenario_id", "vehicle_class"):
-                number = float(text.replace("$", "").replace(",", ""))
+                number = float(text.replace("$", "").replace(",", "").replace("%", ""))
+                if text.endswith("%"):
+                    number /= 100.0
                 assert number == pytest.approx(float(value), rel=5e-3, abs=0.5), column
             else:
                 assert text == value
     assert browser.evaluate("document.querySelectorAll('svg.chart').length") >= 3
     assert browser.evaluate("document.getElementById('fingerprint').textContent").strip() != ""
+
+
+OVERFLOW_JS = """JSON.stringify([...document.querySelectorAll('body, body *')].filter(
+  el => el instanceof HTMLElement && getComputedStyle(el).display !== 'inline' && el.clientWidth > 0
+        && el.scrollWidth > el.clientWidth + 1).map(
+  el => `${el.tagName.toLowerCase()}#${el.id}.${el.className} ${el.scrollWidth}>${el.clientWidth}`))"""
+
+
+@pytest.mark.parametrize("width, mobile", [(390, True), (1366, False)])
+def test_no_block_overflows_at_phone_and_desktop_width(browser, run_dir, width, mobile):
+    """Issue 12: the class table overflowed its box at 1366 px and the charts ran off a 390 px
+    screen. Every block's content must fit its box (scrollWidth <= clientWidth), the page too."""
+    browser.send("Emulation.setDeviceMetricsOverride", width=width, height=900, deviceScaleFactor=1,
+                 mobile=mobile)
+    open_page(browser, run_dir / "summary.html")
+    assert json.loads(browser.evaluate(OVERFLOW_JS)) == []
+    assert browser.evaluate("document.documentElement.scrollWidth") <= width
+    # chart text stays readable: no SVG text drawn smaller than 8 px on screen
+    smallest = browser.evaluate("Math.min(...[...document.querySelectorAll('svg text')].map("
+                                "t => t.getBoundingClientRect().height).filter(h => h > 0))")
+    assert smallest >= 8
+
+
+def test_summary_shows_assumptions_fiscal_years_and_one_colour_scale(browser, run_dir):
+    open_page(browser, run_dir / "summary.html")
+    assert browser.evaluate("document.querySelectorAll('#assumptions tbody tr').length") >= 8
+    fiscal = pd.read_csv(run_dir / "fiscal_summary.csv", dtype=str, keep_default_na=False)
+    assert browser.evaluate("document.querySelectorAll('table.fiscal tbody tr').length") == len(fiscal)
+    assert browser.evaluate("document.querySelectorAll('svg.scale').length") == 1
+    cards = browser.evaluate("[...document.querySelectorAll('.card')].map(c => c.textContent).join('|')")
+    assert "State fuel tax" in cards and "Federal fuel tax" in cards and " to " in cards
 
 
 def test_summary_fits_a_phone_and_prints(browser, run_dir):

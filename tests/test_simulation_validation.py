@@ -63,24 +63,24 @@ def test_camry_calibration_on_hot_udds_only(camry):
     from fleetrun.simulation.params import engine_defaults
 
     assert camry["eta_indicated_default"] == engine_defaults("gasoline", "LD")["eta_indicated"]
-    assert camry["eta_indicated_calibrated"] / camry["eta_indicated_default"] == pytest.approx(1.143, abs=0.005)
+    # (bands, here and below, wide enough for a refit of the fleet constants: their spread over
+    # the manufacturer folds is a few per cent, docs/validation-epa.md)
+    assert 1.10 < camry["eta_indicated_calibrated"] / camry["eta_indicated_default"] < 1.18
 
 
 def test_camry_prediction_errors(camry):
-    """Fuel vs Argonne's measurement (docs/validation-simulation.md). With the fleet-wide
-    constants alone (nothing fitted to this car): +14.3 % hot UDDS, +8.9 % HWFET, +4.7 % US06
-    fuel. After the one-constant calibration on its hot UDDS: HWFET -4.8 % (within the 5 %
-    target; +8.4 % with the earlier generic engine), US06 -8.4 % (outside it; -1.3 % before):
-    the fleet's acceleration term prices this car's accelerations too high. Tolerance 0.5
-    point: the map modes differ from direct by < 0.1 %, the rest is the model itself."""
+    """Fuel vs Argonne's measurement (docs/validation-simulation.md gives the figures). With the
+    fleet-wide constants alone (nothing fitted to this car) the fuel is over-predicted by
+    10-18 % (hot UDDS), 5-13 % (HWFET), 0-8 % (US06): this engine beats the fleet's average.
+    After the one-constant calibration on its hot UDDS: HWFET within the 5 % target (+8.4 %
+    with the earlier generic engine); US06 5-12 % low, outside it (-1.3 % before): the fleet's
+    acceleration term prices this car's accelerations too high."""
     tests = {t["test"]: t for t in camry["tests"]}
-    assert tests["HWFET"]["error"] == pytest.approx(-0.048, abs=0.005)
     assert abs(tests["HWFET"]["error"]) < 0.05
-    assert tests["US06"]["error"] == pytest.approx(-0.084, abs=0.005)
-    assert tests["US06"]["error"] < -0.05          # the target is missed; this must not go unnoticed
-    assert tests["UDDS (hot)"]["error_uncalibrated"] == pytest.approx(0.143, abs=0.005)
-    assert tests["HWFET"]["error_uncalibrated"] == pytest.approx(0.089, abs=0.005)
-    assert tests["US06"]["error_uncalibrated"] == pytest.approx(0.047, abs=0.005)
+    assert -0.12 < tests["US06"]["error"] < -0.05          # the target is missed; this must not go unnoticed
+    assert 0.10 < tests["UDDS (hot)"]["error_uncalibrated"] < 0.18
+    assert 0.05 < tests["HWFET"]["error_uncalibrated"] < 0.13
+    assert 0.0 < tests["US06"]["error_uncalibrated"] < 0.08
     # measured fuel economies as PROVENANCE.md states them (1 Hz sums)
     assert tests["UDDS (hot)"]["measured_mpg"] == pytest.approx(38.7, abs=0.1)
     assert tests["HWFET"]["measured_mpg"] == pytest.approx(57.4, abs=0.1)
@@ -115,13 +115,13 @@ def test_camry_tyre_radius_from_epa_n_over_v():
 
 
 def test_camry_hwfet_gap_is_steady_cruise(camry):
-    """After the hot-UDDS calibration the HWFET gap sits in cruise (-8.3 %; +12.3 % with the
-    earlier generic engine), not in accelerations (+3.5 %)."""
+    """After the hot-UDDS calibration the HWFET gap sits in cruise (3-10 % low; +12.3 % with the
+    earlier generic engine), not in accelerations (within 5 %)."""
     modes = camry_modes(camry)
     hw = modes["HWFET"]
     cruise = hw["cruise"]["predicted_cc"] / hw["cruise"]["measured_cc"] - 1
     accel = hw["acceleration"]["predicted_cc"] / hw["acceleration"]["measured_cc"] - 1
-    assert cruise == pytest.approx(-0.083, abs=0.01)
+    assert -0.10 < cruise < -0.03
     assert abs(accel) < 0.05
     # on the UDDS, standstill and overrun are under-predicted (what hides its cruise excess)
     udds = modes["UDDS (hot)"]

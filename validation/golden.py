@@ -107,14 +107,14 @@ def diagnoses(out: Path, tmp: Path) -> None:
 
 
 def _canonical_json(raw: bytes, tmp: Path) -> str:
-    """diagnosis.json without what changes from run to run (timings, the temporary folder)."""
+    """diagnosis.json without what changes from run to run (timings, the temporary and checkout folders)."""
     def clean(obj):
         if isinstance(obj, dict):
             return {k: clean(v) for k, v in obj.items() if k != "timing_s"}
         if isinstance(obj, list):
             return [clean(v) for v in obj]
         if isinstance(obj, str):
-            return obj.replace(str(tmp), "<tmp>")
+            return obj.replace(str(tmp), "<tmp>").replace(str(ROOT), "<root>")
         return obj
     return json.dumps(clean(json.loads(raw)), indent=1, sort_keys=True)
 

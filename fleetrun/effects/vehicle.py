@@ -28,6 +28,9 @@ def marginal_fuel_g_per_J(fuel: str, drivetrain_efficiency: float = 1.0) -> floa
 def cold_start_extra_fuel(time_s, tau_s, engine_on=1.0):
     """Cold-start enrichment and friction: per g/s at the start, decaying as exp(-t/tau).
 
+    An empirical diagnosis signature for a recording simulated warm; the physics of a cold
+    engine in the simulation is ``fleetrun.simulation.thermal`` (docs/effects.md).
+
     Cold oil (thesis Sec. 3.1.2, 9.8: viscosity by Walther's equation, much higher when cold)
     and cold-start enrichment both fade with the engine's first-order warm-up; the Argonne
     cold/hot UDDS pairs (inputs/dyno) show the difference concentrated in the first phase.

@@ -33,7 +33,7 @@ from fleetrun.fleet.schema import VEHICLE_COLUMNS, columns_by_name
 class ImportResult:
     vehicles: list[dict] = field(default_factory=list)   # Vehicles rows (workbook column -> value)
     derived: list[dict] = field(default_factory=list)    # vehicle_id, column, value, rule
-    excluded: list[dict] = field(default_factory=list)   # identification + reason
+    excluded: list[dict] = field(default_factory=list)   # identification + rule + reason
     measured: list[dict] = field(default_factory=list)   # vehicle_id, test, mpg, ...
     rows_read: int = 0
     rows_selected: int = 0
@@ -76,7 +76,7 @@ def import_rows(table: pd.DataFrame, model_years=(), makes=()) -> ImportResult:
         measured = [] if reason else measured_results(rows, facts["fuel"])
         reason = reason or _signature_reason(measured)
         if reason:
-            result.excluded.append({**ident, "reason": reason})
+            result.excluded.append({**ident, "rule": reason[0], "reason": reason[1]})
             continue
         row, derived = vehicle_row(vehicle_id, facts)
         result.vehicles.append(row)
@@ -100,7 +100,7 @@ def _facts(rows: list[dict]) -> dict:
     return rows[0]
 
 
-def _electric_test_vehicles(records: list[dict]) -> dict[str, str]:
+def _electric_test_vehicles(records: list[dict]) -> dict[str, tuple[str, str]]:
     """Test vehicle id -> exclusion reason, for vehicles tested on electricity or hydrogen or
     in charge-depleting mode (every configuration of that test vehicle)."""
     seen: dict[str, set] = {}
@@ -113,30 +113,30 @@ def _electric_test_vehicles(records: list[dict]) -> dict[str, str]:
             flags.add("electric")
         if r["fuel"]:
             flags.add("fuel")
-    reasons: dict[str, str] = {}
+    reasons: dict[str, tuple[str, str]] = {}
     for tvid, flags in seen.items():
         if "hydrogen" in flags:
-            reasons[tvid] = "fuel-cell vehicle (tested on hydrogen): not modelled"
+            reasons[tvid] = ("fuel_cell", "fuel-cell vehicle (tested on hydrogen): not modelled")
         elif "electric" in flags and "fuel" in flags:
-            reasons[tvid] = "plug-in hybrid (charge-depleting or electricity tests): not modelled"
+            reasons[tvid] = ("plug_in_hybrid", "plug-in hybrid (charge-depleting or electricity tests): not modelled")
         elif "electric" in flags:
-            reasons[tvid] = "electric vehicle (tested on electricity): not modelled"
+            reasons[tvid] = ("electric", "electric vehicle (tested on electricity): not modelled")
     return reasons
 
 
-def _static_reason(rows: list[dict], f: dict) -> str | None:
-    """Why the vehicle's own facts rule it out, or None."""
+def _static_reason(rows: list[dict], f: dict) -> tuple[str, str] | None:
+    """(rule, reason) if the vehicle's own facts rule it out, else None."""
     c = rules.constants()
     pattern = rules.hybrid_name_match(f["model"])
     if pattern:
-        return f"hybrid (model name '{f['model']}' matches '{pattern}'): not modelled"
+        return "hybrid_name", f"hybrid (model name '{f['model']}' matches '{pattern}'): not modelled"
     if not f["fuel"]:
         fuels = "; ".join(sorted({r["fuel_description"] for r in rows})) or "none given"
-        return f"unsupported fuel ({fuels}): fleetrun models gasoline and diesel"
+        return "fuel", f"unsupported fuel ({fuels}): fleetrun models gasoline and diesel"
     if f["transmission_code"] not in c["transmissions"]:
-        return f"transmission type code '{f['transmission_code']}' is not modelled"
+        return "transmission", f"transmission type code '{f['transmission_code']}' is not modelled"
     if f["drive_code"] not in c["drives"]:
-        return f"drive system code '{f['drive_code']}' is not modelled"
+        return "drive", f"drive system code '{f['drive_code']}' is not modelled"
     power_kW = None if f["rated_hp"] is None else f["rated_hp"] * c["units"]["hp_to_kW"]
     checks = (("Axle Ratio", f["axle_ratio"], "final_drive_ratio", ""),
               ("N/V Ratio", f["nv_ratio"], "nv_ratio_rpm_per_mph", " rpm/mph"),
@@ -148,14 +148,14 @@ def _static_reason(rows: list[dict], f: dict) -> str | None:
               ("Target Coef C (lbf/mph**2)", f["coef_C_lbf_per_mph2"], None, ""))
     for label, value, range_key, unit in checks:
         if value is None or math.isnan(value):
-            return f"{label} is missing or not a number"
+            return "missing_value", f"{label} is missing or not a number"
         low, high = _range(range_key)
         if not low <= value <= high:
-            return f"{label} {value:.4g}{unit} is outside the usable range {low:g}-{high:g}{unit}"
+            return "out_of_range", f"{label} {value:.4g}{unit} is outside the usable range {low:g}-{high:g}{unit}"
     gearbox = c["transmissions"][f["transmission_code"]][0]
     if gearbox != "cvt" and (f["gears"] is None or rules.generic_gear_set(f["gears"]) is None):
         known = ", ".join(sorted(c["gears"], key=int))
-        return f"no generic gear set for {_plain(f['gears'])} gears (sets for {known})"
+        return "gear_count", f"no generic gear set for {_plain(f['gears'])} gears (sets for {known})"
     return None
 
 
@@ -170,11 +170,11 @@ def _range(key: str | None) -> tuple[float, float]:
     return tuple(rules.constants()["ranges"][key])
 
 
-def _signature_reason(measured: list[dict]) -> str | None:
+def _signature_reason(measured: list[dict]) -> tuple[str, str] | None:
     by_test = {m["test"]: m["mpg"] for m in measured}
     limit = rules.constants()["hybrids"]["city_highway_ratio"]
     if "FTP" in by_test and "HWFET" in by_test and by_test["FTP"] >= limit * by_test["HWFET"]:
         ratio = by_test["FTP"] / by_test["HWFET"]
-        return (f"hybrid signature: FTP composite {by_test['FTP']:.1f} mpg is {ratio:.0%} of HWFE "
+        return "hybrid_signature", (f"hybrid signature: FTP composite {by_test['FTP']:.1f} mpg is {ratio:.0%} of HWFE "
                 f"{by_test['HWFET']:.1f} mpg (conventional vehicles stay below {limit:.0%}): not modelled")
     return None

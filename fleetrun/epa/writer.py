@@ -8,6 +8,7 @@ rule that made it), ``Excluded`` (the configurations not modelled, with the reas
 """
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 import pandas as pd
@@ -22,7 +23,7 @@ from fleetrun.fleet.schema import SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COL
 MEASURED_COLUMNS = ("vehicle_id", "test", "mpg", "manufacturer", "make", "model", "model_year", "n_tests",
                     "test_numbers", "procedure", "csv_rows")
 DERIVED_COLUMNS = ("vehicle_id", "column", "value", "rule")
-EXCLUDED_COLUMNS = ("vehicle_id", "manufacturer", "make", "model", "model_year", "reason", "csv_rows")
+EXCLUDED_COLUMNS = ("vehicle_id", "manufacturer", "make", "model", "model_year", "rule", "reason", "csv_rows")
 
 
 def default_scenario() -> dict:
@@ -86,6 +87,9 @@ def _about(book, result: ImportResult, source: str, sha256: str, bold) -> None:
         ("vehicle configurations modelled (Vehicles)", len(result.vehicles)),
         ("configurations excluded (Excluded, with the reason)", len(result.excluded)),
         ("measured results (Measured)", len(result.measured)),
+        ("", None),
+        ("excluded, by rule (the first that applies)", None),
+        *sorted(Counter(e["rule"] for e in result.excluded).items(), key=lambda kv: (-kv[1], kv[0])),
         ("", None),
         ("rules", "docs/epa-import.md; constants in models/epa_import.toml"),
         ("vehicle_id", "<Test Vehicle ID>_c<Test Veh Configuration #>"),

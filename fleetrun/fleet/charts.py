@@ -34,7 +34,7 @@ def short_number(value: float, prefix: str = "") -> str:
 
 
 def grouped_bars(categories: list[str], series: list[str], values: dict[tuple[str, str], float], *,
-                 prefix: str = "", width: int = 640, bar_height: int = 14, label_width: int = 170) -> dict:
+                 prefix: str = "", width: int = 420, bar_height: int = 14, label_width: int = 110) -> dict:
     """Horizontal bars: one group per category, one bar per series in each group."""
     gap = 10
     plot_width = width - label_width - 70
@@ -55,7 +55,8 @@ def grouped_bars(categories: list[str], series: list[str], values: dict[tuple[st
         y += gap
     ticks = [{"x": label_width + plot_width * f, "text": short_number(vmax * f, prefix)}
              for f in (0, 0.25, 0.5, 0.75, 1.0)]
-    legend = [{"name": name, "color": PALETTE[i % len(PALETTE)], "x": label_width + i * 120}
+    spacing = min(120.0, (width - label_width) / max(1, len(series)))
+    legend = [{"name": name, "color": PALETTE[i % len(PALETTE)], "x": label_width + i * spacing}
               for i, name in enumerate(series)] if len(series) > 1 else []
     return {"width": width, "height": y + 20, "label_width": label_width, "plot_width": plot_width,
             "bar_height": bar_height, "groups": groups, "ticks": ticks, "axis_y": y,
@@ -73,17 +74,25 @@ def _efficiency_color(value: float, low: float, high: float) -> str:
     return f"#{r:02x}{g:02x}{bl:02x}"
 
 
-def heatmap(effmap: dict, *, cell_width: int = 52, cell_height: int = 22) -> dict:
-    """The efficiency map as a grid of coloured cells with their values."""
-    left, top = 56, 24
-    values = [v for row in effmap["efficiency"] for v in row if math.isfinite(v)]
-    low, high = (min(values), max(values)) if values else (0.0, 1.0)
+def scale_legend(low: float, high: float, *, width: int = 300) -> dict:
+    """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``."""
+    steps = 24
+    stops = [{"x": 10 + width * k / steps, "w": width / steps + 0.5,
+              "fill": _efficiency_color(low + (high - low) * k / steps, low, high)} for k in range(steps + 1)]
+    ticks = [{"x": 10 + width * f, "text": f"{low + (high - low) * f:.1%}"} for f in (0.0, 0.5, 1.0)]
+    return {"width": width + 20 + width / steps, "stops": stops, "ticks": ticks}
+
+
+def heatmap(effmap: dict, *, low: float, high: float, cell_width: int = 40, cell_height: int = 20) -> dict:
+    """The efficiency map as a grid of coloured cells with their values [%]; colours on the
+    scale ``low``..``high`` shared by every map of the page."""
+    left, top = 44, 24
     cells = []
     for i, (tf, row) in enumerate(zip(effmap["torque_fractions"], effmap["efficiency"])):
         for j, value in enumerate(row):
             cells.append({"x": left + j * cell_width, "y": top + i * cell_height,
                           "fill": _efficiency_color(value, low, high),
-                          "text": f"{value:.3f}" if math.isfinite(value) else "n/a"})
+                          "text": f"{100 * value:.1f}" if math.isfinite(value) else "n/a"})
     columns = [{"x": left + (j + 0.5) * cell_width, "text": f"{s:g}"} for j, s in enumerate(effmap["speeds_rpm"])]
     rows = [{"y": top + (i + 0.5) * cell_height + 4, "text": f"{tf:g}"}
             for i, tf in enumerate(effmap["torque_fractions"])]

@@ -12,16 +12,21 @@ from pathlib import Path
 import jinja2
 
 from fleetrun import __version__
-from fleetrun.fleet import charts
+from fleetrun.fleet import charts, report_text
 from fleetrun.fleet.manifest import manifest_dict, physics_label
+from fleetrun.fleet.report_xlsx import efficiency_scale
 from fleetrun.fleet.runner import RunResult
-from fleetrun.fleet.totals import CLASS_COLUMNS, scenario_totals
+from fleetrun.fleet.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
 
 CLASS_TABLE_COLUMNS = CLASS_COLUMNS[:9]   # the class_summary.csv contract columns
+FISCAL_TABLE_COLUMNS = FISCAL_COLUMNS[1:]  # fiscal_summary.csv without the scenario (one table each)
 TEXT_FORMATS = {
     "vehicles": "{:,.0f}", "miles_total": "{:,.0f}", "fuel_gal_total": "{:,.0f}", "mpg": "{:.2f}",
-    "diff_efficiency": "{:.4f}", "state_tax_usd": "${:,.0f}", "federal_tax_usd": "${:,.0f}",
+    "diff_efficiency": "{:.2%}", "state_tax_usd": "${:,.0f}", "federal_tax_usd": "${:,.0f}",
+    "fiscal_year": "{}", "miles": "{:,.0f}", "fuel_gal": "{:,.0f}", "fuel_gal_low": "{:,.0f}",
+    "fuel_gal_high": "{:,.0f}", "co2_t": "{:,.0f}", "kwh": "{:,.0f}", "ev_fee_usd": "${:,.0f}",
+    "model_gallons": "{:,.0f}", "observed_gallons": "{:,.0f}", "model_to_observed": "{:.1%}", "scale": "{:.4f}",
 }
 
 
@@ -46,55 +51,100 @@ def _raw(value) -> str:
     return str(value)
 
 
-def render_summary(result: RunResult) -> str:
-    totals = scenario_totals(result.classes)
+def _cards(result: RunResult, totals) -> list[dict]:
+    """One card per scenario: totals rounded to their range, state and federal apart, and
+    each one's change against the first scenario."""
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
     described = {s.scenario_id: s for s in result.scenarios}
-    cards = []
-    base = None
+    cards, base = [], None
     for row in totals.itertuples(index=False):
         s = described[row.scenario_id]
-        change = ""
+        changes = []
         if base is None:
             base = row
-        elif base.total_tax_usd:
-            delta = row.total_tax_usd / base.total_tax_usd - 1.0
-            change = f"{delta:+.2%} fuel-tax revenue vs {base.scenario_id}"
-        cards.append({"scenario_id": row.scenario_id, "description": s.description,
-                      "budget_years": s.budget_years, "gallons": f"{row.fuel_gal_total:,.0f}",
-                      "miles": f"{row.miles_total:,.0f}", "mpg": _fmt("mpg", row.mpg),
-                      "state_tax": f"${row.state_tax_usd:,.0f}",
-                      "federal_tax": f"${row.federal_tax_usd:,.0f}", "change": change})
-    revenue = {}
-    for row in totals.itertuples(index=False):
-        revenue[(row.scenario_id, "state")] = row.state_tax_usd
-        revenue[(row.scenario_id, "federal")] = row.federal_tax_usd
-    revenue_chart = charts.grouped_bars(list(totals["scenario_id"]), ["state", "federal"], revenue,
-                                        prefix="$")
-    class_names = list(dict.fromkeys(result.classes["vehicle_class"]))
-    scenario_ids = list(totals["scenario_id"])
-    fuel = {(r.vehicle_class, r.scenario_id): r.fuel_gal_total for r in result.classes.itertuples(index=False)}
-    fuel_chart = charts.grouped_bars(class_names, scenario_ids, fuel)
-    class_rows = [[{"column": c, "raw": _raw(v), "text": _fmt(c, v), "numeric": not isinstance(v, str)}
-                   for c, v in zip(CLASS_TABLE_COLUMNS, row)]
-                  for row in result.classes[CLASS_TABLE_COLUMNS].itertuples(index=False, name=None)]
+        else:
+            for label, now, then in (("state", row.state_tax_usd, base.state_tax_usd),
+                                     ("federal", row.federal_tax_usd, base.federal_tax_usd)):
+                if then:
+                    changes.append(f"{label} revenue {now / then - 1.0:+.1%}")
+            changes = [f"vs {base.scenario_id}: " + ", ".join(changes)] if changes else []
+        items = report_text.headline(s, ranges[s.scenario_id])
+        items.insert(1, ("Miles", report_text.short(row.miles_total)))
+        items.insert(2, ("Fleet mpg", _fmt("mpg", row.mpg)))
+        if row.kwh_total:
+            items.append(("Electricity", f"{report_text.short(row.kwh_total)} kWh"))
+        if row.ev_fee_usd:
+            items.append(("EV fees", report_text.short(row.ev_fee_usd, "$")))
+        cards.append({"scenario_id": row.scenario_id, "description": s.description, "lines": items,
+                      "change": "; ".join(changes)})
+    return cards
+
+
+def _table_rows(frame, columns) -> list[list[dict]]:
+    return [[{"column": c, "raw": _raw(v), "text": _fmt(c, v), "numeric": not isinstance(v, str)}
+             for c, v in zip(columns, row)]
+            for row in frame[columns].itertuples(index=False, name=None)]
+
+
+def _fiscal_groups(result: RunResult) -> list[dict]:
+    """The fiscal_summary rows, one group per scenario."""
+    groups = []
+    for s in result.scenarios:
+        rows = result.fiscal[result.fiscal["scenario_id"] == s.scenario_id]
+        groups.append({"scenario_id": s.scenario_id, "rows": _table_rows(rows, FISCAL_TABLE_COLUMNS)})
+    return groups
+
+
+def _maps(result: RunResult) -> tuple[list[dict], dict]:
+    low, high = efficiency_scale(result.maps)
     maps = []
     for m in result.maps:
         title = f"{m['configuration']}, gear ratio {m['gear_ratio']:g}"
         if m["low_gear_ratio"]:
             title += f", low {m['low_gear_ratio']:g} (high gear)"
-        maps.append({"title": title, "chart": charts.heatmap(m)})
+        maps.append({"title": title, "chart": charts.heatmap(m, low=low, high=high)})
+    return maps, charts.scale_legend(low, high)
+
+
+def render_summary(result: RunResult) -> str:
+    totals = scenario_totals(result.classes)
+    revenue = {}
+    for row in totals.itertuples(index=False):
+        revenue[(row.scenario_id, "State fuel tax")] = row.state_tax_usd
+        revenue[(row.scenario_id, "Federal fuel tax")] = row.federal_tax_usd
+    revenue_chart = charts.grouped_bars(list(totals["scenario_id"]), ["State fuel tax", "Federal fuel tax"],
+                                        revenue, prefix="$")
+    class_names = list(dict.fromkeys(result.classes["vehicle_class"]))
+    scenario_ids = list(totals["scenario_id"])
+    fuel = {(r.vehicle_class, r.scenario_id): r.fuel_gal_total for r in result.classes.itertuples(index=False)}
+    fuel_chart = charts.grouped_bars(class_names, scenario_ids, fuel)
+    maps, scale = _maps(result)
     info = manifest_dict(result)
     engine = info["engine"].get("engine", "")
     if info["engine"].get("scheduler"):
         engine += f" ({info['engine']['scheduler']})"
     fleet = result.fleet
+    calibration = result.calibration if result.calibration is not None else None
     return _environment().get_template("summary.html.j2").render(
         version=__version__, fleet_name=fleet.path.name, vehicle_types=f"{len(fleet.vehicles):,}",
         vehicles=f"{sum(v.count for v in fleet.vehicles):,.0f}", created_utc=result.created_utc,
         physics=physics_label(info), mode=result.mode, engine=engine, fingerprint=fleet.sha256,
-        scenarios=cards, revenue_chart=revenue_chart, class_columns=CLASS_TABLE_COLUMNS,
-        class_rows=class_rows, fuel_chart=fuel_chart, maps=maps, warnings=result.warnings,
-        inputs=info["inputs"], sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")
+        scenarios=_cards(result, totals), revenue_chart=revenue_chart, class_columns=CLASS_TABLE_COLUMNS,
+        class_rows=_table_rows(result.classes, CLASS_TABLE_COLUMNS), fuel_chart=fuel_chart, maps=maps,
+        scale=scale, warnings=result.warnings, inputs=info["inputs"],
+        assumptions=_assumption_rows(result), scenario_ids=scenario_ids,
+        ranges=report_text.range_source_lines(result.error_model),
+        fiscal_columns=FISCAL_TABLE_COLUMNS, fiscal_groups=_fiscal_groups(result),
+        calibration_columns=list(calibration.columns) if calibration is not None and len(calibration) else [],
+        calibration_rows=_table_rows(calibration, list(calibration.columns))
+        if calibration is not None and len(calibration) else [],
+        sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")
+
+
+def _assumption_rows(result: RunResult) -> list[dict]:
+    table = [dict(report_text.assumptions(s)) for s in result.scenarios]
+    labels = list(dict.fromkeys(label for t in table for label in t))
+    return [{"label": label, "cells": [t.get(label, "") for t in table]} for label in labels]
 
 
 def write_summary_html(result: RunResult, path: Path) -> None:

@@ -17,10 +17,12 @@ import pandas as pd
 from openpyxl import Workbook
 from openpyxl.cell import WriteOnlyCell
 from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
-from openpyxl.chart import BarChart, LineChart, Reference
+from openpyxl.chart import BarChart, LineChart, Reference, Series
 from openpyxl.formatting.rule import ColorScaleRule
 from openpyxl.styles import Alignment, Font, PatternFill
 from openpyxl.utils import get_column_letter
+from openpyxl.worksheet.page import PageMargins
+from openpyxl.worksheet.properties import PageSetupProperties
 
 from fleetrun.fleet.runner import RunResult
 from fleetrun.fleet.totals import scenario_totals, yearly_totals
@@ -33,15 +35,15 @@ TITLE_FONT = Font(bold=True, size=14)
 FORMATS = {
     "count": "#,##0", "vehicles": "#,##0", "vehicle_types": "#,##0",
     "miles_total": "#,##0", "fuel_gal_total": "#,##0",
-    "mpg": "0.00", "diff_efficiency": "0.0000", "drivetrain_efficiency": "0.0000",
+    "mpg": "0.00", "diff_efficiency": "0.00%", "drivetrain_efficiency": "0.00%",
     "state_tax_usd": '"$"#,##0', "federal_tax_usd": '"$"#,##0', "total_tax_usd": '"$"#,##0',
     "diff_input_energy_J": "0.000E+00", "diff_output_energy_J": "0.000E+00",
     "drivetrain_input_energy_J": "0.000E+00", "wheel_energy_J": "0.000E+00",
-    "change_pct": "+0.00%;-0.00%;0.00%", "efficiency": "0.000",
+    "change_pct": "+0.00%;-0.00%;0.00%", "efficiency": "0.0%",
     "miles": "#,##0", "fuel_gal": "#,##0", "fuel_gal_low": "#,##0", "fuel_gal_high": "#,##0",
     "fuel_gal_low_total": "#,##0", "fuel_gal_high_total": "#,##0", "fuel_gal_cycle_total": "#,##0",
     "fuel_gal_uncalibrated_total": "#,##0", "co2_t": "#,##0", "kwh": "#,##0", "kwh_total": "#,##0", "ev_fee_usd": '"$"#,##0',
-    "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.000", "scale": "0.0000",
+    "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.0%", "scale": "0.0000",
 }
 
 
@@ -120,6 +122,7 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
         wb = Workbook(write_only=True)
         totals = scenario_totals(result.classes)
         _summary(wb, result, totals)
+        _assumptions(wb, result)
         _by_class(wb, result)
         _by_vehicle(wb, result, bulk)
         _comparison(wb, result)
@@ -132,12 +135,46 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
         append_rows(path, bulk)
 
 
+# --- printing and charts ------------------------------------------------------------------
+
+def page_setup(ws, *, landscape: bool = True, title_rows: str | None = "1:1", one_page: bool = False) -> None:
+    """Print layout of a sheet: US letter, fit to the page width (and height for one page),
+    the header row repeated on every page, the sheet name and page number in the footer."""
+    ws.page_setup.orientation = "landscape" if landscape else "portrait"
+    ws.page_setup.paperSize = "1"   # US letter (ECMA-376 paper size 1)
+    ws.page_setup.fitToWidth = 1
+    ws.page_setup.fitToHeight = 1 if one_page else 0
+    ws.sheet_properties.pageSetUpPr = PageSetupProperties(fitToPage=True)
+    ws.page_margins = PageMargins(left=0.4, right=0.4, top=0.5, bottom=0.6)
+    ws.oddFooter.center.text = "&A, page &P of &N"
+    if title_rows:
+        ws.print_title_rows = title_rows
+
+
+def _axes(chart, x_title: str, y_title: str, y_format: str) -> None:
+    """Axis titles with units, a value axis from zero, the legend below the plot."""
+    chart.x_axis.title = x_title
+    chart.y_axis.title = y_title
+    chart.y_axis.numFmt = y_format
+    chart.y_axis.scaling.min = 0
+    chart.x_axis.delete = False
+    chart.y_axis.delete = False
+    chart.legend.position = "b"
+
+
+def _series(ws, column: int, first_row: int, last_row: int, title: str) -> Series:
+    """One chart series over ``column``'s rows with a human legend text."""
+    return Series(Reference(ws, min_col=column, min_row=first_row, max_row=last_row), title=title)
+
+
 def _summary(wb, result: RunResult, totals: pd.DataFrame):
     ws = wb.create_sheet("Summary")
     header_row = 6
     ws.freeze_panes = f"A{header_row + 1}"   # write-only sheets: layout before the first row
-    for letter, width in zip("ABCDEFGHIJK", (22, 36, 12, 12, 16, 16, 10, 16, 16, 16)):
-        ws.column_dimensions[letter].width = width
+    page_setup(ws, title_rows=None, one_page=True)
+    names = ["scenario_id", "description", "budget_years"] + list(totals.columns[1:])
+    _widths(ws, names, minimum=12)
+    ws.column_dimensions["B"].width = 30
     descriptions = {s.scenario_id: s.description for s in result.scenarios}
     years = {s.scenario_id: s.budget_years for s in result.scenarios}
     title = text_cell(ws, "Fleet fuel and fuel-tax forecast")
@@ -152,26 +189,83 @@ def _summary(wb, result: RunResult, totals: pd.DataFrame):
     frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
     _table(ws, frame, widths=False)
     n = len(frame)
+    row = header_row + n
+    row = _summary_words(ws, result, row)
     if n:
         chart = BarChart()
         chart.type = "col"
-        chart.title = "Fuel-tax revenue over the budget period by scenario"
-        chart.y_axis.title = "US$"
-        chart.y_axis.numFmt = '"$"#,##0'
+        chart.title = "Fuel-tax revenue over the budget period"
+        _axes(chart, "Scenario", "US$ over the budget period", '"$"#,##0')
         cols = list(frame.columns)
-        for name in ("state_tax_usd", "federal_tax_usd"):
-            col = cols.index(name) + 1
-            chart.add_data(Reference(ws, min_col=col, min_row=header_row, max_row=header_row + n),
-                           titles_from_data=True)
+        for name, label in (("state_tax_usd", "State fuel tax"), ("federal_tax_usd", "Federal fuel tax")):
+            chart.series.append(_series(ws, cols.index(name) + 1, header_row + 1, header_row + n, label))
         chart.set_categories(Reference(ws, min_col=1, min_row=header_row + 1, max_row=header_row + n))
-        chart.height, chart.width = 8, 16
-        ws.add_chart(chart, f"A{header_row + n + 3}")
+        chart.height, chart.width = 7.5, 16
+        ws.add_chart(chart, f"A{row + 2}")
+
+
+def _summary_words(ws, result: RunResult, row: int) -> int:
+    """The headline of each scenario (rounded to its range; state and federal apart) and
+    where the ranges come from; the last row written."""
+    from fleetrun.fleet import report_text
+
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
+    bold = Font(bold=True)
+    heads = [text_cell(ws, "Headline (rounded to its range)")] + [None] * 12
+    for column, label in ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax")):
+        heads[column] = text_cell(ws, label)
+    for cell in heads:
+        if cell is not None:
+            cell.font = bold
+    lines: list[list] = [[], heads]
+    for s in result.scenarios:
+        texts = dict(report_text.headline(s, ranges[s.scenario_id]))
+        line = [text_cell(ws, s.scenario_id)] + [None] * 12
+        for column, label in ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax")):
+            line[column] = text_cell(ws, texts[label])
+        lines.append(line)
+    for sentence in report_text.range_source_lines(result.error_model):
+        lines.append([None, text_cell(ws, sentence)])
+    lines.append([None, text_cell(ws, "Rates, mixes, growth, temperature and on-road fuel of each scenario: "
+                                      "see the Assumptions sheet.")])
+    for line in lines:
+        ws.append(line)
+    return row + len(lines)
+
+
+ASSUMPTION_WIDTH = 48   # characters per scenario column of the Assumptions sheet
+
+
+def _assumptions(wb, result: RunResult):
+    """One column per scenario, one row per assumption (report_text.assumptions)."""
+    from fleetrun.fleet import report_text
+
+    ws = wb.create_sheet("Assumptions")
+    page_setup(ws)
+    ws.column_dimensions["A"].width = 30
+    for k in range(len(result.scenarios)):
+        ws.column_dimensions[get_column_letter(2 + k)].width = ASSUMPTION_WIDTH
+    ws.freeze_panes = "B2"
+    _header(ws, ["assumption"] + [s.scenario_id for s in result.scenarios])
+    table = [dict(report_text.assumptions(s)) for s in result.scenarios]
+    labels = list(dict.fromkeys(label for t in table for label in t))
+    wrap = Alignment(wrap_text=True, vertical="top")
+    for row, label in enumerate(labels, start=2):
+        texts = [label] + [t.get(label, "") for t in table]
+        # write-only sheets cannot grow a row to its wrapped text: give it the lines it needs
+        lines = max(math.ceil(len(text) / (ASSUMPTION_WIDTH * 1.05)) for text in texts)
+        ws.row_dimensions[row].height = 15 * max(1, lines)
+        cells = [text_cell(ws, text) for text in texts]
+        for cell in cells:
+            cell.alignment = wrap
+        ws.append(cells)
 
 
 def _by_class(wb, result: RunResult):
     ws = wb.create_sheet("ByClass")
     frame = result.classes
     ws.freeze_panes = "C2"
+    page_setup(ws)
     _widths(ws, list(frame.columns))
     ws.column_dimensions["B"].width = 28
     _table(ws, frame, widths=False)
@@ -191,19 +285,19 @@ def _by_class(wb, result: RunResult):
     header = start + 1
     chart = BarChart()
     chart.type = "bar"
-    chart.title = "Fuel by vehicle class [gal]"
-    chart.x_axis.title = None
-    chart.y_axis.numFmt = "#,##0"
-    chart.add_data(Reference(ws, min_col=2, max_col=1 + len(pivot.columns), min_row=header,
-                             max_row=header + len(pivot)), titles_from_data=True)
+    chart.title = "Fuel by vehicle class over the budget period"
+    _axes(chart, "Vehicle class", "US gallons", "#,##0")
+    for k, scenario_id in enumerate(pivot.columns):
+        chart.series.append(_series(ws, 2 + k, header + 1, header + len(pivot), f"Scenario {scenario_id}"))
     chart.set_categories(Reference(ws, min_col=1, min_row=header + 1, max_row=header + len(pivot)))
-    chart.height, chart.width = max(8, 0.6 * len(pivot) * len(pivot.columns)), 18
-    ws.add_chart(chart, f"{get_column_letter(len(frame.columns) + 2)}2")
+    chart.height, chart.width = max(7.5, 0.5 * len(pivot) * len(pivot.columns)), 18
+    ws.add_chart(chart, f"A{header + len(pivot) + 2}")
 
 
 def _by_vehicle(wb, result: RunResult, bulk: dict):
     ws = wb.create_sheet("ByVehicle")
     ws.freeze_panes = "C2"
+    page_setup(ws)
     frame = result.results
     ws.auto_filter.ref = f"A1:{get_column_letter(len(frame.columns))}{len(frame) + 1}"
     # openpyxl writes the header and the first row (and so the styles); the rest in bulk.
@@ -214,6 +308,7 @@ def _by_vehicle(wb, result: RunResult, bulk: dict):
 
 def _comparison(wb, result: RunResult):
     ws = wb.create_sheet("Scenario comparison")
+    page_setup(ws, title_rows="2:2")
     classes = result.classes
     scenario_ids = [s.scenario_id for s in result.scenarios]
     base = scenario_ids[0] if scenario_ids else None
@@ -241,37 +336,43 @@ def _comparison(wb, result: RunResult):
                    _value(ws, fuel_change, FORMATS["change_pct"]),
                    _value(ws, tax_change, FORMATS["change_pct"])])
     ws.append([])
-    year_title_row = len(classes) + 4
-    t = text_cell(ws, "By budget year")
+    _by_fiscal_year(ws, result, len(classes) + 4)
+
+
+def _by_fiscal_year(ws, result: RunResult, title_row: int) -> None:
+    """Fleet totals per scenario and fiscal year, and a chart of state revenue per year."""
+    t = text_cell(ws, "By fiscal year (fleet totals)")
     t.font = Font(bold=True)
     ws.append([t])
     years = yearly_totals(result.fiscal)
     _header(ws, list(years.columns))
     for row in years.itertuples(index=False, name=None):
         ws.append([_value(ws, v, FORMATS.get(c)) for v, c in zip(row, years.columns)])
-    if len(years):
-        # Revenue per year, one series per scenario.
-        pivot = years.pivot_table(index="fiscal_year", columns="scenario_id", values="state_tax_usd",
-                                  aggfunc="sum", sort=False)
-        ws.append([])
-        pivot_row = year_title_row + len(years) + 3
-        ws.append([text_cell(ws, "year")] + [text_cell(ws, s) for s in pivot.columns])
-        for year, row in pivot.iterrows():
-            ws.append([int(year)] + [_value(ws, float(v), FORMATS["state_tax_usd"]) for v in row])
-        chart = BarChart()
-        chart.type = "col"
-        chart.title = "State fuel-tax revenue by budget year"
-        chart.y_axis.numFmt = '"$"#,##0'
-        chart.add_data(Reference(ws, min_col=2, max_col=1 + len(pivot.columns), min_row=pivot_row,
-                                 max_row=pivot_row + len(pivot)), titles_from_data=True)
-        chart.set_categories(Reference(ws, min_col=1, min_row=pivot_row + 1, max_row=pivot_row + len(pivot)))
-        chart.height, chart.width = 8, 16
-        ws.add_chart(chart, "J2")
+    if not len(years):
+        return
+    # State revenue per fiscal year, one series per scenario.
+    pivot = years.pivot_table(index="fiscal_year", columns="scenario_id", values="state_tax_usd",
+                              aggfunc="sum", sort=False)
+    ws.append([])
+    pivot_row = title_row + len(years) + 3
+    ws.append([text_cell(ws, "fiscal_year")] + [text_cell(ws, s) for s in pivot.columns])
+    for year, row in pivot.iterrows():
+        ws.append([text_cell(ws, str(int(year)))] + [_value(ws, float(v), FORMATS["state_tax_usd"]) for v in row])
+    chart = BarChart()
+    chart.type = "col"
+    chart.title = "State fuel-tax revenue by fiscal year"
+    _axes(chart, "Fiscal year", "US$ (state fuel tax)", '"$"#,##0')
+    for k, scenario_id in enumerate(pivot.columns):
+        chart.series.append(_series(ws, 2 + k, pivot_row + 1, pivot_row + len(pivot), f"Scenario {scenario_id}"))
+    chart.set_categories(Reference(ws, min_col=1, min_row=pivot_row + 1, max_row=pivot_row + len(pivot)))
+    chart.height, chart.width = 7.5, 16
+    ws.add_chart(chart, f"A{pivot_row + len(pivot) + 2}")
 
 
 def _fiscal(wb, result: RunResult):
     """Fiscal year x fuel x class (fiscal_summary.csv) and the calibration to collections."""
     ws = wb.create_sheet("Fiscal years")
+    page_setup(ws)
     frame = result.fiscal
     _widths(ws, list(frame.columns), minimum=12)
     ws.freeze_panes = "E2"
@@ -285,57 +386,83 @@ def _fiscal(wb, result: RunResult):
         _table(ws, calibration, widths=False)
 
 
+def efficiency_scale(maps) -> tuple[float, float]:
+    """One colour scale for every map: the lowest and highest efficiency of all of them."""
+    values = [v for m in maps for row in m["efficiency"] for v in row if math.isfinite(v)]
+    return (min(values), max(values)) if values else (0.0, 1.0)
+
+
+MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table
+
+
 def _maps(wb, result: RunResult):
     ws = wb.create_sheet("Efficiency maps")
-    ws.column_dimensions["A"].width = 26
-    title = text_cell(ws, "Differential efficiency: torque fraction (rows) x input speed [rpm] (columns)")
+    page_setup(ws, title_rows=None)
+    ws.column_dimensions["A"].width = 24
+    title = text_cell(ws, "Differential efficiency: torque fraction (rows) x input speed (columns); "
+                          "one colour scale for all maps")
     title.font = TITLE_FONT
     ws.append([title])
     if not result.maps:
         ws.append([text_cell(ws, "No efficiency maps (see RunInfo warnings).")])
         return
-    row = 2
+    low, high = efficiency_scale(result.maps)
+    row = 1   # the last row written
     for m in result.maps:
-        ws.append([])
-        row += 1
-        label = f"{m['configuration']}: gear ratio {m['gear_ratio']:g}"
-        if m["low_gear_ratio"]:
-            label += f", low ratio {m['low_gear_ratio']:g} (axle in high gear)"
-        label += f"; {m['vehicle_types']} vehicle type(s)"
-        head = text_cell(ws, label)
-        head.font = Font(bold=True)
-        ws.append([head])
-        row += 1
-        ws.append([text_cell(ws, "torque_fraction \\ rpm")] + [float(s) for s in m["speeds_rpm"]])
-        header_row = row + 1
-        row += 1
+        row = _map_block(ws, m, row, low, high)
+
+
+def _map_block(ws, m: dict, row: int, low: float, high: float) -> int:
+    """One map: its efficiency table, its loss table (what the chart draws, from zero) and
+    the chart beside them; the last row written. Rows are counted as they are written."""
+    from openpyxl.worksheet.pagebreak import Break
+
+    if row > 1:
+        ws.row_breaks.append(Break(id=row))   # each map starts a printed page
+    label = f"{m['configuration']}: gear ratio {m['gear_ratio']:g}"
+    if m["low_gear_ratio"]:
+        label += f", low ratio {m['low_gear_ratio']:g} (axle in high gear)"
+    head = text_cell(ws, label + f"; {m['vehicle_types']} vehicle type(s)")
+    head.font = Font(bold=True)
+    ws.append([])
+    ws.append([head])
+    row += MAP_BLOCK_ROWS
+    speeds = [f"{s:g} rpm" for s in m["speeds_rpm"]]
+    n_rows, last_col = len(m["torque_fractions"]), get_column_letter(1 + len(speeds))
+    for kind in ("efficiency", "loss"):
+        ws.append([text_cell(ws, f"{kind} \\ torque fraction")] + [text_cell(ws, s) for s in speeds])
+        header_row = row = row + 1
         for tf, etas in zip(m["torque_fractions"], m["efficiency"]):
-            ws.append([tf] + [_value(ws, float(e), FORMATS["efficiency"]) for e in etas])
+            values = etas if kind == "efficiency" else [1.0 - e for e in etas]
+            ws.append([tf] + [_value(ws, float(e), FORMATS["efficiency"]) for e in values])
             row += 1
-        first, last = header_row + 1, row
-        last_col = get_column_letter(1 + len(m["speeds_rpm"]))
-        ws.conditional_formatting.add(
-            f"B{first}:{last_col}{last}",
-            ColorScaleRule(start_type="min", start_color="F8696B", mid_type="percentile", mid_value=50,
-                           mid_color="FFEB84", end_type="max", end_color="63BE7B"))
-        chart = LineChart()
-        chart.title = f"{m['configuration']} efficiency vs torque fraction"
-        chart.y_axis.title = "efficiency"
-        chart.x_axis.title = "torque fraction"
-        chart.y_axis.scaling.min = 0
-        chart.y_axis.scaling.max = 1
-        chart.add_data(Reference(ws, min_col=2, max_col=1 + len(m["speeds_rpm"]), min_row=header_row,
-                                 max_row=last), titles_from_data=True)
-        chart.set_categories(Reference(ws, min_col=1, min_row=first, max_row=last))
-        chart.height, chart.width = 7, 14
-        ws.add_chart(chart, f"{get_column_letter(len(m['speeds_rpm']) + 3)}{header_row - 1}")
-        for _ in range(3):
-            ws.append([])
-            row += 1
+        if kind == "efficiency":
+            efficiency_header = header_row
+            ws.conditional_formatting.add(
+                f"B{header_row + 1}:{last_col}{row}",
+                ColorScaleRule(start_type="num", start_value=low, start_color="F8696B", mid_type="num",
+                               mid_value=(low + high) / 2, mid_color="FFEB84", end_type="num", end_value=high,
+                               end_color="63BE7B"))
+    chart = _map_chart(ws, m, header_row, n_rows, len(speeds))
+    ws.add_chart(chart, f"{get_column_letter(len(speeds) + 3)}{efficiency_header}")
+    return row
+
+
+def _map_chart(ws, m: dict, header_row: int, n_rows: int, n_speeds: int) -> LineChart:
+    """Loss (1 - efficiency) against torque fraction, one line per input speed, from zero."""
+    chart = LineChart()
+    chart.title = f"{m['configuration']} differential loss"
+    _axes(chart, "Torque fraction (input torque / Kim torque scale)", "Loss, share of input power", "0%")
+    chart.add_data(Reference(ws, min_col=2, max_col=1 + n_speeds, min_row=header_row,
+                             max_row=header_row + n_rows), titles_from_data=True)
+    chart.set_categories(Reference(ws, min_col=1, min_row=header_row + 1, max_row=header_row + n_rows))
+    chart.height, chart.width = 11, 16
+    return chart
 
 
 def _inputs(wb, result: RunResult, bulk: dict):
     ws = wb.create_sheet("Inputs")
+    page_setup(ws, title_rows=None)
     fleet = result.fleet
     extra_names = list(dict.fromkeys(k for v in fleet.vehicles for k in v.extra))
     vehicle_names = [c.name for c in VEHICLE_COLUMNS] + extra_names
@@ -381,6 +508,7 @@ def _run_info(wb, result: RunResult):
     from fleetrun.fleet.manifest import manifest_dict, physics_label
 
     ws = wb.create_sheet("RunInfo")
+    page_setup(ws, landscape=False, title_rows=None)
     ws.column_dimensions["A"].width = 30
     ws.column_dimensions["B"].width = 90
     info = manifest_dict(result)

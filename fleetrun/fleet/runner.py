@@ -280,18 +280,6 @@ def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
         target["drivetrain_input_energy_J"][rows] = sums["drivetrain_input_energy_J"]
 
 
-# VehicleSpec fields that do not change how a vehicle drives a cycle.
-BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
-                      "model_year")
-
-
-def _physics_key(v: VehicleSpec) -> tuple:
-    fields = tuple((name, value) for name, value in vars(v).items()
-                   if name not in BOOKKEEPING_FIELDS and name != "extra")
-    extra = tuple(sorted((k, repr(x)) for k, x in v.extra.items()))
-    return fields + (("extra", extra),)
-
-
 def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec], np.ndarray]:
     """The physically distinct vehicles (first of each, grouped by differential) and, per
     fleet row, the index of its distinct vehicle."""
@@ -299,7 +287,7 @@ def distinct_vehicles(vehicles: Sequence[VehicleSpec]) -> tuple[list[VehicleSpec
     distinct: list[VehicleSpec] = []
     owner = np.empty(len(vehicles), dtype=np.int64)
     for i, v in enumerate(vehicles):
-        key = _physics_key(v)
+        key = v.physics_key()
         j = index.get(key)
         if j is None:
             j = index[key] = len(distinct)

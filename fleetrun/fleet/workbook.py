@@ -200,6 +200,7 @@ def read_fleet(path) -> Fleet:
     vehicles, vehicle_rows = ([], {})
     if vehicle_table is not None:
         vehicles, vehicle_rows = _vehicles(vehicle_table, problems)
+        _simulation_checks(vehicle_table, vehicles, vehicle_rows, problems)
     scenarios, scenario_rows = ([], {})
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
@@ -391,6 +392,22 @@ def _reporter(table: _Table, row: int, problems: Problems):
             col = table.columns.get("configuration")
         (problems.warn if warning else problems.error)(text, table.sheet, row, col, name)
     return report
+
+
+def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], first_rows: dict[str, int],
+                       problems: Problems):
+    """What the simulation would refuse in rows that passed the cell checks
+    (:func:`fleetrun.simulation.params.refused_vehicles`), as problems at the row and column:
+    `validate` catches what `run` would refuse."""
+    from fleetrun.simulation.params import refused_vehicles
+
+    for i, exc in refused_vehicles(vehicles):
+        column = exc.column if isinstance(exc.column, str) else None
+        index = (table.columns.get(column) or table.extra_columns.get(column)) if column else None
+        value = "" if exc.value is None else f" (value {cells.show(exc.value)})"
+        hint = f"; {exc.hint}" if exc.hint else ""
+        problems.error(f"{exc.message}{value}{hint}", table.sheet, first_rows[vehicles[i].vehicle_id], index,
+                       column if index else None)
 
 
 # --- Scenarios ----------------------------------------------------------------------------

@@ -19,7 +19,8 @@ from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, Differ
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.params import vehicle_arrays
-from fleetrun.simulation.thermal import cold_start_extra_fuel, start_temperature_C, thermal_constants
+from fleetrun.simulation.thermal import (ThermalConstants, cold_start_extra_fuel, start_temperature_C,
+                                         thermal_constants)
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
 
@@ -120,7 +121,7 @@ def _load(cycle):
     return cycle
 
 
-def _thermal_plan(cycle, t, ambient_temp_C):
+def _thermal_plan(cycle, t, ambient_temp_C, thermal=None):
     """What the cold-start pass needs for a composed cycle (None for a plain cycle, which is
     driven with a warm engine): step phases, engine-off soak time per step, start temperature."""
     phases = tuple(getattr(cycle, "phases", ()) or ())
@@ -130,10 +131,11 @@ def _thermal_plan(cycle, t, ambient_temp_C):
     dt_all = np.concatenate([[0.0], np.diff(t)])
     return dict(phases=phases, composite=str(getattr(cycle, "composite", "")), step_phase=step_phase,
                 step_soak_s=np.where(step_phase < 0, dt_all, 0.0), ambient_temp_C=float(ambient_temp_C),
-                start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C))
+                constants=thermal or thermal_constants(),
+                start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C, thermal))
 
 
-def _cycle_arrays(cycle, ambient_temp_C=None):
+def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
     """Name, time, speed and grade of ``cycle`` (checked), and with ``ambient_temp_C`` also its
     cold-start plan (:func:`_thermal_plan`)."""
     cycle = _load(cycle)
@@ -160,27 +162,28 @@ def _cycle_arrays(cycle, ambient_temp_C=None):
                          column="speed", value=v[neg[0]], hint="Speeds must be >= 0")
     if ambient_temp_C is None:
         return name, t, v, grade
-    return name, t, v, grade, _thermal_plan(cycle, t, ambient_temp_C)
+    return name, t, v, grade, _thermal_plan(cycle, t, ambient_temp_C, thermal)
 
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
-             physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None) -> FleetCycleResult:
+             physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None,
+             thermal: ThermalConstants | None = None) -> FleetCycleResult:
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
     ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
     DEFAULT_MODE). ``ambient_temp_C`` sets the lubricant temperature (ambient + 50 K, thesis
-    Sec. 3.1.2) and the cold start of the effects. ``effects``: physics the thesis left out
-    (a ``--with`` string, or what ``fleetrun.effects.parse_with`` returns); they act per step
-    on top of any mode (fleetrun/simulation/effects.py, docs/simulation.md).
-    """
+    Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
+    ``effects``: physics the thesis left out (a ``--with`` string, or what
+    ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
+    cold-start constants (default ``models/thermal.toml``). See docs/simulation.md."""
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
     if mode not in MODES:
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
     effects = cycle_effects(effects)
-    name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C)
+    name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C, thermal)
     va = vehicle_arrays(vehicles)
     V = va.n
     if V:
@@ -237,9 +240,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         **{key: (sums[key] if V else empty) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
         effects=describe_effects(effects),
     )
-    if plan is not None:
-        phase_results(result, plan, sums if V else {k: np.zeros((0, len(plan["phases"]))) for k in PHASE_FIELDS},
-                      va.density if V else empty)
+    if plan is not None and V:
+        phase_results(result, plan, sums, va.density)
     if trace and V:
         result.trace = sums["trace"]
     return result
@@ -367,7 +369,7 @@ def _phased_fuel(va, t, columns, out, effects, plan):
     dt_all = np.concatenate([[0.0], np.diff(t)])
     rate, rpm = _every_step(va, t, columns, out, effects, plan)
     cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan["step_soak_s"], plan["start_temp_C"],
-                                       plan["ambient_temp_C"])
+                                       plan["ambient_temp_C"], plan["constants"])
     rate += cold
     if columns is None:
         out["fuel_rate_g_per_s"] += cold

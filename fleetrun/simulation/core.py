@@ -2,12 +2,14 @@
 
 Per step, from the wheels back to the fuel (arrays are vehicles x steps):
 
-1. kinematics: step i covers [t_{i-1}, t_i]; mean speed, acceleration, mean grade;
-2. road load + inertia + grade -> tractive force -> wheel torque and speed (tyre radius);
-3. gear (shift schedule, incl. the two-speed axle range) -> differential input speed;
-4. differential: invert the thesis model for the input torque (direct / map2d / map3d);
-5. gearbox (constant mesh efficiency), torque converter or clutch -> engine speed, torque;
-6. Willans-line fuel, idle fuel at standstill, fuel cut-off on overrun.
+1. kinematics (``kinematics``): step i covers [t_{i-1}, t_i]; mean speed, acceleration, mean grade;
+2. road load + inertia + grade (``wheel_demand``) -> tractive force -> wheel torque and speed (tyre radius);
+3. gear (``gear_choice``; shift schedule, incl. the two-speed axle range) -> differential input speed;
+4. differential (``differential``): invert the thesis model for the input torque (direct / map2d / map3d);
+5. gearbox (``gearbox``; constant mesh efficiency), torque converter or clutch
+   (``converter_or_clutch``) -> engine speed, torque;
+6. engine (``engine``): full load, motoring, fuel (engine.py), idle fuel at standstill, fuel cut-off
+   on overrun.
 
 A vehicle whose engine cannot deliver the demanded torque is re-driven forward at its
 maximum tractive effort (it follows the trace as closely as it can, re-joining it when the
@@ -17,6 +19,8 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from fleetrun.simulation import diffmodes
@@ -25,7 +29,7 @@ from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
                                         full_load_torque_Nm, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
-from fleetrun.simulation.road_load import grade_force_N
+from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
 
@@ -158,11 +162,13 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
 
 
-def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a):
-    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``."""
+def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None):
+    """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``;
+    ``throttled=False``: the friction alone (no closed-throttle pumping)."""
     c = va.fuel_constants
     return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
-                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]), col(va.throttled))
+                              col(c[:, 3]), col(c[:, 4]), col(c[:, 5]),
+                              col(va.throttled) if throttled is None else throttled)
 
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
@@ -174,15 +180,27 @@ def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
 
 
-def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects()):
-    """One backward pass. ``speed_mps`` is (V, N) (each vehicle's achieved speed).
+@dataclass
+class Kinematics:
+    """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps;
+    quantities of time only are 1 x steps)."""
 
-    ``columns``: compute only these steps (the caller skips steps where the whole block
-    stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
-    physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
-    """
-    V, N = speed_mps.shape
+    dt: np.ndarray
+    grade: np.ndarray            # mean grade of the step [%]
+    since_start: np.ndarray      # time since the cycle started (the effects' cold start)
+    v_avg: np.ndarray
+    accel: np.ndarray
+    moving: np.ndarray
+    all_moving: bool             # then the standstill cases are skipped (they would be no-ops)
+
+    def at_rest(self, a, value):
+        """``a`` where the vehicle moves, ``value`` at standstill."""
+        return a if self.all_moving else np.where(self.moving, a, value)
+
+
+def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
+    """Mean speed, acceleration and mean grade of each step; ``columns``: only these steps."""
+    N = speed_mps.shape[1]
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
     inv_dt = np.concatenate([[0.0], 1.0 / np.diff(time_s)])[None, :]  # step 0 has no time
     g_prev = np.concatenate([grade_pct[:1], grade_pct[:-1]])
@@ -196,70 +214,81 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
         since_start = since_start[columns]
         v_now = speed_mps[:, columns]
         v_prev = speed_mps[:, prev_index[columns]]
-        N = dt.shape[1]
     else:
         v_now = speed_mps
         v_prev = speed_mps[:, prev_index]
     v_avg = 0.5 * (v_now + v_prev)
     accel = (v_now - v_prev) * inv_dt
-    col = lambda a: a[:, None]  # noqa: E731
     moving = v_avg > 1e-6
-    all_moving = bool(moving.all())  # then the standstill cases below are skipped (no-ops)
-    # road load (road_load.py; its standstill case is the where below) + inertia + grade
-    # A + v (B + C v) + m (1 + f_rot) a + grade force, evaluated in place (same operations)
-    # (C order, as the sum with the grade force gave it: the per-vehicle sums add in that order)
-    force = np.multiply(col(va.C_N), v_avg, out=np.empty(v_avg.shape))
-    force += col(va.B_N)
-    force *= v_avg
-    force += col(va.A_N)
-    force += col(va.mass_kg * (1.0 + va.rot_frac)) * accel
-    force += grade_force_N(col(va.mass_kg), grade)
-    if not all_moving:
-        force = np.where(moving, force, 0.0)  # at standstill the brakes hold the vehicle
-    r = col(va.radius_m)
-    wheel_torque = force * r
-    wheel_omega = v_avg / r
-    wheel_rpm = wheel_omega * RPM
+    return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
 
-    # gear: lowest engine speed with power reserve (transmission.py)
-    p_need = force * v_avg
+
+def _col(a):
+    return a[:, None]
+
+
+def wheel_demand(va: VehicleArrays, k: Kinematics):
+    """Road load + inertia + grade (road_load.py) -> tractive force, wheel torque and speed."""
+    force = tractive_force_N(k.v_avg, k.accel, k.grade, _col(va.mass_kg), _col(va.rot_frac), _col(va.A_N),
+                             _col(va.B_N), _col(va.C_N))
+    force = k.at_rest(force, 0.0)  # at standstill the brakes hold the vehicle
+    r = _col(va.radius_m)
+    wheel_omega = k.v_avg / r
+    return force, force * r, wheel_omega, wheel_omega * RPM
+
+
+def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
+    """Gear (and axle range): lowest engine speed with power reserve (transmission.py).
+
+    Returns the transmission ratio, low axle range, gearbox efficiency and gear number per step.
+    """
+    p_need = force * k.v_avg
     np.maximum(p_need, 0.0, out=p_need)
     p_need /= DRIVETRAIN_GUESS
-    rows = np.arange(V)[:, None]
+    rows = np.arange(va.n)[:, None]
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
     if va.power_table is None:
         va.power_table = power_speed_table(va)
-    p_need /= col(va.power_reserve * va.P_rated_kW * 1e3)
+    p_need /= _col(va.power_reserve * va.P_rated_kW * 1e3)
     n_req = _lookup_rows(va.power_table, rows, p_need)  # n_power, then clamped in place:
-    np.maximum(col(va.shift_min_rpm), n_req, out=n_req)
+    np.maximum(_col(va.shift_min_rpm), n_req, out=n_req)
     # while accelerating, the schedule holds a gear up to a higher engine speed
-    np.maximum(np.where(accel > ACCEL_SHIFT_MPS2, col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
-    np.minimum(n_req, col(va.n_rated), out=n_req)
+    np.maximum(np.where(k.accel > ACCEL_SHIFT_MPS2, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
+    np.minimum(n_req, _col(va.n_rated), out=n_req)
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
-    k = choose_gear(wheel_rpm * col(va.final_drive), n_req, col(va.n_rated), overall, va.n_combos)
-    flat_k = rows * overall.shape[1] + k
+    choice = choose_gear(wheel_rpm * _col(va.final_drive), n_req, _col(va.n_rated), overall, va.n_combos)
+    flat_k = rows * overall.shape[1] + choice
     trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
     axle_low = va.combo_axle_low.reshape(-1)[flat_k]
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
     gear = va.combo_gear.reshape(-1)[flat_k]
     if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
-        cvt = col(va.cvt)
-        ratio = cvt_ratio(wheel_rpm * col(va.final_drive), n_req, col(va.cvt_ratio_range[:, 0]),
-                          col(va.cvt_ratio_range[:, 1]))
+        cvt = _col(va.cvt)
+        ratio = cvt_ratio(wheel_rpm * _col(va.final_drive), n_req, _col(va.cvt_ratio_range[:, 0]),
+                          _col(va.cvt_ratio_range[:, 1]))
         trans_ratio = np.where(cvt, ratio, trans_ratio)
-        gear = np.where(cvt, np.where(ratio >= col(va.cvt_ratio_range[:, 0]), 1, 2), gear)
-    if not all_moving:
-        axle_low &= moving
-        gear = np.where(moving, gear, 0)
+        gear = np.where(cvt, np.where(ratio >= _col(va.cvt_ratio_range[:, 0]), 1, 2), gear)
+    if not k.all_moving:
+        axle_low &= k.moving
+        gear = np.where(k.moving, gear, 0)
+    return trans_ratio, axle_low, gear_eff, gear
 
-    # differential
+
+def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
+                 wheel_torque, wheel_rpm, axle_low):
+    """The differential backwards: input speed, input torque and step efficiency.
+
+    The thesis chain is inverted by ``solver`` (any mode); the ``--with`` effects add their
+    extra pinion torque on the drive-side input at |T_out| (so on overrun the drags still take
+    energy from the flow and J dw/dt keeps its sign).
+    """
     if (va.low_ratio > 1.0).any():
-        G_tot = col(va.final_drive) * np.where(axle_low, col(va.low_ratio), 1.0)
+        G_tot = _col(va.final_drive) * np.where(axle_low, _col(va.low_ratio), 1.0)
     else:  # no two-speed axle in this block
-        G_tot = col(va.final_drive)
+        G_tot = _col(va.final_drive)
     diff_rpm = wheel_rpm * G_tot
-    kim = col(va.kim_Nm)
-    active = moving & (diff_rpm > 0)
+    kim = _col(va.kim_Nm)
+    active = k.moving & (diff_rpm > 0)
     out_frac = np.abs(wheel_torque) / (kim * G_tot)
     diff_loss_Nm = solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active)
     diff_loss_Nm -= out_frac
@@ -268,29 +297,36 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
     out_Nm = out_frac * kim  # |T_out| / G_tot: output torque referred to the input
     if effects.differential:
-        # the effects' extra pinion torque, on the drive-side input at |T_out| (so on overrun
-        # the drags still take energy from the flow and J dw/dt keeps its sign)
-        pinion_accel = accel / r * G_tot
+        pinion_accel = k.accel / _col(va.radius_m) * G_tot
         extra_Nm = differential_extra_torque_Nm(effects, va.configuration, out_Nm + diff_loss_Nm, diff_rpm,
-                                                pinion_accel, since_start, solver.ambient, G_tot, kim)
+                                                pinion_accel, k.since_start, solver.ambient, G_tot, kim)
         diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
     diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
     with np.errstate(divide="ignore", invalid="ignore"):
         # with inertia a decelerating pinion gives energy back: the step efficiency may exceed 1
         turning = (active & (out_Nm + diff_loss_Nm > 0)) if effects.differential else diff_loss_Nm > 0
         diff_eff = np.where(turning, out_Nm / (out_Nm + diff_loss_Nm), 0.0)
+    return diff_rpm, diff_torque, diff_eff
 
-    # gearbox
+
+def gearbox(va: VehicleArrays, k: Kinematics, diff_torque, diff_rpm, trans_ratio, gear_eff):
+    """Gearbox input (turbine) torque and speed: mesh efficiency and spin loss (transmission.py)."""
     turbine_rpm = diff_rpm * trans_ratio
-    spin = spin_loss_Nm(turbine_rpm, col(va.spin_loss[:, 0]), col(va.spin_loss[:, 1]))
-    trans_torque = input_torque_Nm(diff_torque, trans_ratio, gear_eff, spin)
-    if not all_moving:
-        trans_torque = np.where(moving, trans_torque, 0.0)
-    idle = col(va.n_idle)
+    spin = spin_loss_Nm(turbine_rpm, _col(va.spin_loss[:, 0]), _col(va.spin_loss[:, 1]))
+    trans_torque = k.at_rest(input_torque_Nm(diff_torque, trans_ratio, gear_eff, spin), 0.0)
+    return trans_torque, turbine_rpm
 
-    # torque converter (automatic, CVT) or clutch (manual, automated manual)
-    auto = col(va.automatic)
-    unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, col(va.lockup_rpm), col(va.has_lockup))
+
+def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_rpm, gear):
+    """Engine speed and torque behind the torque converter (automatic, CVT) or clutch (manual,
+    automated manual).
+
+    Returns engine speed, engine torque, the unlocked-converter mask and the drive mask.
+    """
+    N = trans_torque.shape[1]
+    idle = _col(va.n_idle)
+    auto = _col(va.automatic)
+    unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, _col(va.lockup_rpm), _col(va.has_lockup))
     drive = trans_torque > 0
     engine_rpm = turbine_rpm.copy()
     engine_torque = trans_torque.copy()
@@ -309,56 +345,88 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
     # below idle on overrun
     manual = ~auto
-    launch = col(va.launch_rpm)
+    launch = _col(va.launch_rpm)
     slip = manual & drive & (turbine_rpm < launch)
     np.copyto(engine_rpm, launch, where=slip)
     declutch = manual & ~drive & (turbine_rpm < idle)
     np.copyto(engine_rpm, idle, where=declutch)
     np.copyto(engine_torque, 0.0, where=declutch)
-    if all_moving:
+    if k.all_moving:
         np.maximum(engine_rpm, idle, out=engine_rpm)
     else:
-        engine_rpm = np.where(moving, np.maximum(engine_rpm, idle), idle)
-        engine_torque = np.where(moving, engine_torque, 0.0)
+        engine_rpm = np.where(k.moving, np.maximum(engine_rpm, idle), idle)
+        engine_torque = np.where(k.moving, engine_torque, 0.0)
+    return engine_rpm, engine_torque, unlocked, drive
 
-    # engine limits: full load (shortfall) and motoring (the rest is brakes)
-    t_max = full_load_torque_Nm(engine_rpm, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), idle,
-                                col(va.n_peak_torque), col(va.idle_T_frac))
-    t_offset = engine_motoring_torque_Nm(va, engine_rpm, col)
+
+def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, idling,
+           wheel_power):
+    """Engine limits and fuel (engine.py): full load (steps above it are infeasible), motoring
+    (engine braking; the rest is brakes), the fuel equation, idle fuel, fuel cut-off, and the
+    vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun.
+
+    Returns the full-load torque, the infeasible mask, the engine torque and the fuel rate.
+    """
+    idle = _col(va.n_idle)
+    t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), idle,
+                                _col(va.n_peak_torque), _col(va.idle_T_frac))
+    t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
     infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
     # engine braking is limited to the motoring torque (friction and pumping); the brakes take
     # the rest, so the reported engine torque is never below -T_0
     engine_torque = np.maximum(engine_torque, -t_offset)
-    fueled = ~(overrun & (engine_rpm >= col(va.fuel_cut_rpm)))
-    inertial_W = col(va.mass_kg * (1.0 + va.rot_frac)) * accel * v_avg
-    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, col)
-    idle_fuel = col(va.idle_fuel_g_s)
-    at_idle = (unlocked & ~drive) & np.isfinite(idle_fuel)
-    np.copyto(fuel, idle_fuel, where=at_idle)
-    if not all_moving:
-        fuel = np.where(moving, fuel, col(idle_fuel_rate_g_per_s(va)))
+    fueled = ~(overrun & (engine_rpm >= _col(va.fuel_cut_rpm)))
+    inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
+    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col)
+    idle_fuel = _col(va.idle_fuel_g_s)
+    np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
+    if not k.all_moving:
+        fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
-        burning = ~moving | fueled
-        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, since_start, v_avg,
-                                                            wheel_torque * wheel_omega, burning), 0.0)
+        burning = ~k.moving | fueled
+        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start, k.v_avg,
+                                                            wheel_power, burning), 0.0)
+    return t_max, infeasible, engine_torque, fuel
 
+
+def _shaft_power_W(torque_Nm, speed_rpm):
+    power = torque_Nm * speed_rpm
+    power /= RPM
+    return power
+
+
+def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
+             effects: CycleEffects = CycleEffects()):
+    """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
+    vehicle's achieved speed).
+
+    ``columns``: compute only these steps (the caller skips steps where the whole block
+    stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
+    physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
+    """
+    k = kinematics(time_s, speed_mps, grade_pct, columns)
+    force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
     wheel_power = wheel_torque * wheel_omega
-    diff_in_power = diff_torque * diff_rpm
-    diff_in_power /= RPM
-    turbine_power = trans_torque * turbine_rpm
-    turbine_power /= RPM
-    engine_power = engine_torque * engine_rpm
-    engine_power /= RPM
+    trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
+    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low)
+    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
+    engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
+    t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
+                                                    wheel_power)
+    diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
+    turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+    engine_power = _shaft_power_W(engine_torque, engine_rpm)
+    V, N = wheel_torque.shape
     return dict(
-        dt=dt, v_avg=v_avg, accel=accel, grade=np.broadcast_to(grade, (V, N)), force=force, moving=moving,
-        wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
+        dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
+        moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
         diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
         transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
-        converter_unlocked=unlocked & moving, engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
-        engine_max_torque_Nm=t_max, infeasible=infeasible & moving, fuel_rate_g_per_s=fuel,
+        converter_unlocked=unlocked & k.moving, engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
+        engine_max_torque_Nm=t_max, infeasible=infeasible & k.moving, fuel_rate_g_per_s=fuel,
         wheel_power_W=wheel_power, diff_loss_W=diff_in_power - wheel_power,
         transmission_loss_W=turbine_power - diff_in_power, converter_loss_W=engine_power - turbine_power,
         engine_power_W=engine_power,
@@ -432,7 +500,7 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
         w = x - j
         F = flat[base + j] * (1.0 - w) + flat[base + j + 1] * w
         v = np.maximum(v, 1e-3)
-        return (F - (A + v * (B + C * v)) - grade_force[:, i - 1]) * inv_m
+        return (F - coastdown_force_N(v, A, B, C) - grade_force[:, i - 1]) * inv_m
 
     if va.n <= SCALAR_REDRIVE_MAX:
         return _forward_redrive_scalar(flat, table.shape[1], dv, last, inv_m, grade_force, A, B, C, time_s, target_mps)
@@ -470,7 +538,7 @@ def _forward_redrive_scalar(flat, width, dv, last, inv_m, grade_force, A, B, C, 
             w = x - j
             f = F[j] * (1.0 - w) + F[j + 1] * w
             v = max(v, 1e-3)
-            return (f - (a_ + v * (b_ + c_ * v)) - gf[i - 1]) * im
+            return (f - coastdown_force_N(v, a_, b_, c_) - gf[i - 1]) * im
 
         row = out[k]
         vp = cap[0]

@@ -142,24 +142,17 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
 
     Rises linearly from ``idle_torque_fraction`` x peak at idle to peak at the peak-torque
     speed, is capped by rated power (T = P / omega) and falls to zero 10 % above rated speed
-    (governor / rev limiter).
+    (governor / rev limiter). Evaluated in place in one array of the arguments' broadcast
+    shape (no temporaries for vehicles x steps arrays).
     """
     n = np.asarray(speed_rpm, float)
     rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)
-    if not (isinstance(rise, np.ndarray) and rise.ndim and rise.shape == np.broadcast_shapes(
-            rise.shape, np.shape(peak_torque_Nm), np.shape(rated_power_kW), np.shape(rated_speed_rpm),
-            np.shape(idle_torque_fraction))):
-        torque = peak_torque_Nm * (idle_torque_fraction + (1.0 - idle_torque_fraction) * rise)
-        power_cap = rated_power_kW * 1e3 / np.maximum(n * RPM_RAD_S, 1e-9)
-        torque = np.minimum(torque, power_cap)
-        governor = np.clip((1.1 * rated_speed_rpm - n) / (0.1 * rated_speed_rpm), 0.0, 1.0)
-        return torque * governor
-    # the same arithmetic in place (vehicles x steps arrays, per-vehicle parameters)
-    torque = rise
-    torque *= 1.0 - idle_torque_fraction
+    shape = np.broadcast_shapes(rise.shape, np.shape(peak_torque_Nm), np.shape(rated_power_kW),
+                                np.shape(rated_speed_rpm), np.shape(idle_torque_fraction))
+    torque = np.multiply(rise, 1.0 - idle_torque_fraction, out=np.empty(shape))
     torque += idle_torque_fraction
     torque *= peak_torque_Nm
-    power_cap = np.multiply(n, RPM_RAD_S, out=np.empty(torque.shape))
+    power_cap = np.multiply(n, RPM_RAD_S, out=np.empty(shape))
     np.maximum(power_cap, 1e-9, out=power_cap)
     np.divide(rated_power_kW * 1e3, power_cap, out=power_cap)
     np.minimum(torque, power_cap, out=torque)
@@ -167,4 +160,4 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     governor /= 0.1 * rated_speed_rpm
     np.clip(governor, 0.0, 1.0, out=governor)
     torque *= governor
-    return torque
+    return torque if torque.ndim else torque[()]

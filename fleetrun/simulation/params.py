@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from fleetrun.errors import InputError
+from fleetrun.errors import FleetrunError, InputError
 from fleetrun.resources import models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
@@ -73,7 +73,7 @@ def transmission_defaults(gearbox_type: str) -> dict:
 
 def gearbox_type(v: VehicleSpec) -> str:
     """The optional ``gearbox_type`` column, else the CONTRACT ``transmission`` (automatic/manual)."""
-    value = (v.extra or {}).get("gearbox_type")
+    value = column_value(v, "gearbox_type")
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return v.transmission
     text = str(value).strip().lower().replace("-", "_").replace(" ", "_")
@@ -83,8 +83,15 @@ def gearbox_type(v: VehicleSpec) -> str:
     return text
 
 
+def column_value(v: VehicleSpec, key: str):
+    """A Vehicles column's value: the VehicleSpec field of that name (schema columns, e.g. the
+    optional gearbox_type, converter_lockup, cylinders) or else the extra column, or None."""
+    value = getattr(v, key, None) if key in VehicleSpec.__dataclass_fields__ else None
+    return (v.extra or {}).get(key) if value is None else value
+
+
 def _yes_no(v: VehicleSpec, key: str, default: bool) -> bool:
-    value = (v.extra or {}).get(key)
+    value = column_value(v, key)
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return default
     text = str(value).strip().lower()
@@ -197,8 +204,7 @@ class VehicleArrays:
 
 
 def _get(v: VehicleSpec, key: str, default):
-    extra = v.extra or {}
-    value = extra.get(key)
+    value = column_value(v, key)
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return default
     try:
@@ -320,3 +326,24 @@ def _gather(rows: list) -> VehicleArrays:
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
     )
+
+
+def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, FleetrunError]]:
+    """(index, error) of each vehicle whose parameters the simulation refuses: what
+    :func:`vehicle_arrays` would raise for it. Physically equal rows are checked once, so the
+    workbook reader can run this on every row (``fleetrun validate`` catches what ``run`` refuses)."""
+    verdicts: dict = {}
+    refused = []
+    for i, v in enumerate(vehicles):
+        if v.fuel == "electric":  # battery-electric rows run on fleetrun.simulation.electric, not these
+            continue
+        key = v.physics_key()
+        if key not in verdicts:
+            try:
+                _row_cached(v)
+                verdicts[key] = None
+            except FleetrunError as exc:
+                verdicts[key] = exc
+        if verdicts[key] is not None:
+            refused.append((i, verdicts[key]))
+    return refused

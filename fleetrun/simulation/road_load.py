@@ -28,11 +28,20 @@ def coastdown_to_si(A_lbf, B_lbf_per_mph, C_lbf_per_mph2):
     return A, B, C
 
 
+def coastdown_force_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
+    """The coastdown polynomial A + B v + C v^2 [N], evaluated as A + v (B + C v) at any speed
+    (in place for arrays; Python floats work too, for the scalar re-drive loop)."""
+    force = C_N_s2_per_m2 * speed_mps
+    force += B_N_s_per_m
+    force *= speed_mps
+    force += A_N
+    return force
+
+
 def road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
     """Coastdown road-load force [N] at ``speed_mps`` (0 at standstill: nothing rolls)."""
     v = np.asarray(speed_mps, float)
-    force = A_N + v * (B_N_s_per_m + C_N_s2_per_m2 * v)
-    return np.where(v > 0.0, force, 0.0)
+    return np.where(v > 0.0, coastdown_force_N(v, A_N, B_N_s_per_m, C_N_s2_per_m2), 0.0)
 
 
 def grade_force_N(mass_kg, grade_pct):
@@ -49,6 +58,8 @@ def tractive_force_N(speed_mps, accel_mps2, grade_pct, mass_kg, rotating_mass_fr
     the vehicle must be slowed (engine overrun and brakes).
     """
     m = np.asarray(mass_kg, float)
-    return (road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2)
-            + m * (1.0 + rotating_mass_fraction) * accel_mps2
-            + grade_force_N(m, grade_pct))
+    # inertia first: a new array (C order, for the simulation's sums) to add the rest in place
+    force = np.multiply(m * (1.0 + rotating_mass_fraction), accel_mps2, order="C")
+    force += road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2)
+    force += grade_force_N(m, grade_pct)
+    return force

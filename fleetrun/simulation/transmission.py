@@ -122,15 +122,11 @@ def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_spee
         inv = 1.0 / wheel_side_speed_rpm
     need = required_engine_speed_rpm * inv
     limit = max_engine_speed_rpm * inv
-    count = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
-    if np.shape(need) == count.shape:
-        hit = np.empty(count.shape, bool)
-        for k in range(K):  # count += ratio >= need, without a temporary or a cast per gear
-            np.greater_equal(overall_ratios[:, k:k + 1], need, out=hit)
-            np.add(count, hit.view(np.int8), out=count)
-    else:
-        for k in range(K):
-            count += overall_ratios[:, k:k + 1] >= need
+    count = np.zeros(np.shape(need), dtype=np.int8)
+    hit = np.empty(count.shape, bool)
+    for k in range(K):  # count += ratio >= need, without a temporary or a cast per gear
+        np.greater_equal(overall_ratios[:, k:k + 1], need, out=hit)
+        np.add(count, hit.view(np.int8), out=count)
     top = np.asarray(n_ratios)[:, None] - 1
     if (np.ndim(need) == 2 and need.shape == limit.shape and (overall_ratios[:, :-1] >= overall_ratios[:, 1:]).all()
             and (need <= limit).all()):

@@ -1,0 +1,124 @@
+"""What both reports say in words: headline totals rounded to their range, and the assumptions.
+
+The Excel Summary and the HTML page show the same sentences, made here once.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from fleetrun.fleet import budget
+
+SCALES = ((1e9, "billion"), (1e6, "million"), (1e3, "thousand"))
+
+
+def short(value: float, prefix: str = "", low: float | None = None, high: float | None = None) -> str:
+    """``value`` rounded to the digit its range supports (:func:`budget.display_round`) and
+    written with a word scale: ``$2.46 million``."""
+    if value is None or not math.isfinite(value):
+        return "n/a"
+    rounded = budget.display_round(value, low, high)
+    for threshold, word in SCALES:
+        if abs(rounded) >= threshold:
+            digits = _digits(rounded / threshold, (high - low) / threshold if _has_range(low, high) else None)
+            return f"{prefix}{rounded / threshold:,.{digits}f} {word}"
+    digits = _digits(rounded, (high - low) if _has_range(low, high) else None)
+    return f"{prefix}{rounded:,.{digits}f}"
+
+
+def _has_range(low, high) -> bool:
+    return low is not None and high is not None and math.isfinite(low) and math.isfinite(high) and high > low
+
+
+def _digits(value: float, width: float | None) -> int:
+    """Decimals to show: down to a tenth of the range's width (3 significant digits without)."""
+    if width:
+        return max(0, -math.floor(math.log10(width / 10.0)))
+    if value == 0:
+        return 0
+    return max(0, 2 - math.floor(math.log10(abs(value))))
+
+
+def with_range(value: float, low: float, high: float, prefix: str = "", unit: str = "") -> str:
+    """``12.3 million gal (11.1 to 13.5 million)``; the value alone when there is no range."""
+    unit = f" {unit}" if unit else ""
+    if not _has_range(low, high):
+        return f"{short(value, prefix)}{unit}"
+    return (f"{short(value, prefix, low, high)}{unit} "
+            f"({short(low, prefix, low, high)} to {short(high, prefix, low, high)})")
+
+
+def scenario_ranges(fiscal: pd.DataFrame, scenarios) -> dict[str, dict[str, float]]:
+    """Per scenario: fuel, state and federal tax with their low and high ends (the taxes'
+    range is each fuel's gallon range x that fuel's rate)."""
+    out = {}
+    for s in scenarios:
+        rows = fiscal[fiscal["scenario_id"] == s.scenario_id]
+        entry = {key: 0.0 for key in ("fuel", "fuel_low", "fuel_high", "state", "state_low", "state_high",
+                                      "federal", "federal_low", "federal_high")}
+        for fuel, group in rows.groupby("fuel", sort=False):
+            gallons = [math.fsum(group[c]) if group[c].notna().all() else math.nan
+                       for c in ("fuel_gal", "fuel_gal_low", "fuel_gal_high")]
+            for key, rate in (("state", s.state_tax_usd_per_gal(fuel)), ("federal", s.federal_tax_usd_per_gal(fuel))):
+                entry[key] += math.fsum(group[f"{key}_tax_usd"])
+                entry[f"{key}_low"] += gallons[1] * rate
+                entry[f"{key}_high"] += gallons[2] * rate
+            entry["fuel"] += gallons[0]
+            entry["fuel_low"] += gallons[1]
+            entry["fuel_high"] += gallons[2]
+        out[s.scenario_id] = entry
+    return out
+
+
+def headline(s, entry: dict) -> list[tuple[str, str]]:
+    """(label, text) pairs for one scenario's headline, state and federal apart."""
+    years = budget.fiscal_years(s)
+    period = f"fiscal years {years[0]}-{years[-1]}" if s.first_fiscal_year else f"{s.budget_years} budget year(s)"
+    return [("Period", period),
+            ("Fuel", with_range(entry["fuel"], entry["fuel_low"], entry["fuel_high"], unit="gal")),
+            ("State fuel tax", with_range(entry["state"], entry["state_low"], entry["state_high"], prefix="$")),
+            ("Federal fuel tax", with_range(entry["federal"], entry["federal_low"], entry["federal_high"], prefix="$"))]
+
+
+def _mix_text(mix: dict | None) -> str:
+    if not mix:
+        return "as cycle_mix"
+    return ", ".join(f"{Path(k).name if k.lower().endswith('.csv') else k} {w:.0%}" for k, w in mix.items())
+
+
+def assumptions(s) -> list[tuple[str, str]]:
+    """(label, text) pairs: what a reader needs to judge one scenario's numbers."""
+    rows = [("Ambient temperature", f"{s.ambient_temp_C:g} C"),
+            ("Cycle mix (share of miles)", _mix_text(s.cycle_mix)),
+            ("Cycle mix, medium trucks", _mix_text(s.cycle_mix_MD)),
+            ("Cycle mix, heavy trucks", _mix_text(s.cycle_mix_HD)),
+            ("Miles growth", f"{s.vmt_growth_pct_per_year:g} % per year"),
+            ("State tax, gasoline / diesel", f"${s.state_tax_gasoline_usd_per_gal:.3f} / "
+                                             f"${s.state_tax_diesel_usd_per_gal:.3f} per gal"),
+            ("Federal tax, gasoline / diesel", f"${s.federal_tax_gasoline_usd_per_gal:.3f} / "
+                                               f"${s.federal_tax_diesel_usd_per_gal:.3f} per gal"),
+            ("On-road fuel", budget.onroad_label(s.onroad_adjustment)),
+            ("Fiscal years", ", ".join(str(y) for y in budget.fiscal_years(s))
+             if s.first_fiscal_year else f"{s.budget_years} budget year(s), numbered from 1")]
+    if s.ev_fee_usd_per_vehicle_year:
+        rows.append(("Electric-vehicle fee", f"${s.ev_fee_usd_per_vehicle_year:,.2f} per vehicle per year"))
+    observed = [f"{fuel} {s.observed_base_gallons(fuel):,.0f} gal" for fuel in ("gasoline", "diesel")
+                if s.observed_base_gallons(fuel) is not None]
+    if observed:
+        rows.append(("Observed first-year gallons", ", ".join(observed)
+                     + ("; forecast calibrated to them" if s.calibrate_to_observed else "; not calibrated")))
+    return rows
+
+
+def range_source_lines(error_model) -> list[str]:
+    """Where the ranges come from, in short lines."""
+    if error_model is None:
+        return ["No range: no measured fuel-economy error in this installation (models/fuel_economy_error.toml)."]
+    lines = ["Ranges: the model's measured fuel-economy error (predicted / measured mpg - 1), 5th to 95th "
+             "percentile, added over vehicles (one model: fully correlated).",
+             f"Measured: {error_model.source} ({error_model.measured_on})."]
+    lines += [f"{test}: {e['p05']:+.1%} to {e['p95']:+.1%} (n = {e.get('n', '?')})"
+              for test, e in sorted(error_model.tests.items())]
+    return lines
