@@ -52,22 +52,24 @@ def main(argv=None):
     parser.add_argument("--repeat", type=int, default=1, help="repeat the whole sequence (min is reported)")
     args = parser.parse_args(argv)
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
+    env.pop("FLEETRUN_CACHE_DIR", None)
     rows: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="bench-epa-") as tmp:
         tmp = Path(tmp)
-        for _ in range(args.repeat):
-            env["FLEETRUN_CACHE_DIR"] = str(tempfile.mkdtemp(dir=tmp, prefix="maps-"))
+        for k in range(args.repeat):
+            cache = tempfile.mkdtemp(dir=tmp, prefix="maps-")   # empty: the first run builds the maps
             fleet, three = tmp / "fleet.xlsx", tmp / "fleet3.xlsx"
             steps = [
                 ("import-epa (whole 2022 list)", ("import-epa", LIST, "-o", fleet, "--measured-out", tmp / "m.csv")),
-                ("run, default scenario (FTP + HWFET), cold map cache", ("run", fleet, "--out", tmp / "o1", "-q")),
-                ("run, default scenario, warm map cache", ("run", fleet, "--out", tmp / "o2", "-q")),
-                ("run, FTP + HWFET + US06, warm map cache", ("run", three, "--out", tmp / "o3", "-q")),
+                ("run, default scenario (FTP + HWFET), cold map cache", ("run", fleet, "--out", tmp / f"o1-{k}")),
+                ("run, default scenario, warm map cache", ("run", fleet, "--out", tmp / f"o2-{k}")),
+                ("run, FTP + HWFET + US06, warm map cache", ("run", three, "--out", tmp / f"o3-{k}")),
             ]
             for label, step in steps:
                 if step[1] == three and not three.exists():
                     three_cycle_copy(fleet, three)
-                rows.setdefault(label, []).append(fleetrun(*step, env=env))
+                extra = ("--cache-dir", cache, "-q") if step[0] == "run" else ()
+                rows.setdefault(label, []).append(fleetrun(*step, *extra, env=env))
         vehicles = sum(1 for r in load_workbook(fleet, read_only=True)["Vehicles"].iter_rows(min_row=2) if r[0].value)
     print(f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
           f"{vehicles} vehicles modelled; best of {args.repeat}\n")
