@@ -17,7 +17,7 @@ from fleetrun.fleet import runner
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 SHEETS = ["Summary", "Assumptions", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
-          "RunInfo"]
+          "RunInfo", "What changed"]
 
 
 @pytest.fixture(scope="module")

@@ -5,12 +5,14 @@ import io
 import zipfile
 
 import openpyxl
+from openpyxl.utils import get_column_letter
 import pytest
 from click.testing import CliRunner
 
 from fleetrun.cli import cli
 from fleetrun.errors import InputError
 from fleetrun.fleet import read_fleet
+from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from fleetrun.fleet.template import write_template
 from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
@@ -25,9 +27,18 @@ def test_template_reads_back_clean(tmp_path):
     path = tmp_path / "t.xlsx"
     write_template(path)
     fleet = read_fleet(path)
-    assert [v.vehicle_id for v in fleet.vehicles] == ["LD-CAR-01", "HD-TRACTOR-01"]
-    assert [s.scenario_id for s in fleet.scenarios] == ["baseline", "hot_summer"]
-    assert fleet.warnings == []
+    assert [v.vehicle_id for v in fleet.vehicles] == ["EXAMPLE-LD-CAR-01", "EXAMPLE-HD-TRACTOR-01"]
+    assert [s.scenario_id for s in fleet.scenarios] == ["EXAMPLE-baseline", "EXAMPLE-hot_summer"]
+    # the example rows are marked: reading them back warns, once per row, naming the cell
+    assert fleet.warnings == [
+        "Scenarios!A2 scenario_id: 'EXAMPLE-baseline' is one of the template's example rows; replace it with "
+        "your own data or delete the row",
+        "Scenarios!A3 scenario_id: 'EXAMPLE-hot_summer' is one of the template's example rows; replace it with "
+        "your own data or delete the row",
+        "Vehicles!A2 vehicle_id: 'EXAMPLE-LD-CAR-01' is one of the template's example rows; replace it with "
+        "your own data or delete the row",
+        "Vehicles!A3 vehicle_id: 'EXAMPLE-HD-TRACTOR-01' is one of the template's example rows; replace it with "
+        "your own data or delete the row"]
     assert len(fleet.sha256) == 64
     assert fleet.scenarios[0].cycle_mix == {"UDDS": 0.55, "HWFET": 0.45}
     assert fleet.vehicles[0].transmission_gear_ratios[0] == 4.62
@@ -44,6 +55,15 @@ def test_template_has_instructions_dropdowns_and_examples(tmp_path):
     assert any("LD_FWD" in f and "HD_TAG_DUAL" in f for f in lists)
     assert '"gasoline,diesel,electric"' in lists and '"automatic,manual"' in lists
     assert ws.max_row == 3 and header[0] == "vehicle_id"
+    # every numeric column refuses text and out-of-range numbers in Excel, in both sheets
+    for sheet, columns in (("Vehicles", VEHICLE_COLUMNS), ("Scenarios", SCENARIO_COLUMNS)):
+        rules = {str(dv.sqref).split(":")[0]: dv for dv in wb[sheet].data_validations.dataValidation}
+        for index, column in enumerate(columns, start=1):
+            if column.kind in ("number", "integer"):
+                rule = rules[f"{get_column_letter(index)}2"]
+                assert rule.type == ("whole" if column.kind == "integer" else "decimal"), column.name
+                if column.strictly_positive:
+                    assert (rule.operator, rule.formula1) == ("greaterThan", "0"), column.name
     again = CliRunner().invoke(cli, ["template", "-o", str(path)])
     assert again.exit_code == 1 and again.stderr.startswith("Error:") and "--force" in again.stderr
 

@@ -38,10 +38,12 @@ from fleetrun.fleet.engines import ENGINES
 @click.option("--no-cache", is_flag=True, help="Do not read or write cached maps.")
 @click.option("--log", "log_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
+@click.option("--replace", is_flag=True,
+              help="Replace the run already in the output folder instead of keeping it in earlier-runs/.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, log lines or summary on stdout or stderr (errors still go to stderr).")
 @click.pass_context
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
-            no_cache, log_file, quiet):
+            no_cache, log_file, replace, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
     from fleetrun.effects import parse_with
@@ -80,6 +82,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          log=log_file, chunk_size=settings.get("chunk_size"))
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.
+    plan.replace = replace
     injected = ctx.obj or {}
     plan.simulate = injected.get("simulate")
     plan.error_model = injected.get("error_model", plan.error_model)

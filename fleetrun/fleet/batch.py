@@ -57,6 +57,7 @@ class RunPlan:
     log: Path | None = None
     chunk_size: int | None = None
     simulate: object = None               # the simulation function (None: fleetrun.simulation.simulate)
+    replace: bool = False                 # --replace: do not keep the earlier run in earlier-runs/
     error_model: object = "default"       # measured fuel-economy error (run_fleet's error_model)
 
     def out_dir(self, fleet_path: Path) -> Path:
@@ -216,10 +217,28 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
                        error_model=plan.error_model)
     result.timings_s = {"read": read_s, **result.timings_s}
     written_at = time.perf_counter()
-    outputs = write_run_outputs(result, out_dir)
+    earlier = _what_changed(result, out_dir, fleet_path)
+    outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
+    if earlier is not None and not plan.replace:
+        log.info("%s: the earlier run is kept in %s", fleet_path.name, out_dir / "earlier-runs")
     log.info("%s: wrote %s (read %.1f s, simulate %.1f s, write %.1f s)", fleet_path.name, out_dir,
              read_s, result.timings_s["simulate"], time.perf_counter() - written_at)
     return {"fleet": fleet_path, "out": out_dir, "outputs": outputs, "result": result}
+
+
+def _what_changed(result, out_dir: Path, fleet_path: Path) -> dict | None:
+    """Compare with the run already in ``out_dir`` (inputs' sha256, totals by scenario): the
+    comparison goes on ``result.changes`` and into the log; the earlier manifest, or None."""
+    from fleetrun.fleet.changes import compare, describe, read_earlier, scenario_totals_dict
+    from fleetrun.fleet.manifest import manifest_dict
+
+    earlier = read_earlier(out_dir)
+    if earlier is None:
+        return None
+    result.changes = compare(earlier, manifest_dict(result)["inputs"], scenario_totals_dict(result.classes))
+    for line in describe(result.changes):
+        log.info("%s: %s", fleet_path.name, line)
+    return earlier
 
 
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:

@@ -74,6 +74,12 @@ def _efficiency_color(value: float, low: float, high: float) -> str:
     return f"#{r:02x}{g:02x}{bl:02x}"
 
 
+def efficiency_scale(maps) -> tuple[float, float]:
+    """One colour scale for every map of a run: the lowest and highest efficiency of all."""
+    values = [v for m in maps for row in m["efficiency"] for v in row if math.isfinite(v)]
+    return (min(values), max(values)) if values else (0.0, 1.0)
+
+
 def scale_legend(low: float, high: float, *, width: int = 300) -> dict:
     """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``."""
     steps = 24

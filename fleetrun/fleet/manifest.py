@@ -11,6 +11,8 @@ SCHEMA = "fleetrun.run/1"
 
 
 def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
+    from fleetrun.fleet.changes import scenario_totals_dict
+
     inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
     inputs += [{"role": "drive cycle", "path": path, "sha256": sha}
                for path, sha in sorted(result.cycle_inputs.items())]
@@ -30,6 +32,8 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "cycles": result.cycles,
         "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
         "warnings": list(result.warnings),
+        "totals": scenario_totals_dict(result.classes),          # what the next run compares with
+        "changes": getattr(result, "changes", None),             # vs the run that was in the folder
         "outputs": outputs or {},
     }
 

@@ -50,9 +50,12 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
                                  hint="Choose another output folder (--out)")
 
 
-def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
-    """Write the six outputs of a run into ``out_dir``, all or nothing (the folder changes as
-    one step: :func:`fleetrun.output_folder.new_output_folder`)."""
+def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
+    """Write the six outputs of a run into ``out_dir``, all or nothing: the folder changes as
+    one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
+    the run already there, whose files are then kept in ``earlier-runs/``
+    (:func:`fleetrun.fleet.changes.keep_earlier_run`); None replaces it."""
+    from fleetrun.fleet.changes import keep_earlier_run
     from fleetrun.fleet.manifest import write_manifest
     from fleetrun.fleet.report_html import write_summary_html
     from fleetrun.fleet.report_xlsx import write_report_xlsx
@@ -62,6 +65,8 @@ def write_run_outputs(result, out_dir: Path) -> dict[str, Path]:
     out_dir = Path(out_dir)
     refuse_overwriting_inputs(out_dir, [result.fleet.path, *result.cycle_inputs])
     with new_output_folder(out_dir, replaces=OUTPUT_FILES) as staging:
+        if earlier is not None:
+            keep_earlier_run(out_dir, staging, earlier, OUTPUT_FILES)
         write_csv(result.results, staging / "results.csv")
         write_csv(result.classes, staging / "class_summary.csv")
         write_csv(result.fiscal, staging / "fiscal_summary.csv")

@@ -13,8 +13,8 @@ import jinja2
 
 from fleetrun import __version__
 from fleetrun.fleet import charts, report_text
+from fleetrun.fleet.changes import describe as describe_changes
 from fleetrun.fleet.manifest import manifest_dict, physics_label
-from fleetrun.fleet.report_xlsx import efficiency_scale
 from fleetrun.fleet.runner import RunResult
 from fleetrun.fleet.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
@@ -96,7 +96,7 @@ def _fiscal_groups(result: RunResult) -> list[dict]:
 
 
 def _maps(result: RunResult) -> tuple[list[dict], dict]:
-    low, high = efficiency_scale(result.maps)
+    low, high = charts.efficiency_scale(result.maps)
     maps = []
     for m in result.maps:
         title = f"{m['configuration']}, gear ratio {m['gear_ratio']:g}"
@@ -138,6 +138,7 @@ def render_summary(result: RunResult) -> str:
         calibration_columns=list(calibration.columns) if calibration is not None and len(calibration) else [],
         calibration_rows=_table_rows(calibration, list(calibration.columns))
         if calibration is not None and len(calibration) else [],
+        changes=result.changes, change_lines=describe_changes(result.changes) if result.changes else [],
         sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")
 
 

@@ -24,6 +24,7 @@ from openpyxl.utils import get_column_letter
 from openpyxl.worksheet.page import PageMargins
 from openpyxl.worksheet.properties import PageSetupProperties
 
+from fleetrun.fleet.charts import efficiency_scale
 from fleetrun.fleet.runner import RunResult
 from fleetrun.fleet.totals import scenario_totals, yearly_totals
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
@@ -130,6 +131,7 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
         _maps(wb, result)
         _inputs(wb, result, bulk)
         _run_info(wb, result)
+        _what_changed(wb, result)
         wb.save(path)
     if bulk:
         append_rows(path, bulk)
@@ -386,12 +388,6 @@ def _fiscal(wb, result: RunResult):
         _table(ws, calibration, widths=False)
 
 
-def efficiency_scale(maps) -> tuple[float, float]:
-    """One colour scale for every map: the lowest and highest efficiency of all of them."""
-    values = [v for m in maps for row in m["efficiency"] for v in row if math.isfinite(v)]
-    return (min(values), max(values)) if values else (0.0, 1.0)
-
-
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table
 
 
@@ -532,3 +528,31 @@ def _run_info(wb, result: RunResult):
     ws.append([text_cell(ws, f"Warnings ({len(result.warnings)})")])
     for warning in result.warnings:
         ws.append([None, text_cell(ws, warning)])
+
+
+def _what_changed(wb, result: RunResult):
+    """The comparison with the run that was in the output folder (fleetrun.fleet.changes)."""
+    ws = wb.create_sheet("What changed")
+    page_setup(ws, title_rows=None)
+    for letter, width in zip("ABCDE", (40, 18, 20, 20, 14)):
+        ws.column_dimensions[letter].width = width
+    changes = result.changes
+    title = text_cell(ws, "What changed since the earlier run in this output folder")
+    title.font = TITLE_FONT
+    ws.append([title])
+    if not changes:
+        ws.append([text_cell(ws, "No earlier run in this folder: nothing to compare.")])
+        return
+    ws.append([text_cell(ws, "Earlier run"), text_cell(ws, f"{changes['earlier_created_utc']} "
+                                                           f"(fleetrun {changes['earlier_version']})")])
+    ws.append([])
+    _header(ws, ["input", "status", "earlier sha256", "sha256"])
+    for item in changes["inputs"]:
+        ws.append([text_cell(ws, item["path"]), text_cell(ws, item["status"]),
+                   text_cell(ws, item["earlier_sha256"] or ""), text_cell(ws, item["sha256"] or "")])
+    ws.append([])
+    _header(ws, ["scenario_id", "total", "earlier", "now", "change"])
+    for row in changes["totals"]:
+        ws.append([text_cell(ws, row["scenario_id"]), text_cell(ws, row["total"]),
+                   _value(ws, row["earlier"], "#,##0"), _value(ws, row["now"], "#,##0"),
+                   _value(ws, row["change_pct"], FORMATS["change_pct"])])

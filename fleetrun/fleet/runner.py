@@ -71,6 +71,7 @@ class RunResult:
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
     error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
+    changes: dict | None = None                # changes.compare with the run already in the folder
 
 
 def _now_utc() -> str:

@@ -16,6 +16,8 @@ DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel", "electric")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
+# The template's example rows carry this id prefix; `validate` warns while one is left in.
+EXAMPLE_PREFIX = "EXAMPLE-"
 TRANSMISSIONS = ("automatic", "manual")
 GEARBOX_TYPES = ("automatic", "automated_manual", "cvt", "manual")
 YES_NO = ("yes", "no")
@@ -59,7 +61,8 @@ def _number_text(value) -> str:
 
 
 VEHICLE_COLUMNS: tuple[Column, ...] = (
-    Column("vehicle_id", "text", True, "unique id of this vehicle type", example=("LD-CAR-01", "HD-TRACTOR-01")),
+    Column("vehicle_id", "text", True, "unique id of this vehicle type",
+           example=(EXAMPLE_PREFIX + "LD-CAR-01", EXAMPLE_PREFIX + "HD-TRACTOR-01")),
     Column("vehicle_class", "text", True, "label the reports aggregate by", example=("Passenger car", "Class 8 tractor")),
     Column("duty_class", "choice", True, "LD, MD or HD", choices=DUTY_CLASSES, example=("LD", "HD")),
     Column("configuration", "choice", True, "differential configuration", choices=CONFIGURATIONS,
@@ -120,7 +123,8 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
 # cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty
 # cycles such as US06, so a scenario may give them their own mix.
 SCENARIO_COLUMNS: tuple[Column, ...] = (
-    Column("scenario_id", "text", True, "unique id of this scenario", example=("baseline", "hot_summer")),
+    Column("scenario_id", "text", True, "unique id of this scenario",
+           example=(EXAMPLE_PREFIX + "baseline", EXAMPLE_PREFIX + "hot_summer")),
     Column("description", "text", False, "free text for the reports",
            example=("Average year, mixed driving", "Heat wave: 38 C ambient")),
     Column("ambient_temp_C", "number", True, "ambient temperature [C]", minimum=-50, maximum=60,

@@ -39,6 +39,8 @@ INSTRUCTIONS = [
     ("budget_years: 2 = a biennium. Year y uses annual_miles x (1 + growth/100)^(y - 1).", None),
     ("Tax rates in US dollars per gallon.", None),
     ("", None),
+    ("The example rows (ids starting EXAMPLE-) show the format: replace or delete them;", None),
+    ("   `fleetrun validate` warns while one is left in.", None),
     ("Check the workbook with:  fleetrun validate FLEET.xlsx", None),
     ("Run it with:              fleetrun run FLEET.xlsx --out results/", None),
     ("", None),
@@ -79,6 +81,8 @@ def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
             target = ws.cell(row=row, column=index, value=example)
             if column.kind in ("text", "ratios", "cycle_mix", "choice"):
                 target.number_format = "@"  # keep "3.5,2.1" and ids as text
+        if column.kind in ("number", "integer"):
+            _number_rule(ws, column, get_column_letter(index))
         if column.choices:
             letter = get_column_letter(index)
             rule = DataValidation(type="list", formula1='"' + ",".join(column.choices) + '"',
@@ -88,6 +92,24 @@ def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
             rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
             ws.add_data_validation(rule)
     ws.freeze_panes = "B2"
+
+
+def _number_rule(ws, column: Column, letter: str) -> None:
+    """Excel refuses what is not a number (a whole number for integer columns) in range."""
+    kind = "whole" if column.kind == "integer" else "decimal"
+    if column.strictly_positive:
+        operator, first, second, words = "greaterThan", "0", None, "greater than 0"
+    elif column.minimum is not None:
+        operator, first, second, words = ("greaterThanOrEqual", f"{column.minimum:g}", None,
+                                          f"at least {column.minimum:g}")
+    else:
+        operator, first, second, words = "between", "-1E+300", "1E+300", "a number"
+    rule = DataValidation(type=kind, operator=operator, formula1=first, formula2=second,
+                          allow_blank=not column.required, showErrorMessage=True, errorTitle=column.name,
+                          error=f"{column.name}: {'a whole number' if kind == 'whole' else 'a number'} "
+                                f"{words if words != 'a number' else ''}".strip())
+    rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
+    ws.add_data_validation(rule)
 
 
 def _fill_instructions(ws) -> None:

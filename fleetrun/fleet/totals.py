@@ -93,13 +93,11 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
             cycle_gpm = sim["fuel_gal"][rows] / miles
             kind = _cycle_kind(cycle)
             low, high = error_model.relative_range(cycle, kind) if error_model else (math.nan, math.nan)
-            for name, gpm in (("fuel_gal_cycle", cycle_gpm), ("fuel_gal", None),
-                              ("fuel_gal_low", cycle_gpm * (1.0 + low)), ("fuel_gal_high", cycle_gpm * (1.0 + high))):
-                if gpm is None:
-                    gpm = budget.onroad_gal_per_mile(cycle_gpm, s.onroad_adjustment, kind, adjusted[rows])
-                elif name != "fuel_gal_cycle":
-                    gpm = budget.onroad_gal_per_mile(gpm, s.onroad_adjustment, kind, adjusted[rows])
-                per_mile[name][rows] += share * gpm
+            per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
+            # central value and the range's ends: cycle gallons x (1 + e), then on the road
+            for name, factor in (("fuel_gal", 1.0), ("fuel_gal_low", 1.0 + low), ("fuel_gal_high", 1.0 + high)):
+                onroad = budget.onroad_gal_per_mile(cycle_gpm * factor, s.onroad_adjustment, kind, adjusted[rows])
+                per_mile[name][rows] += share * onroad
             per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)

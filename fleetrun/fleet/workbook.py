@@ -23,7 +23,7 @@ from openpyxl.utils import column_index_from_string, get_column_letter
 from fleetrun.errors import InputError
 from fleetrun.fleet import cells, rows
 from fleetrun.fleet.cells import CellProblem
-from fleetrun.fleet.schema import (PLAUSIBLE_SCENARIO,
+from fleetrun.fleet.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
                                    SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.vehicle import VehicleSpec
@@ -356,6 +356,14 @@ def _text_or_blank(raw) -> str:
         return ""
 
 
+def _warn_example(parsed: dict, key: str, table: "_Table", row_number: int, problems: Problems) -> None:
+    """A row whose id still carries the template's example prefix: warn (it would be counted)."""
+    value = parsed.get(key)
+    if isinstance(value, str) and value.upper().startswith(EXAMPLE_PREFIX):
+        problems.warn(f"{cells.show(value)} is one of the template's example rows; replace it with your own "
+                      "data or delete the row", table.sheet, row_number, table.columns.get(key), key)
+
+
 def _first_use(parsed: dict, key: str, rows: dict, table: "_Table", row_number: int, problems: Problems) -> bool:
     """Record the row of ``parsed[key]``; an id seen before is an error naming its first row."""
     value = parsed.get(key)
@@ -378,6 +386,7 @@ def _vehicles(table: _Table, problems: Problems):
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
         ok = _first_use(parsed, "vehicle_id", first_rows, table, row_number, problems) and ok
+        _warn_example(parsed, "vehicle_id", table, row_number, problems)
         ok = rows.check_vehicle(parsed, _reporter(table, row_number, problems)) and ok
         if ok:
             vehicles.append(rows.vehicle_spec(parsed, parsed["_extra"]))
@@ -420,6 +429,7 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
         ok = _first_use(parsed, "scenario_id", first_rows, table, row_number, problems) and ok
+        _warn_example(parsed, "scenario_id", table, row_number, problems)
         mixes = {}
         for name in MIX_COLUMNS:
             if parsed[name] is not None:
