@@ -168,6 +168,18 @@ def _measure(args, timeout=20) -> tuple[int, float, float, str]:
     return int(code), seconds, int(peak_kb) / 1024, done.stderr.decode(errors="replace")
 
 
+_STARTUP: list[float] = []
+
+
+def _startup_s() -> float:
+    """Seconds `fleetrun run --help` takes here and now (interpreter and imports): a loaded CI
+    machine slows the start-up, which is not what the 2 s bound of issue 9 is about."""
+    if not _STARTUP:
+        code, seconds, _, _ = _measure(["run", "--help"])
+        _STARTUP.append(seconds)
+    return _STARTUP[0]
+
+
 @pytest.mark.parametrize("command", ["validate", "run"])
 def test_giant_cell_reference_refused_quickly(tmp_path, command):
     """Before: validate grew to 5 GB and died with a traceback."""
@@ -177,8 +189,7 @@ def test_giant_cell_reference_refused_quickly(tmp_path, command):
     code, seconds, peak_mb, stderr = _measure(args)
     assert code == 1, stderr
     assert stderr.startswith("Error:") and "ZZZZZZZZZZ2" in stderr.splitlines()[0]
-    # startup (imports) included; the bound of issue 9 is 2 s and 200 MB on an idle machine
-    assert seconds < 6 and peak_mb < 200, (seconds, peak_mb)
+    assert seconds - _startup_s() < 2 and peak_mb < 200, (seconds, _startup_s(), peak_mb)
 
 
 @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
@@ -189,7 +200,7 @@ def test_dev_zero_refused_quickly(tmp_path, command):
     code, seconds, peak_mb, stderr = _measure(args)
     assert code == 1, stderr
     assert stderr.startswith("Error: /dev/zero:")
-    assert seconds < 6 and peak_mb < 200, (seconds, peak_mb)
+    assert seconds - _startup_s() < 2 and peak_mb < 200, (seconds, _startup_s(), peak_mb)
 
 
 # --- formula injection ------------------------------------------------------------------------
