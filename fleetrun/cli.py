@@ -14,7 +14,8 @@ from fleetrun import __version__
 from fleetrun.errors import FleetrunError
 
 # Command modules in fleetrun/commands, in the order `fleetrun --help` lists them.
-COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa")
+COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa",
+            "diagnose-fleet")
 
 
 class FleetrunGroup(click.Group):

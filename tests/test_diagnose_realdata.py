@@ -1,13 +1,14 @@
 """The real-data diagnoses of docs/diagnose-realdata.md (and the README) hold.
 
 Camry cold- vs hot-start UDDS: the mismatch is located in the first phase (the cold start)
-and attributed to `warmup`. Thesis Sec. 7.2: with wheel speeds recorded, the low-speed
-shortfall of the model against Matthews' fit is `mixed_lubrication`; without them it cannot
-be told from `cornering` and is reported ambiguous, not claimed.
+and attributed to `warmup`; the first bag's fuel error is at least halved. Thesis Sec. 7.2:
+with wheel speeds recorded, the low-speed shortfall of the model against Matthews' fit is
+described by `mixed_lubrication` at the bound of its friction share (a weak description);
+without them it cannot be told from `cornering` and is reported ambiguous, not claimed.
 """
 import pytest
 
-from fleetrun.diagnose.realdata import run
+from validation.diagnose_realdata import run
 
 
 @pytest.fixture(scope="module")
@@ -18,20 +19,29 @@ def results(tmp_path_factory):
 def test_camry_cold_start_is_warmup_in_the_first_phase(results):
     doc = results["camry_cold_vs_hot"]
     assert [f["effect"] for f in doc["findings"]] == ["warmup"]
+    assert doc["baseline"]["residual"] == "same_trace"      # the hot run of the same UDDS
     first = doc["mismatch"]["segments"][0]
     assert first["start_s"] < 60 and first["share"] > 0.3      # UDDS phase 1 is 0-505 s
     assert all(seg["end_s"] <= 505 for seg in doc["mismatch"]["segments"][:2])
     finding = doc["findings"][0]
     assert finding["heldout_rmse_after"] < finding["heldout_rmse_before"]
-    assert 60 < finding["parameters"]["tau_s"] < 600
+    bag1 = doc["integrals"][0]
+    assert (bag1["start_s"], bag1["end_s"], bag1["label"]) == (0.0, 505.0, "UDDS bag 1")
+    assert abs(bag1["after"] - bag1["measured"]) <= 0.5 * abs(bag1["before"] - bag1["measured"])
 
 
 @pytest.mark.parametrize("vehicle", ["ford_f150", "mercedes_300e", "cadillac_deville", "nissan_240sx"])
 def test_thesis_sec_7_2_low_speed_loss(results, vehicle):
+    # with wheel speeds, the low-speed shortfall is described by mixed lubrication, but its
+    # friction share sits at the 0.5 bound (beyond published hypoid friction, as thesis
+    # Sec. 7.2 says): a weak description, not a finding
     straight = results[f"matthews_{vehicle}"]
-    assert [f["effect"] for f in straight["findings"]] == ["mixed_lubrication"]
-    f = straight["findings"][0]
-    assert f["heldout_rmse_after"] < 0.5 * f["heldout_rmse_before"]
+    assert straight["findings"] == []
+    desc = {d["effect"]: d for d in straight["descriptions"]}
+    assert "mixed_lubrication" in desc and "edge of its plausible range" in desc["mixed_lubrication"]["reason"]
+    d = desc["mixed_lubrication"]
+    assert d["heldout_rmse_after"] < 0.5 * d["heldout_rmse_before"]
+    assert straight["unexplained"]["significant"] is True
     unknown = results[f"matthews_{vehicle}_no_wheel_speeds"]
     assert unknown["findings"] == []
     status = {c["effect"]: c for c in unknown["candidates"]}

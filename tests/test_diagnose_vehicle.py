@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from fleetrun.cli import cli
 from fleetrun.diagnose import diagnose
-from fleetrun.diagnose.generator import generate_vehicle_recording
+from fleetrun.testing.recordings import generate_vehicle_recording
 from fleetrun.resources import inputs_dir
 
 

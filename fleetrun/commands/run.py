@@ -5,7 +5,9 @@
     fleetrun run --config batch.toml
 
 Writes report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and
-manifest.json into DIR, all or nothing. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial, 4 internal).
+manifest.json into DIR, all or nothing; an earlier run there is kept in DIR/earlier-runs/
+unless --replace. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial,
+4 internal).
 """
 from __future__ import annotations
 
@@ -80,9 +82,9 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          scheduler=scheduler, physics=physics or settings.get("physics", "thesis"),
                          mode=mode or settings.get("mode", "auto"), effects=effects, cache_dir=cache,
                          log=log_file, chunk_size=settings.get("chunk_size"))
+    plan.replace = replace
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.
-    plan.replace = replace
     injected = ctx.obj or {}
     plan.simulate = injected.get("simulate")
     plan.error_model = injected.get("error_model", plan.error_model)

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from fleetrun.diagnose.engine import Problem, Settings, select
+from fleetrun.diagnose.engine import Problem, Settings, fitted_on, select
+from fleetrun.diagnose.integrals import integrals, phases
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.recording import load_recording
@@ -27,7 +29,7 @@ from fleetrun.fileio import prepare_output_folder, write_text_atomic
 SCHEMA = "fleetrun.diagnosis/1"
 
 
-def build(recording, meta=None, calibrate_on=None, physics="thesis") -> Problem:
+def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="auto") -> Problem:
     rec = load_recording(recording, meta)
     if rec.level == "differential":
         from fleetrun.diagnose.differential import build_problem
@@ -48,7 +50,7 @@ def build(recording, meta=None, calibrate_on=None, physics="thesis") -> Problem:
         ref = load_recording(calibrate_on) if calibrate_on else None
         if ref is not None and ref.level != "vehicle":
             raise InputError("--calibrate-on must be a vehicle-level recording", file=calibrate_on)
-        prob = build_problem(rec, ref, physics)
+        prob = build_problem(rec, ref, physics, residual)
     prob.baseline_info.setdefault("recording", str(rec.path))
     prob.baseline_info["_rec"] = rec
     return prob
@@ -59,9 +61,12 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     s = settings or Settings()
     t0 = time.perf_counter()
     r = problem.residual
-    sel = select(problem, s)
+    sel = select(problem.coarse or problem, s)
     fitted = sel.pop("fitted_effects")
     base_heldout = sel.pop("baseline_heldout_rmse")
+    search = sel.pop("search")
+    if problem.coarse is not None:
+        fitted = fitted_on(problem, search)
     rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
                                 smooth_window=max(1, int(rate)),
@@ -76,6 +81,10 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     baseline.update(info)
     after = r - fitted
     rec = problem.baseline_info.get("_rec")
+    ig = problem.integral
+    phase_list = phases(problem.time_s, ig["moving"], ig.get("speed_mps"))
+    integral_list = integrals(problem.time_s, ig["weight"], problem.measured, problem.baseline,
+                              problem.baseline + fitted, phase_list, segs)
     from fleetrun import __version__
 
     result = {
@@ -89,9 +98,13 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
         "baseline": baseline,
         "mismatch": {"significant": significant, "segments": segs,
                      "drivers": drv},
+        "integrals": integral_list,
+        "integral_unit": ig["unit"],
         "findings": sel["findings"],
         "candidates": sel["candidates"],
         "ambiguities": sel["ambiguities"],
+        "descriptions": sel["descriptions"],
+        "unexplained": sel["unexplained"],
         "after": {"rmse": round(float(np.sqrt(np.mean(after ** 2))), 6),
                   "bias": round(float(np.mean(after)), 6)},
         "method": {"folds": s.folds, "n_shifts": s.n_shifts, "quantile": s.quantile,
@@ -117,23 +130,46 @@ def _clean(obj):
     return obj
 
 
-def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
-             settings: Settings | None = None, write=True) -> dict:
-    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+@dataclass
+class Diagnosis:
+    """A diagnosis: the problem (recording, baseline, candidates), the JSON-ready result and
+    the fitted effects in target units (for figures)."""
+
+    problem: Problem
+    result: dict
+    fitted: np.ndarray
+
+
+def diagnosis(recording, meta=None, calibrate_on=None, *, physics="thesis",
+              settings: Settings | None = None, residual="auto") -> Diagnosis:
+    """Build and analyse; nothing is written."""
     t_start = time.perf_counter()
-    problem = build(recording, meta, calibrate_on, physics)
+    problem = build(recording, meta, calibrate_on, physics, residual)
     result, fitted = analyse(problem, settings)
     result = _clean(result)
-    if write:
-        from fleetrun.diagnose.report import render_html
+    result["timing_s"] = round(time.perf_counter() - t_start, 3)
+    return Diagnosis(problem, result, fitted)
 
-        out = Path(out) if out else Path(f"diagnosis-{Path(recording).stem}")
-        html = render_html(problem, result, fitted)      # everything rendered before writing
-        result["timing_s"] = round(time.perf_counter() - t_start, 3)
-        text = json.dumps(result, indent=2)
-        prepare_output_folder(out, out)
-        write_text_atomic(out / "diagnosis.json", text)
-        write_text_atomic(out / "diagnosis.html", html)
-    else:
-        result["timing_s"] = round(time.perf_counter() - t_start, 3)
-    return result
+
+def write_outputs(d: Diagnosis, out) -> None:
+    """``out/diagnosis.json`` and ``out/diagnosis.html``, rendered before anything is written."""
+    from fleetrun.diagnose.report import render_html
+
+    out = Path(out)
+    html = render_html(d.problem, d.result, d.fitted)
+    text = json.dumps(d.result, indent=2)
+    prepare_output_folder(out, out)
+    write_text_atomic(out / "diagnosis.json", text)
+    write_text_atomic(out / "diagnosis.html", html)
+
+
+def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
+             settings: Settings | None = None, write=True, residual="auto") -> dict:
+    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+    t_start = time.perf_counter()
+    d = diagnosis(recording, meta, calibrate_on, physics=physics, settings=settings,
+                  residual=residual)
+    if write:
+        write_outputs(d, out if out else Path(f"diagnosis-{Path(recording).stem}"))
+    d.result["timing_s"] = round(time.perf_counter() - t_start, 3)
+    return d.result

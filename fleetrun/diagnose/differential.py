@@ -92,128 +92,96 @@ def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
     return y, m, g
 
 
-def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
-    from fleetrun.differential import configuration_lubricant
+def _zero_sensors(t, t_in, y, g, still, notes, extra_ambiguity):
+    """Torque sensor offsets from standstill (input, output) and how well the zero is known.
 
-    df = rec.data
-    meta = rec.meta
-    t = df["time_s"].to_numpy()
-    t0 = t - t[0]
-    t_in = df["diff_input_torque_Nm"].to_numpy()
-    n_rpm = df["diff_input_speed_rpm"].to_numpy()
-    y = df["diff_output_torque_Nm"].to_numpy()
-    notes = list(rec.notes)
-    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
-    still = np.abs(n_rpm) < STANDSTILL_RPM
-    if "wheel_speed_left_rpm" in df:
-        still &= (np.abs(df["wheel_speed_left_rpm"].to_numpy()) < STANDSTILL_RPM / g) & \
-                 (np.abs(df["wheel_speed_right_rpm"].to_numpy()) < STANDSTILL_RPM / g)
-    extra_ambiguity = {}
-    offset = 0.0
-    offset_in = 0.0
-    if still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t)):
-        t_still = float(np.median(t_in[still]))
-        driving = t_in[~still]
-        typical = float(np.median(np.abs(driving))) if driving.size else 0.0
-        if abs(t_still) < 0.05 * max(typical, 1e-9):
-            # no torque at rest (rig, neutral): each sensor reads its own offset
-            offset_in = t_still
-            offset = float(np.median(y[still]))
-            notes.append(f"torque sensors zeroed at standstill ({int(still.sum())} samples): "
-                         f"input offset {offset_in:.3g} N m, output offset {offset:.3g} N m removed")
-        else:
-            # torque held at rest (creep against the brakes): statics y = G T_in, so only the
-            # output sensor's offset relative to G x input is known
-            offset = float(np.median(y[still] - g * t_in[still]))
-            notes.append(f"torque held at standstill ({t_still:.3g} N m): output zeroed against "
-                         f"G x input, offset {offset:.3g} N m removed")
-    else:
+    Returns the input and output offsets and the offset floor of ``bearing_preload``.
+    """
+    offset = offset_in = 0.0
+    enough = still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t))
+    if not enough:
         notes.append("no standstill in the recording: torque sensor offsets cannot be separated "
                      "from a constant drag")
         extra_ambiguity["bearing_preload"] = ("no standstill samples: a constant torque-sensor "
                                               "offset would look the same")
-    y = y - offset
-    t_in = t_in - offset_in
-    offset_floor = {}
-    if still.sum() >= max(MIN_STANDSTILL, 0.01 * len(t)):
-        # how well the zero is known: standstill noise is autocorrelated, so the effective
-        # number of samples is n (1 - rho) / (1 + rho); 1.25 for the median's efficiency
-        z = (y - g * t_in)[still]
-        z = z - np.median(z)
-        rho = 0.0
-        if z.size > 3 and np.std(z[:-1]) > 0 and np.std(z[1:]) > 0:
-            rho = float(np.clip(np.corrcoef(z[:-1], z[1:])[0, 1], 0.0, 0.999))
-        n_eff = max(z.size * (1 - rho) / (1 + rho), 1.0)
-        se = 1.25 * float(np.std(z)) / np.sqrt(n_eff)
-        # a constant-while-driving effect must stand out from the zeroing error (3 sigma)
-        offset_floor["bearing_preload"] = 3.0 * se
-        notes.append(f"sensor zero known to {se:.3g} N m (1 sigma, {n_eff:.0f} effective standstill "
-                     "samples): a constant drag below 3 sigma cannot be told from a zeroing error")
-    y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
+        return offset_in, offset, {}
+    t_still = float(np.median(t_in[still]))
+    driving = t_in[~still]
+    typical = float(np.median(np.abs(driving))) if driving.size else 0.0
+    if abs(t_still) < 0.05 * max(typical, 1e-9):
+        # no torque at rest (rig, neutral): each sensor reads its own offset
+        offset_in = t_still
+        offset = float(np.median(y[still]))
+        notes.append(f"torque sensors zeroed at standstill ({int(still.sum())} samples): "
+                     f"input offset {offset_in:.3g} N m, output offset {offset:.3g} N m removed")
+    else:
+        # torque held at rest (creep against the brakes): statics y = G T_in, so only the
+        # output sensor's offset relative to G x input is known
+        offset = float(np.median(y[still] - g * t_in[still]))
+        notes.append(f"torque held at standstill ({t_still:.3g} N m): output zeroed against "
+                     f"G x input, offset {offset:.3g} N m removed")
+    # how well the zero is known: standstill noise is autocorrelated, so the effective
+    # number of samples is n (1 - rho) / (1 + rho); 1.25 for the median's efficiency
+    z = ((y - offset) - g * (t_in - offset_in))[still]
+    z = z - np.median(z)
+    rho = 0.0
+    if z.size > 3 and np.std(z[:-1]) > 0 and np.std(z[1:]) > 0:
+        rho = float(np.clip(np.corrcoef(z[:-1], z[1:])[0, 1], 0.0, 0.999))
+    n_eff = max(z.size * (1 - rho) / (1 + rho), 1.0)
+    se = 1.25 * float(np.std(z)) / np.sqrt(n_eff)
+    notes.append(f"sensor zero known to {se:.3g} N m (1 sigma, {n_eff:.0f} effective standstill "
+                 "samples): a constant drag below 3 sigma cannot be told from a zeroing error")
+    # a constant-while-driving effect must stand out from the zeroing error (3 sigma)
+    return offset_in, offset, {"bearing_preload": 3.0 * se}
+
+
+def _channels(df, meta, rec, t0, t_in, n_rpm, g, lubricant) -> dict:
+    """The effects' channels (fleetrun.effects.differential) from the recording."""
     w = n_rpm * 2 * np.pi / 60.0
-    lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
     ch = {"time_s": t0, "input_torque_Nm": t_in, "input_speed_rad_s": w,
           "input_accel_rad_s2": acceleration(w, rec.dt_s), "gear_ratio": g, "lubricant": lubricant}
-    wheels = "wheel_speed_left_rpm" in df and "wheel_speed_right_rpm" in df
-    if wheels:
+    if "wheel_speed_left_rpm" in df and "wheel_speed_right_rpm" in df:
         ch["wheel_speed_difference_rad_s"] = np.abs(df["wheel_speed_left_rpm"].to_numpy()
                                                     - df["wheel_speed_right_rpm"].to_numpy()) * 2 * np.pi / 60
     if "ambient_temp_C" in df:
         ch["ambient_temp_C"] = df["ambient_temp_C"].to_numpy()
     elif "ambient_temp_C" in meta:
-        ch["ambient_temp_C"] = np.full(len(t), float(meta["ambient_temp_C"]))
+        ch["ambient_temp_C"] = np.full(len(t0), float(meta["ambient_temp_C"]))
     if "oil_temp_C" in df:
         ch["oil_temp_C"] = df["oil_temp_C"].to_numpy()
-    moving = np.abs(n_rpm) >= STANDSTILL_RPM
-    scale = -g * marginal * moving
+    return ch
 
-    def make(effect, channels):
-        shapes = effect.shape
-        bounds = None
-        if shapes:
-            p = shapes[0]
-            grid = [{p.name: v} for v in p.grid]
-            bounds = (p.lower, p.upper)
-            if p.name == "tau_s" and "oil_temp_C" in channels:
-                # the sump thermometer replaces the first-order warm-up in the loss; tau_s is
-                # then what the thermometer shows, fitted to its trace
-                tau = fit_oil_time_constant(t0, channels["oil_temp_C"], channels["ambient_temp_C"])
-                grid = [{p.name: tau}]
-                cols = [scale * effect.basis(channels, **grid[0])]
-                lin = effect.parameter(effect.linear)
-                return Candidate(effect.id, cols, grid, lin.lower, lin.upper)
-            if p.name == "tau_s":
-                # a warm-up slower than half the recording is hard to tell from a constant
-                # drag (a preload, a bearing drag): time constants up to half its length only
-                tau_max = max(0.5 * t0[-1], p.grid[0])
-                grid = [s for s in grid if s["tau_s"] <= tau_max]
-                bounds = (p.lower, min(p.upper, tau_max))
-        else:
-            grid = [{}]
-        cols = [scale * effect.basis(channels, **sh) for sh in grid]
-        lin = effect.parameter(effect.linear)
-        return Candidate(effect.id, cols, grid, lin.lower, lin.upper,
-                         column_for=(lambda sh, e=effect, c=channels: scale * e.basis(c, **sh))
-                         if shapes else None, shape_bounds=bounds)
 
-    candidates, untestable, surrogates, confound = [], {}, {}, {}
-    for effect in effects_for_level("differential"):
-        missing = effect.missing_channels(ch)
-        if missing:
-            untestable[effect.id] = missing
-            if effect.id == "oil_warmup":
-                # the thesis's own assumption (Sec. 3.1.2): 20 C ambient
-                surrogates[effect.id] = make(effect, {**ch, "ambient_temp_C": np.full(len(t), 20.0)})
-            # cornering: without wheel speeds an instrumented vehicle (it has a speed channel)
-            # may have turned; a rig cannot
-            confound[effect.id] = "vehicle_speed_kph" in df
-            continue
-        candidates.append(make(effect, ch))
-    if not wheels:
-        notes.append("no wheel speeds: wheels assumed equal (cornering cannot be tested)")
+def _candidate(effect, channels, scale, t0) -> Candidate:
+    """An effect as a selection candidate: its column(s) on the target per unit of its
+    linear parameter, one per value of its shape parameter."""
+    lin = effect.parameter(effect.linear)
+    if not effect.shape:
+        return Candidate(effect.id, [scale * effect.basis(channels)], [{}], lin.lower, lin.upper)
+    p = effect.shape[0]
+    grid = [{p.name: v} for v in p.grid]
+    bounds = (p.lower, p.upper)
+    if p.name == "tau_s" and "oil_temp_C" in channels:
+        # the sump thermometer replaces the first-order warm-up in the loss; tau_s is
+        # then what the thermometer shows, fitted to its trace
+        tau = fit_oil_time_constant(t0, channels["oil_temp_C"], channels["ambient_temp_C"])
+        return Candidate(effect.id, [scale * effect.basis(channels, tau_s=tau)], [{p.name: tau}],
+                         lin.lower, lin.upper)
+    if p.name == "tau_s":
+        # a warm-up slower than half the recording is hard to tell from a constant
+        # drag (a preload, a bearing drag): time constants up to half its length only
+        tau_max = max(0.5 * t0[-1], p.grid[0])
+        grid = [sh for sh in grid if sh["tau_s"] <= tau_max]
+        bounds = (p.lower, min(p.upper, tau_max))
+    cols = [scale * effect.basis(channels, **sh) for sh in grid]
+    return Candidate(effect.id, cols, grid, lin.lower, lin.upper,
+                     column_for=lambda sh: scale * effect.basis(channels, **sh), shape_bounds=bounds)
+
+
+def _driver_channels(df, ch, n_rpm, t_in, t0) -> dict:
     drivers = {"speed": n_rpm, "torque": t_in, "acceleration": ch["input_accel_rad_s2"],
                "time_since_start": t0}
-    if wheels:
+    if "wheel_speed_difference_rad_s" in ch:
         drivers["wheel_speed_difference"] = ch["wheel_speed_difference_rad_s"]
     if "oil_temp_C" in ch:
         drivers["temperature"] = ch["oil_temp_C"]
@@ -221,10 +189,55 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
         drivers["temperature"] = ch["ambient_temp_C"]
     if "vehicle_speed_kph" in df:
         drivers["vehicle_speed"] = df["vehicle_speed_kph"].to_numpy()
+    return drivers
+
+
+def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
+    from fleetrun.differential import configuration_lubricant
+
+    df, meta = rec.data, rec.meta
+    t = df["time_s"].to_numpy()
+    t0 = t - t[0]
+    n_rpm = df["diff_input_speed_rpm"].to_numpy()
+    notes = list(rec.notes)
+    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
+    still = np.abs(n_rpm) < STANDSTILL_RPM
+    if "wheel_speed_left_rpm" in df:
+        still &= (np.abs(df["wheel_speed_left_rpm"].to_numpy()) < STANDSTILL_RPM / g) & \
+                 (np.abs(df["wheel_speed_right_rpm"].to_numpy()) < STANDSTILL_RPM / g)
+    extra_ambiguity = {}
+    offset_in, offset, offset_floor = _zero_sensors(
+        t, df["diff_input_torque_Nm"].to_numpy(), df["diff_output_torque_Nm"].to_numpy(), g,
+        still, notes, extra_ambiguity)
+    y = df["diff_output_torque_Nm"].to_numpy() - offset
+    t_in = df["diff_input_torque_Nm"].to_numpy() - offset_in
+    y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
+    lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
+    ch = _channels(df, meta, rec, t0, t_in, n_rpm, g, lubricant)
+    moving = np.abs(n_rpm) >= STANDSTILL_RPM
+    scale = -g * marginal * moving
+    candidates, untestable, surrogates, confound = [], {}, {}, {}
+    for effect in effects_for_level("differential"):
+        missing = effect.missing_channels(ch)
+        if not missing:
+            candidates.append(_candidate(effect, ch, scale, t0))
+            continue
+        untestable[effect.id] = missing
+        if effect.id == "oil_warmup":
+            # the thesis's own assumption (Sec. 3.1.2): 20 C ambient
+            surrogates[effect.id] = _candidate(effect, {**ch, "ambient_temp_C": np.full(len(t), 20.0)},
+                                               scale, t0)
+        # cornering: without wheel speeds an instrumented vehicle (it has a speed channel)
+        # may have turned; a rig cannot
+        confound[effect.id] = "vehicle_speed_kph" in df
+    if "wheel_speed_difference_rad_s" not in ch:
+        notes.append("no wheel speeds: wheels assumed equal (cornering cannot be tested)")
     info = {"model": f"thesis differential chain, {meta['configuration']}, physics={physics}",
             "offset": round(offset, 6), "input_offset_Nm": round(offset_in, 6),
             "standstill_samples": int(still.sum()),
             "kim_scale_Nm": kim_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
+    integral = {"moving": moving, "unit": "kJ", "weight": ch["input_speed_rad_s"] / g / 1000.0,
+                "speed_mps": df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None}
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
-                   surrogates, confound, drivers, info, notes, extra_ambiguity, units="N m",
-                   offset_floor=offset_floor)
+                   surrogates, confound, _driver_channels(df, ch, n_rpm, t_in, t0), info, notes,
+                   extra_ambiguity, units="N m", offset_floor=offset_floor, integral=integral)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fleetrun.diagnose.openworld import review, unexplained
 from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
                                       refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
@@ -52,16 +53,63 @@ class Problem:
     #: effect id -> smallest size (target units, mean over the samples it acts on) that can be
     #: told from a sensor-zeroing error; smaller fits are rejected
     offset_floor: dict = field(default_factory=dict)
+    #: for the integrals (:mod:`.integrals`): ``moving`` (bool per sample: turning with the
+    #: engine on), ``speed_mps`` (vehicle speed or None), ``weight`` (target -> rate of the
+    #: integrated quantity) and ``unit`` (of the integral)
+    integral: dict = field(default_factory=dict)
+    #: the same problem on a coarser grid (:func:`windowed`) where the selection runs, or None
+    coarse: "Problem | None" = None
 
     @property
     def residual(self) -> np.ndarray:
         return self.measured - self.baseline
 
 
+def _window_mean(x, w: int):
+    """Means over consecutive windows of ``w`` samples (the last one may be shorter)."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 0:
+        return x
+    idx = np.arange(len(x)) // w
+    return np.bincount(idx, weights=x) / np.bincount(idx)
+
+
+def windowed(problem: Problem, w: int) -> Problem:
+    """``problem`` on means over windows of ``w`` samples: target, baseline, every column and
+    channel (an integral over each window, divided by its length).
+
+    For residuals whose per-sample noise is timing: two drives of the same trace place each
+    transient a second or two apart, which a per-second difference turns into noise that a
+    window's integral does not have.
+    """
+    m = lambda x: _window_mean(x, w)  # noqa: E731
+
+    def cand(c):
+        column_for = None if c.column_for is None else (lambda sh, f=c.column_for: m(f(sh)))
+        return Candidate(c.id, [m(x) for x in c.columns], c.shapes, c.lower, c.upper,
+                         column_for=column_for, shape_bounds=c.shape_bounds)
+
+    ig = dict(problem.integral)
+    ig["moving"] = m(ig["moving"]) > 0.5
+    ig["weight"] = m(ig["weight"])
+    if ig.get("speed_mps") is not None:
+        ig["speed_mps"] = m(ig["speed_mps"])
+    return Problem(problem.level, problem.target, m(problem.time_s), m(problem.measured),
+                   m(problem.baseline), [cand(c) for c in problem.candidates],
+                   problem.untestable, {k: cand(c) for k, c in problem.surrogates.items()},
+                   problem.confound_possible, {k: m(v) for k, v in problem.driver_channels.items()},
+                   problem.baseline_info, problem.notes, problem.extra_ambiguity, problem.units,
+                   [(m(c), lo, hi) for c, lo, hi in problem.initial_terms], problem.offset_floor, ig)
+
+
 @dataclass
 class Settings:
     folds: int = 5
+    #: at least this many blocks per fold; more in long recordings so that blocks stay about
+    #: ``block_s`` long: far longer than the noise's correlation time, short enough that an
+    #: effect confined to the first minutes (a cold start) has data in several blocks
     blocks_per_fold: int = 4
+    block_s: float = 120.0
     n_shifts: int = 200
     quantile: float = 0.99
     min_gain: float = 0.01
@@ -133,185 +181,281 @@ def _refine_jointly(r, initial_terms, accepted, passes: int = 2) -> None:
             a["column"] = col
 
 
+@dataclass
+class _Search:
+    """What the selection carries from one step to the next."""
+
+    problem: Problem
+    settings: Settings
+    rng: np.random.Generator
+    folds: np.ndarray
+    statuses: dict = field(default_factory=dict)
+    accepted: list = field(default_factory=list)      # {cand, shape, column, before, after, gain}
+    nuisance: list = field(default_factory=list)      # terms in the model: (column, lower, upper)
+    ambiguities: list = field(default_factory=list)
+    rounds: list = field(default_factory=list)
+    active: list = field(default_factory=list)
+    first_threshold: float | None = None
+    significant: bool = False
+    stopped_untestable: bool = False
+    baseline_heldout: float | None = None
+    initial_coefficients: list = field(default_factory=list)
+
+    @property
+    def r(self) -> np.ndarray:
+        return self.problem.residual
+
+    @property
+    def k(self) -> int:
+        return self.settings.folds
+
+    def model_terms(self, without=None) -> list:
+        """The calibration terms and every accepted effect but ``without``."""
+        return list(self.problem.initial_terms) + [
+            (a["column"], a["cand"].lower, a["cand"].upper) for a in self.accepted if a is not without]
+
+
+def _noise_threshold(s: _Search, terms, column, cand, pool) -> float:
+    """Held-out SSE reduction that circularly shifted noise reaches (``quantile`` of the max).
+
+    The noise estimate is what is left after ``terms`` *and* ``column``: shifting the raw
+    residual would keep the effect's own structure (e.g. "constant while moving"), which
+    the channels still match after a shift.
+    """
+    cols = [t[0] for t in terms] + [column]
+    coefs = full_fit(s.r, cols, [(t[1], t[2]) for t in terms] + [(cand.lower, cand.upper)])
+    r_noise = s.r - np.array(cols).T @ coefs
+    null = shift_null(r_noise, terms, pool, s.folds, s.k, n_shifts=s.settings.n_shifts, rng=s.rng)
+    return null.dsse_threshold(s.settings.quantile)
+
+
+def _below_offset_floor(s: _Search, best, bev, best_col) -> bool:
+    """A fitted constant-while-driving effect smaller than the sensor-zeroing uncertainty."""
+    floor = s.problem.offset_floor.get(best.id)
+    if floor is None:
+        return False
+    acts = np.abs(best_col) > 1e-9 * max(np.abs(best_col).max(), 1e-300)
+    size = abs(bev.coefficient) * float(np.mean(np.abs(best_col[acts]))) if acts.any() else 0.0
+    if size < floor:
+        s.statuses[best.id]["note"] = (f"fitted size {size:.3g} {s.problem.units} is below the "
+                                       f"sensor-zeroing uncertainty ({floor:.3g})")
+        return True
+    return False
+
+
+def _untestable_could_explain(s: _Search, thr: float, thr_dsse: float) -> None:
+    """Nothing testable explains the rest: say so if an untestable effect could."""
+    p, n = s.problem, len(s.r)
+    for uid, sur in p.surrogates.items():
+        sev = evaluate_candidate(s.r, s.nuisance, sur, s.folds, s.k)
+        if sev.gain > thr and n * (sev.rmse_before ** 2 - sev.rmse_after ** 2) > thr_dsse:
+            s.significant = True
+            s.ambiguities.append({
+                "effects": [uid],
+                "reasons": [f"{uid} cannot be tested (missing {', '.join(p.untestable[uid])}); "
+                            f"with assumed values it would cut the held-out error by "
+                            f"{100 * sev.gain:.0f} %"],
+                "separating_test": EFFECTS[uid].separating_test})
+            s.statuses[uid]["could_explain"] = "mismatch"
+
+
+def _untestable_rivals(s: _Search, best, col, thr: float, thr_dsse: float) -> list:
+    """Untestable effects (and sensor offsets) that could produce what ``best`` explains."""
+    p = s.problem
+    rivals = []
+    for uid in p.untestable:
+        missing = ", ".join(p.untestable[uid])
+        if uid in p.surrogates:
+            sur = p.surrogates[uid]
+            sev = evaluate_candidate(s.r, s.nuisance, sur, s.folds, s.k)
+            scol = sur.columns[sev.shape_index]
+            b1, a1, _ = cv_fit(s.r, s.nuisance + [(scol, sur.lower, sur.upper)], col,
+                               best.lower, best.upper, s.folds, s.k)
+            b2, a2, _ = cv_fit(s.r, s.nuisance + [(col, best.lower, best.upper)], scol,
+                               sur.lower, sur.upper, s.folds, s.k)
+            if sev.gain > thr and b1 - a1 <= thr_dsse:
+                rivals.append((uid, f"cannot be tested (missing {missing}) but with assumed "
+                                    f"values it fits as well ({sev.gain:.3f})"))
+            elif b2 - a2 > thr_dsse:
+                rivals.append((uid, f"cannot be tested (missing {missing}) and with assumed "
+                                    f"values explains what {best.id} leaves"))
+        elif best.id in EFFECTS[uid].confounded_with and p.confound_possible.get(uid, False):
+            rivals.append((uid, f"cannot be tested (missing {missing}) and produces a residual "
+                                f"like {best.id}'s in such data"))
+    if best.id in p.extra_ambiguity:
+        rivals.append(("sensor_offset", p.extra_ambiguity[best.id]))
+    return rivals
+
+
+def _forward_step(s: _Search) -> bool:
+    """One round of forward selection; False when the search stops."""
+    r, n = s.r, len(s.r)
+    evals = {c.id: evaluate_candidate(r, s.nuisance, c, s.folds, s.k) for c in s.active}
+    best = max(s.active, key=lambda c: evals[c.id].gain)
+    bev = evals[best.id]
+    if s.baseline_heldout is None:
+        s.baseline_heldout = bev.rmse_before      # CV of the baseline (its own terms refitted)
+    best_col = best.columns[bev.shape_index]
+    thr_dsse = _noise_threshold(s, s.nuisance, best_col, best, s.active)
+    dsse = n * (bev.rmse_before ** 2 - bev.rmse_after ** 2)
+    thr = max(1 - np.sqrt(max(1 - thr_dsse / (n * bev.rmse_before ** 2), 0.0)), s.settings.min_gain) \
+        if bev.rmse_before > 0 else s.settings.min_gain
+    if s.first_threshold is None:
+        s.first_threshold = thr
+    s.rounds.append({"threshold_gain": thr, "threshold_dsse": thr_dsse, "dsse": dsse,
+                     "gains": {c.id: evals[c.id].gain for c in s.active}})
+    for c in s.active:
+        s.statuses[c.id] = {"effect": c.id, "status": "rejected",
+                            "heldout_gain": round(evals[c.id].gain, 5),
+                            "parameters": _params(c, c.shapes[evals[c.id].shape_index],
+                                                  evals[c.id].coefficient)}
+    if _below_offset_floor(s, best, bev, best_col) or not (dsse > thr_dsse and bev.gain > s.settings.min_gain):
+        _untestable_could_explain(s, thr, thr_dsse)
+        return False
+    s.significant = True
+    shape = dict(best.shapes[bev.shape_index])
+    col = best_col
+    if best.column_for is not None and len(shape) == 1:
+        name = next(iter(shape))
+        v, col = refine_shape(r, s.nuisance, best, bev.shape_index, name)
+        shape = {name: v}
+    rivals = _untestable_rivals(s, best, col, thr, thr_dsse)
+    if rivals:
+        _ambiguity(best.id, rivals, s.statuses, s.ambiguities)
+        # what the residual shows may be an effect that cannot be fitted: nothing fitted
+        # now can be trusted to leave only noise behind, so the search stops here
+        s.stopped_untestable = True
+        return False
+    s.accepted.append({"cand": best, "shape": shape, "column": col,
+                       "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
+    s.statuses[best.id]["status"] = "accepted"
+    _refine_jointly(r, s.problem.initial_terms, s.accepted)
+    s.nuisance = s.model_terms()
+    s.active = [c for c in s.active if c.id != best.id]
+    return True
+
+
+def _rival_check(s: _Search) -> None:
+    """Confounding among testable candidates, judged with everything else in the model.
+
+    A rival R makes an accepted effect A ambiguous when, with the other accepted effects in
+    the model, R alone beats the noise null and A adds nothing beyond noise once R is in.
+    Judging this only at the end matters: while another effect is still unmodelled, the
+    noise estimate holds its structure and every rival looks "as good".
+    """
+    r, n, st = s.r, len(s.r), s.settings
+    taken = {a["cand"].id for a in s.accepted}
+    remaining = [c for c in s.problem.candidates if c.id not in taken]
+    keep = []
+    for a in s.accepted:
+        others = s.model_terms(without=a)
+        thr_dsse = _noise_threshold(s, others, a["column"], a["cand"], remaining + [a["cand"]])
+        rivals = []
+        for c in remaining:
+            ev = evaluate_candidate(r, others, c, s.folds, s.k)
+            if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= st.min_gain:
+                continue
+            ccol = c.columns[ev.shape_index]
+            b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a["column"],
+                               a["cand"].lower, a["cand"].upper, s.folds, s.k)
+            if b1 - a1 <= thr_dsse:
+                rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
+                                     f"it in the model, {a['cand'].id} adds nothing beyond noise"))
+        if rivals:
+            _ambiguity(a["cand"].id, rivals, s.statuses, s.ambiguities)
+        else:
+            keep.append(a)
+    s.accepted = keep
+
+
+def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
+    """Joint refit of every accepted effect on all data: the parameters reported, and the
+    fitted effects (calibration constants move with them) in target units."""
+    p = s.problem
+    findings = []
+    fitted = np.zeros(len(s.r))
+    if not s.accepted:
+        return findings, fitted
+    init = list(p.initial_terms)
+    cols = [t[0] for t in init] + [a["column"] for a in s.accepted]
+    coefs = full_fit(s.r, cols, [(t[1], t[2]) for t in init]
+                     + [(a["cand"].lower, a["cand"].upper) for a in s.accepted])
+    s.initial_coefficients = [float(c) for c in coefs[:len(init)]]
+    for col, c in zip(cols[:len(init)], coefs[:len(init)]):
+        fitted = fitted + c * col
+    for a, c in zip(s.accepted, coefs[len(init):]):
+        params = _params(a["cand"], a["shape"], c)
+        a["coefficient"] = float(c)
+        s.statuses[a["cand"].id]["parameters"] = params
+        s.statuses[a["cand"].id]["heldout_gain"] = round(a["gain"], 5)
+        findings.append({"effect": a["cand"].id, "parameters": params,
+                         "heldout_rmse_before": round(a["before"], 6),
+                         "heldout_rmse_after": round(a["after"], 6),
+                         "explanation": explanation(a["cand"].id, params, a["before"],
+                                                    a["after"], p.units),
+                         "seed": EFFECTS[a["cand"].id].seed})
+        fitted = fitted + c * a["column"]
+    return findings, fitted
+
+
+def fitted_on(problem: Problem, search: _Search) -> np.ndarray:
+    """The findings of ``search`` (run on ``problem.coarse``) and the moves of the calibration
+    terms, evaluated on ``problem``'s own samples."""
+    fitted = np.zeros(len(problem.time_s))
+    for (col, _, _), c in zip(problem.initial_terms, search.initial_coefficients):
+        fitted = fitted + c * col
+    by_id = {c.id: c for c in problem.candidates}
+    for a in search.accepted:
+        cand = by_id[a["cand"].id]
+        if cand.column_for is not None and a["shape"]:
+            col = cand.column_for(a["shape"])
+        else:
+            col = cand.columns[cand.shapes.index(a["shape"]) if a["shape"] in cand.shapes else 0]
+        fitted = fitted + a["coefficient"] * col
+    return fitted
+
+
+def _open_world(s: _Search) -> tuple[list, np.ndarray, dict, list]:
+    """Final findings, their fit, what they leave unexplained, and the effects moved to
+    descriptions (:mod:`.openworld`); each demotion changes the remainder, so the review
+    repeats until nothing more is demoted."""
+    descriptions: list = []
+    findings, fitted = _final_refit(s)
+    while True:
+        left = unexplained(s.problem, s.r - fitted, s.settings, rng=s.rng, folds=s.folds)
+        if not s.accepted or not review(s, findings, left, descriptions):
+            return findings, fitted, left, descriptions
+        findings, fitted = _final_refit(s)
+
+
 def select(problem: Problem, settings: Settings | None = None) -> dict:
     """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
-    s = settings or Settings()
-    rng = np.random.default_rng(s.seed)
-    r = problem.residual
-    n = len(r)
-    k = s.folds
-    folds = fold_ids(n, k, s.blocks_per_fold)
-    statuses: dict[str, dict] = {}
+    st = settings or Settings()
+    n = len(problem.residual)
+    duration = float(problem.time_s[-1] - problem.time_s[0])
+    per_fold = max(st.blocks_per_fold, int(round(duration / (st.folds * st.block_s))))
+    s = _Search(problem, st, np.random.default_rng(st.seed), fold_ids(n, st.folds, per_fold))
     for cid, missing in problem.untestable.items():
-        statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
-                         "missing_channels": missing}
-    accepted: list[dict] = []           # {cand, shape, column, before, after, gain}
-    nuisance: list[tuple] = list(problem.initial_terms)   # terms in the model: (column, lower, upper)
-    ambiguities: list[dict] = []
-    rounds: list[dict] = []
-    active = list(problem.candidates)
-    first_threshold = None
-    significant = False
-    stopped_untestable = False
-    baseline_heldout = None
-    # ---- forward selection ----------------------------------------------------------------
-    for _round in range(s.max_effects):
-        if not active:
+        s.statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
+                           "missing_channels": missing}
+    s.nuisance = list(problem.initial_terms)
+    s.active = list(problem.candidates)
+    for _round in range(st.max_effects):
+        if not s.active or not _forward_step(s):
             break
-        evals = {c.id: evaluate_candidate(r, nuisance, c, folds, k) for c in active}
-        best = max(active, key=lambda c: evals[c.id].gain)
-        bev = evals[best.id]
-        if baseline_heldout is None:
-            baseline_heldout = bev.rmse_before      # CV of the baseline (its own terms refitted)
-        best_col = best.columns[bev.shape_index]
-        # noise estimate for the shift null: what is left after the model *and* the best
-        # candidate. Shifting the raw residual would keep the effect's own structure (e.g.
-        # "constant while moving"), which the channels still match after a shift.
-        cols = [t[0] for t in nuisance] + [best_col]
-        coefs = full_fit(r, cols, [(t[1], t[2]) for t in nuisance] + [(best.lower, best.upper)])
-        r_noise = r - np.array(cols).T @ coefs
-        null = shift_null(r_noise, nuisance, active, folds, k, n_shifts=s.n_shifts, rng=rng)
-        thr_dsse = null.dsse_threshold(s.quantile)
-        dsse = n * (bev.rmse_before ** 2 - bev.rmse_after ** 2)
-        thr = max(1 - np.sqrt(max(1 - thr_dsse / (n * bev.rmse_before ** 2), 0.0)), s.min_gain) \
-            if bev.rmse_before > 0 else s.min_gain
-        if first_threshold is None:
-            first_threshold = thr
-        rounds.append({"threshold_gain": thr, "threshold_dsse": thr_dsse, "dsse": dsse,
-                       "gains": {c.id: evals[c.id].gain for c in active}})
-        for c in active:
-            statuses[c.id] = {"effect": c.id, "status": "rejected",
-                              "heldout_gain": round(evals[c.id].gain, 5),
-                              "parameters": _params(c, c.shapes[evals[c.id].shape_index],
-                                                    evals[c.id].coefficient)}
-        below_floor = False
-        if best.id in problem.offset_floor:
-            acts = np.abs(best_col) > 1e-9 * max(np.abs(best_col).max(), 1e-300)
-            size = abs(bev.coefficient) * float(np.mean(np.abs(best_col[acts]))) if acts.any() else 0.0
-            below_floor = size < problem.offset_floor[best.id]
-            if below_floor:
-                statuses[best.id]["note"] = (f"fitted size {size:.3g} {problem.units} is below the "
-                                             f"sensor-zeroing uncertainty ({problem.offset_floor[best.id]:.3g})")
-        if below_floor or not (dsse > thr_dsse and bev.gain > s.min_gain):
-            # nothing testable explains the rest; say so if an untestable effect could
-            for uid, sur in problem.surrogates.items():
-                sev = evaluate_candidate(r, nuisance, sur, folds, k)
-                if sev.gain > thr and n * (sev.rmse_before ** 2 - sev.rmse_after ** 2) > thr_dsse:
-                    significant = True
-                    ambiguities.append({
-                        "effects": [uid],
-                        "reasons": [f"{uid} cannot be tested (missing "
-                                    f"{', '.join(problem.untestable[uid])}); with assumed values "
-                                    f"it would cut the held-out error by {100 * sev.gain:.0f} %"],
-                        "separating_test": EFFECTS[uid].separating_test})
-                    statuses[uid]["could_explain"] = "mismatch"
-            break
-        significant = True
-        shape = dict(best.shapes[bev.shape_index])
-        col = best_col
-        if best.column_for is not None and len(shape) == 1:
-            name = next(iter(shape))
-            v, col = refine_shape(r, nuisance, best, bev.shape_index, name)
-            shape = {name: v}
-        # untestable effects that could produce this residual, and sensor offsets
-        rivals = []
-        for uid in problem.untestable:
-            eff = EFFECTS[uid]
-            if uid in problem.surrogates:
-                sur = problem.surrogates[uid]
-                sev = evaluate_candidate(r, nuisance, sur, folds, k)
-                scol = sur.columns[sev.shape_index]
-                b1, a1, _ = cv_fit(r, nuisance + [(scol, sur.lower, sur.upper)], col,
-                                   best.lower, best.upper, folds, k)
-                b2, a2, _ = cv_fit(r, nuisance + [(col, best.lower, best.upper)], scol,
-                                   sur.lower, sur.upper, folds, k)
-                if sev.gain > thr and b1 - a1 <= thr_dsse:
-                    rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
-                                        f"but with assumed values it fits as well ({sev.gain:.3f})"))
-                elif b2 - a2 > thr_dsse:
-                    rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
-                                        f"and with assumed values explains what {best.id} leaves"))
-            elif best.id in eff.confounded_with and problem.confound_possible.get(uid, False):
-                rivals.append((uid, f"cannot be tested (missing {', '.join(problem.untestable[uid])}) "
-                                    f"and produces a residual like {best.id}'s in such data"))
-        if best.id in problem.extra_ambiguity:
-            rivals.append(("sensor_offset", problem.extra_ambiguity[best.id]))
-        if rivals:
-            _ambiguity(best.id, rivals, statuses, ambiguities)
-            # what the residual shows may be an effect that cannot be fitted: nothing fitted
-            # now can be trusted to leave only noise behind, so the search stops here
-            stopped_untestable = True
-            break
-        accepted.append({"cand": best, "shape": shape, "column": col,
-                         "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
-        statuses[best.id]["status"] = "accepted"
-        _refine_jointly(r, problem.initial_terms, accepted)
-        nuisance = list(problem.initial_terms) + [
-            (a["column"], a["cand"].lower, a["cand"].upper) for a in accepted]
-        active = [c for c in active if c.id != best.id]
-    # ---- confounding among testable candidates, judged with everything else in the model ----
-    # A rival R makes an accepted effect A ambiguous when, with the other accepted effects in
-    # the model, R alone beats the noise null and A adds nothing beyond noise once R is in.
-    # Judging this only at the end matters: while another effect is still unmodelled, the
-    # noise estimate holds its structure and every rival looks "as good".
-    if accepted and not stopped_untestable:
-        remaining = [c for c in problem.candidates if c.id not in {a["cand"].id for a in accepted}]
-        keep = []
-        for a in accepted:
-            others = list(problem.initial_terms) + [
-                (b["column"], b["cand"].lower, b["cand"].upper) for b in accepted if b is not a]
-            cols = [t[0] for t in others] + [a["column"]]
-            coefs = full_fit(r, cols, [(t[1], t[2]) for t in others] + [(a["cand"].lower, a["cand"].upper)])
-            r_noise = r - np.array(cols).T @ coefs
-            pool = remaining + [a["cand"]]
-            null = shift_null(r_noise, others, pool, folds, k, n_shifts=s.n_shifts, rng=rng)
-            thr_dsse = null.dsse_threshold(s.quantile)
-            rivals = []
-            for c in remaining:
-                ev = evaluate_candidate(r, others, c, folds, k)
-                if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= s.min_gain:
-                    continue
-                ccol = c.columns[ev.shape_index]
-                b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a["column"],
-                                   a["cand"].lower, a["cand"].upper, folds, k)
-                if b1 - a1 <= thr_dsse:
-                    rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
-                                         f"it in the model, {a['cand'].id} adds nothing beyond noise"))
-            if rivals:
-                _ambiguity(a["cand"].id, rivals, statuses, ambiguities)
-            else:
-                keep.append(a)
-        accepted = keep
-    # ---- joint refit of every accepted effect on all data: the parameters reported ----------
-    findings = []
-    fitted = np.zeros(n)
-    if accepted:
-        init = list(problem.initial_terms)
-        cols = [t[0] for t in init] + [a["column"] for a in accepted]
-        coefs = full_fit(r, cols, [(t[1], t[2]) for t in init]
-                         + [(a["cand"].lower, a["cand"].upper) for a in accepted])
-        for col, c in zip(cols[:len(init)], coefs[:len(init)]):
-            fitted = fitted + c * col       # calibration constants move with the effects
-        for a, c in zip(accepted, coefs[len(init):]):
-            params = _params(a["cand"], a["shape"], c)
-            statuses[a["cand"].id]["parameters"] = params
-            statuses[a["cand"].id]["heldout_gain"] = round(a["gain"], 5)
-            findings.append({"effect": a["cand"].id, "parameters": params,
-                             "heldout_rmse_before": round(a["before"], 6),
-                             "heldout_rmse_after": round(a["after"], 6),
-                             "explanation": explanation(a["cand"].id, params, a["before"],
-                                                        a["after"], problem.units),
-                             "seed": EFFECTS[a["cand"].id].seed})
-            fitted = fitted + c * a["column"]
+    if s.accepted and not s.stopped_untestable:
+        _rival_check(s)
+    findings, fitted, left, descriptions = _open_world(s)
     # each candidate's gain over the baseline alone (round 1), next to its gain in the final
     # round (over the model with the accepted effects): both tell the story
-    if rounds:
-        for cid, g in rounds[0]["gains"].items():
-            if cid in statuses:
-                statuses[cid]["heldout_gain_vs_baseline"] = round(float(g), 5)
+    if s.rounds:
+        for cid, g in s.rounds[0]["gains"].items():
+            if cid in s.statuses:
+                s.statuses[cid]["heldout_gain_vs_baseline"] = round(float(g), 5)
     order = [c.id for c in problem.candidates] + list(problem.untestable)
-    candidates = [statuses[cid] for cid in order if cid in statuses]
-    return {"findings": findings, "candidates": candidates, "ambiguities": ambiguities,
-            "significant": significant or bool(ambiguities), "threshold": first_threshold,
-            "rounds": rounds, "fitted_effects": fitted,
-            "baseline_heldout_rmse": baseline_heldout}
+    candidates = [s.statuses[cid] for cid in order if cid in s.statuses]
+    return {"findings": findings, "candidates": candidates, "ambiguities": s.ambiguities,
+            "descriptions": descriptions, "unexplained": left,
+            "significant": s.significant or bool(s.ambiguities), "threshold": s.first_threshold,
+            "rounds": s.rounds, "fitted_effects": fitted,
+            "baseline_heldout_rmse": s.baseline_heldout, "search": s}

@@ -85,7 +85,29 @@ def _eta2(r: np.ndarray, bins: np.ndarray, nb: int) -> float:
     return float(between / total) if total > 0 else 0.0
 
 
-def _bins(x: np.ndarray, nb: int, resolution: float = 0.02) -> tuple[np.ndarray, int]:
+def _eta2_shifted(r: np.ndarray, bins: np.ndarray, nb: int, shifts: np.ndarray) -> np.ndarray:
+    """:func:`_eta2` of ``np.roll(r, s)`` for every ``s`` in ``shifts``, from FFTs.
+
+    The bin sums of the shifted residual are circular cross-correlations of each bin's
+    indicator with ``r``; the mean and the total variance do not change with the shift.
+    """
+    from fleetrun.diagnose.select import _circ_corr
+
+    n = len(r)
+    cnt = np.bincount(bins, minlength=nb)
+    mean = r.mean()
+    total = np.sum((r - mean) ** 2)
+    if total <= 0:
+        return np.zeros(len(shifts))
+    r_fft = np.fft.rfft(r)
+    between = np.zeros(len(shifts))
+    for i in np.flatnonzero(cnt > 0):
+        sums = _circ_corr(np.fft.rfft((bins == i).astype(float)), r_fft, n)[shifts]
+        between += cnt[i] * (sums / cnt[i] - mean) ** 2
+    return between / total
+
+
+def bins(x: np.ndarray, nb: int, resolution: float = 0.02) -> tuple[np.ndarray, int]:
     """Quantile bins, merged where two edges are closer than ``resolution`` of the range.
 
     Without the merge, a channel that sits at one value for a long time (a torque floor, a
@@ -133,15 +155,12 @@ def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
         x = np.asarray(x, dtype=float)
         if x.shape != r.shape or np.ptp(x) <= 1e-12 * max(1.0, np.abs(x).max()):
             continue
-        usable[name] = _bins(x, n_bins)
+        usable[name] = bins(x, n_bins)
     if not usable:
         return [], False
     shifts = rng.integers(max(1, n // 20), max(2, n - n // 20), n_shifts)
-    null_max = np.zeros(n_shifts)
     rn = rs if null_residual is None else smooth(null_residual, smooth_window)
-    for j, s in enumerate(shifts):
-        rr = np.roll(rn, s)
-        null_max[j] = max(_eta2(rr, b, nb) for b, nb in usable.values())
+    null_max = np.max([_eta2_shifted(rn, b, nb, shifts) for b, nb in usable.values()], axis=0)
     thr = float(np.quantile(null_max, quantile))
     out = []
     for name, (b, nb) in usable.items():
@@ -154,7 +173,7 @@ def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
 
 def binned_profile(x: np.ndarray, r: np.ndarray, n_bins: int = 20) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres (median of x) and mean residual per quantile bin, for plots."""
-    b, nb = _bins(np.asarray(x, float), n_bins)
+    b, nb = bins(np.asarray(x, float), n_bins)
     cnt = np.bincount(b, minlength=nb)
     ok = cnt > 0
     xm = np.array([np.median(x[b == i]) for i in range(nb) if cnt[i] > 0])

@@ -203,6 +203,91 @@ def _resample(df: pd.DataFrame, step: float) -> tuple[pd.DataFrame, bool]:
     return pd.DataFrame(out), True
 
 
+def _differential_columns(path, columns, sidecar, meta_path, notes) -> list[str]:
+    """Check a differential-level recording's columns and sidecar; the columns used."""
+    _require(path, columns, DIFF_REQUIRED, "differential")
+    if "diff_output_torque_Nm" not in columns:
+        if "axle_torque_left_Nm" in columns and "axle_torque_right_Nm" in columns:
+            notes.append("diff_output_torque_Nm = axle_torque_left_Nm + axle_torque_right_Nm")
+        else:
+            raise InputError("missing column diff_output_torque_Nm (or both axle_torque_left_Nm "
+                             "and axle_torque_right_Nm)", file=path, column="diff_output_torque_Nm",
+                             hint="The measured half-shaft torque sum is the target diagnose "
+                                  "compares the model with")
+    if ("wheel_speed_left_rpm" in columns) != ("wheel_speed_right_rpm" in columns):
+        one = "wheel_speed_left_rpm" if "wheel_speed_left_rpm" in columns else "wheel_speed_right_rpm"
+        raise InputError(f"{one} without its partner", file=path, column=one,
+                         hint="Give both wheel_speed_left_rpm and wheel_speed_right_rpm, or neither")
+    missing_meta = [k for k in DIFF_META_REQUIRED if k not in sidecar]
+    if missing_meta:
+        raise InputError(f"sidecar lacks {', '.join(missing_meta)}", file=meta_path,
+                         hint="Differential-level sidecar keys: " + ", ".join(DIFF_META_REQUIRED))
+    check_sidecar_numbers(sidecar, meta_path)
+    for k in ("gear_ratio", "peak_engine_torque_Nm", "torque_converter_ratio",
+              "max_transmission_gear_ratio"):
+        v = sidecar[k]
+        if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise InputError(f"sidecar key {k} must be a positive number, got {v!r}",
+                             file=meta_path, column=k, value=v)
+    try:
+        from fleetrun.differential import canonical_configuration
+
+        sidecar["configuration"] = canonical_configuration(str(sidecar["configuration"]))
+    except InputError as exc:
+        exc.file, exc.column = meta_path, "configuration"
+        raise
+    return [c for c in columns if c in DIFF_REQUIRED + DIFF_OPTIONAL]
+
+
+def _vehicle_columns(path, columns) -> list[str]:
+    """Check a vehicle-level recording's columns; the columns used."""
+    speed = [c for c in VEHICLE_SPEEDS if c in columns]
+    fuel = [c for c in FUEL_RATES if c in columns]
+    if not speed:
+        raise InputError("missing a vehicle speed column (vehicle_speed_kph, vehicle_speed_mph "
+                         "or vehicle_speed_mps)", file=path, column="vehicle_speed_kph")
+    if not fuel:
+        raise InputError("missing a fuel rate column (fuel_rate_g_per_s or fuel_rate_cc_per_s)",
+                         file=path, column="fuel_rate_g_per_s")
+    return ["time_s", speed[0], fuel[0]] + [c for c in ("grade_pct", "ambient_temp_C") if c in columns]
+
+
+def _differential_values(path, df, notes) -> None:
+    if "diff_output_torque_Nm" not in df.columns:
+        df["diff_output_torque_Nm"] = df["axle_torque_left_Nm"] + df["axle_torque_right_Nm"]
+    if (df["diff_input_speed_rpm"] < -1.0).mean() > 0.5:
+        raise InputError("diff_input_speed_rpm is mostly negative", file=path,
+                         column="diff_input_speed_rpm", hint="Give forward rotation as positive rpm")
+    n_max = float(df["diff_input_speed_rpm"].abs().max())
+    if 0 < n_max < 60 and df["diff_input_torque_Nm"].abs().max() > 1:
+        notes.append(f"diff_input_speed_rpm never exceeds {n_max:.3g}: is it in rad/s? "
+                     "fleetrun reads rpm")
+
+
+def _vehicle_values(path, df, sidecar, meta_path, notes) -> None:
+    scol = next(c for c in VEHICLE_SPEEDS if c in df.columns)
+    df["vehicle_speed_mps"] = df[scol] * VEHICLE_SPEEDS[scol]
+    if (df["vehicle_speed_mps"] < -0.5).any():
+        i = int(np.flatnonzero(df["vehicle_speed_mps"].to_numpy() < -0.5)[0])
+        raise InputError("negative vehicle speed", file=path, row=i + 2, column=scol,
+                         value=df[scol].iloc[i])
+    if df["vehicle_speed_mps"].max() > 90:
+        raise InputError(f"vehicle speed up to {df['vehicle_speed_mps'].max():.0f} m/s "
+                         "(over 320 km/h)", file=path, column=scol,
+                         hint="Check the unit in the column name (kph, mph or mps)")
+    if "fuel_rate_g_per_s" not in df.columns:
+        fuel = str(sidecar.get("fuel", "gasoline")).lower()
+        rho = FUEL_DENSITY_G_PER_CC.get(fuel)
+        if rho is None:
+            raise InputError(f"sidecar fuel '{fuel}' must be gasoline or diesel", file=meta_path,
+                             column="fuel", value=fuel)
+        df["fuel_rate_g_per_s"] = df["fuel_rate_cc_per_s"] * rho
+        notes.append(f"fuel_rate_g_per_s = fuel_rate_cc_per_s x {rho} g/cm^3 ({fuel})")
+    if (df["fuel_rate_g_per_s"] < -1e-9).any():
+        i = int(np.flatnonzero(df["fuel_rate_g_per_s"].to_numpy() < -1e-9)[0])
+        raise InputError("negative fuel rate", file=path, row=i + 2, column="fuel_rate_g_per_s")
+
+
 def load_recording(path, meta=None) -> Recording:
     """Read, check and (if its steps are irregular) resample a recording to a uniform grid."""
     path = Path(path)
@@ -223,84 +308,16 @@ def load_recording(path, meta=None) -> Recording:
     sidecar, meta_path = read_sidecar(path, meta)
     notes = []
     if level == "differential":
-        _require(path, columns, DIFF_REQUIRED, level)
-        if "diff_output_torque_Nm" not in columns:
-            if "axle_torque_left_Nm" in columns and "axle_torque_right_Nm" in columns:
-                notes.append("diff_output_torque_Nm = axle_torque_left_Nm + axle_torque_right_Nm")
-            else:
-                raise InputError("missing column diff_output_torque_Nm (or both axle_torque_left_Nm "
-                                 "and axle_torque_right_Nm)", file=path, column="diff_output_torque_Nm",
-                                 hint="The measured half-shaft torque sum is the target diagnose "
-                                      "compares the model with")
-        if ("wheel_speed_left_rpm" in columns) != ("wheel_speed_right_rpm" in columns):
-            one = "wheel_speed_left_rpm" if "wheel_speed_left_rpm" in columns else "wheel_speed_right_rpm"
-            raise InputError(f"{one} without its partner", file=path, column=one,
-                             hint="Give both wheel_speed_left_rpm and wheel_speed_right_rpm, or neither")
-        used = [c for c in columns if c in DIFF_REQUIRED + DIFF_OPTIONAL]
-        missing_meta = [k for k in DIFF_META_REQUIRED if k not in sidecar]
-        if missing_meta:
-            raise InputError(f"sidecar lacks {', '.join(missing_meta)}", file=meta_path,
-                             hint="Differential-level sidecar keys: " + ", ".join(DIFF_META_REQUIRED))
-        check_sidecar_numbers(sidecar, meta_path)
-        for k in ("gear_ratio", "peak_engine_torque_Nm", "torque_converter_ratio",
-                  "max_transmission_gear_ratio"):
-            v = sidecar[k]
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise InputError(f"sidecar key {k} must be a positive number, got {v!r}",
-                                 file=meta_path, column=k, value=v)
-        try:
-            from fleetrun.differential import canonical_configuration
-
-            sidecar["configuration"] = canonical_configuration(str(sidecar["configuration"]))
-        except InputError as exc:
-            exc.file, exc.column = meta_path, "configuration"
-            raise
+        used = _differential_columns(path, columns, sidecar, meta_path, notes)
     else:
-        speed = [c for c in VEHICLE_SPEEDS if c in columns]
-        fuel = [c for c in FUEL_RATES if c in columns]
-        if not speed:
-            raise InputError("missing a vehicle speed column (vehicle_speed_kph, vehicle_speed_mph "
-                             "or vehicle_speed_mps)", file=path, column="vehicle_speed_kph")
-        if not fuel:
-            raise InputError("missing a fuel rate column (fuel_rate_g_per_s or fuel_rate_cc_per_s)",
-                             file=path, column="fuel_rate_g_per_s")
-        used = ["time_s", speed[0], fuel[0]] + [c for c in ("grade_pct", "ambient_temp_C") if c in columns]
+        used = _vehicle_columns(path, columns)
     _check_numbers(path, df, used)
     df = df[used].copy()
     step = _check_time(path, df["time_s"].to_numpy())
     if level == "differential":
-        if "diff_output_torque_Nm" not in df.columns:
-            df["diff_output_torque_Nm"] = df["axle_torque_left_Nm"] + df["axle_torque_right_Nm"]
-        if (df["diff_input_speed_rpm"] < -1.0).mean() > 0.5:
-            raise InputError("diff_input_speed_rpm is mostly negative", file=path,
-                             column="diff_input_speed_rpm",
-                             hint="Give forward rotation as positive rpm")
-        n_max = float(df["diff_input_speed_rpm"].abs().max())
-        if 0 < n_max < 60 and df["diff_input_torque_Nm"].abs().max() > 1:
-            notes.append(f"diff_input_speed_rpm never exceeds {n_max:.3g}: is it in rad/s? "
-                         "fleetrun reads rpm")
+        _differential_values(path, df, notes)
     else:
-        scol = next(c for c in VEHICLE_SPEEDS if c in df.columns)
-        df["vehicle_speed_mps"] = df[scol] * VEHICLE_SPEEDS[scol]
-        if (df["vehicle_speed_mps"] < -0.5).any():
-            i = int(np.flatnonzero(df["vehicle_speed_mps"].to_numpy() < -0.5)[0])
-            raise InputError("negative vehicle speed", file=path, row=i + 2, column=scol,
-                             value=df[scol].iloc[i])
-        if df["vehicle_speed_mps"].max() > 90:
-            raise InputError(f"vehicle speed up to {df['vehicle_speed_mps'].max():.0f} m/s "
-                             "(over 320 km/h)", file=path, column=scol,
-                             hint="Check the unit in the column name (kph, mph or mps)")
-        if "fuel_rate_g_per_s" not in df.columns:
-            fuel = str(sidecar.get("fuel", "gasoline")).lower()
-            rho = FUEL_DENSITY_G_PER_CC.get(fuel)
-            if rho is None:
-                raise InputError(f"sidecar fuel '{fuel}' must be gasoline or diesel", file=meta_path,
-                                 column="fuel", value=fuel)
-            df["fuel_rate_g_per_s"] = df["fuel_rate_cc_per_s"] * rho
-            notes.append(f"fuel_rate_g_per_s = fuel_rate_cc_per_s x {rho} g/cm^3 ({fuel})")
-        if (df["fuel_rate_g_per_s"] < -1e-9).any():
-            i = int(np.flatnonzero(df["fuel_rate_g_per_s"].to_numpy() < -1e-9)[0])
-            raise InputError("negative fuel rate", file=path, row=i + 2, column="fuel_rate_g_per_s")
+        _vehicle_values(path, df, sidecar, meta_path, notes)
     df, resampled = _resample(df, step)
     if resampled:
         notes.append(f"resampled to a uniform {step:g} s grid (linear interpolation)")

@@ -10,34 +10,32 @@ from fleetrun.diagnose.locate import binned_profile, smooth
 from fleetrun.effects import EFFECTS
 
 
-def _png(fig) -> str:
+def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
     import matplotlib.pyplot as plt
 
     plt.close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return buf.getvalue()
+
+
+def data_uri(png: bytes) -> str:
+    """A PNG embedded in the self-contained HTML."""
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
 def _thin(n: int, max_points: int = 4000) -> slice:
     return slice(None, None, max(1, n // max_points))
 
 
-def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = problem.time_s - problem.time_s[0]
-    sl = _thin(len(t))
+def _time_figures(problem, result, fitted, t, sl, plt) -> dict:
+    """Measured vs model, the residual over time and the cumulative residual."""
     r = problem.residual
     r_after = r - fitted
     smooth_s = max(10.0, 0.01 * float(t[-1]))          # the segments' smoothing (locate.segments)
     win = max(1, int(round(len(t) / max(t[-1], 1e-9) * smooth_s)))
     unit = problem.units
     figs = {}
-
     fig, ax = plt.subplots(figsize=(10, 3.4))
     ax.plot(t[sl], problem.measured[sl], lw=0.7, label="measured", color="black")
     base_label = "thesis model (baseline)" if problem.level == "differential" else "simulation (baseline)"
@@ -76,25 +74,45 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     ax.set_title("Cumulative residual: where the mismatch adds up")
     ax.legend(loc="best", fontsize=8)
     figs["cumulative"] = _png(fig)
+    return figs
 
+
+def _driver_figure(problem, result, fitted, plt) -> str | None:
+    """The residual against its three strongest drivers (binned), before and after."""
     drivers = result["mismatch"]["drivers"]
-    if drivers:
-        top = [d["channel"] for d in drivers[:3]]
-        fig, axes = plt.subplots(1, len(top), figsize=(3.6 * len(top), 3.0), squeeze=False)
-        for ax, name in zip(axes[0], top):
-            x = problem.driver_channels[name]
-            xm, rm = binned_profile(x, r)
-            ax.plot(xm, rm, "o-", ms=3, color="tab:blue", label="baseline")
-            if result["findings"]:
-                xm2, rm2 = binned_profile(x, r_after)
-                ax.plot(xm2, rm2, "o-", ms=3, color="tab:red", label="after")
-            ax.axhline(0, color="grey", lw=0.5)
-            ax.set_xlabel(name)
-            ax.set_ylabel(f"mean residual [{unit}]")
-        axes[0][0].legend(fontsize=8)
-        fig.suptitle("Residual against its strongest drivers (quantile bins)")
-        figs["drivers"] = _png(fig)
+    if not drivers:
+        return None
+    r = problem.residual
+    top = [d["channel"] for d in drivers[:3]]
+    fig, axes = plt.subplots(1, len(top), figsize=(3.6 * len(top), 3.0), squeeze=False)
+    for ax, name in zip(axes[0], top):
+        x = problem.driver_channels[name]
+        xm, rm = binned_profile(x, r)
+        ax.plot(xm, rm, "o-", ms=3, color="tab:blue", label="baseline")
+        if result["findings"]:
+            xm2, rm2 = binned_profile(x, r - fitted)
+            ax.plot(xm2, rm2, "o-", ms=3, color="tab:red", label="after")
+        ax.axhline(0, color="grey", lw=0.5)
+        ax.set_xlabel(name)
+        ax.set_ylabel(f"mean residual [{problem.units}]")
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle("Residual against its strongest drivers (quantile bins)")
+    return _png(fig)
 
+
+def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, bytes]:
+    """The report's figures as PNG bytes, by name (measured, residual, cumulative, drivers,
+    heldout)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = problem.time_s - problem.time_s[0]
+    figs = _time_figures(problem, result, fitted, t, _thin(len(t)), plt)
+    drivers = _driver_figure(problem, result, fitted, plt)
+    if drivers:
+        figs["drivers"] = drivers
     labels = ["baseline"]
     vals = [result["baseline"]["heldout_rmse"]]
     for f in result["findings"]:
@@ -103,7 +121,7 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, str]:
     fig, ax = plt.subplots(figsize=(1.6 + 1.4 * len(vals), 3.0))
     ax.bar(range(len(vals)), vals, color=["tab:blue"] + ["tab:red"] * (len(vals) - 1))
     ax.set_xticks(range(len(vals)), labels, fontsize=8)
-    ax.set_ylabel(f"held-out RMSE [{unit}]")
+    ax.set_ylabel(f"held-out RMSE [{problem.units}]")
     ax.set_title("Held-out fit (blocked CV)")
     figs["heldout"] = _png(fig)
     return figs
@@ -122,7 +140,37 @@ def _where(result: dict) -> str:
 
 
 def summary_sentence(result: dict) -> str:
-    return _summary(result) + _where(result)
+    """The report's first paragraph: what is left unexplained first, then the findings."""
+    return " ".join(x for x in (_unexplained_words(result), _summary(result) + _where(result),
+                                _descriptions_words(result)) if x)
+
+
+def _unexplained_words(result: dict) -> str:
+    u = result.get("unexplained") or {}
+    if not u.get("significant"):
+        return ""
+    drv = [d["channel"].replace("_", " ") for d in u.get("drivers", []) if d.get("significant")][:3]
+    what = "the model with its findings" if result["findings"] else "the model"
+    text = (f"Something the catalogue does not describe remains: after {what} the residual "
+            f"(RMSE {u['rmse']:.3g} {result.get('units', '')}) still has a part that the recorded "
+            f"channels explain beyond noise (what no function of them explains: "
+            f"{u['noise_rmse']:.3g})")
+    if drv:
+        text += "; it follows " + ", ".join(drv)
+    segs = u.get("segments", [])[:2]
+    if segs:
+        text += "; it concentrates in " + " and ".join(
+            f"{s['start_s']:.0f}-{s['end_s']:.0f} s" for s in segs)
+    return text + "."
+
+
+def _descriptions_words(result: dict) -> str:
+    d = result.get("descriptions") or []
+    if not d:
+        return ""
+    names = ", ".join(f"{EFFECTS[x['effect']].title} ({x['reason'].split(';')[0]})" for x in d)
+    return (f"Weak or ambiguous descriptions, not findings: {names}. They describe part of the "
+            "mismatch; they are not evidence that the model leaves this physics out.")
 
 
 def _summary(result: dict) -> str:
@@ -136,6 +184,8 @@ def _summary(result: dict) -> str:
         a = result["ambiguities"][0]
         return (f"The recording shows a mismatch that {' or '.join(a['effects'])} could explain; "
                 f"the data cannot tell them apart. To separate them: {a['separating_test']}.")
+    if (result.get("unexplained") or {}).get("significant"):
+        return "No effect of the catalogue explains it: the cause is not in the catalogue."
     if result["mismatch"]["significant"]:
         return ("The residual is larger than noise but none of the candidate physics explains it "
                 "better than noise could: the cause is not in the catalog.")
@@ -150,5 +200,6 @@ def render_html(problem, result: dict, fitted: np.ndarray) -> str:
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     tpl = env.get_template("diagnosis.html.j2")
-    return tpl.render(r=result, figs=figures(problem, result, fitted),
+    figs = {name: data_uri(png) for name, png in figures(problem, result, fitted).items()}
+    return tpl.render(r=result, figs=figs,
                       summary=summary_sentence(result), effects=EFFECTS)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.diagnose.engine import Problem
+from fleetrun.diagnose.engine import Problem, windowed
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate, full_fit
 from fleetrun.effects import effects_for_level
@@ -25,6 +25,11 @@ from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 from fleetrun.errors import InputError
 
 ENGINE_OFF_MIN_S = 5.0
+#: Share of the engine-on samples a reference of the same trace must cover for the
+#: difference between the recordings to be the residual (``--residual auto``).
+SAME_TRACE_MIN_COVER = 0.5
+#: Window [s] over which a same-trace residual is compared (:func:`engine.windowed`).
+SAME_TRACE_WINDOW_S = 10.0
 ZERO_FUEL_G_PER_S = 1e-3
 
 
@@ -94,7 +99,79 @@ def calibrate(ref: Recording, physics="thesis") -> tuple[float, float, float, fl
     return float(a), float(b), float(np.sqrt(np.mean(e ** 2))), float(se_a), float(se_b)
 
 
-def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Problem:
+def same_trace(rec: Recording, ref: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's measured fuel rate on ``rec``'s time grid where both recordings drive
+    the same speed trace, and the mask of those samples.
+
+    Each driving stretch of ``rec`` (between standstills longer than
+    :data:`fleetrun.diagnose.integrals.GAP_S`) is aligned with each of ``ref``'s
+    (:func:`fleetrun.diagnose.integrals.align`); a pair whose speeds agree within
+    :data:`fleetrun.diagnose.integrals.MATCH_RMS_MPS` and whose overlap covers 80 % of the
+    stretch is used.
+    """
+    from fleetrun.diagnose.integrals import MATCH_RMS_MPS, STILL_MPS, align, driving_stretches
+
+    t, v = rec.data["time_s"].to_numpy(), rec.data["vehicle_speed_mps"].to_numpy()
+    rt, rv = ref.data["time_s"].to_numpy(), ref.data["vehicle_speed_mps"].to_numpy()
+    ry = ref.data["fuel_rate_g_per_s"].to_numpy()
+    ref_fuel, covered = np.zeros(len(t)), np.zeros(len(t), bool)
+    ref_stretches, _ = driving_stretches(rt, rv > STILL_MPS)
+    for a, b in driving_stretches(t, v > STILL_MPS)[0]:
+        for c, d in ref_stretches:
+            found = align(t[a:b], v[a:b], rt[c:d], rv[c:d])
+            if found is None or found[1] > MATCH_RMS_MPS:
+                continue
+            tt = t[a:b] - found[0]
+            inside = (tt >= 0) & (tt <= rt[d - 1] - rt[c])
+            if inside.mean() < 0.8:
+                continue
+            idx = np.arange(a, b)[inside]
+            ref_fuel[idx] = np.interp(tt[inside] + rt[c], rt, ry)
+            covered[idx] = True
+            break
+    return ref_fuel, covered
+
+
+def _calibrated_baseline(rec, ref, fuel, on, physics, residual, notes, info):
+    """Baseline and calibration terms with a reference recording: the simulation calibrated
+    on it, or (``residual`` same-trace/auto) the reference's own fuel where it drives the
+    same trace (the simulation's transient errors cancel)."""
+    a, b, ref_rmse, se_a, se_b = calibrate(ref, physics)
+    baseline = a * fuel + b * on
+    notes.append(f"calibrated on {ref.path.name}: fuel = {a:.4g} x simulated + {b:.4g} g/s "
+                 f"while the engine runs (reference RMSE {ref_rmse:.3g} g/s)")
+    info.update({"calibrated_on": str(ref.path), "fuel_scale": round(a, 6),
+                 "fuel_scale_se": round(se_a, 6), "idle_offset_g_per_s": round(b, 6),
+                 "idle_offset_se_g_per_s": round(se_b, 6), "reference_rmse": round(ref_rmse, 6)})
+    keep = np.ones(len(fuel))
+    if residual != "simulation":
+        ref_fuel, covered = same_trace(rec, ref)
+        cover = float(covered[on > 0].mean()) if (on > 0).any() else 0.0
+        if cover >= SAME_TRACE_MIN_COVER:
+            baseline = np.where(covered, ref_fuel, baseline)
+            keep = (~covered).astype(float)
+            info["residual"] = "same_trace"
+            notes.append(f"residual: measured minus {ref.path.name} on the same speed trace "
+                         f"({100 * cover:.0f} % of the engine-on samples aligned), so the "
+                         "simulation's transient errors cancel; the calibrated simulation "
+                         "elsewhere")
+        elif residual == "same-trace":
+            raise InputError(f"--residual same-trace: {ref.path.name} covers only "
+                             f"{100 * cover:.0f} % of the recording's trace", file=ref.path,
+                             hint="Give a reference recording of the same cycle, or use "
+                                  "--residual simulation")
+    info.setdefault("residual", "simulation")
+    if info["residual"] == "simulation":
+        notes.append("residual: measured minus the calibrated simulation")
+    # the calibration is only known to its standard errors: the constants may move within
+    # 3 of them on this recording, so that a calibration error is not claimed as an
+    # accessory load (a constant) or a grade (fuel ~ speed)
+    initial = [(fuel * keep, -3 * se_a, 3 * se_a), (on * keep, -3 * se_b, 3 * se_b)]
+    return baseline, [term for term in initial if np.any(term[0] != 0)]
+
+
+def build_problem(rec: Recording, ref: Recording | None, physics="thesis",
+                  residual: str = "auto") -> Problem:
     df = rec.data
     t = df["time_s"].to_numpy()
     t0 = t - t[0]
@@ -106,17 +183,7 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Pr
                      "on the measured speed trace"}
     initial = []
     if ref is not None:
-        a, b, ref_rmse, se_a, se_b = calibrate(ref, physics)
-        baseline = a * fuel + b * on
-        # the calibration is only known to its standard errors: the constants may move within
-        # 3 of them on this recording, so that a calibration error is not claimed as an
-        # accessory load (a constant) or a grade (fuel ~ speed)
-        initial = [(fuel, -3 * se_a, 3 * se_a), (on, -3 * se_b, 3 * se_b)]
-        notes.append(f"calibrated on {ref.path.name}: fuel = {a:.4g} x simulated + {b:.4g} g/s "
-                     f"while the engine runs (reference RMSE {ref_rmse:.3g} g/s)")
-        info.update({"calibrated_on": str(ref.path), "fuel_scale": round(a, 6),
-                     "fuel_scale_se": round(se_a, 6), "idle_offset_g_per_s": round(b, 6),
-                     "idle_offset_se_g_per_s": round(se_b, 6), "reference_rmse": round(ref_rmse, 6)})
+        baseline, initial = _calibrated_baseline(rec, ref, fuel, on, physics, residual, notes, info)
     else:
         a, b = full_fit(y, [fuel, on], [(0.2, 5.0), (-5.0, 5.0)])
         baseline = a * fuel + b * on
@@ -155,5 +222,14 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis") -> Pr
         drivers["grade"] = df["grade_pct"].to_numpy()
     if "ambient_temp_C" in df:
         drivers["temperature"] = df["ambient_temp_C"].to_numpy()
-    return Problem("vehicle", "fuel_rate_g_per_s", t, y, baseline, candidates, untestable, {}, {},
-                   drivers, info, notes, {}, units="g/s", initial_terms=initial)
+    integral = {"moving": v > 0.1, "speed_mps": v, "weight": np.ones(len(t)), "unit": "g"}
+    problem = Problem("vehicle", "fuel_rate_g_per_s", t, y, baseline, candidates, untestable, {},
+                      {}, drivers, info, notes, {}, units="g/s", initial_terms=initial,
+                      integral=integral)
+    if info.get("residual") == "same_trace":
+        w = max(1, int(round(SAME_TRACE_WINDOW_S / rec.dt_s)))
+        notes.append(f"same-trace residual compared over {SAME_TRACE_WINDOW_S:g}-s windows: two "
+                     "drives place each transient a second or two apart, which a per-second "
+                     "difference turns into noise and a window's fuel does not")
+        problem.coarse = windowed(problem, w)
+    return problem

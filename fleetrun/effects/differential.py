@@ -179,6 +179,91 @@ def _basis_mixed(ch, speed_ref_rpm):
     return mixed_lubrication_torque_Nm(ch["input_torque_Nm"], ch["input_speed_rad_s"], speed_ref_rpm)
 
 
+# --------------------------------------------------------------------------- mesh_friction
+#: The thesis's reference hypoid (LD RWD rear axle, thesis Sec. 5.4, code B.2) at its own
+#: ratio: the geometry whose Dudley friction the mesh-friction and churning effects scale.
+REFERENCE_AXLE_MODEL = "gm_1500_rear_axle"
+
+
+def _reference_stage(component: str, label_has: str = ""):
+    """Parameters of a stage of the reference axle at its ratio and the thesis oil temperature."""
+    from fleetrun.differential.chain import resolved_stages
+    from fleetrun.differential.models import reference_model
+    from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C
+
+    model = reference_model(REFERENCE_AXLE_MODEL)
+    ratio = float(model.resolve(1.0, THESIS_OPERATING_TEMP_C)["G"])
+    for (comp, params, _), stage in zip(resolved_stages(model.id, ratio, THESIS_OPERATING_TEMP_C),
+                                        model.stages):
+        if comp == component and label_has in stage.get("label", ""):
+            return params
+    raise KeyError(f"{REFERENCE_AXLE_MODEL} has no {component} stage '{label_has}'")
+
+
+def hypoid_mesh_loss_share(input_speed_rad_s):
+    """Share of the pinion torque the reference hypoid mesh loses, ``1 - eta``.
+
+    Thesis Eq. 5.9 (code B.2/B.4): sliding speed from the pinion speed and geometry, Dudley's
+    friction coefficient ``f = 0.8 / (v + 100)^0.5`` (Fig. 12.8 fit), efficiency after
+    Dudley Eq. 12.36; geometry of the thesis's reference hypoid (GM 1500 rear axle).
+    """
+    from fleetrun.physics import gear_mesh
+
+    p = _reference_stage("hypoid_mesh")
+    n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * 60.0 / (2 * np.pi)
+    v = gear_mesh.hypoid_sliding_speed_fpm(n_rpm, p["outer_pitch_radius_gap_in"],
+                                           p["face_width_gap_in"], p["pinion_teeth"])
+    eta = gear_mesh.hypoid_mesh_efficiency(gear_mesh.dudley_friction_coefficient(v),
+                                           p["normal_pressure_angle_rad"], p["pinion_spiral_rad"],
+                                           p["gear_spiral_rad"])
+    return 1.0 - eta
+
+
+def mesh_friction_torque_Nm(input_torque_Nm, input_speed_rad_s):
+    """Extra pinion torque per unit ``friction_excess``: ``|T_in| (1 - eta_mesh(n))``.
+
+    A mesh friction coefficient ``(1 + friction_excess)`` times Dudley's loses, to first order
+    in the coefficient (``f tan psi_p << cos phi_n``), that much more of the torque. Thesis
+    Sec. 7.2: "published friction coefficient data for hypoid gears are not sufficiently high
+    at low speed" to match measured LD RWD losses; Dudley's curve is one fit (Fig. 12.8).
+    """
+    w = np.asarray(input_speed_rad_s, dtype=float)
+    return (np.abs(np.asarray(input_torque_Nm, dtype=float)) * hypoid_mesh_loss_share(w)
+            * (np.abs(w) > W_STOP_RAD_S))
+
+
+def _basis_mesh_friction(ch):
+    return mesh_friction_torque_Nm(ch["input_torque_Nm"], ch["input_speed_rad_s"])
+
+
+# --------------------------------------------------------------------------- oil_churning
+def ring_gear_churning_torque_Nm(input_speed_rad_s, gear_ratio):
+    """Extra pinion torque per unit of extra immersion of the ring gear in oil.
+
+    Dudley's bevel-gear windage (thesis Eqs 5.3, 5.10; code B.2) mixes oil and air viscosity
+    by the immersed fraction X; ``dT/dX`` is the windage fully immersed minus dry, at the
+    ring-gear speed ``n_in / G``, referred to the pinion (``/ G``). Thesis Sec. 5.2.3: a
+    "dipped" axle runs at X ~ 0.2 (the fill plug's height); "halfway" is 0.5 and "totally"
+    1.0. Grows as the square of the speed. Reference ring gear: the GM 1500 rear axle's.
+    """
+    from fleetrun.physics.windage import bevel_gear_windage_torque_Nm
+
+    p = _reference_stage("bevel_gear_windage", "ring")
+    g = np.asarray(gear_ratio, dtype=float)
+    n_ring = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * 60.0 / (2 * np.pi) / g
+
+    def windage(x):
+        return bevel_gear_windage_torque_Nm(n_ring, p["pitch_radius_in"], p["face_width_in"],
+                                            p["face_factor"], p["helix_angle_rad"], x,
+                                            p["mu_oil"], p["mu_air"], p["inner_radius_in"])
+
+    return (windage(1.0) - windage(0.0)) / g * np.sign(np.asarray(input_speed_rad_s, dtype=float))
+
+
+def _basis_churning(ch):
+    return ring_gear_churning_torque_Nm(ch["input_speed_rad_s"], ch["gear_ratio"])
+
+
 def _log_grid(lo, hi, n):
     return tuple(float(v) for v in np.geomspace(lo, hi, n))
 
@@ -272,4 +357,30 @@ DIFFERENTIAL_EFFECTS = (
         basis=_basis_mixed,
         confounded_with=("cornering",),
         separating_test="record both wheel speeds, or drive straight at low speed"),
+    Effect(
+        id="mesh_friction", level="differential",
+        title="gear-mesh friction above Dudley's coefficient",
+        parameters=(Parameter("friction_excess", 0.3, 0.0, 3.0, "-",
+                              "mesh friction coefficient = (1 + friction_excess) x Dudley's "
+                              "f = 0.8/(v+100)^0.5; dT = friction_excess |T_in| (1 - eta_mesh)"),),
+        linear="friction_excess", channels=(),
+        signature="a torque-proportional shortfall at every speed, largest at low speed where "
+                  "Dudley's coefficient is high (f ~ 1/sqrt(sliding speed))",
+        seed="thesis Eq. 5.9 and code B.2/B.4 (Dudley Fig. 12.8 fit, Eq. 12.36); thesis Sec. 7.2 "
+             "(published hypoid friction too low at low speed)",
+        steady_state="subtracts friction_excess x |T_in| x (1 - eta_mesh(n)) from the input torque",
+        basis=_basis_mesh_friction),
+    Effect(
+        id="oil_churning", level="differential",
+        title="oil churning at a higher oil level",
+        parameters=(Parameter("immersion_excess", 0.3, 0.0, 0.8, "-",
+                              "ring-gear immersed fraction above the model's (0.2 dipped; 0.5 "
+                              "halfway, 1.0 totally immersed)"),),
+        linear="immersion_excess", channels=(),
+        signature="a torque shortfall growing as the square of the speed, independent of torque",
+        seed="thesis Sec. 5.2.3 (immersion fractions: dipped ~0.2, halfway, totally) and Eqs "
+             "5.3, 5.10 (Dudley bevel-gear windage, code B.2)",
+        steady_state="subtracts immersion_excess x dT/dX of the ring gear's windage",
+        basis=_basis_churning,
+        separating_test="measure the oil level (fill-plug height) or drain to the nominal level"),
 )

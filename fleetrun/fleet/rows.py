@@ -167,6 +167,8 @@ def _vehicle_plausible(p: dict, report: Report) -> None:
     duty = p.get("duty_class")
     if duty is not None:
         for name, ranges in PLAUSIBLE_VEHICLE.items():
+            if name == "final_drive_ratio" and p.get("fuel") == "electric":
+                continue   # an electric drive's single reduction (7-10:1) is its final drive
             low, high = ranges[duty]
             value = p.get(name)
             if value is not None and not (low <= value <= high):

@@ -163,6 +163,7 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            "(default 0)", minimum=0, maximum=100_000, plausible=(0.0, 1000.0)),
 )
 
+
 def _renamed(columns, name: str, new_name: str, note: str) -> Column:
     from dataclasses import replace
 

@@ -1,6 +1,6 @@
 """The two real-data diagnoses of docs/diagnose-realdata.md, reproducible.
 
-    python -m fleetrun.diagnose.realdata [--out DIR] [--img docs/img]
+    python validation/diagnose_realdata.py [--out DIR] [--img docs/img]
 
 1. **Argonne 2018 Camry, cold-start vs hot-start UDDS** (vehicle level, inputs/dyno): the cold
    recording diagnosed with ``--calibrate-on`` the hot one.
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from fleetrun.diagnose.generator import Recording
+from fleetrun.testing.recordings import Recording
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
 from fleetrun.simulation.tyre import rolling_radius_m
 from validation.simulation import TABLE_7_1, matthews_c19
@@ -87,43 +87,65 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
 
 
 def run(out_dir: Path, img_dir: Path | None = None) -> dict:
-    from fleetrun.diagnose import diagnose
+    """Every case diagnosed into ``out_dir`` (JSON + HTML each); figures to ``img_dir``."""
+    from fleetrun.diagnose import diagnosis, write_outputs
     from fleetrun.resources import inputs_dir
 
     out_dir = Path(out_dir)
-    results = {}
+    done = {}
     dyno = inputs_dir() / "dyno"
-    results["camry_cold_vs_hot"] = diagnose(dyno / "camry2018_udds_cold.csv",
-                                            calibrate_on=dyno / "camry2018_udds_hot.csv",
-                                            out=out_dir / "camry2018_udds_cold")
+    for residual, key in (("auto", "camry_cold_vs_hot"), ("simulation", "camry_cold_vs_hot_simulation")):
+        done[key] = diagnosis(dyno / "camry2018_udds_cold.csv",
+                              calibrate_on=dyno / "camry2018_udds_hot.csv", residual=residual)
+        write_outputs(done[key], out_dir / key)
     for vehicle in THESIS_TABLE_7_1:
         for straight in (True, False):
             rec = matthews_recording(vehicle, straight=straight)
             stem = "matthews_" + vehicle.lower().replace(" ", "_").replace("-", "")
             stem += "" if straight else "_no_wheel_speeds"
-            path = rec.write(out_dir / f"{stem}.csv")
-            results[stem] = diagnose(path, out=out_dir / stem)
+            done[stem] = diagnosis(rec.write(out_dir / f"{stem}.csv"))
+            write_outputs(done[stem], out_dir / stem)
+    results = {key: d.result for key, d in done.items()}
     if img_dir is not None:
-        _images(out_dir, Path(img_dir), results)
+        _images(Path(img_dir), done, results)
     return results
 
 
-def _images(out_dir: Path, img_dir: Path, results: dict) -> None:
-    """docs/img/diagnose_*.png: the report's figures, copied out of the HTML files."""
-    import base64
-    import re
+def _images(img_dir: Path, done: dict, results: dict) -> None:
+    """docs/img/diagnose_*.png: the report's figures of the cases the docs show."""
+    from fleetrun.diagnose.report import figures
 
     img_dir.mkdir(parents=True, exist_ok=True)
-    names = ["measured", "residual", "cumulative", "drivers", "heldout"]
     for key in ("camry_cold_vs_hot", "matthews_ford_f150"):
-        folder = "camry2018_udds_cold" if key.startswith("camry") else key
-        html = (out_dir / folder / "diagnosis.html").read_text()
-        for name, b64 in zip(names, re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", html)):
-            (img_dir / f"diagnose_{key}_{name}.png").write_bytes(base64.b64decode(b64))
-    _efficiency_figure(out_dir, img_dir, results)
+        d = done[key]
+        for name, png in figures(d.problem, d.result, d.fitted).items():
+            (img_dir / f"diagnose_{key}_{name}.png").write_bytes(png)
+    _integrals_figure(img_dir, results["camry_cold_vs_hot"], "diagnose_camry_cold_vs_hot_integrals.png")
+    _efficiency_figure(img_dir, results)
 
 
-def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
+def _integrals_figure(img_dir: Path, result: dict, name: str) -> None:
+    """Fuel per phase: measured, model before and after the findings."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ph = [e for e in result["integrals"] if e["kind"] == "phase" and e["measured"] > 10]
+    x = np.arange(len(ph))
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    for k, (key, color) in enumerate((("measured", "black"), ("before", "tab:blue"), ("after", "tab:red"))):
+        ax.bar(x + (k - 1) * 0.27, [e[key] for e in ph], 0.27, color=color,
+               label={"before": "model before", "after": "model + findings"}.get(key, key))
+    ax.set_xticks(x, [f"{e['label']}\n{e['start_s']:.0f}-{e['end_s']:.0f} s" for e in ph], fontsize=8)
+    ax.set_ylabel(f"fuel [{result['integral_unit']}]")
+    ax.set_title("Fuel per phase (residual: " + result["baseline"].get("residual", "model") + ")")
+    ax.legend(fontsize=8)
+    fig.savefig(img_dir / name, dpi=90, bbox_inches="tight")
+    plt.close(fig)
+
+
+def _efficiency_figure(img_dir: Path, results: dict) -> None:
     """Thesis Fig. 7.2 redrawn: curve fit, thesis model, thesis model + the finding."""
     import matplotlib
 
@@ -145,7 +167,8 @@ def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
         tf = d["diff_input_torque_Nm"].to_numpy() / kim
         n = d["diff_input_speed_rpm"].to_numpy()
         eta_model = efficiency("LD_RWD", tf, n, meta["gear_ratio"])
-        found = results[stem]["findings"]
+        # the finding, or the weak description standing in for one
+        found = results[stem]["findings"] or results[stem]["descriptions"]
         color = f"C{i}"
         ax.plot(d.index, eta_model, color=color, ls=":", lw=1)
         if found:
@@ -157,7 +180,7 @@ def _efficiency_figure(out_dir: Path, img_dir: Path, results: dict) -> None:
     ax.plot(s, matthews_c19(s), color="black", lw=2.5, label="Matthews curve fit (Eq. C.19)")
     ax.set_xlabel("vehicle speed [km/h]")
     ax.set_ylabel("differential efficiency")
-    ax.set_title("LD RWD (thesis Sec. 7.2): dotted = thesis model, solid = model + finding")
+    ax.set_title("LD RWD (thesis Sec. 7.2): dotted = thesis model, solid = model + description")
     ax.legend(fontsize=7, loc="lower right")
     fig.savefig(img_dir / "diagnose_matthews_efficiency.png", dpi=90, bbox_inches="tight")
     plt.close(fig)
@@ -171,8 +194,16 @@ def main(argv=None):
     results = run(Path(args.out), Path(args.img) if args.img else None)
     for key, res in results.items():
         found = ", ".join(f"{f['effect']} {f['parameters']}" for f in res["findings"]) or "none"
+        weak = ", ".join(f"{d['effect']} {d['parameters']} ({d['reason'][:40]}...)"
+                         for d in res["descriptions"]) or "none"
+        u = res["unexplained"]
         print(f"{key}: baseline held-out RMSE {res['baseline']['heldout_rmse']:.4g} {res['units']}; "
-              f"findings: {found}; ambiguous: {[a['effects'] for a in res['ambiguities']]}")
+              f"findings: {found}; weak descriptions: {weak}; "
+              f"ambiguous: {[a['effects'] for a in res['ambiguities']]}; unexplained: "
+              f"{u['significant']} (RMSE {u['rmse']:.4g}, no-function-of-channels {u['noise_rmse']:.4g})")
+        for e in res["integrals"]:
+            print(f"    {e['label']:>28} {e['start_s']:7.1f}-{e['end_s']:7.1f} s: measured {e['measured']:.4g}, "
+                  f"before {e['before']:.4g}, after {e['after']:.4g} {res['integral_unit']}")
 
 
 if __name__ == "__main__":
