@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleetrun.differential import configuration_ids, dual_configuration_ids
+
 VEHICLES_SHEET = "Vehicles"
 SCENARIOS_SHEET = "Scenarios"
 
-CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "HD_TANDEM",
-                  "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL")
-DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
+CONFIGURATIONS = tuple(configuration_ids())              # models/configurations.toml
+DUAL_CONFIGURATIONS = tuple(dual_configuration_ids())
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel", "electric")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor

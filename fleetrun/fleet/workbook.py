@@ -538,12 +538,10 @@ def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
     return None
 
 
-def _shipped_cycle_names() -> list[str] | None:
-    """Names of the shipped drive cycles, or None if fleetrun.cycles is not available."""
-    try:
-        from fleetrun.cycles import shipped_cycles
-    except ImportError:
-        return None
+def _shipped_cycle_names() -> list[str]:
+    """Names of the shipped drive cycles."""
+    from fleetrun.cycles import shipped_cycles
+
     found = shipped_cycles()
     if isinstance(found, dict):
         found = list(found)
