@@ -506,7 +506,8 @@ def _finding(prob, effect, coef, before, after, settings) -> dict:
                    "fuel_added": round(added[t], 5)} for t in added}
     where = ", ".join(f"{t} {100 * added[t]:+.1f} %" for t in tests) or "no test by more than 1 %"
     absent = ", ".join(t for t in ("FTP:bag3", "HWFET", "US06") if t in added and t not in tests)
-    text = (f"{effect} with {name} = {coef:.3g} {unit} ({meaning}) for the whole fleet: it adds "
+    size = f"{coef:.3g}" + ("" if unit == "-" else f" {unit}")
+    text = (f"{effect} with {name} = {size} ({meaning}) for the whole fleet: it adds "
             f"fuel where the measured results ask for it ({where})"
             + (f", and not in {absent}" if absent else "") + ". ")
     if "FTP" in before and "FTP" in after:
