@@ -16,7 +16,8 @@ the way EPA's GEM describes heavy vehicles.
 
 Counts and annual miles are plausible for a mid-size US state (about 3.5 million vehicles),
 not registration data. Three scenarios: baseline, hot summer, congested urban, each with a
-light-duty cycle mix of four cycles and mixes for medium and heavy trucks.
+light-duty cycle mix of four cycles and mixes for medium and heavy trucks, over fiscal years
+2027-2028.
 """
 from __future__ import annotations
 
@@ -177,7 +178,7 @@ def build(output: Path) -> Path:
             ("Scenarios", SCENARIO_COLUMNS, [
                 {"scenario_id": sid, "description": text, "ambient_temp_C": temp, "cycle_mix": mix,
                  "cycle_mix_MD": mix_md, "cycle_mix_HD": mix_hd,
-                 "budget_years": 2, "vmt_growth_pct_per_year": 1.2,
+                 "budget_years": 2, "vmt_growth_pct_per_year": 1.2, "first_fiscal_year": 2027,
                  "state_tax_gasoline_usd_per_gal": 0.20, "state_tax_diesel_usd_per_gal": 0.20,
                  "federal_tax_gasoline_usd_per_gal": 0.184, "federal_tax_diesel_usd_per_gal": 0.244}
                 for sid, text, temp, mix, mix_md, mix_hd in SCENARIOS])):

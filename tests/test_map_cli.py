@@ -106,13 +106,14 @@ def test_unwritable_output_path_is_an_error_not_a_traceback(option, tmp_path):
 
 
 def test_file_system_errors_become_error_lines(monkeypatch):
-    """The CLI's last line of defence: an OSError from a user's path is an Error line, exit 1."""
+    """The CLI's last line of defence: an OSError from a user's path (here -o) is an Error line,
+    exit 1 (an OSError on any other path is an internal error: tests/test_failures_visible.py)."""
     import fleetrun.commands.map as map_command
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied", "/locked/map.csv")
 
     monkeypatch.setattr(map_command, "compute_map", refuse)
-    result = run("map", "LD_RWD", "--gear-ratio", "3")
+    result = run("map", "LD_RWD", "--gear-ratio", "3", "-o", "/locked/map.csv")
     assert result.exit_code == 1
     assert result.output.startswith("Error: /locked/map.csv: Permission denied")

@@ -62,7 +62,9 @@ def test_template_has_instructions_dropdowns_and_examples(tmp_path):
             if column.kind in ("number", "integer"):
                 rule = rules[f"{get_column_letter(index)}2"]
                 assert rule.type == ("whole" if column.kind == "integer" else "decimal"), column.name
-                if column.strictly_positive:
+                if column.maximum is not None:
+                    assert (rule.operator, float(rule.formula2)) == ("between", column.maximum), column.name
+                elif column.strictly_positive:
                     assert (rule.operator, rule.formula1) == ("greaterThan", "0"), column.name
     again = CliRunner().invoke(cli, ["template", "-o", str(path)])
     assert again.exit_code == 1 and again.stderr.startswith("Error:") and "--force" in again.stderr

@@ -24,7 +24,10 @@ Errors are predicted mpg / measured mpg - 1.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
+import itertools
+import re
 import sys
 from pathlib import Path
 
@@ -42,6 +45,7 @@ from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
+from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 
 GAL_L = 3.785411784
 HOT_TESTS = {"UDDS:hot": "UDDS", "HWFET": "HWFET", "US06": "US06"}
@@ -49,6 +53,8 @@ REPORTED = ("FTP", "HWFET", "US06")
 BAGS = ("bag1", "bag2", "bag3")
 CHUNK = 150
 MODE = "auto"
+AMBIENT_C = 25.0            # EPA's nominal test-cell temperature (40 CFR 86.130: 20-30 C)
+THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enrichment_gasoline": (0.05, 0.1, 0.15, 0.2, 0.3)}
 
 
 def trace_terms(va, tr):
@@ -69,7 +75,7 @@ def cycle_sums(specs, cycle):
     parts = {}
     for a in range(0, len(specs), CHUNK):
         chunk = specs[a:a + CHUNK]
-        r = simulate(chunk, cycle, mode=MODE, trace=True)
+        r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C)
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = trace_terms(va, tr)
         if r.phases:
@@ -255,6 +261,153 @@ def group_table(err, table, by):
     return pd.DataFrame(rows)
 
 
+def thermal_variant(heat_capacity_kJ_per_K_per_L, enrichment_gasoline):
+    """The cold-start constants of models/thermal.toml with the two fitted ones replaced."""
+    k = thermal_constants()
+    return dataclasses.replace(k, heat_capacity_J_per_K_per_L=1e3 * heat_capacity_kJ_per_K_per_L,
+                               enrichment_at_25C={**k.enrichment_at_25C, "gasoline": enrichment_gasoline})
+
+
+def bag_ratio_grid(specs, table):
+    """Model bag 1 / bag 3 and bag 2 / bag 3 fuel per mile for each grid point {(C, e): (V, 2)}
+    (gasoline vehicles with the three bags measured), and EPA's (= mpg bag 3 / mpg bag k)."""
+    keep = np.flatnonzero((table.fuel == "gasoline").to_numpy()
+                          & np.isfinite(table[["FTP:bag1", "FTP:bag2", "FTP:bag3"]].to_numpy()).all(axis=1))
+    chosen = [specs[i] for i in keep]
+    grid = {}
+    for point in itertools.product(*THERMAL_GRID.values()):
+        k = thermal_variant(*point)
+        ratios = []
+        for a in range(0, len(chosen), CHUNK):
+            ph = simulate(chosen[a:a + CHUNK], "FTP", mode=MODE, ambient_temp_C=AMBIENT_C, thermal=k).phases
+            per_mile = {b: ph[b]["fuel_g"] / ph[b]["miles"] for b in BAGS}
+            ratios.append(np.stack([per_mile["bag1"] / per_mile["bag3"], per_mile["bag2"] / per_mile["bag3"]], axis=1))
+        grid[point] = np.concatenate(ratios)
+    measured = np.stack([table["FTP:bag3"] / table["FTP:bag1"], table["FTP:bag3"] / table["FTP:bag2"]], axis=1)[keep]
+    return keep, grid, measured
+
+
+def fit_thermal(specs, table):
+    """The grid point with the least squared log error of bag 1 / bag 3 and bag 2 / bag 3 (all
+    vehicles: the cold start must show in bag 1 and be over by bag 2), the point each
+    manufacturer-held-out fold chooses, and the held-out bag-1 ratio errors."""
+    keep, grid, measured = bag_ratio_grid(specs, table)
+    groups = table.manufacturer.to_numpy()[keep]
+    cost = {p: (np.log(r / measured) ** 2).sum(axis=1) for p, r in grid.items()}
+    best = min(cost, key=lambda p: cost[p].mean())
+    folds, held = {}, np.full(keep.size, np.nan)
+    for g in np.unique(groups):
+        out = groups == g
+        p = min(cost, key=lambda q: cost[q][~out].mean())
+        folds[g] = p
+        held[out] = grid[p][out, 0] / measured[out, 0] - 1.0
+    return dict(best=best, folds=folds, heldout_ratio_error=held, grid_rmse={p: float(np.sqrt(c.mean() / 2)) for p, c in cost.items()})
+
+
+def write_thermal_toml(th, path):
+    """Replace the two fitted constants of models/thermal.toml (value lines) and its source."""
+    text = Path(path).read_text()
+    names = list(THERMAL_GRID)
+    chosen = dict(zip(names, th["best"]))
+    fold = {n: sorted({p[i] for p in th["folds"].values()}) for i, n in enumerate(names)}
+    text = re.sub(r"(?m)^heat_capacity_kJ_per_K_per_L = .*$",
+                  f"heat_capacity_kJ_per_K_per_L = {chosen[names[0]]:g}", text)
+    text = re.sub(r"(?ms)(^\[enrichment\].*?^gasoline = ).*?$", rf"\g<1>{chosen[names[1]]:g}", text)
+    note = (f'source = "heat_capacity_kJ_per_K_per_L and [enrichment] gasoline fitted fleet-wide by '
+            f'validation/epa_fuel_economy.py --write ({datetime.date.today().isoformat()}): grid '
+            f'{THERMAL_GRID[names[0]]} x {THERMAL_GRID[names[1]]}, least squared log error of FTP bag 1 / bag 3 '
+            f'and bag 2 / bag 3 fuel per mile (EPA 2022 Test Car List, 25 C); leave-one-manufacturer-out folds chose '
+            f'{fold[names[0]]} and {fold[names[1]]}; the other keys are literature defaults"')
+    text = re.sub(r"(?m)^source = .*$", note.replace("\\", "\\\\"), text, count=1)
+    Path(path).write_text(text)
+
+
+def plots(err, pred, table, folder):
+    """docs/img/validation-epa-*.png: predicted vs measured per test; held-out error by drive,
+    gearbox, specific power and displacement."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.3))
+    for ax, test in zip(axes, REPORTED):
+        m, p_ = table[test].to_numpy(float), pred[test].to_numpy(float)
+        ok = np.isfinite(m) & np.isfinite(p_)
+        ax.scatter(m[ok], p_[ok], s=6, alpha=0.5)
+        lim = [0, np.nanmax(np.r_[m[ok], p_[ok]]) * 1.05]
+        ax.plot(lim, lim, "k-", lw=0.8)
+        ax.plot(lim, [x * 1.05 for x in lim], "k:", lw=0.8)
+        ax.plot(lim, [x * 0.95 for x in lim], "k:", lw=0.8)
+        e = err[test].to_numpy(float)[ok]
+        ax.set_title(f"{test}: n={ok.sum()}, {np.mean(np.abs(e) <= 0.05):.0%} within 5 %, mean {e.mean():+.1%}")
+        ax.set_xlabel("EPA measured mpg (unadjusted)")
+        ax.set_ylabel("fleetrun mpg, manufacturer held out")
+        ax.set_xlim(lim), ax.set_ylim(lim)
+    fig.tight_layout()
+    fig.savefig(folder / "validation-epa-predicted-vs-measured.png", dpi=110)
+    plt.close(fig)
+    groups = {"drive": table.configuration, "gearbox": table.gearbox_type,
+              "specific power [kW/L]": pd.cut(table.specific_power_kW_per_L, [0, 50, 60, 70, 80, 100, 130, 400]),
+              "displacement [L]": pd.cut(table.displacement_L, [0, 1.6, 2.1, 2.6, 3.1, 4.0, 5.0, 9.0])}
+    fig, axes = plt.subplots(len(groups), 1, figsize=(11, 3.2 * len(groups)))
+    for ax, (name, g) in zip(axes, groups.items()):
+        labels = [str(x) for x in g.dropna().unique()]
+        labels = sorted(labels, key=lambda x: (len(x), x)) if name in ("drive", "gearbox") else \
+            [str(c) for c in g.cat.categories if str(c) in labels]
+        pos = np.arange(len(labels))
+        for k, test in enumerate(REPORTED):
+            data = [err[test][(g.astype(str) == lab).to_numpy()].dropna().to_numpy() for lab in labels]
+            bp = ax.boxplot(data, positions=pos + (k - 1) * 0.27, widths=0.24, showfliers=False, patch_artist=True)
+            for box in bp["boxes"]:
+                box.set_facecolor(f"C{k}")
+            ax.plot([], [], color=f"C{k}", lw=6, label=test)
+        ax.axhspan(-0.05, 0.05, color="0.9", zorder=0)
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xticks(pos, [f"{lab}\n(n={int((g.astype(str) == lab).sum())})" for lab in labels], fontsize=8)
+        ax.set_ylabel("held-out error")
+        ax.set_title(f"error by {name}")
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(folder / "validation-epa-error-by-group.png", dpi=110)
+    plt.close(fig)
+
+
+def _with(spec, **extra):
+    return dataclasses.replace(spec, extra={**spec.extra, **extra})
+
+
+#: Drivetrain pieces switched off one at a time (the fuel constants refitted each time).
+DRIVETRAIN_ABLATION = {
+    "CVT driven as its 10 stepped ratios": lambda v: dataclasses.replace(v, gearbox_type="automatic")
+    if v.gearbox_type == "cvt" else v,
+    "no spin loss (constant gear efficiency 0.955 / 0.975 as before)": lambda v: _with(
+        v, spin_loss_Nm_at_0=0.0, spin_loss_Nm_per_krpm=0.0, gear_efficiency=0.955, direct_gear_efficiency=0.975),
+    "converter_lockup ignored (every converter locks)": lambda v: dataclasses.replace(v, converter_lockup="yes"),
+    "no later shifts while accelerating": lambda v: _with(v, shift_speed_accel_rpm=0.0),
+}
+
+
+def ablation(specs, table, r):
+    """Held-out summaries with one piece of the model left out: each fuel term (refit without
+    it) and each drivetrain piece (re-simulated, refit)."""
+    lines = []
+    for j, name in enumerate(FUEL_TERMS[1:], start=1):
+        cols = [i for i in range(len(FUEL_TERMS)) if i != j]
+        pred, _ = held_out(r["d"], table, cols)
+        lines.append(_summary_line(f"without the {name} term", summaries(relative_errors(pred, table))))
+    for name, change in DRIVETRAIN_ABLATION.items():
+        variant = run([change(v) for v in specs], table)
+        lines.append(_summary_line(name, summaries(variant["err"])))
+    return lines
+
+
+def _summary_line(label, s):
+    return "| " + label + " | " + " | ".join(
+        f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
+
+
 def run(specs, table):
     """Dataset, held-out predictions, final fit and summaries."""
     d = build_dataset(specs, table)
@@ -274,9 +427,17 @@ def main(argv=None):
                     "models/fuel_economy_error.toml")
     ap.add_argument("--plots", type=Path, help="folder for the figures (docs/img)")
     ap.add_argument("--ablation", action="store_true", help="refit without each fuel term")
+    ap.add_argument("--thermal", action="store_true", help="fit the cold start on bag 1 / bag 3 (16 FTP runs)")
     args = ap.parse_args(argv)
 
     specs, table = epa_fleet()
+    if args.thermal:
+        th = fit_thermal(specs, table)
+        print("cold start: grid RMSE of log(bag1/bag3)", {k: round(v, 4) for k, v in th["grid_rmse"].items()})
+        print("chosen", th["best"], "held-out bag-ratio error", summary(th["heldout_ratio_error"]))
+        if args.write:
+            write_thermal_toml(th, ROOT / "models" / "thermal.toml")
+            thermal_constants.cache_clear()
     r = run(specs, table)
     print(f"{len(specs)} vehicles; the terms reproduce the simulated warm fuel to {r['gap']:.1e}")
     print_summaries("simulation as configured", summaries(r["err_sim"]))
@@ -288,11 +449,11 @@ def main(argv=None):
         print(fuel, {k: round(float(v), 4) for k, v in constants_of(c).items()})
     for by in ("gearbox_type", "fuel"):
         print(group_table(r["err"], table, by).round(3).to_string(index=False))
+    if args.plots:
+        plots(r["err"], r["pred"], table, args.plots)
     if args.ablation:
-        for j, name in enumerate(FUEL_TERMS[1:], start=1):
-            cols = [i for i in range(len(FUEL_TERMS)) if i != j]
-            pred, _ = held_out(r["d"], table, cols)
-            print_summaries(f"without {name}", summaries(relative_errors(pred, table)))
+        for line in ablation(specs, table, r):
+            print(line, flush=True)
     if args.write:
         write_calibration_toml(r["final"], r["folds"], ROOT / "models" / "engine_calibration.toml", len(specs))
         write_error_toml(s, ROOT / "models" / "fuel_economy_error.toml")

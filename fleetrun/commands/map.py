@@ -53,7 +53,7 @@ def compute_map(configuration, gear_ratio, torque_fractions, speeds_rpm, *, low_
         from fleetrun.effects import efficiency_with_effects
 
         return np.asarray(efficiency_with_effects(configuration, tf, n, gear_ratio, effects,
-                                                  kim_scale_Nm=reference_capacity_Nm(configuration), **kwargs))
+                                                  kim_torque_scale_Nm=reference_capacity_Nm(configuration), **kwargs))
     return np.asarray(efficiency(configuration, tf, n, gear_ratio, **kwargs))
 
 

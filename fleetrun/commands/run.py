@@ -5,7 +5,9 @@
     fleetrun run --config batch.toml
 
 Writes report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and
-manifest.json into DIR, all or nothing. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial, 4 internal).
+manifest.json into DIR, all or nothing; an earlier run there is kept in DIR/earlier-runs/
+unless --replace. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial,
+4 internal).
 """
 from __future__ import annotations
 
@@ -34,7 +36,7 @@ from fleetrun.fleet.engines import ENGINES
               help="Add physics the thesis left out (docs/effects.md), e.g. bearing_preload:drag_torque_Nm=3,warmup "
                    "[batch: the config's 'with'].")
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Where efficiency maps are cached between runs [~/.cache/fleetrun].")
+              help="Where efficiency maps are cached between runs [$FLEETRUN_CACHE_DIR, else ~/.cache/fleetrun].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write cached maps.")
 @click.option("--log", "log_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
@@ -72,7 +74,9 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     if no_cache:
         cache = None
     else:
-        cache = cache_dir or settings.get("cache_dir") or batch.default_cache_dir()
+        from fleetrun.simulation.diffmodes import default_cache_dir
+
+        cache = cache_dir or settings.get("cache_dir") or default_cache_dir()
     if log_file is None:
         log_file = settings.get("log") or (Path(out) / "fleetrun-run.log" if batch_mode else None)
     plan = batch.RunPlan(inputs=list(inputs), out=Path(out), per_input_dirs=batch_mode,
@@ -80,9 +84,9 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          scheduler=scheduler, physics=physics or settings.get("physics", "thesis"),
                          mode=mode or settings.get("mode", "auto"), effects=effects, cache_dir=cache,
                          log=log_file, chunk_size=settings.get("chunk_size"))
+    plan.replace = replace
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.
-    plan.replace = replace
     injected = ctx.obj or {}
     plan.simulate = injected.get("simulate")
     plan.error_model = injected.get("error_model", plan.error_model)

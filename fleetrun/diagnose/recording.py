@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.errors import InputError
+from fleetrun.physics.fuels import fuel_table
 
 DIFF_REQUIRED = ("time_s", "diff_input_torque_Nm", "diff_input_speed_rpm")
 DIFF_OPTIONAL = ("diff_output_torque_Nm", "axle_torque_left_Nm", "axle_torque_right_Nm",
@@ -25,9 +26,8 @@ DIFF_META_REQUIRED = ("configuration", "gear_ratio", "peak_engine_torque_Nm",
                       "torque_converter_ratio", "max_transmission_gear_ratio")
 VEHICLE_SPEEDS = {"vehicle_speed_kph": 1 / 3.6, "vehicle_speed_mph": 0.44704, "vehicle_speed_mps": 1.0}
 FUEL_RATES = ("fuel_rate_g_per_s", "fuel_rate_cc_per_s")
-#: Fuel densities [g/cm^3] at 15 C for converting fuel_rate_cc_per_s (EPA certification
-#: gasoline ~0.743, diesel ~0.832; the value fastsim's Camry demo uses for gasoline is 0.743).
-FUEL_DENSITY_G_PER_CC = {"gasoline": 0.743, "diesel": 0.832}
+#: Fuel densities [g/cm^3 = kg/L] for converting fuel_rate_cc_per_s (models/fuels.toml).
+FUEL_DENSITY_G_PER_CC = {name: f.density_kg_per_L for name, f in fuel_table().items()}
 #: A time step this many times the median step is a gap, not jitter.
 GAP_FACTOR = 10.0
 

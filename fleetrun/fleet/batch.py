@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fleetrun.errors import FleetrunError, InputError
+from fleetrun.fileio import write_error_log
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
@@ -31,14 +32,6 @@ CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "
                "log", "chunk_size"}
 
 log = logging.getLogger("fleetrun.run")
-
-
-def default_cache_dir() -> Path:
-    """Where cached efficiency maps live between runs: $FLEETRUN_CACHE or ~/.cache/fleetrun."""
-    if os.environ.get("FLEETRUN_CACHE"):
-        return Path(os.environ["FLEETRUN_CACHE"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "fleetrun"
 
 
 @dataclass
@@ -259,9 +252,11 @@ def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], lis
                 log.error("%s", exc)
             except Exception as exc:  # a bug: keep going with the other fleets, keep the traceback
                 internal = True
+                trace = traceback.format_exc()
+                log.error("%s: internal error\n%s", fleet_path, trace)
+                where = plan.log if plan.log else write_error_log(f"{fleet_path}: internal error\n{trace}")
                 errors.append(f"{fleet_path}: internal error ({type(exc).__name__}: {exc}); "
-                              "please report it with the log")
-                log.error("%s: internal error\n%s", fleet_path, traceback.format_exc())
+                              f"the traceback is in {where}; please report it with that file")
     finally:
         engine.close()
     if not errors:

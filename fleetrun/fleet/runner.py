@@ -396,10 +396,7 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
     """For each configuration in the fleet: efficiency over torque fraction x speed at the
     fleet's median gear ratio and Kim scale (and median low ratio for two-speed axles, high
     gear), with the steady-state part of the differential-level ``effects``."""
-    try:
-        from fleetrun.differential import efficiency
-    except ImportError:
-        return [], ["efficiency maps left out: fleetrun.differential is not available"]
+    from fleetrun.differential import efficiency
     from fleetrun.effects import as_effect_list, efficiency_with_effects
 
     differential_effects = [(e, p) for e, p in as_effect_list(effects) if e.level == "differential"]
@@ -414,14 +411,13 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
         gear = float(np.median([v.final_drive_ratio for v in group]))
         lows = [v.low_gear_ratio for v in group if v.low_gear_ratio]
         low = float(np.median(lows)) if lows else None
-        kim = float(np.median([v.kim_scale_Nm for v in group]))
+        kim = float(np.median([v.kim_torque_scale_Nm for v in group]))
         if differential_effects:
-            eta = efficiency_with_effects(config, tf, rpm, gear, differential_effects, kim_scale_Nm=kim,
-                                          low_gear_ratio=low, axle_gear="high", physics=physics,
-                                          input_torque_scale_Nm=kim)
+            eta = efficiency_with_effects(config, tf, rpm, gear, differential_effects, kim_torque_scale_Nm=kim,
+                                          low_gear_ratio=low, axle_gear="high", physics=physics)
         else:
             eta = efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high", physics=physics,
-                             input_torque_scale_Nm=kim)
+                             kim_torque_scale_Nm=kim)
         eta = np.asarray(eta, dtype=float)
         maps.append({"configuration": config, "gear_ratio": gear, "low_gear_ratio": low,
                      "axle_gear": "high", "torque_fractions": list(MAP_TORQUE_FRACTIONS),

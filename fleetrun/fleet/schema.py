@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleetrun.differential import configuration_ids, dual_configuration_ids
+
 VEHICLES_SHEET = "Vehicles"
 SCENARIOS_SHEET = "Scenarios"
 
-CONFIGURATIONS = ("LD_FWD", "LD_RWD", "LD_4WD", "LD_AWD", "HD_RWD", "HD_DUAL", "HD_TANDEM",
-                  "HD_TANDEM_DUAL", "HD_TAG", "HD_TAG_DUAL")
-DUAL_CONFIGURATIONS = ("HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL")
+CONFIGURATIONS = tuple(configuration_ids())              # models/configurations.toml
+DUAL_CONFIGURATIONS = tuple(dual_configuration_ids())
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel", "electric")
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
@@ -118,17 +119,17 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=("HD-UDDS:0.6,HWFET:0.4", "HD-UDDS:0.6,HWFET:0.4")),
     # Budget columns (CONTRACT.md, optional): fiscal years, on-road fuel, calibration, EV fee.
     Column("first_fiscal_year", "integer", False, "fiscal year of budget year 1, e.g. 2027 "
-           "(empty: years numbered 1, 2, ...)", strictly_positive=True, example=(2027, 2027)),
+           "(empty: years numbered 1, 2, ...)", minimum=1900, maximum=2200, example=(2027, 2027)),
     Column("onroad_adjustment", "onroad", False, "cycle fuel -> on-road fuel: epa_label (default; "
            "EPA's label formulas), none, or a factor such as 1.2"),
     Column("observed_base_gallons_gasoline", "number", False, "taxable gasoline gallons collected "
-           "in the first fiscal year (for calibration)", strictly_positive=True),
+           "in the first fiscal year (for calibration)", strictly_positive=True, maximum=1e12),
     Column("observed_base_gallons_diesel", "number", False, "taxable diesel gallons collected "
-           "in the first fiscal year (for calibration)", strictly_positive=True),
+           "in the first fiscal year (for calibration)", strictly_positive=True, maximum=1e12),
     Column("calibrate_to_observed", "choice", False, "yes: scale each fuel's forecast so the first "
            "fiscal year equals the observed gallons (default no)", choices=YES_NO),
     Column("ev_fee_usd_per_vehicle_year", "number", False, "annual fee per electric vehicle [$] "
-           "(default 0)", minimum=0),
+           "(default 0)", minimum=0, maximum=100_000),
 )
 
 # Plausibility: values outside these ranges are warned about, not refused (analysts model

@@ -97,7 +97,11 @@ def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
 def _number_rule(ws, column: Column, letter: str) -> None:
     """Excel refuses what is not a number (a whole number for integer columns) in range."""
     kind = "whole" if column.kind == "integer" else "decimal"
-    if column.strictly_positive:
+    if column.maximum is not None:
+        low = column.minimum if column.minimum is not None else 0.0
+        operator, first, second, words = ("between", f"{low:g}", f"{column.maximum:g}",
+                                          f"from {low:g} to {column.maximum:g}")
+    elif column.strictly_positive:
         operator, first, second, words = "greaterThan", "0", None, "greater than 0"
     elif column.minimum is not None:
         operator, first, second, words = ("greaterThanOrEqual", f"{column.minimum:g}", None,

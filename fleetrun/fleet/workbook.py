@@ -394,11 +394,8 @@ def _parse_cell(column: Column, raw):
 
 
 def _canonical_configuration(raw) -> str:
-    try:
-        from fleetrun.differential import canonical_configuration
-    except ImportError:  # the differential package not built yet: the CONTRACT list suffices
-        from fleetrun.fleet.schema import CONFIGURATIONS
-        return cells.parse_choice(raw, CONFIGURATIONS)
+    from fleetrun.differential import canonical_configuration
+
     text = cells.parse_text(raw)
     try:
         return canonical_configuration(text)
@@ -493,6 +490,8 @@ def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> 
     if duty is None:
         return
     for name, ranges in PLAUSIBLE_VEHICLE.items():
+        if name == "final_drive_ratio" and p["fuel"] == "electric":
+            continue   # an electric drive's single reduction (7-10:1) is its final drive
         low, high = ranges[duty]
         value = p[name]
         if value is not None and not (low <= value <= high):
@@ -606,12 +605,10 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
     return resolved
 
 
-def _shipped_cycle_names() -> list[str] | None:
-    """Names of the shipped drive cycles, or None if fleetrun.cycles is not available."""
-    try:
-        from fleetrun.cycles import shipped_cycles
-    except ImportError:
-        return None
+def _shipped_cycle_names() -> list[str]:
+    """Names of the shipped drive cycles."""
+    from fleetrun.cycles import shipped_cycles
+
     found = shipped_cycles()
     if isinstance(found, dict):
         found = list(found)

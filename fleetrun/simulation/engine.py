@@ -86,16 +86,23 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
 
     Returns a list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
     x c_m [m/s], T_peak omega (the bmep_max term: f_pk bmep_max V_d omega / (4 pi) = f_pk T_peak
-    omega), mep power x (1 - L) for throttled engines, 1, max(inertial power, 0).
+    omega), mep power x (1 - L) for throttled engines, 1, max(inertial power, 0). Terms that
+    do not vary with the step keep their own (broadcastable) shape.
     """
     n = np.asarray(speed_rpm, float)
     omega = n * RPM_RAD_S
-    brake = np.maximum(torque_Nm, 0.0) * omega
+    brake = np.maximum(torque_Nm, 0.0)
+    brake *= omega
     load = load_fraction(torque_Nm, max_torque_Nm)
     mep = mep_power_W_per_kPa(n, displacement_L)
-    return [brake, brake * load, mep, mep * mean_piston_speed_m_s(n, stroke_m), peak_torque_Nm * omega,
-            np.where(throttled, mep * (1.0 - load), 0.0), np.ones(np.shape(mep)),
-            np.broadcast_to(np.maximum(inertial_power_W, 0.0), np.shape(mep))]
+    pumping = 1.0 - load
+    pumping *= mep
+    pumping *= throttled
+    load *= brake                     # brake x L
+    # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
+    # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each
+    return [brake, load, mep, mep * mean_piston_speed_m_s(n, stroke_m), np.asarray(peak_torque_Nm) * omega,
+            pumping, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
 
 
 def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m,
@@ -120,11 +127,14 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
     """
     shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
     power = np.zeros(shape)
+    scratch = np.empty(shape)
     for term, c in zip(terms, coefficients):   # in place: vehicles x steps arrays
-        power += term * c
+        np.multiply(term, c, out=scratch)
+        power += scratch
     np.maximum(power, 0.0, out=power)
     power /= np.asarray(lhv_MJ_per_kg, float) * 1e3
-    return np.where(fueled, power, 0.0)
+    power *= fueled
+    return power
 
 
 def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep_0_kPa,

@@ -1,0 +1,83 @@
+"""FASTSim 3.1 beside fleetrun, in one process: UDDS vehicle-cycle simulations per second, one core.
+
+    pip install fastsim==3.1.0
+    OMP_NUM_THREADS=1 python benchmarks/bench_fastsim.py [--repeat 5] [--fastsim-runs 30]
+
+- FASTSim 3.1: its own 2012 Ford Fusion (``Vehicle.from_resource("2012_Ford_Fusion.yaml")``)
+  over its own UDDS (``Cycle.from_resource("udds.csv")``), ``SimDrive(veh, cyc).walk()`` in a
+  loop, per-step history off (``set_save_interval(None)``: FASTSim's fastest setting); the
+  rate is runs / time of the best of ``--repeat`` batches of ``--fastsim-runs``.
+- fleetrun: 1,000 light-duty cars (``bench_simulate.make_fleet(1000, kind="cars")``: the four
+  example cars of fleetrun.testing.vehicles with varied weight and road load) over UDDS in one
+  ``simulate`` call (mode auto = map3d, warm map cache), best of ``--repeat``.
+
+The two timings alternate batch by batch, so a load change on the shared machine hits both.
+The ratio is the figure to compare (README, docs/benchmarks-simulation.md).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench_simulate import machine, make_fleet  # noqa: E402
+
+from fleetrun.cycles import load_cycle  # noqa: E402
+from fleetrun.simulation import simulate  # noqa: E402
+
+
+def fastsim_runner():
+    """A function that drives FASTSim's 2012 Ford Fusion over UDDS once (history off)."""
+    import fastsim as fsim
+
+    veh = fsim.Vehicle.from_resource("2012_Ford_Fusion.yaml")
+    veh.set_save_interval(None)
+    cyc = fsim.Cycle.from_resource("udds.csv")
+
+    def once():
+        sd = fsim.SimDrive(veh, cyc)
+        sd.walk()
+        return sd
+    return once, fsim.__version__
+
+
+def measure(repeat: int, fastsim_runs: int, vehicles: int = 1000):
+    once, version = fastsim_runner()
+    once()                                                   # warm up (loads, JIT-free Rust)
+    fleet = make_fleet(vehicles, kind="cars")
+    cycle = load_cycle("UDDS")
+    best_fs, best_fr = float("inf"), float("inf")
+    with tempfile.TemporaryDirectory() as cache:
+        simulate(fleet, cycle, cache_dir=cache)              # builds the maps once
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            for _ in range(fastsim_runs):
+                once()
+            best_fs = min(best_fs, (time.perf_counter() - t0) / fastsim_runs)
+            t0 = time.perf_counter()
+            simulate(fleet, cycle, cache_dir=cache)
+            best_fr = min(best_fr, (time.perf_counter() - t0) / vehicles)
+    return dict(fastsim_version=version, fastsim_rate=1.0 / best_fs, fleetrun_rate=1.0 / best_fr,
+                ratio=best_fs / best_fr, vehicles=vehicles)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--fastsim-runs", type=int, default=30)
+    args = p.parse_args(argv)
+    info = machine()
+    r = measure(args.repeat, args.fastsim_runs)
+    print(f"{info}\nUDDS, one core, best of {args.repeat}:\n"
+          f"  FASTSim {r['fastsim_version']} 2012 Ford Fusion: {r['fastsim_rate']:,.1f} vehicle-cycles/s\n"
+          f"  fleetrun, {r['vehicles']:,} cars in one call: {r['fleetrun_rate']:,.0f} vehicle-cycles/s\n"
+          f"  ratio fleetrun / FASTSim: {r['ratio']:,.0f}x")
+
+
+if __name__ == "__main__":
+    main()

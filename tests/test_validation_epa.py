@@ -1,0 +1,74 @@
+"""The fleet-wide fuel calibration and its held-out validation on the EPA 2022 Test Car List
+(validation/epa_fuel_economy.py, docs/validation-epa.md)."""
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from fleetrun.resources import models_dir
+from fleetrun.simulation import simulate
+from fleetrun.simulation.params import FUEL_CONSTANTS, engine_defaults, vehicle_arrays
+from fleetrun.testing.vehicles import AWD, CAMRY, CIVIC, F150
+from validation.epa_fuel_economy import coefficients_of, trace_terms
+
+
+def _toml(name):
+    with open(models_dir() / name, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def test_light_duty_defaults_are_the_fleet_calibration():
+    """A basic Vehicles row runs on the fitted constants; MD/HD sets keep their own."""
+    fitted = _toml("engine_calibration.toml")
+    for fuel in ("gasoline", "diesel"):
+        ld = engine_defaults(fuel, "LD")
+        for key in FUEL_CONSTANTS:
+            c = fitted[fuel]["LD"]["constants"][key]
+            assert ld[key] == c["value"]
+            assert c["fold_min"] <= c["value"] <= c["fold_max"]      # the folds bracket the full fit
+    assert engine_defaults("diesel", "HD")["eta_indicated"] == _toml("engines.toml")["diesel"]["HD"]["eta_indicated"]
+
+
+def test_fuel_is_linear_in_the_constants():
+    """What makes the fit exact and fast: the fuel terms summed over a trace, weighted by the
+    constants, give the simulated fuel to rounding (1e-9 relative)."""
+    cars = [F150, CAMRY, CIVIC, AWD]
+    for cycle in ("UDDS", "US06"):
+        r = simulate(cars, cycle, trace=True)
+        va = vehicle_arrays(cars)
+        S = trace_terms(va, r.trace).sum(axis=1)                        # (V, 8) [J]
+        fuel_g = (S * coefficients_of(va.fuel_constants)).sum(axis=1) / (va.lhv * 1e3)
+        np.testing.assert_allclose(fuel_g, r.fuel_g, rtol=1e-9)
+
+
+def test_error_file_has_the_agreed_format():
+    """models/fuel_economy_error.toml as PROTOCOL.md fixes it (h12's budget ranges read it)."""
+    doc = _toml("fuel_economy_error.toml")
+    assert doc["source"].startswith("validation/epa_fuel_economy.py")
+    for test in ("FTP", "HWFET", "US06"):
+        t = doc["tests"][test]
+        assert {"n", "mean", "median", "p05", "p95", "within_5pct"} <= set(t)
+        assert t["n"] >= 200 and t["p05"] < t["median"] < t["p95"] and 0 <= t["within_5pct"] <= 1
+
+
+@pytest.mark.slow
+def test_heldout_validation_reproduces_the_stored_figures():
+    """The script run from scratch gives the held-out distribution stored in models/ (to 1e-6),
+    and its figures stay where docs/validation-epa.md reports them: mean error within +-2.5 %
+    on every test, at least 40 % of vehicles within 5 % on the FTP and 55 % on HWFET and US06
+    (the issue's targets, 80 % / 70 %, are not reached: this test guards the measured level)."""
+    from validation.epa_fuel_economy import summaries
+    from validation.epa_table import epa_fleet
+    from validation.epa_fuel_economy import run
+
+    specs, table = epa_fleet()
+    s = summaries(run(specs, table)["err"])
+    stored = _toml("fuel_economy_error.toml")["tests"]
+    for test in ("FTP", "HWFET", "US06"):
+        for key in ("mean", "median", "within_5pct"):
+            assert s[test][key] == pytest.approx(stored[test][key], abs=1e-4)
+        assert abs(s[test]["mean"]) < 0.025
+    assert s["FTP"]["within_5pct"] >= 0.40
+    assert s["HWFET"]["within_5pct"] >= 0.55 and s["US06"]["within_5pct"] >= 0.55
