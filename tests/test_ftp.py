@@ -262,3 +262,35 @@ def test_thermal_constants_can_be_varied_per_call():
     base = simulate([CAMRY], "FTP", ambient_temp_C=0.0).phases["bag1"]["fuel_g"][0]
     slow = dataclasses.replace(k, heat_capacity_J_per_K_per_L=2 * k.heat_capacity_J_per_K_per_L)
     assert simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=slow).phases["bag1"]["fuel_g"][0] > base
+
+
+def test_composed_cycle_errors_name_the_file(tmp_path):
+    from fleetrun.errors import InputError
+
+    empty = tmp_path / "none.toml"
+    empty.write_text('composite = "ftp"\n')
+    with pytest.raises(InputError, match="at least one \\[\\[phase\\]\\]") as e:
+        load_cycle(empty)
+    assert "none.toml" in str(e.value)
+    rule = tmp_path / "rule.toml"
+    rule.write_text('composite = "ftpp"\n[[phase]]\nname = "a"\ncycle = "UDDS"\nstart_s = 0\nend_s = 505\n')
+    with pytest.raises(InputError, match="did you mean 'ftp'"):
+        load_cycle(rule)
+    moving = tmp_path / "moving.toml"
+    moving.write_text('[[phase]]\nname = "a"\ncycle = "UDDS"\nstart_s = 0\nend_s = 100\n'
+                      '[[phase]]\nname = "b"\ncycle = "UDDS"\nstart_s = 100\nend_s = 505\nsoak_before_s = 60\n')
+    with pytest.raises(InputError, match="does not start at rest"):
+        load_cycle(moving)
+
+
+def test_resampled_ftp_keeps_its_bags():
+    from fleetrun.cycles import resample
+
+    ftp = load_cycle("FTP")
+    again = resample(ftp, 1.0)
+    assert again.phases == ftp.phases and again.composite == "ftp"
+    # the soak is filled with engine-off steps at rest; the bags are unchanged
+    assert (again.step_phase() < 0).sum() == 600
+    a, b = (simulate([CAMRY], c, ambient_temp_C=10.0) for c in (ftp, again))
+    for bag in ("bag1", "bag2", "bag3"):
+        assert b.phases[bag]["fuel_g"][0] == pytest.approx(a.phases[bag]["fuel_g"][0], rel=1e-9)

@@ -201,14 +201,14 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
         return extra, temp
     rate, rpm, dt, soak = fuel_rate[:, cold], engine_speed_rpm[:, cold], dt[:, cold], np.asarray(step_soak_s)[cold]
     cold_fuel = _cold_fuel_function(va, rate, rpm, k)
-    part = np.zeros_like(rate)
+    part, part_temp = np.zeros_like(rate), temp[:, cold]   # the first pass: warm fuel only
     for _ in range(FIXED_POINT_MAX_ITER):
-        part_temp = engine_temperature_C((rate + part) * dt, capacity, va.lhv, start_temp_C, soak, ambient_temp_C, k)
         new = cold_fuel(part_temp)
         converged = np.max(np.abs(new - part) * dt, initial=0.0) <= FIXED_POINT_TOL_G
         part = new
         if converged:
             break
+        part_temp = engine_temperature_C((rate + part) * dt, capacity, va.lhv, start_temp_C, soak, ambient_temp_C, k)
     extra[:, cold], temp[:, cold] = part, part_temp
     return extra, temp
 
