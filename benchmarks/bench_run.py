@@ -127,7 +127,7 @@ def main():
 
     work = Path(tempfile.mkdtemp(prefix="fleetrun-bench-"))
     cache = work / "cache"
-    env = {**os.environ, "FLEETRUN_CACHE": str(cache)}
+    env = {**os.environ, "FLEETRUN_CACHE_DIR": str(cache)}
     results = []
     try:
         for rows in args.rows:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+import time
 from pathlib import Path
 
 from fleetrun.errors import InputError
@@ -61,3 +62,18 @@ def write_text_atomic(path: Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     with atomic_file(path) as temporary:
         temporary.write_text(text, encoding="utf-8")
+
+
+def write_error_log(text: str, log_file: Path | None = None) -> Path:
+    """Append ``text`` (an internal error's traceback) to ``log_file``, or without one to a new
+    file ``fleetrun-error-<UTC time>-<pid>.log`` in the temporary folder; return its path.
+
+    Every internal error leaves its traceback in a file whose path the ``Error:`` message names.
+    """
+    if log_file is None:
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        log_file = Path(tempfile.gettempdir()) / f"fleetrun-error-{stamp}-{os.getpid()}.log"
+    log_file = Path(log_file)
+    with open(log_file, "a", encoding="utf-8") as fh:
+        fh.write(text if text.endswith("\n") else text + "\n")
+    return log_file

@@ -33,7 +33,10 @@ class VehicleSpec:
     coastdown_C_lbf_per_mph2: float
     tire_size: str
     torque_converter_ratio: float | None = None   # default 3.0 automatic, 1.0 manual
-    kim_torque_scale_Nm: float | None = None      # default peak x converter x first gear
+    # Kim torque scale (thesis Sec. 5.2.1.A): the row's value, else set at construction to peak x
+    # converter x first gear (fleetrun.differential.kim_torque_scale_Nm). dataclasses.replace of
+    # those three fields keeps the old scale unless it passes kim_torque_scale_Nm=None.
+    kim_torque_scale_Nm: float | None = None
     low_gear_ratio: float | None = None           # dual (two-speed) axles only
     rated_power_kW: float | None = None
     rated_speed_rpm: float | None = None
@@ -50,6 +53,15 @@ class VehicleSpec:
     nv_ratio_rpm_per_mph: float | None = None   # EPA N/V: engine rpm per mph in top gear
     extra: dict = field(default_factory=dict, compare=False)
 
+    def __post_init__(self):
+        if self.kim_torque_scale_Nm is None and self.transmission_gear_ratios:
+            from fleetrun.differential import kim_torque_scale_Nm
+
+            object.__setattr__(self, "kim_torque_scale_Nm", float(kim_torque_scale_Nm(
+                self.peak_engine_torque_Nm, self.converter_ratio, max(self.transmission_gear_ratios))))
+        elif self.kim_torque_scale_Nm is not None:
+            object.__setattr__(self, "kim_torque_scale_Nm", float(self.kim_torque_scale_Nm))
+
     def physics_key(self) -> tuple:
         """What decides how the vehicle drives a cycle: every field but BOOKKEEPING_FIELDS
         (rows equal in this key simulate once)."""
@@ -64,12 +76,3 @@ class VehicleSpec:
             return float(self.torque_converter_ratio)
         return 3.0 if self.transmission == "automatic" else 1.0
 
-    @property
-    def kim_scale_Nm(self) -> float:
-        """Kim torque scale (thesis Sec. 5.2.1.A): peak x converter x first (max) gear ratio."""
-        if self.kim_torque_scale_Nm is not None:
-            return float(self.kim_torque_scale_Nm)
-        from fleetrun.differential import kim_torque_scale_Nm
-
-        return float(kim_torque_scale_Nm(self.peak_engine_torque_Nm, self.converter_ratio,
-                                         max(self.transmission_gear_ratios)))

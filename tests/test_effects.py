@@ -85,30 +85,30 @@ def test_efficiency_with_effects_steady_state():
     n = 1500.0
     kim = 3600.0
     base = efficiency("LD_RWD", tf, n, 3.55)
-    same = efficiency_with_effects("LD_RWD", tf, n, 3.55, None, kim_scale_Nm=kim)
+    same = efficiency_with_effects("LD_RWD", tf, n, 3.55, None, kim_torque_scale_Nm=kim)
     np.testing.assert_allclose(same, base)
     # inertia and cornering contribute nothing at steady, straight running
-    steady = efficiency_with_effects("LD_RWD", tf, n, 3.55, "inertia,cornering", kim_scale_Nm=kim)
+    steady = efficiency_with_effects("LD_RWD", tf, n, 3.55, "inertia,cornering", kim_torque_scale_Nm=kim)
     np.testing.assert_allclose(steady, base, rtol=1e-12)
     pre = efficiency_with_effects("LD_RWD", tf, n, 3.55, "bearing_preload:drag_torque_Nm=5",
-                                  kim_scale_Nm=kim)
+                                  kim_torque_scale_Nm=kim)
     loss = base - pre
     assert np.all(loss > 0) and loss[0] > loss[1] > loss[2]     # a fixed drag hurts light loads most
     # eta' = eta(T - dT) (T - dT) / T
     t = tf * kim
     expect = efficiency("LD_RWD", (t - 5) / kim, n, 3.55) * (t - 5) / t
     np.testing.assert_allclose(pre, expect, rtol=1e-12)
-    cold = efficiency_with_effects("LD_RWD", tf, n, 3.55, "oil_warmup", kim_scale_Nm=kim,
+    cold = efficiency_with_effects("LD_RWD", tf, n, 3.55, "oil_warmup", kim_torque_scale_Nm=kim,
                                    channels={"oil_temp_C": 0.0, "ambient_temp_C": 20.0})
     assert np.all(cold < base)
-    warm = efficiency_with_effects("LD_RWD", tf, n, 3.55, "oil_warmup", kim_scale_Nm=kim)
+    warm = efficiency_with_effects("LD_RWD", tf, n, 3.55, "oil_warmup", kim_torque_scale_Nm=kim)
     np.testing.assert_allclose(warm, base, rtol=1e-12)
-    turning = efficiency_with_effects("LD_RWD", tf, n, 3.55, "cornering:k_c=0.2", kim_scale_Nm=kim,
+    turning = efficiency_with_effects("LD_RWD", tf, n, 3.55, "cornering:k_c=0.2", kim_torque_scale_Nm=kim,
                                       channels={"wheel_speed_difference_rad_s": 3.0})
     assert np.all(turning < base)
     # drag larger than the input torque: nothing reaches the wheels (B.6 floor)
     assert efficiency_with_effects("LD_RWD", 0.001, n, 3.55, "bearing_preload:drag_torque_Nm=10",
-                                   kim_scale_Nm=kim) == 0.0
+                                   kim_torque_scale_Nm=kim) == 0.0
 
 
 def test_vehicle_extra_fuel():

@@ -124,7 +124,7 @@ def test_each_step_meets_efficiency_with_effects(vehicle_spec):
     t_in = tr["diff_input_torque_Nm"][0]
     n = tr["diff_input_speed_rpm"][0]
     low = tr["axle_range"][0] == "low"
-    kim = vehicle_spec.kim_scale_Nm
+    kim = vehicle_spec.kim_torque_scale_Nm
     checked = 0
     for axle_gear in ("high", "low"):
         sel = driving & (t_in > 0) & (low == (axle_gear == "low"))
@@ -132,8 +132,8 @@ def test_each_step_meets_efficiency_with_effects(vehicle_spec):
             continue
         eta = efficiency_with_effects(
             vehicle_spec.configuration, t_in[sel] / kim, n[sel], vehicle_spec.final_drive_ratio, effects,
-            kim_scale_Nm=kim, low_gear_ratio=vehicle_spec.low_gear_ratio, axle_gear=axle_gear,
-            oil_temp_C=ambient + 50.0, input_torque_scale_Nm=kim,
+            kim_torque_scale_Nm=kim, low_gear_ratio=vehicle_spec.low_gear_ratio, axle_gear=axle_gear,
+            oil_temp_C=ambient + 50.0,
             channels={"input_accel_rad_s2": alpha[sel], "time_s": since_start[sel], "ambient_temp_C": ambient})
         ratio = vehicle_spec.final_drive_ratio * (vehicle_spec.low_gear_ratio if axle_gear == "low" else 1.0)
         # direct inversion to 1e-10 of the Kim scale
@@ -175,7 +175,7 @@ def test_vecto_baseline_gets_the_vehicles_kim_scale(tmp_path):
     sel = tr["_driving"][0]
     t_out = vecto_generic_output_torque_Nm(tr["diff_input_torque_Nm"][0][sel],
                                            tr["diff_input_speed_rpm"][0][sel] / G, G)
-    np.testing.assert_allclose(t_out, tr["wheel_torque_Nm"][0][sel], rtol=0, atol=1e-8 * HD_TRUCK.kim_scale_Nm * G)
+    np.testing.assert_allclose(t_out, tr["wheel_torque_Nm"][0][sel], rtol=0, atol=1e-8 * HD_TRUCK.kim_torque_scale_Nm * G)
     for mode in ("map2d", "map3d"):
         other = simulate([HD_TRUCK], load_cycle("HD-UDDS"), mode=mode, physics="vecto-generic", cache_dir=tmp_path)
         assert other.fuel_g[0] == pytest.approx(r.fuel_g[0], rel=0.002)

@@ -57,10 +57,7 @@ def test_vecto_baseline_is_selectable():
     (["map", "LD_RWDX", "--gear-ratio", "3"], ["unknown configuration 'LD_RWDX'", "did you mean 'LD_RWD'", "HD_TAG_DUAL"]),
     (["map", "LD_RWD", "--gear-ratio", "0"], ["gear ratio must be a positive number"]),
     (["map", "LD_RWD", "--gear-ratio", "-2.5"], ["gear ratio must be a positive number"]),
-    (["map", "LD_RWD", "--gear-ratio", "abc"], ["--gear-ratio: 'abc' is not a number"]),
     (["map", "LD_RWD", "--gear-ratio", "3", "--speeds-rpm", "0,-100"], ["speed must be >= 0 rpm", "-100"]),
-    (["map", "LD_RWD", "--gear-ratio", "3", "--torque-fractions", "0,0.5,x"], ["--torque-fractions: item 3 'x' is not a number"]),
-    (["map", "LD_RWD", "--gear-ratio", "3", "--torque-fractions", ""], ["--torque-fractions: empty list"]),
     (["map", "HD_DUAL", "--gear-ratio", "3"], ["needs its low gear ratio", "--low-gear-ratio"]),
     (["map", "HD_RWD", "--gear-ratio", "3", "--physics", "thesiss"], ["unknown physics 'thesiss'", "did you mean 'thesis'", "vecto-generic"]),
     (["map", "HD_RWD", "--gear-ratio", "3", "--plot", "map.pdf"], ["must end in .png or .svg"]),
@@ -78,6 +75,19 @@ def test_bad_arguments_exit_1_with_error_line(args, expected, tmp_path, monkeypa
 
 def test_usage_error_exits_2():
     assert run("map", "LD_RWD").exit_code == 2  # --gear-ratio missing
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--gear-ratio", "abc"], "--gear-ratio: 'abc' is not a number"),
+    (["--gear-ratio", "nan"], "--gear-ratio: 'nan' is not a finite number"),
+    (["--gear-ratio", "3", "--torque-fractions", "0,0.5,x"], "--torque-fractions: item 3 'x' is not a number"),
+    (["--gear-ratio", "3", "--torque-fractions", ""], "--torque-fractions: empty list"),
+])
+def test_unparsable_numbers_are_usage_errors(args, expected):
+    """A value that is not a number is a usage error (exit 2), issue 9."""
+    result = run("map", "LD_RWD", *args)
+    assert result.exit_code == 2, result.output
+    assert expected in result.output and "Traceback" not in result.output
 
 
 def test_failed_run_keeps_previous_output(tmp_path):
@@ -106,13 +116,14 @@ def test_unwritable_output_path_is_an_error_not_a_traceback(option, tmp_path):
 
 
 def test_file_system_errors_become_error_lines(monkeypatch):
-    """The CLI's last line of defence: an OSError from a user's path is an Error line, exit 1."""
+    """The CLI's last line of defence: an OSError from a user's path (here -o) is an Error line,
+    exit 1 (an OSError on any other path is an internal error: tests/test_failures_visible.py)."""
     import fleetrun.commands.map as map_command
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied", "/locked/map.csv")
 
     monkeypatch.setattr(map_command, "compute_map", refuse)
-    result = run("map", "LD_RWD", "--gear-ratio", "3")
+    result = run("map", "LD_RWD", "--gear-ratio", "3", "-o", "/locked/map.csv")
     assert result.exit_code == 1
     assert result.output.startswith("Error: /locked/map.csv: Permission denied")

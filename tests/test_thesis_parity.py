@@ -141,8 +141,8 @@ def test_array_low_gear_ratios_match_scalar_calls():
 
 
 def test_input_torque_scale_matters_to_vecto_only():
-    thesis = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, input_torque_scale_Nm=s)) for s in (5000, 30000)]
+    thesis = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, kim_torque_scale_Nm=s)) for s in (5000, 30000)]
     assert thesis[0] == thesis[1]
-    vecto = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, physics="vecto-generic", input_torque_scale_Nm=s))
+    vecto = [float(efficiency("HD_RWD", 0.3, 1000, 3.7, physics="vecto-generic", kim_torque_scale_Nm=s))
              for s in (5000, 30000)]
     assert vecto[0] < vecto[1]  # the same drag is a larger share of a smaller torque

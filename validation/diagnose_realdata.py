@@ -152,7 +152,7 @@ def _efficiency_figure(img_dir: Path, results: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fleetrun.differential import efficiency
+    from fleetrun.differential import efficiency, kim_torque_scale_Nm
     from fleetrun.effects import efficiency_with_effects, get_effect
 
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -163,7 +163,8 @@ def _efficiency_figure(img_dir: Path, results: dict) -> None:
         plateau = (df["vehicle_speed_kph"] % 5 < 1e-9) & (df["vehicle_speed_kph"] > 0)
         d = df[plateau].groupby("vehicle_speed_kph").mean()
         meta = rec.meta
-        kim = meta["peak_engine_torque_Nm"] * meta["torque_converter_ratio"] * meta["max_transmission_gear_ratio"]
+        kim = kim_torque_scale_Nm(meta["peak_engine_torque_Nm"], meta["torque_converter_ratio"],
+                                  meta["max_transmission_gear_ratio"])
         tf = d["diff_input_torque_Nm"].to_numpy() / kim
         n = d["diff_input_speed_rpm"].to_numpy()
         eta_model = efficiency("LD_RWD", tf, n, meta["gear_ratio"])
@@ -173,7 +174,7 @@ def _efficiency_figure(img_dir: Path, results: dict) -> None:
         ax.plot(d.index, eta_model, color=color, ls=":", lw=1)
         if found:
             eff = [(get_effect(f["effect"]), f["parameters"]) for f in found]
-            eta_with = efficiency_with_effects("LD_RWD", tf, n, meta["gear_ratio"], eff, kim_scale_Nm=kim)
+            eta_with = efficiency_with_effects("LD_RWD", tf, n, meta["gear_ratio"], eff, kim_torque_scale_Nm=kim)
             ax.plot(d.index, eta_with, color=color, lw=1.2,
                     label=f"{vehicle}: model + {', '.join(f['effect'] for f in found)}")
     s = np.arange(5.0, 151.0, 1.0)

@@ -36,13 +36,13 @@ from fleetrun.fleet.engines import ENGINES
               help="Add physics the thesis left out (docs/effects.md), e.g. bearing_preload:drag_torque_Nm=3,warmup "
                    "[batch: the config's 'with'].")
 @click.option("--cache-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Where efficiency maps are cached between runs [~/.cache/fleetrun].")
+              help="Where efficiency maps are cached between runs [$FLEETRUN_CACHE_DIR, else ~/.cache/fleetrun].")
 @click.option("--no-cache", is_flag=True, help="Do not read or write cached maps.")
 @click.option("--log", "log_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
 @click.option("--replace", is_flag=True,
               help="Replace the run already in the output folder instead of keeping it in earlier-runs/.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar or log lines on stderr.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, log lines or summary on stdout or stderr (errors still go to stderr).")
 @click.pass_context
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, replace, quiet):
@@ -74,7 +74,9 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     if no_cache:
         cache = None
     else:
-        cache = cache_dir or settings.get("cache_dir") or batch.default_cache_dir()
+        from fleetrun.simulation.diffmodes import default_cache_dir
+
+        cache = cache_dir or settings.get("cache_dir") or default_cache_dir()
     if log_file is None:
         log_file = settings.get("log") or (Path(out) / "fleetrun-run.log" if batch_mode else None)
     plan = batch.RunPlan(inputs=list(inputs), out=Path(out), per_input_dirs=batch_mode,

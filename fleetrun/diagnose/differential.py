@@ -22,6 +22,7 @@ import numpy as np
 from fleetrun.diagnose.engine import Problem
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate
+from fleetrun.differential import kim_torque_scale_Nm
 from fleetrun.effects import effects_for_level, overall_ratio
 
 #: Pinion speed [rpm] below which the rig/vehicle counts as standing still.
@@ -30,10 +31,10 @@ STANDSTILL_RPM = 5.0
 MIN_STANDSTILL = 20
 
 
-def kim_scale_Nm(meta: dict) -> float:
-    """Kim torque scale: peak engine torque x converter ratio x max gear ratio (thesis 5.2.1.A)."""
-    return float(meta["peak_engine_torque_Nm"]) * float(meta["torque_converter_ratio"]) * \
-        float(meta["max_transmission_gear_ratio"])
+def sidecar_kim_torque_scale_Nm(meta: dict) -> float:
+    """The Kim torque scale (:func:`fleetrun.differential.kim_torque_scale_Nm`) of a sidecar."""
+    return float(kim_torque_scale_Nm(float(meta["peak_engine_torque_Nm"]), float(meta["torque_converter_ratio"]),
+                                     float(meta["max_transmission_gear_ratio"])))
 
 
 def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
@@ -49,7 +50,7 @@ def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
 def fit_oil_time_constant(time_s, oil_temp_C, ambient_temp_C) -> float:
     """Time constant [s] of the first-order warm-up that best follows a measured sump trace.
 
-    ``T_oil = T_amb + 50 - 50 exp(-t / tau)`` (thesis Sec. 3.1.2 rise), least squares in tau.
+    ``fleetrun.effects.differential.oil_temperature_C`` (thesis Sec. 3.1.2 rise), least squares in tau.
     """
     from scipy.optimize import minimize_scalar
 
@@ -67,7 +68,7 @@ def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
     """Model output torque and marginal efficiency for measured input torque and speed."""
     from fleetrun.differential import efficiency
 
-    kim = kim_scale_Nm(meta)
+    kim = sidecar_kim_torque_scale_Nm(meta)
     cfg = meta["configuration"]
     kw = {"physics": physics}
     if meta.get("low_gear_ratio"):
@@ -235,7 +236,7 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
     info = {"model": f"thesis differential chain, {meta['configuration']}, physics={physics}",
             "offset": round(offset, 6), "input_offset_Nm": round(offset_in, 6),
             "standstill_samples": int(still.sum()),
-            "kim_scale_Nm": kim_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
+            "kim_torque_scale_Nm": sidecar_kim_torque_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
     integral = {"moving": moving, "unit": "kJ", "weight": ch["input_speed_rad_s"] / g / 1000.0,
                 "speed_mps": df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None}
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,

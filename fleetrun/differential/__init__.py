@@ -11,12 +11,12 @@ import numpy as np
 
 from fleetrun.differential import baselines as _baselines  # noqa: F401  (registers baselines)
 from fleetrun.differential.configurations import (AXLE_GEARS, canonical_configuration,
-                                                  configuration_ids, configuration_lubricant,
+                                                  configuration_ids, configuration_lubricant, dual_configuration_ids,
                                                   reference_capacity_Nm, uses_two_speed_box)
 from fleetrun.errors import InputError
 from fleetrun.registry import PHYSICS
 
-__all__ = ["efficiency", "canonical_configuration", "configuration_ids", "uses_two_speed_box",
+__all__ = ["efficiency", "canonical_configuration", "configuration_ids", "dual_configuration_ids", "uses_two_speed_box",
            "configuration_lubricant", "reference_capacity_Nm", "kim_torque_scale_Nm", "physics_names",
            "check_inputs"]
 
@@ -67,13 +67,13 @@ def _show(values):
 
 
 def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
-               axle_gear="high", physics="thesis", oil_temp_C=None, input_torque_scale_Nm=None):
+               axle_gear="high", physics="thesis", oil_temp_C=None, kim_torque_scale_Nm=None):
     """Differential efficiency of ``configuration`` (CONTRACT.md ids).
 
     ``torque_fraction``: input torque / Kim torque scale (thesis Sec. 5.2.1.A).
     ``speed_rpm``: differential input speed. ``gear_ratio`` and ``low_gear_ratio``: final-drive
     and two-speed low ratios (scalars or arrays). ``oil_temp_C``: lubricant temperature (None:
-    the baseline's own, 70 C for thesis). ``input_torque_scale_Nm``: the vehicle's Kim scale,
+    the baseline's own, 70 C for thesis). ``kim_torque_scale_Nm``: the vehicle's Kim scale,
     for baselines that need absolute torque (vecto-generic; None: the reference
     differential's capacity); the thesis model maps fractions onto its reference differential
     and ignores it. Returns an array of the broadcast shape; 0 where a stage's losses exceed
@@ -85,7 +85,7 @@ def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gea
     low = np.nan if low_gear_ratio is None else low_gear_ratio
     tf, n, g, lo = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
                                          (torque_fraction, speed_rpm, gear_ratio, low)))
-    kwargs = dict(axle_gear=axle_gear, oil_temp_C=oil_temp_C, input_torque_scale_Nm=input_torque_scale_Nm)
+    kwargs = dict(axle_gear=axle_gear, oil_temp_C=oil_temp_C, kim_torque_scale_Nm=kim_torque_scale_Nm)
 
     def one(g_value, lo_value, sel=None):
         pick = (lambda a: a) if sel is None else (lambda a: a[sel])

@@ -19,7 +19,7 @@ class ThesisBaseline:
     description = "Vaughn (2012) Appendix B code as printed, quirks included"
 
     def efficiency(self, configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
-                   axle_gear="high", oil_temp_C=None, input_torque_scale_Nm=None):
+                   axle_gear="high", oil_temp_C=None, kim_torque_scale_Nm=None):
         # Kim scaling maps the fraction onto the reference differential: the vehicle's own
         # scale plays no further part (thesis Sec. 5.2.1.A).
         temp = THESIS_OPERATING_TEMP_C if oil_temp_C is None else float(oil_temp_C)
@@ -50,14 +50,14 @@ class VectoGenericBaseline:
     description = "VECTO generic axle loss map: Td0 = 52.5 + 15 i N m, 98 % load-dependent"
 
     def efficiency(self, configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
-                   axle_gear="high", oil_temp_C=None, input_torque_scale_Nm=None):
+                   axle_gear="high", oil_temp_C=None, kim_torque_scale_Nm=None):
         if not configuration.startswith("HD"):
             raise DomainError(f"physics 'vecto-generic' covers heavy-duty axles only, not {configuration}",
                               hint="VECTO is the EU heavy-duty tool; use --physics thesis for light-duty")
         # Absolute torque from the fraction: the vehicle's Kim scale when known, else the
         # capacity of the configuration's driving axle (what the thesis maps fractions onto).
-        capacity = (reference_capacity_Nm(configuration) if input_torque_scale_Nm is None
-                    else float(input_torque_scale_Nm))
+        capacity = (reference_capacity_Nm(configuration) if kim_torque_scale_Nm is None
+                    else float(kim_torque_scale_Nm))
         ratio = gear_ratio * (low_gear_ratio if (low_gear_ratio and axle_gear == "low") else 1.0)
         tin = np.asarray(torque_fraction, dtype=float) * capacity
         n_out = np.asarray(speed_rpm, dtype=float) / ratio

@@ -17,7 +17,13 @@ AXLE_GEARS = ("low", "high")
 
 
 def configuration_ids() -> list[str]:
+    """The configuration ids in the order of ``models/configurations.toml`` (their one source)."""
     return list(configuration_table())
+
+
+def dual_configuration_ids() -> list[str]:
+    """The configurations with a two-speed (dual) axle, which need a low gear ratio."""
+    return [c for c in configuration_ids() if uses_two_speed_box(c)]
 
 
 def canonical_configuration(name: str) -> str:

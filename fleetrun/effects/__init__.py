@@ -147,21 +147,24 @@ def overall_ratio(gear_ratio, low_gear_ratio=None, axle_gear="high") -> float:
 
 
 def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_ratio, effects, *,
-                            kim_scale_Nm, channels=None, lubricant=None, **model_kwargs):
+                            kim_torque_scale_Nm, channels=None, lubricant=None, **model_kwargs):
     """Differential efficiency with extra physics at steady state.
 
     The effects' extra pinion torque ``dT`` is taken before the thesis chain:
     ``T_out = G * eta(T_in - dT) * (T_in - dT)``, so the returned efficiency is
     ``eta(T_in - dT) * (T_in - dT) / T_in`` (0 where ``dT >= T_in``, as the B.6 floor).
     At steady state inertia and cornering contribute nothing and the oil is warm, unless
-    ``channels`` says otherwise (see :func:`steady_channels`).
+    ``channels`` says otherwise (see :func:`steady_channels`). ``kim_torque_scale_Nm``: the
+    vehicle's Kim scale, turning fractions into the effects' absolute torque (and passed on to
+    baselines in absolute torque).
     """
     from fleetrun.differential import efficiency
 
+    model_kwargs["kim_torque_scale_Nm"] = kim_torque_scale_Nm
     tf = np.asarray(torque_fraction, dtype=float)
     n = np.asarray(speed_rpm, dtype=float)
     tf, n = np.broadcast_arrays(tf, n)
-    t_in = tf * kim_scale_Nm
+    t_in = tf * kim_torque_scale_Nm
     effect_list = _as_effect_list(effects)
     if not effect_list:
         return efficiency(configuration, tf, n, gear_ratio, **model_kwargs)
@@ -171,7 +174,7 @@ def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_rati
     ch = steady_channels(t_in, n, ratio, lubricant=lub, channels=channels)
     dt = np.broadcast_to(differential_extra_torque_Nm(effect_list, ch), t_in.shape)
     t_eff = t_in - dt
-    eta_b = np.asarray(efficiency(configuration, np.maximum(t_eff, 0.0) / kim_scale_Nm, n,
+    eta_b = np.asarray(efficiency(configuration, np.maximum(t_eff, 0.0) / kim_torque_scale_Nm, n,
                                   gear_ratio, **model_kwargs), dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
         eta = np.where((t_in > 0) & (t_eff > 0), eta_b * t_eff / np.where(t_in > 0, t_in, 1.0), 0.0)

@@ -17,12 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.effects.base import Effect, Parameter
+from fleetrun.physics.lubricant import OPERATING_RISE_K, operating_temperature_C
 
 #: Speed [rad/s] below which the pinion counts as stopped: Coulomb drags are regularised with
 #: tanh(w / W_STOP) so that a stopped differential has no drag and the fit stays smooth.
 W_STOP_RAD_S = 1.0
-#: Lubricant rise over ambient in steady operation (thesis Sec. 3.1.2: 50 K).
-OPERATING_RISE_K = 50.0
 #: Film-thickness exponent on entraining speed, h_c0 ~ U^0.68 (seed 004, Eq. 9).
 FILM_SPEED_EXPONENT = 0.68
 
@@ -110,7 +109,7 @@ def warmup_viscosity_excess(oil_temp_C, ambient_temp_C, lubricant, rise_K=OPERAT
     Thesis Sec. 3.1.2 and 9.8: viscosity (Walther, B.7) governs the churning and film losses;
     the thesis evaluates it only at T_op. Clipped at 0: oil hotter than T_op is not modelled.
     """
-    t_op = np.asarray(ambient_temp_C, dtype=float) + rise_K
+    t_op = operating_temperature_C(ambient_temp_C, rise_K)
     ratio = viscosity_m2_s(oil_temp_C, lubricant) / viscosity_m2_s(t_op, lubricant)
     return np.maximum(ratio - 1.0, 0.0)
 

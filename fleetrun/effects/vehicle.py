@@ -9,10 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.effects.base import Effect, Parameter
+from fleetrun.physics.fuels import fuel_properties
 
 G_M_S2 = 9.80665
-#: Lower heating values [J/g] (SAE J1829 / EPA certification fuels, rounded).
-LHV_J_PER_G = {"gasoline": 42_600.0, "diesel": 42_800.0}
 #: Marginal (Willans-line) brake efficiency of extra engine work: the slope of fuel power
 #: against brake power of a warm spark-ignition (0.38) or diesel (0.42) engine. Extra load
 #: on a running engine costs fuel at this slope, not at the (much lower) average efficiency.
@@ -22,7 +21,8 @@ MARGINAL_EFFICIENCY = {"gasoline": 0.38, "diesel": 0.42}
 def marginal_fuel_g_per_J(fuel: str, drivetrain_efficiency: float = 1.0) -> float:
     """Fuel [g] per J of extra work at the wheels (or at the crank with efficiency 1)."""
     fuel = fuel.lower()
-    return 1.0 / (MARGINAL_EFFICIENCY[fuel] * LHV_J_PER_G[fuel] * drivetrain_efficiency)
+    lhv_J_per_g = fuel_properties(fuel).lhv_MJ_per_kg * 1e3   # models/fuels.toml
+    return 1.0 / (MARGINAL_EFFICIENCY[fuel] * lhv_J_per_g * drivetrain_efficiency)
 
 
 def cold_start_extra_fuel(time_s, tau_s, engine_on=1.0):

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fleetrun.errors import FleetrunError, InputError
+from fleetrun.fileio import write_error_log
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
@@ -31,14 +32,6 @@ CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "
                "log", "chunk_size"}
 
 log = logging.getLogger("fleetrun.run")
-
-
-def default_cache_dir() -> Path:
-    """Where cached efficiency maps live between runs: $FLEETRUN_CACHE or ~/.cache/fleetrun."""
-    if os.environ.get("FLEETRUN_CACHE"):
-        return Path(os.environ["FLEETRUN_CACHE"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "fleetrun"
 
 
 @dataclass
@@ -197,13 +190,15 @@ def teardown_logging(handlers) -> None:
 
 def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
     """Read, simulate and write one fleet; raises on failure (nothing written then)."""
-    from fleetrun.fleet.outputs import write_run_outputs
+    from fleetrun.fleet.outputs import refuse_overwriting_inputs, write_run_outputs
     from fleetrun.fleet.runner import CHUNK_SIZE, run_fleet
     from fleetrun.fleet.workbook import read_fleet
 
     started = time.perf_counter()
     fleet = read_fleet(fleet_path)
     read_s = time.perf_counter() - started
+    out_dir = plan.out_dir(fleet_path)
+    refuse_overwriting_inputs(out_dir, [fleet_path, *fleet.input_files()])
     for warning in fleet.warnings:
         log.warning("%s: %s", fleet_path.name, warning)
     log.info("%s: %d vehicle types, %d scenarios; engine %s", fleet_path.name, len(fleet.vehicles),
@@ -215,7 +210,6 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
                        error_model=plan.error_model)
     result.timings_s = {"read": read_s, **result.timings_s}
     written_at = time.perf_counter()
-    out_dir = plan.out_dir(fleet_path)
     earlier = _what_changed(result, out_dir, fleet_path)
     outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
     if earlier is not None and not plan.replace:
@@ -259,9 +253,11 @@ def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], lis
                 log.error("%s", exc)
             except Exception as exc:  # a bug: keep going with the other fleets, keep the traceback
                 internal = True
+                trace = traceback.format_exc()
+                log.error("%s: internal error\n%s", fleet_path, trace)
+                where = plan.log if plan.log else write_error_log(f"{fleet_path}: internal error\n{trace}")
                 errors.append(f"{fleet_path}: internal error ({type(exc).__name__}: {exc}); "
-                              "please report it with the log")
-                log.error("%s: internal error\n%s", fleet_path, traceback.format_exc())
+                              f"the traceback is in {where}; please report it with that file")
     finally:
         engine.close()
     if not errors:

@@ -142,28 +142,14 @@ def parse_cycle_mix(value) -> dict[str, float]:
     return mix
 
 
-TIRE_PATTERNS = (
-    # P235/75R15, LT265/70R17, 215/55ZR17 94V, 295/75R22.5, 445/50R22.5
-    re.compile(r"^(P|LT|ST|T)?\s*\d{3}\s*/\s*\d{2,3}\s*(Z?R|-|D|B)\s*\d{2}(\.\d)?\b", re.I),
-    # 11R22.5, 11R24.5, 10.00R20
-    re.compile(r"^\d{1,2}(\.\d{1,2})?\s*R\s*\d{2}(\.\d)?\b", re.I),
-)
-
-
 def parse_tire_size(value) -> str:
-    text = parse_text(value)
-    try:  # the simulation's own parser decides what it can use
-        from fleetrun.simulation.tyre import tire_diameter_m
-    except ImportError:
-        tire_diameter_m = None
-    if tire_diameter_m is not None:
-        from fleetrun.errors import InputError
+    from fleetrun.errors import InputError
+    from fleetrun.simulation.tyre import tire_diameter_m  # the simulation's own parser decides
 
-        try:
-            tire_diameter_m(text)
-            return text
-        except InputError:
-            pass
-    elif any(p.match(text) for p in TIRE_PATTERNS):
+    text = parse_text(value)
+    try:
+        tire_diameter_m(text)
         return text
+    except InputError:
+        pass
     raise CellProblem(f"{show(value)} is not a tire size like P235/75R15, 295/75R22.5 or 11R22.5")

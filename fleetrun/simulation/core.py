@@ -97,7 +97,7 @@ class DifferentialSolver:
         self.low = np.where(va.low_ratio > 1.0, va.low_ratio, np.nan)
         if mode != "direct":
             self.maps, self.map_id, self.n_max = diffmodes.vehicle_maps(
-                va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir, va.kim_Nm)
+                va.configuration, va.final_drive, self.low, mode, physics, ambient_temp_C, cache_dir, va.kim_torque_scale_Nm)
 
     def subset(self, rows, va_subset: VehicleArrays | None = None) -> "DifferentialSolver":
         """The solver for the vehicles ``rows``; ``va_subset``: ``self.va.subset(rows)`` if the
@@ -138,7 +138,7 @@ class DifferentialSolver:
         cfgs = np.array(self.va.configuration)
         # one model call per configuration, axle range and (for physics in absolute torque) Kim
         # scale: the model itself takes scalar scales but arrays of gear ratios
-        scales = np.array([diffmodes.map_torque_scale_Nm(self.physics, k) for k in self.va.kim_Nm], dtype=object)
+        scales = np.array([diffmodes.map_torque_scale_Nm(self.physics, k) for k in self.va.kim_torque_scale_Nm], dtype=object)
         for cfg in np.unique(cfgs[vehicle]) if vehicle.size else ():
             for scale in dict.fromkeys(scales[vehicle][cfgs[vehicle] == cfg]):
                 for low_range in (False, True):
@@ -287,7 +287,7 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
     else:  # no two-speed axle in this block
         G_tot = _col(va.final_drive)
     diff_rpm = wheel_rpm * G_tot
-    kim = _col(va.kim_Nm)
+    kim = _col(va.kim_torque_scale_Nm)
     active = k.moving & (diff_rpm > 0)
     out_frac = np.abs(wheel_torque) / (kim * G_tot)
     diff_loss_Nm = solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active)

@@ -19,7 +19,7 @@ L = T_in - T_out / G_tot.
 
 The output-torque axis of the inverse maps is uniform in sqrt(T_out / (kim G_tot)): road-load
 torques are a few percent of the Kim scale, so the grid is densest there. The model is always
-given the vehicle's Kim scale (``input_torque_scale_Nm``); the thesis baseline ignores it, so
+given the vehicle's Kim scale (``kim_torque_scale_Nm``); the thesis baseline ignores it, so
 its maps serve every vehicle, while maps of baselines in absolute torque (vecto-generic) are
 built per Kim scale (:func:`map_torque_scale_Nm`).
 
@@ -36,6 +36,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -58,8 +59,11 @@ GEAR_GRID = {"LD": np.round(np.arange(2.0, 6.0001, 0.1), 6), "HD": np.round(np.a
 
 
 def lubricant_temp_C(ambient_temp_C) -> float:
-    """Operating lubricant temperature: ambient + 50 K (thesis Sec. 3.1.2 and 7.1.1)."""
-    return 70.0 if ambient_temp_C is None else float(ambient_temp_C) + 50.0
+    """Operating lubricant temperature (physics.lubricant.operating_temperature_C, thesis Sec.
+    3.1.2 and 7.1.1); None: the thesis code's fixed 70 C."""
+    from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C, operating_temperature_C
+
+    return THESIS_OPERATING_TEMP_C if ambient_temp_C is None else float(operating_temperature_C(ambient_temp_C))
 
 
 def duty_of(configuration: str) -> str:
@@ -78,19 +82,19 @@ def speed_grid(configuration: str) -> np.ndarray:
 SCALE_FREE_PHYSICS = ("thesis",)
 
 
-def map_torque_scale_Nm(physics, kim_scale_Nm):
+def map_torque_scale_Nm(physics, kim_torque_scale_Nm):
     """The Kim scale a map depends on: None for scale-free physics, else the vehicle's."""
     if str(physics).strip().lower() in SCALE_FREE_PHYSICS:
         return None
-    return float(kim_scale_Nm)
+    return float(kim_torque_scale_Nm)
 
 
 def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio, axle_low,
-                physics, ambient_temp_C=None, kim_scale_Nm=None):
+                physics, ambient_temp_C=None, kim_torque_scale_Nm=None):
     """The differential model (``fleetrun.differential.efficiency``) for one configuration.
 
     ``gear_ratio``/``low_gear_ratio`` may be arrays (the model groups by distinct pairs);
-    ``axle_low`` is a bool (one range); ``kim_scale_Nm`` is the vehicle's Kim scale, which
+    ``axle_low`` is a bool (one range); ``kim_torque_scale_Nm`` is the vehicle's Kim scale, which
     baselines in absolute torque (vecto-generic) need.
     """
     from fleetrun.differential import efficiency
@@ -100,12 +104,12 @@ def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_
     oil = None if ambient_temp_C is None else lubricant_temp_C(ambient_temp_C)
     return np.asarray(efficiency(configuration, torque_fraction, speed_rpm, gear_ratio,
                                  low_gear_ratio=low_gear_ratio, axle_gear="low" if axle_low else "high",
-                                 physics=physics, oil_temp_C=oil, input_torque_scale_Nm=kim_scale_Nm), float)
+                                 physics=physics, oil_temp_C=oil, kim_torque_scale_Nm=kim_torque_scale_Nm), float)
 
 
 # --------------------------------------------------------------------------- direct inversion
 def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio, axle_low, physics,
-                  ambient_temp_C=None, kim_scale_Nm=None, tol=1e-10, max_iter=60):
+                  ambient_temp_C=None, kim_torque_scale_Nm=None, tol=1e-10, max_iter=60):
     """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
 
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
@@ -121,7 +125,7 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
 
     def f(x, idx):
         eta = eta_forward(configuration, x, n[idx], G[idx], None if low is None else low[idx], axle_low,
-                          physics, ambient_temp_C, kim_scale_Nm)
+                          physics, ambient_temp_C, kim_torque_scale_Nm)
         return eta * x - out[idx]
 
     all_idx = np.arange(out.size)
@@ -169,11 +173,11 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
 
 # --------------------------------------------------------------------------- maps
 def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, ambient_temp_C=None,
-                kim_scale_Nm=None):
+                kim_torque_scale_Nm=None):
     """Inverse map T_in/kim on the (u = sqrt(T_out/(kim G_tot)), speed) grid, shape (N_U, N_SPEED)."""
     n_grid = speed_grid(configuration)
     eta = eta_forward(configuration, TF_FORWARD[:, None], n_grid[None, :], gear_ratio, low_gear_ratio,
-                      axle_low, physics, ambient_temp_C, kim_scale_Nm)
+                      axle_low, physics, ambient_temp_C, kim_torque_scale_Nm)
     eta = np.broadcast_to(eta, (TF_FORWARD.size, n_grid.size))
     out = np.maximum.accumulate(np.nan_to_num(eta) * TF_FORWARD[:, None], axis=0)
     targets = np.linspace(0.0, U_MAX, N_U) ** 2
@@ -208,12 +212,19 @@ def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, am
 _LOADED: dict = {}  # maps already read in this process, by (file, key digest)
 
 
+#: The one environment variable naming the map cache (``fleetrun simulate`` and ``fleetrun run``).
+CACHE_ENV = "FLEETRUN_CACHE_DIR"
+
+
 def default_cache_dir() -> Path:
-    env = os.environ.get("FLEETRUN_CACHE_DIR")
-    return Path(env) if env else Path.home() / ".cache" / "fleetrun"
+    """Where cached efficiency maps live between runs: $FLEETRUN_CACHE_DIR, else
+    $XDG_CACHE_HOME/fleetrun, else ~/.cache/fleetrun."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "fleetrun"
 
 
-def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir=None, kim_scale_Nm=None):
+def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir=None, kim_torque_scale_Nm=None):
     """Gear-ratio grid and inverse maps (2 ranges x gears x N_U x N_SPEED), cached on disk.
 
     Key: configuration, physics, lubricant temperature, low range ratio, grid, fleetrun
@@ -222,15 +233,15 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     """
     gears = GEAR_GRID[duty_of(configuration)]
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    quick = (configuration, low_gear_ratio, physics, lubricant_temp_C(ambient_temp_C), kim_scale_Nm, str(directory))
+    quick = (configuration, low_gear_ratio, physics, lubricant_temp_C(ambient_temp_C), kim_torque_scale_Nm, str(directory))
     if quick in _LOADED:  # already read (or built) in this process: skip hashing the key
         return gears, _LOADED[quick]
     key = {"configuration": configuration, "physics": physics, "lubricant_temp_C": lubricant_temp_C(ambient_temp_C),
            "low_gear_ratio": low_gear_ratio, "gears": gears.tolist(), "tf": [float(TF_FORWARD[-1]), TF_FORWARD.size],
            "u": [U_MAX, N_U], "speed": [float(speed_grid(configuration)[-1]), N_SPEED], "version": __version__,
            "format": 2}
-    if kim_scale_Nm is not None:  # only then: the keys (and cache files) of thesis maps stay as they were
-        key["input_torque_scale_Nm"] = kim_scale_Nm
+    if kim_torque_scale_Nm is not None:  # only then: the keys (and cache files) of thesis maps stay as they were
+        key["kim_torque_scale_Nm"] = kim_torque_scale_Nm
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:20]
     path = directory / f"map3d-{configuration}-{digest}.npz"
     if (path, digest) in _LOADED:
@@ -241,14 +252,14 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
                 maps = data["maps"].astype(float)
             _LOADED[(path, digest)] = _LOADED[quick] = maps
             return gears, maps
-        except Exception:  # a damaged cache file is rebuilt  # noqa: BLE001
-            pass
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+            pass  # an unreadable or damaged cache file (truncated, not a zip, no maps) is rebuilt
     ranges = (False, True) if low_gear_ratio is not None else (False,)
     maps = np.empty((2, gears.size, N_U, N_SPEED))
     for r, axle_low in enumerate(ranges):
         for i, g in enumerate(gears):
             maps[r, i] = inverse_map(configuration, float(g), low_gear_ratio, axle_low, physics, ambient_temp_C,
-                                     kim_scale_Nm)
+                                     kim_torque_scale_Nm)
     if len(ranges) == 1:
         maps[1] = maps[0]
     try:
@@ -269,12 +280,12 @@ def outside_map3d_grid(configuration: str, gear_ratio: float) -> bool:
     return not gears[0] <= float(gear_ratio) <= gears[-1]
 
 
-def own_ratio_maps(configuration, gear_ratio, low_gear_ratio, physics, ambient_temp_C=None, kim_scale_Nm=None):
+def own_ratio_maps(configuration, gear_ratio, low_gear_ratio, physics, ambient_temp_C=None, kim_torque_scale_Nm=None):
     """Inverse maps (2, N_U, N_SPEED) of both axle ranges at the vehicle's own gear ratio (map2d)."""
-    high = inverse_map(configuration, gear_ratio, low_gear_ratio, False, physics, ambient_temp_C, kim_scale_Nm)
+    high = inverse_map(configuration, gear_ratio, low_gear_ratio, False, physics, ambient_temp_C, kim_torque_scale_Nm)
     if low_gear_ratio is None:
         return np.stack([high, high])
-    low = inverse_map(configuration, gear_ratio, low_gear_ratio, True, physics, ambient_temp_C, kim_scale_Nm)
+    low = inverse_map(configuration, gear_ratio, low_gear_ratio, True, physics, ambient_temp_C, kim_torque_scale_Nm)
     return np.stack([high, low])
 
 

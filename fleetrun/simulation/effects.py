@@ -81,10 +81,10 @@ def _lubricant(configuration: str) -> str:
 
 def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_input_torque_Nm, input_speed_rpm,
                                  input_accel_rad_s2, time_since_start_s, ambient_temp_C, overall_ratio,
-                                 kim_scale_Nm) -> np.ndarray:
+                                 kim_torque_scale_Nm) -> np.ndarray:
     """Extra pinion torque ``T_in - T_base`` [N m] of the differential-level effects, (V, N).
 
-    Arrays are (V, N) (``time_since_start_s`` (N,) or (V, N), ``kim_scale_Nm`` (V, 1)); row v
+    Arrays are (V, N) (``time_since_start_s`` (N,) or (V, N), ``kim_torque_scale_Nm`` (V, 1)); row v
     belongs to ``configurations[v]``, whose lubricant the oil effects use. Solves
     ``T_in = T_base + dT(T_in)`` by fixed-point iteration to 1e-10 of the Kim scale.
     """
@@ -99,7 +99,7 @@ def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_inp
     accel = np.broadcast_to(np.asarray(input_accel_rad_s2, float), shape)
     time = np.broadcast_to(np.asarray(time_since_start_s, float), shape)
     ratio = np.broadcast_to(np.asarray(overall_ratio, float), shape)
-    tol = np.broadcast_to(FIXED_POINT_TOL * np.asarray(kim_scale_Nm, float), shape)
+    tol = np.broadcast_to(FIXED_POINT_TOL * np.asarray(kim_torque_scale_Nm, float), shape)
     lubricants = np.array([_lubricant(c) for c in configurations], dtype=object)
     for lubricant in dict.fromkeys(lubricants):
         rows = np.flatnonzero(lubricants == lubricant)

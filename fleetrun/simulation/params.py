@@ -25,14 +25,16 @@ from typing import Sequence
 
 import numpy as np
 
+from fleetrun.differential import dual_configuration_ids
 from fleetrun.errors import FleetrunError, InputError
+from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
 
-DUAL_CONFIGURATIONS = {"HD_DUAL", "HD_TANDEM_DUAL", "HD_TAG_DUAL"}
+DUAL_CONFIGURATIONS = frozenset(dual_configuration_ids())  # models/configurations.toml
 
 
 @lru_cache(maxsize=None)
@@ -57,6 +59,8 @@ def engine_defaults(fuel: str, duty_class: str) -> dict:
     by_duty = sets[fuel]
     duty = duty_class if duty_class in by_duty else "LD"
     values = dict(by_duty[duty])
+    fuel_props = fuel_properties(fuel)
+    values.update(lhv_MJ_per_kg=fuel_props.lhv_MJ_per_kg, density_kg_per_L=fuel_props.density_kg_per_L)
     if (models_dir() / CALIBRATION_FILE).exists():
         fitted = _toml(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
         values.update({key: fitted[key]["value"] for key in FUEL_CONSTANTS if key in fitted})
@@ -148,7 +152,7 @@ class VehicleArrays:
     radius_m: np.ndarray
     final_drive: np.ndarray
     low_ratio: np.ndarray        # 1 for single-speed axles
-    kim_Nm: np.ndarray
+    kim_torque_scale_Nm: np.ndarray
     # gear table: combinations of transmission gear x axle range, largest overall first
     combo_trans_ratio: np.ndarray   # (V, K) transmission ratio (0 padding)
     combo_axle_low: np.ndarray      # (V, K) bool
@@ -270,7 +274,7 @@ def _row(v: VehicleSpec) -> dict:
         rot=_get(v, "rotating_mass_fraction", ROTATING_MASS_FRACTION.get(v.duty_class, 0.015)),
         coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
         radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
-        fd=float(v.final_drive_ratio), low=low, kim=v.kim_scale_Nm, combos=combos,
+        fd=float(v.final_drive_ratio), low=low, kim=v.kim_torque_scale_Nm, combos=combos,
         auto=converter, cvt=box == "cvt", cvt_range=(max(gears), min(gears)),
         lockup_clutch=_yes_no(v, "converter_lockup", True),
         spin=(_get(v, "spin_loss_Nm_at_0", trn["spin_loss_Nm_at_0"]),
@@ -311,7 +315,7 @@ def _gather(rows: list) -> VehicleArrays:
     return VehicleArrays(
         n=V, configuration=[r["cfg"] for r in rows], mass_kg=a("mass"), rot_frac=a("rot"),
         A_N=coast[:, 0], B_N=coast[:, 1], C_N=coast[:, 2], radius_m=a("radius"),
-        final_drive=a("fd"), low_ratio=a("low"), kim_Nm=a("kim"),
+        final_drive=a("fd"), low_ratio=a("low"), kim_torque_scale_Nm=a("kim"),
         combo_trans_ratio=ctr, combo_axle_low=clow, combo_gear=cg, combo_gear_eff=ceff,
         n_combos=np.array([len(r["combos"]) for r in rows]),
         automatic=np.array([r["auto"] for r in rows], bool), cvt=np.array([r["cvt"] for r in rows], bool),

@@ -39,8 +39,11 @@ class RigSpec:
     road_load_N: tuple[float, float, float] = (150.0, 4.0, 0.45)  # A + B v + C v^2, SI
 
     @property
-    def kim_scale_Nm(self) -> float:
-        return self.peak_engine_torque_Nm * self.torque_converter_ratio * self.max_transmission_gear_ratio
+    def kim_torque_scale_Nm(self) -> float:
+        from fleetrun.differential import kim_torque_scale_Nm
+
+        return float(kim_torque_scale_Nm(self.peak_engine_torque_Nm, self.torque_converter_ratio,
+                                         self.max_transmission_gear_ratio))
 
     @property
     def ratio(self) -> float:
@@ -159,7 +162,7 @@ def _rig_channels(prof: Profile, rig: RigSpec, dt: float, ambient_temp_C: float,
     force = rig.mass_kg * a + (A + B * v + C * v ** 2) * moving
     g = rig.ratio
     t_in = np.maximum(force * rig.wheel_radius_m / (g * 0.95), 0.0)
-    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_scale_Nm), 0.0)
+    t_in = np.where(moving, np.maximum(t_in, min_drive_fraction * rig.kim_torque_scale_Nm), 0.0)
     w_wheel = v / rig.wheel_radius_m
     w_in = w_wheel * g
     # wheel speeds in a turn of curvature k: w_L,R = w (1 -/+ k track / 2)
@@ -182,7 +185,7 @@ def _output_torque(rig: RigSpec, t_in, d_t, n_rpm, moving):
     kw = {}
     if rig.low_gear_ratio:
         kw = {"low_gear_ratio": rig.low_gear_ratio, "axle_gear": rig.axle_gear}
-    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_scale_Nm, n_rpm,
+    eta = np.asarray(efficiency(rig.configuration, np.maximum(t_eff, 0) / rig.kim_torque_scale_Nm, n_rpm,
                                 rig.gear_ratio, **kw), dtype=float)
     # stopped: no power flows, the output carries the input torque unchanged (statics);
     # driving the differential backwards (t_eff < 0) is outside the thesis model: lossless here
@@ -220,7 +223,7 @@ def generate_differential_recording(
     d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
     d_t = np.broadcast_to(d_t, t.shape)
     if hidden_loss is not None:
-        d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_scale_Nm": rig.kim_scale_Nm,
+        d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_torque_scale_Nm": rig.kim_torque_scale_Nm,
                                                  "dt_s": dt}), t.shape)
     n_rpm = w_in * 60 / (2 * np.pi)
     t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
@@ -309,7 +312,7 @@ def load_squared_loss(c: float):
     torque, ``dT = c * T_in^2 / Kim`` (Kim torque scale, thesis 5.2.1.A)."""
     def loss(ch):
         t = ch["input_torque_Nm"]
-        return c * t * t / ch["kim_scale_Nm"] * (ch["input_speed_rad_s"] > 1.0)
+        return c * t * t / ch["kim_torque_scale_Nm"] * (ch["input_speed_rad_s"] > 1.0)
     loss.__name__ = "load_squared_loss"
     return loss
 

@@ -1,0 +1,40 @@
+"""Liquid fuel properties: lower heating value and density (``models/fuels.toml``).
+
+The one owner of these facts: the drive-cycle simulation (fuel equation, gallons), the
+vehicle-level effects (marginal fuel per unit of work) and the diagnosis recordings (cc -> g)
+read them here. Source: EPA certification fuels (40 CFR 1065.710 and 1065.703).
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from functools import lru_cache
+
+from fleetrun.errors import unknown_name_error
+from fleetrun.resources import models_dir
+
+
+@dataclass(frozen=True)
+class FuelProperties:
+    """``lhv_MJ_per_kg``: lower heating value [MJ/kg] (= kJ/g); ``density_kg_per_L`` [kg/L] (= g/cm^3)."""
+
+    lhv_MJ_per_kg: float
+    density_kg_per_L: float
+
+
+@lru_cache(maxsize=None)
+def fuel_table() -> dict[str, FuelProperties]:
+    """Every fuel of ``models/fuels.toml`` by its (lower-case) name."""
+    with open(models_dir() / "fuels.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return {name.lower(): FuelProperties(float(v["lhv_MJ_per_kg"]), float(v["density_kg_per_L"]))
+            for name, v in data.items()}
+
+
+def fuel_properties(fuel: str) -> FuelProperties:
+    """The properties of ``fuel`` (``gasoline``, ``diesel``); an unknown name lists the valid ones."""
+    table = fuel_table()
+    try:
+        return table[str(fuel).strip().lower()]
+    except KeyError:
+        raise unknown_name_error("fuel", str(fuel), table, hint="Add it to models/fuels.toml") from None
