@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fleetrun"
 #: Keep in step with docs/architecture.md.
 LAYERS = (
     ("base", ("fleetrun", "fleetrun.errors", "fleetrun.registry", "fleetrun.resources",
-              "fleetrun.fileio")),
+              "fleetrun.fileio", "fleetrun.output_folder")),
     ("physics", ("fleetrun.physics",)),
     ("differential", ("fleetrun.differential",)),
     ("effects", ("fleetrun.effects",)),

@@ -57,10 +57,7 @@ def test_vecto_baseline_is_selectable():
     (["map", "LD_RWDX", "--gear-ratio", "3"], ["unknown configuration 'LD_RWDX'", "did you mean 'LD_RWD'", "HD_TAG_DUAL"]),
     (["map", "LD_RWD", "--gear-ratio", "0"], ["gear ratio must be a positive number"]),
     (["map", "LD_RWD", "--gear-ratio", "-2.5"], ["gear ratio must be a positive number"]),
-    (["map", "LD_RWD", "--gear-ratio", "abc"], ["--gear-ratio: 'abc' is not a number"]),
     (["map", "LD_RWD", "--gear-ratio", "3", "--speeds-rpm", "0,-100"], ["speed must be >= 0 rpm", "-100"]),
-    (["map", "LD_RWD", "--gear-ratio", "3", "--torque-fractions", "0,0.5,x"], ["--torque-fractions: item 3 'x' is not a number"]),
-    (["map", "LD_RWD", "--gear-ratio", "3", "--torque-fractions", ""], ["--torque-fractions: empty list"]),
     (["map", "HD_DUAL", "--gear-ratio", "3"], ["needs its low gear ratio", "--low-gear-ratio"]),
     (["map", "HD_RWD", "--gear-ratio", "3", "--physics", "thesiss"], ["unknown physics 'thesiss'", "did you mean 'thesis'", "vecto-generic"]),
     (["map", "HD_RWD", "--gear-ratio", "3", "--plot", "map.pdf"], ["must end in .png or .svg"]),
@@ -78,6 +75,19 @@ def test_bad_arguments_exit_1_with_error_line(args, expected, tmp_path, monkeypa
 
 def test_usage_error_exits_2():
     assert run("map", "LD_RWD").exit_code == 2  # --gear-ratio missing
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--gear-ratio", "abc"], "--gear-ratio: 'abc' is not a number"),
+    (["--gear-ratio", "nan"], "--gear-ratio: 'nan' is not a finite number"),
+    (["--gear-ratio", "3", "--torque-fractions", "0,0.5,x"], "--torque-fractions: item 3 'x' is not a number"),
+    (["--gear-ratio", "3", "--torque-fractions", ""], "--torque-fractions: empty list"),
+])
+def test_unparsable_numbers_are_usage_errors(args, expected):
+    """A value that is not a number is a usage error (exit 2), issue 9."""
+    result = run("map", "LD_RWD", *args)
+    assert result.exit_code == 2, result.output
+    assert expected in result.output and "Traceback" not in result.output
 
 
 def test_failed_run_keeps_previous_output(tmp_path):

@@ -89,7 +89,8 @@ def test_validate_names_the_cell_the_simulation_would_refuse(low_axle_fleet):
     for command in ("validate", "run"):
         result = CliRunner().invoke(cli, [command, str(low_axle_fleet)])
         assert result.exit_code == 1 and "Traceback" not in result.stderr
-        assert result.stderr.startswith(f"Error: {low_axle_fleet}: 1 problem")
+        # CONTRACT.md: the first line names the file, sheet, cell and value (issue 9)
+        assert result.stderr.startswith(f"Error: {low_axle_fleet}: Vehicles!{letter}2 gear_efficiency:")
         line = next(t for t in result.stderr.splitlines() if "gear_efficiency" in t)
         assert f"Vehicles!{letter}2 gear_efficiency:" in line and "'abc'" in line
         lines.append(line)

@@ -93,7 +93,8 @@ def test_every_problem_reported_at_once_with_cell_and_value(tmp_path):
                                                                           cycle_mix="UDDS:0.5")])
     problems = problems_of(path)
     assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number" in problems
-    assert "Vehicles!E3 count: -3 must be at least 0" in problems
+    assert any(p.startswith("Vehicles!E3 count: -3 must be at least 0 (the range of count is 0 to ")
+               for p in problems)
     assert "Vehicles!G3 fuel: 'kerosene' is not one of gasoline, diesel, electric" in problems
     assert any(p.startswith("Vehicles!A4 vehicle_id: 'A' is used again (first in row 2)") for p in problems)
     assert any(p.startswith("Vehicles!D5 configuration: 'LD_FWD' does not fit duty_class HD") for p in problems)
@@ -111,9 +112,12 @@ def test_cli_validate_one_error_message_first_line_counts(tmp_path):
     assert result.stderr.startswith("Error: ")
     assert result.stderr.count("Error:") == 1
     first, *lines = result.stderr.strip().splitlines()
-    assert "2 problems" in first and "bad.xlsx" in first
-    assert lines == ["  Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number",
-                     "  Vehicles!E3 count: -1 must be at least 0"]
+    # CONTRACT.md: the first line names the file, sheet, cell and value; the others follow
+    assert first == f"Error: {path}: Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number"
+    assert lines == ["  Vehicles!E3 count: -1 must be at least 0 (the range of count is 0 to "
+                     "100,000,000; check the units)",
+                     "2 problems in the fleet workbook; fix them and check again with "
+                     "`fleetrun validate bad.xlsx`"]
     assert "Traceback" not in result.output + result.stderr
 
 
@@ -129,13 +133,13 @@ def test_cli_validate_ok_and_warnings(tmp_path):
 
 def test_plausibility_warnings_not_errors(tmp_path):
     path = write_fleet(tmp_path / "p.xlsx", [vehicle(test_weight_kg=30000, annual_miles=0, count=2.5)],
-                       [scenario(ambient_temp_C=70, state_tax_gasoline_usd_per_gal=4.5)])
+                       [scenario(ambient_temp_C=55, state_tax_gasoline_usd_per_gal=4.5)])
     fleet = read_fleet(path)
     text = "\n".join(fleet.warnings)
     assert "Vehicles!L2 test_weight_kg: 30000 is unusual for a LD vehicle" in text
     assert "Vehicles!F2 annual_miles: 0 miles" in text
     assert "Vehicles!E2 count: 2.5 vehicles is not a whole number" in text
-    assert "Scenarios!C2 ambient_temp_C: 70 is unusual" in text
+    assert "Scenarios!C2 ambient_temp_C: 55 is unusual" in text
     assert "Scenarios!G2 state_tax_gasoline_usd_per_gal: 4.5 is unusual" in text
 
 

@@ -14,30 +14,33 @@ DEFAULT_SPEEDS_RPM = "0,1000,2000,3000,4000"        # thesis Table 6.2
 
 
 def parse_number_list(text: str, option: str) -> list[float]:
-    """``"0,0.25,0.5"`` -> [0.0, 0.25, 0.5]; an InputError names the item that does not parse."""
+    """``"0,0.25,0.5"`` -> [0.0, 0.25, 0.5]; a usage error (exit 2) names the item that does
+    not parse."""
     items = [s.strip() for s in str(text).split(",")]
     if not any(items):
-        raise InputError(f"{option}: empty list", hint=f"Give comma-separated numbers, e.g. {option} 0,0.5,1")
+        raise click.BadParameter(f"empty list; give comma-separated numbers, e.g. {option} 0,0.5,1",
+                                 param_hint=option)
     values = []
     for i, item in enumerate(items, start=1):
         try:
             value = float(item)
         except ValueError:
-            raise InputError(f"{option}: item {i} '{item}' is not a number",
-                             hint=f"Give comma-separated numbers, e.g. {option} 0,0.5,1") from None
+            raise click.BadParameter(f"item {i} '{item}' is not a number; give comma-separated "
+                                     f"numbers, e.g. {option} 0,0.5,1", param_hint=option) from None
         if not np.isfinite(value):
-            raise InputError(f"{option}: item {i} '{item}' is not a finite number")
+            raise click.BadParameter(f"item {i} '{item}' is not a finite number", param_hint=option)
         values.append(value)
     return values
 
 
 def parse_number(text: str, option: str) -> float:
+    """A finite number from the command line; anything else is a usage error (exit 2)."""
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise InputError(f"{option}: '{text}' is not a number") from None
+        raise click.BadParameter(f"'{text}' is not a number", param_hint=option) from None
     if not np.isfinite(value):
-        raise InputError(f"{option}: '{text}' is not a finite number")
+        raise click.BadParameter(f"'{text}' is not a finite number", param_hint=option)
     return value
 
 

@@ -42,7 +42,7 @@ from fleetrun.fleet.engines import ENGINES
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
 @click.option("--replace", is_flag=True,
               help="Replace the run already in the output folder instead of keeping it in earlier-runs/.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar or log lines on stderr.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar, log lines or summary on stdout or stderr (errors still go to stderr).")
 @click.pass_context
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, replace, quiet):

@@ -76,6 +76,47 @@ def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path
             return tomllib.load(fh), meta_path
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not a valid TOML file ({exc})", file=meta_path) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"is not UTF-8 text (byte {exc.object[exc.start]:#04x} at position {exc.start})",
+                         file=meta_path, hint="Save the sidecar as UTF-8") from None
+
+
+def check_sidecar_numbers(sidecar: dict, meta_path: Path) -> None:
+    """Every differential-level sidecar value within the range its Vehicles/Scenarios column
+    has (fleetrun.fleet.schema.SIDECAR_COLUMNS); InputError naming the file and key."""
+    from fleetrun.fleet.cells import CellProblem
+    from fleetrun.fleet.rows import parse_value
+    from fleetrun.fleet.schema import SIDECAR_COLUMNS
+
+    for column in SIDECAR_COLUMNS:
+        value = sidecar.get(column.name)
+        if value is None:
+            continue
+        try:
+            sidecar[column.name] = parse_value(column, value)
+        except CellProblem as problem:
+            raise InputError(str(problem), file=meta_path, column=column.name, value=value) from None
+        if column.kind == "ratios":
+            sidecar[column.name] = max(sidecar[column.name])
+
+
+MAX_HEADER_CHARS = 65_536
+
+
+def _check_header(path: Path) -> None:
+    """Refuse a header line longer than MAX_HEADER_CHARS before pandas reads it."""
+    with open(path, "rb") as handle:
+        head = handle.readline(MAX_HEADER_CHARS + 1)
+    if len(head) > MAX_HEADER_CHARS and not head.endswith(b"\n"):
+        raise InputError(f"the header line is longer than {MAX_HEADER_CHARS:,} characters "
+                         f"(it starts {head[:60].decode('utf-8', 'replace')!r}...)", file=path,
+                         hint="A recording's header names its columns (CONTRACT.md, Recordings)")
+
+
+def _shown(columns, limit: int = 20) -> str:
+    """Column names for a message: each cut to 60 characters, at most ``limit`` of them."""
+    names = [c if len(c) <= 60 else c[:57] + "..." for c in columns[:limit]]
+    return ", ".join(names) + (f" and {len(columns) - limit} more" if len(columns) > limit else "")
 
 
 def _check_units(path: Path, columns) -> None:
@@ -96,7 +137,7 @@ def _level(path: Path, columns) -> str:
     if cols & set(VEHICLE_SPEEDS) or cols & set(FUEL_RATES):
         return "vehicle"
     raise InputError("cannot tell the recording level from its columns "
-                     f"({', '.join(columns)})", file=path,
+                     f"({_shown(columns)})", file=path,
                      hint="A differential-level recording needs time_s, diff_input_torque_Nm, "
                           "diff_input_speed_rpm and diff_output_torque_Nm; a vehicle-level one "
                           "needs time_s, a vehicle_speed_* and a fuel_rate_* column")
@@ -108,7 +149,7 @@ def _require(path, columns, needed, level):
         raise InputError(f"missing column{'s' if len(missing) > 1 else ''} "
                          f"{', '.join(missing)} for a {level}-level recording",
                          file=path, column=missing[0],
-                         hint=f"Columns present: {', '.join(columns)}")
+                         hint=f"Columns present: {_shown(columns)}")
 
 
 def _check_numbers(path: Path, df: pd.DataFrame, columns) -> None:
@@ -181,6 +222,7 @@ def _differential_columns(path, columns, sidecar, meta_path, notes) -> list[str]
     if missing_meta:
         raise InputError(f"sidecar lacks {', '.join(missing_meta)}", file=meta_path,
                          hint="Differential-level sidecar keys: " + ", ".join(DIFF_META_REQUIRED))
+    check_sidecar_numbers(sidecar, meta_path)
     for k in ("gear_ratio", "peak_engine_torque_Nm", "torque_converter_ratio",
               "max_transmission_gear_ratio"):
         v = sidecar[k]
@@ -251,6 +293,7 @@ def load_recording(path, meta=None) -> Recording:
     path = Path(path)
     if not path.is_file():
         raise InputError("recording not found", file=path, hint="Give the path of a CSV file")
+    _check_header(path)
     try:
         df = pd.read_csv(path, dtype=str, skipinitialspace=True)
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
@@ -260,7 +303,7 @@ def load_recording(path, meta=None) -> Recording:
     _check_units(path, columns)
     if "time_s" not in columns:
         raise InputError("missing column time_s", file=path, column="time_s",
-                         hint=f"Columns present: {', '.join(columns)}")
+                         hint=f"Columns present: {_shown(columns)}")
     level = _level(path, columns)
     sidecar, meta_path = read_sidecar(path, meta)
     notes = []

@@ -190,13 +190,15 @@ def teardown_logging(handlers) -> None:
 
 def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
     """Read, simulate and write one fleet; raises on failure (nothing written then)."""
-    from fleetrun.fleet.outputs import write_run_outputs
+    from fleetrun.fleet.outputs import refuse_overwriting_inputs, write_run_outputs
     from fleetrun.fleet.runner import CHUNK_SIZE, run_fleet
     from fleetrun.fleet.workbook import read_fleet
 
     started = time.perf_counter()
     fleet = read_fleet(fleet_path)
     read_s = time.perf_counter() - started
+    out_dir = plan.out_dir(fleet_path)
+    refuse_overwriting_inputs(out_dir, [fleet_path, *fleet.input_files()])
     for warning in fleet.warnings:
         log.warning("%s: %s", fleet_path.name, warning)
     log.info("%s: %d vehicle types, %d scenarios; engine %s", fleet_path.name, len(fleet.vehicles),
@@ -208,7 +210,6 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
                        error_model=plan.error_model)
     result.timings_s = {"read": read_s, **result.timings_s}
     written_at = time.perf_counter()
-    out_dir = plan.out_dir(fleet_path)
     earlier = _what_changed(result, out_dir, fleet_path)
     outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
     if earlier is not None and not plan.replace:

@@ -140,6 +140,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
                               cache_dir=cache_dir, simulate=simulate, effects=effect_pairs)
     tasks, positions = plan_tasks(distinct, needed, template, chunk_size)
     per_condition, shortfalls = collect(engine, tasks, positions, conditions, len(distinct), progress)
+    refuse_non_finite(fleet, tasks, positions, per_condition)
     electric_sums(distinct, needed, per_condition)
     simulated = time.perf_counter()
     per_condition = {cond: {name: values[owner] for name, values in arrays.items()}
@@ -172,6 +173,29 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
         effects=[{"effect": e.id, "level": e.level, "parameters": dict(p)} for e, p in as_effect_list(effect_pairs)],
     )
+
+
+def refuse_non_finite(fleet: Fleet, tasks, positions, per_condition) -> None:
+    """DomainError naming the Vehicles row of the first simulated vehicle whose cycle sums are
+    not finite numbers (or whose miles are not positive): no inf or NaN reaches an output."""
+    from fleetrun.errors import DomainError
+
+    for index, task in enumerate(tasks):
+        for cycle, members in task.cycles:
+            arrays = per_condition[(cycle, task.ambient_temp_C)]
+            where = positions[index][list(members)]
+            for name in RESULT_FIELDS:
+                values = arrays[name][where]
+                bad = ~np.isfinite(values) | ((values <= 0) if name == "miles" else False)
+                if bad.any():
+                    vehicle = task.vehicles[members[int(np.flatnonzero(bad)[0])]]
+                    row = fleet.vehicle_rows.get(vehicle.vehicle_id)
+                    where_text = f"Vehicles!row {row}" if row else "Vehicles"
+                    raise DomainError(f"{where_text} vehicle_id {vehicle.vehicle_id!r}: the simulation over "
+                                      f"{_cycle_label(cycle)} at {task.ambient_temp_C:g} C gives {name} = "
+                                      f"{float(values[bad][0])!r}, not a usable number", file=fleet.path,
+                                      hint="Check this vehicle's engine and gearing values (units?); "
+                                           "`fleetrun simulate` shows the trace")
 
 
 def needed_conditions(scenarios) -> dict[tuple[str, float], set[str]]:

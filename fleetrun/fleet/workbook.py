@@ -12,7 +12,6 @@ Refused: merged cells in the data, formulas whose result was never saved, duplic
 from __future__ import annotations
 
 import hashlib
-import math
 import re
 import zipfile
 from dataclasses import dataclass, field
@@ -22,15 +21,15 @@ from pathlib import Path
 from openpyxl.utils import column_index_from_string, get_column_letter
 
 from fleetrun.errors import InputError
-from fleetrun.fleet import cells
+from fleetrun.fleet import cells, rows
 from fleetrun.fleet.cells import CellProblem
-from fleetrun.fleet.schema import (DUAL_CONFIGURATIONS, EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO, PLAUSIBLE_VEHICLE,
+from fleetrun.fleet.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
                                    SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.vehicle import VehicleSpec
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
-MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 are normalised (with a warning)
+MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 (0.99) are normalised (with a warning)
 MIX_COLUMNS = ("cycle_mix", "cycle_mix_MD", "cycle_mix_HD")
 
 
@@ -91,6 +90,16 @@ class Fleet:
     warnings: list[str] = field(default_factory=list)
     vehicle_rows: dict[str, int] = field(default_factory=dict)    # vehicle_id -> Excel row
     scenario_rows: dict[str, int] = field(default_factory=dict)
+
+    def input_files(self) -> list[Path]:
+        """The files besides the workbook that a run of this fleet reads (cycle CSVs)."""
+        found = {}
+        for s in self.scenarios:
+            for mix in (s.cycle_mix, s.cycle_mix_MD, s.cycle_mix_HD):
+                for name in mix or {}:
+                    if name.lower().endswith(".csv"):
+                        found[name] = Path(name)
+        return list(found.values())
 
     def vehicle(self, vehicle_id: str) -> VehicleSpec:
         for v in self.vehicles:
@@ -160,10 +169,11 @@ def read_fleet(path) -> Fleet:
     from xml.parsers.expat import ExpatError
 
     from fleetrun.fleet.xlsx_reader import ForbiddenXml, XlsxBook, XlsxFormatError
-    from fleetrun.fleet.xlsx_safety import HINT, check_xlsx
+    from fleetrun.fleet.xlsx_safety import HINT, check_xlsx, scan_sheets
 
     path = Path(path)
     check_xlsx(path)
+    scan_sheets(path, (VEHICLES_SHEET, SCENARIOS_SHEET))
     problems = Problems()
     vehicle_table = scenario_table = None
     try:
@@ -198,9 +208,10 @@ def read_fleet(path) -> Fleet:
     if problems.errors:
         errors = problems.sorted_errors()
         noun, pronoun = ("problem", "it") if len(errors) == 1 else ("problems", "them")
-        head = (f"{path}: {len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again "
-                f"with `fleetrun validate {path.name}`:")
-        error = InputError("\n".join([head] + ["  " + e for e in errors]))
+        # CONTRACT.md: the first line names file, sheet, cell and value; the others follow
+        tail = (f"{len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again with "
+                f"`fleetrun validate {path.name}`")
+        error = InputError("\n".join([f"{path}: {errors[0]}"] + ["  " + e for e in errors[1:]] + [tail]))
         error.problems = errors
         error.warnings = problems.sorted_warnings()
         raise error
@@ -326,34 +337,12 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             parsed[column.name] = None
             continue
         try:
-            if column.kind == "number" and type(raw) in (int, float) and math.isfinite(raw):
-                value = float(raw)               # the common case, without the general parser
-            elif type(raw) is str:
-                value = _parse_text_cell(column, raw)
-            else:
-                value = _parse_cell(column, raw)
+            value = rows.parse_value(column, raw)
         except CellProblem as problem:
             problems.error(str(problem), table.sheet, row_number, index, column.name)
             ok = False
             parsed[column.name] = None
             continue
-        if isinstance(value, float):
-            if column.strictly_positive and value <= 0:
-                problems.error(f"{cells.show(raw)} must be greater than 0", table.sheet, row_number,
-                               index, column.name)
-                ok = False
-            elif column.minimum is not None and value < column.minimum:
-                problems.error(f"{cells.show(raw)} must be at least {cells.show(float(column.minimum))}",
-                               table.sheet, row_number, index, column.name)
-                ok = False
-            elif column.maximum is not None and value > column.maximum:
-                problems.error(f"{cells.show(raw)} must be at most {cells.show(float(column.maximum))}",
-                               table.sheet, row_number, index, column.name)
-                ok = False
-        if column.kind == "integer" and column.strictly_positive and value <= 0:
-            problems.error(f"{cells.show(raw)} must be at least 1", table.sheet, row_number, index,
-                           column.name)
-            ok = False
         parsed[column.name] = value
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
     parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
@@ -365,42 +354,6 @@ def _text_or_blank(raw) -> str:
         return "" if cells.is_blank(raw) else cells.parse_text(raw)
     except CellProblem:
         return ""
-
-
-@lru_cache(maxsize=65536)
-def _parse_text_cell(column: Column, raw: str):
-    """_parse_cell for text cells: ids differ, but choices, ratios and tyres repeat a lot."""
-    return _parse_cell(column, raw)
-
-
-def _parse_cell(column: Column, raw):
-    if column.kind == "number":
-        return cells.parse_number(raw)
-    if column.kind == "integer":
-        return cells.parse_integer(raw)
-    if column.kind == "choice":
-        if column.name == "configuration":
-            return _canonical_configuration(raw)
-        return cells.parse_choice(raw, column.choices)
-    if column.kind == "ratios":
-        return cells.parse_ratios(raw)
-    if column.kind == "cycle_mix":
-        return cells.parse_cycle_mix(raw)
-    if column.kind == "onroad":
-        return cells.parse_onroad(raw)
-    if column.name == "tire_size":
-        return cells.parse_tire_size(raw)
-    return cells.parse_text(raw)
-
-
-def _canonical_configuration(raw) -> str:
-    from fleetrun.differential import canonical_configuration
-
-    text = cells.parse_text(raw)
-    try:
-        return canonical_configuration(text)
-    except InputError as exc:
-        raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
 
 
 def _warn_example(parsed: dict, key: str, table: "_Table", row_number: int, problems: Problems) -> None:
@@ -429,21 +382,29 @@ def _first_use(parsed: dict, key: str, rows: dict, table: "_Table", row_number: 
 
 def _vehicles(table: _Table, problems: Problems):
     vehicles: list[VehicleSpec] = []
-    rows: dict[str, int] = {}
+    first_rows: dict[str, int] = {}
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, VEHICLE_COLUMNS, row_number, values, problems)
-        ok = _first_use(parsed, "vehicle_id", rows, table, row_number, problems) and ok
+        ok = _first_use(parsed, "vehicle_id", first_rows, table, row_number, problems) and ok
         _warn_example(parsed, "vehicle_id", table, row_number, problems)
-        ok = _vehicle_consistent(parsed, table, row_number, problems) and ok
-        _vehicle_plausible(parsed, table, row_number, problems)
-        if not ok:
-            continue
-        spec_fields = {c.name: parsed[c.name] for c in VEHICLE_COLUMNS}
-        vehicles.append(VehicleSpec(**spec_fields, extra=parsed["_extra"]))
-    return vehicles, rows
+        ok = rows.check_vehicle(parsed, _reporter(table, row_number, problems)) and ok
+        if ok:
+            vehicles.append(rows.vehicle_spec(parsed, parsed["_extra"]))
+    return vehicles, first_rows
 
 
-def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], rows: dict[str, int], problems: Problems):
+def _reporter(table: _Table, row: int, problems: Problems):
+    """rows.Report for one row of ``table``: a column name -> its cell."""
+    def report(name: str, text: str, warning: bool = False):
+        col = table.columns.get(name)
+        if col is None and name == "low_gear_ratio":
+            col = table.columns.get("configuration")
+        (problems.warn if warning else problems.error)(text, table.sheet, row, col, name)
+    return report
+
+
+def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], first_rows: dict[str, int],
+                       problems: Problems):
     """What the simulation would refuse in rows that passed the cell checks
     (:func:`fleetrun.simulation.params.refused_vehicles`), as problems at the row and column:
     `validate` catches what `run` would refuse."""
@@ -454,58 +415,8 @@ def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], rows: dict[st
         index = (table.columns.get(column) or table.extra_columns.get(column)) if column else None
         value = "" if exc.value is None else f" (value {cells.show(exc.value)})"
         hint = f"; {exc.hint}" if exc.hint else ""
-        problems.error(f"{exc.message}{value}{hint}", table.sheet, rows[vehicles[i].vehicle_id], index,
+        problems.error(f"{exc.message}{value}{hint}", table.sheet, first_rows[vehicles[i].vehicle_id], index,
                        column if index else None)
-
-
-def _vehicle_consistent(p: dict, table: _Table, row: int, problems: Problems) -> bool:
-    sheet, col = table.sheet, table.columns.get
-    ok = True
-    config, duty = p["configuration"], p["duty_class"]
-    if config is None:
-        return ok
-    if duty is not None and config.startswith("LD_") != (duty == "LD"):
-        problems.error(f"'{config}' does not fit duty_class {duty} (LD vehicles use LD_* "
-                       "configurations, MD and HD vehicles HD_*)", sheet, row, col("configuration"),
-                       "configuration")
-        ok = False
-    if config in DUAL_CONFIGURATIONS and p["low_gear_ratio"] is None:
-        problems.error(f"is empty, but {config} (a two-speed axle) needs its low ratio", sheet, row,
-                       col("low_gear_ratio") or col("configuration"), "low_gear_ratio")
-        ok = False
-    if config not in DUAL_CONFIGURATIONS and p["low_gear_ratio"] is not None:
-        problems.warn(f"ignored: {config} has no two-speed axle", sheet, row, col("low_gear_ratio"),
-                      "low_gear_ratio")
-        p["low_gear_ratio"] = None
-    ratios = p["transmission_gear_ratios"] or ()
-    if any(later > earlier for earlier, later in zip(ratios, ratios[1:])):
-        problems.warn(f"{', '.join(f'{r:g}' for r in ratios)} is not in falling order "
-                      "(first gear first?)", sheet, row, col("transmission_gear_ratios"),
-                      "transmission_gear_ratios")
-    return ok
-
-
-def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> None:
-    duty = p["duty_class"]
-    if duty is None:
-        return
-    for name, ranges in PLAUSIBLE_VEHICLE.items():
-        if name == "final_drive_ratio" and p["fuel"] == "electric":
-            continue   # an electric drive's single reduction (7-10:1) is its final drive
-        low, high = ranges[duty]
-        value = p[name]
-        if value is not None and not (low <= value <= high):
-            problems.warn(f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to {high:g}); "
-                          "check the units", table.sheet, row, table.columns.get(name), name)
-    if p["count"] is not None and p["count"] != int(p["count"]):
-        problems.warn(f"{p['count']:g} vehicles is not a whole number; totals use it as given",
-                      table.sheet, row, table.columns.get("count"), "count")
-    if p["count"] is not None and p["count"] == 0:
-        problems.warn("0 vehicles: this row adds nothing", table.sheet, row,
-                      table.columns.get("count"), "count")
-    if p["annual_miles"] is not None and p["annual_miles"] == 0:
-        problems.warn("0 miles: this row adds nothing", table.sheet, row,
-                      table.columns.get("annual_miles"), "annual_miles")
 
 
 # --- Scenarios ----------------------------------------------------------------------------
@@ -513,11 +424,11 @@ def _vehicle_plausible(p: dict, table: _Table, row: int, problems: Problems) -> 
 def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
     sheet, col = table.sheet, table.columns.get
     scenarios: list[Scenario] = []
-    rows: dict[str, int] = {}
+    first_rows: dict[str, int] = {}
     known_cycles = _shipped_cycle_names()
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
-        ok = _first_use(parsed, "scenario_id", rows, table, row_number, problems) and ok
+        ok = _first_use(parsed, "scenario_id", first_rows, table, row_number, problems) and ok
         _warn_example(parsed, "scenario_id", table, row_number, problems)
         mixes = {}
         for name in MIX_COLUMNS:
@@ -544,7 +455,7 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
             continue
         fields.update(mixes)
         scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
-    return scenarios, rows
+    return scenarios, first_rows
 
 
 def _budget_fields(fields: dict, table: _Table, row: int, problems: Problems) -> bool:
@@ -576,6 +487,11 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
                                index, column)
                 ok = False
                 continue
+            problem = _cycle_file_problem(candidate)
+            if problem:
+                problems.error(f"cycle file '{name}': {problem}", sheet, row, index, column)
+                ok = False
+                continue
             resolved[str(candidate.resolve())] = share
         elif known is not None:
             match = {k.upper(): k for k in known}.get(name.upper())
@@ -594,7 +510,7 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
     if not ok:
         return None
     total = sum(resolved.values())
-    if abs(total - 1.0) > MIX_SUM_TOLERANCE:
+    if abs(total - 1.0) > MIX_SUM_TOLERANCE + 1e-9:   # 0.33 x 3 sums to 0.99 + 1e-17
         problems.error(f"shares add up to {total:g}, not 1 (they are shares of the annual miles)",
                        sheet, row, index, column)
         return None
@@ -603,6 +519,23 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
             problems.warn(f"shares add up to {total:g}; scaled to 1", sheet, row, index, column)
         resolved = {k: v / total for k, v in resolved.items()}
     return resolved
+
+
+def _cycle_file_problem(path: Path) -> str | None:
+    """Why a drive-cycle CSV cannot be driven (what ``run`` would refuse), or None."""
+    stat = path.stat()
+    return _cycle_problem(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@lru_cache(maxsize=256)
+def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
+    from fleetrun.cycles import load_cycle
+
+    try:
+        load_cycle(Path(path))
+    except InputError as exc:
+        return exc.message
+    return None
 
 
 def _shipped_cycle_names() -> list[str]:

@@ -1,19 +1,29 @@
 """Open an untrusted .xlsx file safely.
 
-A workbook comes from whoever emailed it. Before openpyxl parses anything we check that the
-file is a zip with the parts of an Office Open XML workbook, that it cannot decompress into
-gigabytes (a zip bomb), and that no XML part declares a DTD (entity-expansion tricks such as
-"billion laughs" or external entities). openpyxl then parses with defusedxml as a second line
-of defence.
+A workbook comes from whoever emailed it. Before any reader parses it we check that the path
+is a regular file of bounded size (``/dev/zero`` is not), that it is a zip with the parts of an
+Office Open XML workbook, that it cannot decompress into gigabytes (a zip bomb), that no XML
+part declares a DTD (entity-expansion tricks such as "billion laughs" or external entities),
+and (:func:`scan_sheets`) that the sheets read span a bounded number of cells: a reader that
+builds a dense table allocates rows x columns of the *used range*, so one cell reference such as
+``ZZZZZZZZZZ2`` or ``XFD1048576`` in an 18 KB file would ask for terabytes.
 """
 from __future__ import annotations
 
+import re
 import zipfile
+from functools import lru_cache
 from pathlib import Path
 
 from fleetrun.errors import InputError
 
+MAX_FILE_BYTES = 500_000_000            # the workbook file itself (a 100,000-row fleet: ~10 MB)
 MAX_TOTAL_UNCOMPRESSED = 1_000_000_000   # 1 GB: a 100,000-row fleet is ~0.1 GB of XML
+EXCEL_MAX_ROWS = 1_048_576               # Excel's own sheet limits (ECMA-376; Excel specifications)
+EXCEL_MAX_COLUMNS = 16_384               # XFD
+MAX_SHEET_CELLS = 12_000_000             # rows x columns of a sheet's used range
+MAX_TAG_BYTES = 64_000_000               # one XML tag or cell text
+SCAN_CHUNK_BYTES = 1 << 22
 MAX_MEMBERS = 10_000
 MAX_RATIO = 200                          # workbook XML compresses ~5-50x; bombs 1000x+
 RATIO_CHECK_MIN_BYTES = 10_000_000       # small parts may compress extremely well; harmless
@@ -31,6 +41,14 @@ def check_xlsx(path: Path) -> None:
         raise InputError("is a folder, not a workbook", file=path, hint="Give the .xlsx file.")
     if path.suffix.lower() == ".xls":
         raise InputError("old-style .xls workbooks are not supported", file=path, hint=HINT)
+    if not path.is_file():
+        raise InputError("is not a regular file (a device, pipe or socket)", file=path,
+                         hint="Give the path of an .xlsx workbook")
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise InputError(f"is {size / 1e6:,.0f} MB; fleetrun reads workbooks up to "
+                         f"{MAX_FILE_BYTES / 1e6:,.0f} MB", file=path,
+                         hint="Split the fleet into smaller workbooks (fleetrun run --config batch.toml runs them together)")
     if path.suffix.lower() in (".xlsm", ".xltm"):
         raise InputError("macro-enabled workbooks are refused", file=path, hint=HINT)
     if not zipfile.is_zipfile(path):
@@ -63,3 +81,148 @@ def check_xlsx(path: Path) -> None:
                                          "to open it (XML entity attack?)", file=path, hint=HINT)
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, NotImplementedError) as exc:
         raise InputError(f"is corrupt ({exc})", file=path, hint=HINT) from None
+
+
+# --- the used range of the sheets read ------------------------------------------------------
+
+_PREFIXED = re.compile(rb"<\w+:(?:c|row)[\s/>]")          # <x:c ...>, <x:row ...>
+# The r attribute of a cell or row. Patterns start with this literal so that the regex engine
+# skims the text (a leading character class made the scan 10x slower); a column reference
+# needs row digits after its letters, so operator="between" and the like never match.
+_REF_HEAD = rb'r="'
+
+
+@lru_cache(maxsize=None)
+def _letters(n: int, exact: bool = False) -> re.Pattern:
+    """A cell reference whose column has ``n`` (or more, unless exact) letters."""
+    return re.compile(_REF_HEAD + rb"([A-Za-z]{%d}%s)[0-9]+\"" % (n, b"" if exact else b"[A-Za-z]*"))
+
+
+@lru_cache(maxsize=None)
+def _digits(n: int, exact: bool = False) -> re.Pattern:
+    """A reference whose row has ``n`` (or more, unless exact) digits (leading zeros aside)."""
+    return re.compile(_REF_HEAD + rb"[A-Za-z]*0*([1-9][0-9]{%d}%s)\"" % (n - 1, b"" if exact else b"[0-9]*"))
+
+
+def _widest(text: bytes, path: Path, sheet: str) -> int:
+    """The largest column index referenced in ``text`` (an upper bound of 26 when every
+    reference has one letter: exact values only where they matter and are cheap)."""
+    found = _letters(4).search(text)
+    if found:
+        _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), "column XFD")
+    for n in (3, 2):
+        letters = set(_letters(n, exact=True).findall(text))
+        if letters:
+            widest = max(column_number(item.decode("ascii")) for item in letters)
+            if widest > EXCEL_MAX_COLUMNS:
+                match = _letters(n).search(text)
+                _beyond(path, sheet, match.group(0)[3:-1].decode("ascii"), "column XFD")
+            return widest
+    return 26
+
+
+def _deepest(text: bytes, path: Path, sheet: str) -> int:
+    """The largest row number referenced in ``text`` (upper bounds 99,999 / 9,999 where no
+    reference has six / five digits)."""
+    found = _digits(8).search(text)
+    if found:
+        _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), f"row {EXCEL_MAX_ROWS:,}")
+    for n in (7, 6):
+        numbers = set(_digits(n, exact=True).findall(text))
+        if numbers:
+            deepest = max(int(item) for item in numbers)
+            if deepest > EXCEL_MAX_ROWS:
+                match = _digits(n).search(text)
+                _beyond(path, sheet, match.group(0)[3:-1].decode("ascii"), f"row {EXCEL_MAX_ROWS:,}")
+            return deepest
+    return 99_999 if _digits(5).search(text) else 9_999
+
+
+def _count_tags(text: bytes) -> tuple[int, int]:
+    """(cells, rows) started in ``text``, counted without building match lists."""
+    cells = sum(text.count(b"<c" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+    rows = sum(text.count(b"<row" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+    if b":c" in text or b":row" in text:
+        prefixed = _PREFIXED.findall(text)
+        cells += sum(1 for tag in prefixed if b":c" in tag)
+        rows += sum(1 for tag in prefixed if b":row" in tag)
+    return cells, rows
+
+
+def column_number(letters: str) -> int:
+    """A column's letters as its 1-based index (A = 1, XFD = 16,384)."""
+    index = 0
+    for ch in letters.upper():
+        index = index * 26 + (ord(ch) - 64)
+    return index
+
+
+def sheet_parts(archive: zipfile.ZipFile) -> dict[str, str]:
+    """Sheet name -> worksheet part, from xl/workbook.xml and its relationships (defusedxml)."""
+    from defusedxml.ElementTree import fromstring
+
+    main = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
+    rel_ns = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
+    book = fromstring(archive.read("xl/workbook.xml"))
+    targets = {}
+    if "xl/_rels/workbook.xml.rels" in archive.namelist():
+        for rel in fromstring(archive.read("xl/_rels/workbook.xml.rels")):
+            target = rel.get("Target", "")
+            targets[rel.get("Id")] = target.lstrip("/") if target.startswith("/") else "xl/" + target
+    parts = {}
+    for sheet in book.iter(main + "sheet"):
+        part = targets.get(sheet.get(rel_ns + "id"))
+        if part:
+            parts[sheet.get("name", "")] = part
+    return parts
+
+
+def scan_sheets(path: Path, names) -> None:
+    """InputError unless each named sheet's cell references lie within Excel's limits and its
+    used range spans at most MAX_SHEET_CELLS cells. Streams the sheet XML in chunks."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            parts = sheet_parts(archive)
+            for name in names:
+                part = parts.get(name)
+                if part and part in archive.namelist():
+                    _scan_part(archive, part, name, path)
+    except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"is corrupt ({type(exc).__name__}: {exc})", file=path, hint=HINT) from None
+
+
+def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> None:
+    max_row = max_col = rows = unreferenced = 0
+    carry = b""
+    with archive.open(part) as stream:
+        while True:
+            block = stream.read(SCAN_CHUNK_BYTES)
+            data = carry + block
+            cut = len(data) if not block else data.rfind(b">") + 1
+            text, carry = data[:cut], data[cut:]
+            if len(carry) > MAX_TAG_BYTES:
+                raise InputError(f"sheet {sheet} has a tag or text longer than {MAX_TAG_BYTES / 1e6:.0f} MB; "
+                                 "refusing to read it", file=path, hint=HINT)
+            max_col = max(max_col, _widest(text, path, sheet))
+            max_row = max(max_row, _deepest(text, path, sheet))
+            cells, found_rows = _count_tags(text)
+            rows += found_rows
+            unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
+            if not block:
+                break
+    # cells without a reference take the next column: bound their reach by their number
+    width = max(max_col, unreferenced)
+    height = max(max_row, rows)
+    if width * height > MAX_SHEET_CELLS:
+        raise InputError(f"sheet {sheet} spans {height:,} rows x {width:,} columns; fleetrun reads at most "
+                         f"{MAX_SHEET_CELLS:,} cells per sheet", file=path,
+                         hint="Delete stray cells far from the table, or split the fleet into smaller "
+                              "workbooks (fleetrun run --config batch.toml runs them together)")
+
+
+def _beyond(path: Path, sheet: str, ref: str, limit: str) -> None:
+    shown = ref if len(ref) <= 20 else ref[:17] + "..."
+    raise InputError(f"{sheet}!{shown}: the cell reference lies beyond Excel's last {limit}; the file "
+                     "is damaged or was not written by a spreadsheet program", file=path, hint=HINT)

@@ -1,0 +1,188 @@
+"""One owner of what a sheet row means: a cell's typed value within its physical range, and the
+rules of a Vehicles row (configuration vs duty class, two-speed axles, plausibility).
+
+The fleet workbook (``workbook.py``), a vehicle TOML (``vehicle_file.py``) and a diagnose
+sidecar all parse through here, so a value means the same wherever it is typed. Problems are
+handed to a ``report(column_name, text, warning=False)`` callback, which the caller turns into
+a cell reference (``Vehicles!H4 peak_engine_torque_Nm: ...``) or a TOML key.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import lru_cache
+
+from fleetrun.errors import InputError
+from fleetrun.fleet import cells
+from fleetrun.fleet.cells import CellProblem
+from fleetrun.fleet.schema import DUAL_CONFIGURATIONS, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
+from fleetrun.vehicle import VehicleSpec
+
+MAX_GEARS = 20
+
+Report = Callable[..., None]     # report(column_name, text, warning=False)
+
+
+def parse_value(column: Column, raw):
+    """The typed value of a non-blank cell of ``column``, inside the column's physical range;
+    CellProblem (quoting the value) otherwise."""
+    if type(raw) is str:
+        return _parse_text_cached(column, raw)
+    if column.kind == "number" and type(raw) in (int, float):
+        value = cells.parse_number(raw)
+    else:
+        value = _parse(column, raw)
+    check_range(column, value, raw)
+    return value
+
+
+@lru_cache(maxsize=65536)
+def _parse_text_cached(column: Column, raw: str):
+    """Text cells: ids differ, but choices, ratios and tyres repeat a lot."""
+    value = _parse(column, raw)
+    check_range(column, value, raw)
+    return value
+
+
+def _parse(column: Column, raw):
+    kind = column.kind
+    if kind == "number":
+        return cells.parse_number(raw)
+    if kind == "integer":
+        return cells.parse_integer(raw)
+    if kind == "choice":
+        if column.name == "configuration":
+            return _canonical_configuration(raw)
+        return cells.parse_choice(raw, column.choices)
+    if kind == "ratios":
+        ratios = cells.parse_ratios(raw)
+        if len(ratios) > MAX_GEARS:
+            raise CellProblem(f"{cells.show(raw)} lists {len(ratios)} gears; at most {MAX_GEARS}")
+        return ratios
+    if kind == "cycle_mix":
+        return cells.parse_cycle_mix(raw)
+    if kind == "onroad":
+        return cells.parse_onroad(raw)
+    if column.name == "tire_size":
+        return cells.parse_tire_size(raw)
+    if column.name == "lubricant":
+        return _lubricant(raw)
+    return cells.parse_text(raw)
+
+
+def _lubricant(raw) -> str:
+    from fleetrun.physics.lubricant import lubricant_names
+
+    text = cells.parse_text(raw)
+    known = lubricant_names()
+    if text.upper() not in known:
+        from fleetrun.errors import closest_names
+
+        near = closest_names(text, known)
+        guess = f" (did you mean {near[0]}?)" if near else ""
+        raise CellProblem(f"{cells.show(raw)} is not a lubricant fleetrun knows{guess}; known: "
+                          f"{', '.join(known)} (models/lubricants.toml)")
+    return text
+
+
+def check_range(column: Column, value, raw) -> None:
+    """CellProblem if a number of ``value`` (each ratio of a list) lies outside the column's
+    physical range (schema.py)."""
+    if not column.numeric or isinstance(value, str):
+        return
+    for number in (value if isinstance(value, tuple) else (value,)):
+        problem = _out_of_range(column, number)
+        if problem:
+            shown = cells.show(raw) if number == value else f"{cells.show(raw)}: {number:g}"
+            raise CellProblem(f"{shown} {problem} (the range of {column.name} is "
+                              f"{column.range_text()}; check the units)")
+
+
+def _out_of_range(column: Column, number: float) -> str | None:
+    if column.strictly_positive and number <= 0:
+        return "must be greater than 0"
+    if column.minimum is not None and number < column.minimum:
+        return f"must be at least {column.minimum:g}"
+    if column.maximum is not None and number > column.maximum:
+        return f"must be at most {column.maximum:g}"
+    return None
+
+
+def _canonical_configuration(raw) -> str:
+    from fleetrun.differential import canonical_configuration
+
+    text = cells.parse_text(raw)
+    try:
+        return canonical_configuration(text)
+    except InputError as exc:
+        raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
+
+
+def parse_fields(columns, raw_of: Callable[[Column], object], report: Report) -> tuple[dict, bool]:
+    """Every column's typed value (None when blank or bad) and whether all were good.
+    ``raw_of(column)`` gives the raw cell (None when the column is absent)."""
+    parsed: dict = {}
+    ok = True
+    for column in columns:
+        raw = raw_of(column)
+        if raw is None or cells.is_blank(raw):
+            if column.required:
+                report(column.name, "is empty (required)")
+                ok = False
+            parsed[column.name] = None
+            continue
+        try:
+            parsed[column.name] = parse_value(column, raw)
+        except CellProblem as problem:
+            report(column.name, str(problem))
+            parsed[column.name] = None
+            ok = False
+    return parsed, ok
+
+
+def check_vehicle(p: dict, report: Report) -> bool:
+    """The rules across a Vehicles row's cells; warnings for implausible values. May clear
+    ``low_gear_ratio`` (ignored on a one-speed axle). Returns whether the row is usable."""
+    ok = True
+    config, duty = p.get("configuration"), p.get("duty_class")
+    if config is not None:
+        if duty is not None and config.startswith("LD_") != (duty == "LD"):
+            report("configuration", f"'{config}' does not fit duty_class {duty} (LD vehicles use LD_* "
+                   "configurations, MD and HD vehicles HD_*)")
+            ok = False
+        if config in DUAL_CONFIGURATIONS and p.get("low_gear_ratio") is None:
+            report("low_gear_ratio", f"is empty, but {config} (a two-speed axle) needs its low ratio")
+            ok = False
+        if config not in DUAL_CONFIGURATIONS and p.get("low_gear_ratio") is not None:
+            report("low_gear_ratio", f"ignored: {config} has no two-speed axle", warning=True)
+            p["low_gear_ratio"] = None
+    ratios = p.get("transmission_gear_ratios") or ()
+    if any(later > earlier for earlier, later in zip(ratios, ratios[1:])):
+        report("transmission_gear_ratios", f"{', '.join(f'{r:g}' for r in ratios)} is not in falling "
+               "order (first gear first?)", warning=True)
+    _vehicle_plausible(p, report)
+    return ok
+
+
+def _vehicle_plausible(p: dict, report: Report) -> None:
+    duty = p.get("duty_class")
+    if duty is not None:
+        for name, ranges in PLAUSIBLE_VEHICLE.items():
+            if name == "final_drive_ratio" and p.get("fuel") == "electric":
+                continue   # an electric drive's single reduction (7-10:1) is its final drive
+            low, high = ranges[duty]
+            value = p.get(name)
+            if value is not None and not (low <= value <= high):
+                report(name, f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to "
+                       f"{high:g}); check the units", warning=True)
+    count, miles = p.get("count"), p.get("annual_miles")
+    if count is not None and count != int(count):
+        report("count", f"{count:g} vehicles is not a whole number; totals use it as given", warning=True)
+    if count == 0:
+        report("count", "0 vehicles: this row adds nothing", warning=True)
+    if miles == 0:
+        report("annual_miles", "0 miles: this row adds nothing", warning=True)
+
+
+def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:
+    """The VehicleSpec of a checked row (``parsed`` keyed by Vehicles column)."""
+    return VehicleSpec(**{c.name: parsed.get(c.name) for c in VEHICLE_COLUMNS}, extra=extra)

@@ -1,0 +1,195 @@
+"""An output folder that changes as one step: build a new folder, then swap it in.
+
+A run's outputs (``report.xlsx``, ``results.csv``, ``manifest.json``, ...) must change together
+or not at all: a reader, or a crash, must never meet a new manifest beside old results. So the
+outputs are written into a staging folder beside the target, and only when every file is
+complete is the staging folder swapped in for the target::
+
+    with new_output_folder(out, replaces=OUTPUT_FILES) as staging:
+        write everything into staging
+    # here out holds the new outputs (and every other file the old out held)
+
+The swap is two renames in the target's parent: ``out -> .out-old-<pid>-<token>``, then
+``staging -> out``; the old folder is removed afterwards. Files of the old folder that the new
+run does not write (an input workbook, the user's notes) are carried into the new folder first
+as hard links (copies where the file system has none), so the swap loses nothing.
+
+Crashes: a process killed while writing leaves ``.out-staging-<pid>-<token>``; one killed
+between the two renames leaves ``.out-old-...`` and no ``out``. The next run into the same
+folder removes stale staging folders and puts a stranded old folder back first
+(:func:`clean_leftovers`); folders of a process that is still running are left alone.
+
+Failures (a file of the old folder open in another program, which on Windows locks it; no
+permission; disk full) raise :class:`~fleetrun.errors.InputError` naming the path, with the
+previous folder unchanged.
+"""
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import secrets
+import shutil
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from fleetrun.errors import InputError
+
+STAGING = "staging"
+OLD = "old"
+STALE_AFTER_S = 24 * 3600     # where a process cannot be asked whether it runs (Windows)
+
+
+def _sibling(target: Path, kind: str) -> Path:
+    return target.parent / f".{target.name}-{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
+def _owner_alive(entry: Path) -> bool:
+    """Whether the process that made ``.out-<kind>-<pid>-<token>`` may still be using it."""
+    parts = entry.name.rsplit("-", 2)
+    pid = int(parts[1]) if len(parts) == 3 and parts[1].isdigit() else None
+    if pid is None:          # a name without a pid (older fleetrun): nobody owns it
+        return False
+    if pid == os.getpid():
+        return True
+    if os.name == "nt":      # os.kill(pid, 0) would terminate the process on Windows
+        return time.time() - entry.stat().st_mtime < STALE_AFTER_S
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, another user's
+        return True
+    return True
+
+
+def clean_leftovers(target: Path) -> list[Path]:
+    """Remove staging folders that killed runs left beside ``target``; if a run was killed
+    between its two renames (no ``target``, an old folder aside), put the old folder back.
+    Returns what was removed or restored."""
+    target = Path(target)
+    parent = target.parent
+    if not parent.is_dir():
+        return []
+    handled: list[Path] = []
+    prefix = f".{target.name}-"
+    entries = sorted(e for e in parent.iterdir() if e.name.startswith(prefix) and e.is_dir()
+                     and e.name[len(prefix):].split("-", 1)[0] in (STAGING, OLD))
+    for entry in entries:
+        if _owner_alive(entry):
+            continue
+        kind = entry.name[len(prefix):].split("-", 1)[0]
+        if kind == OLD and not target.exists():
+            os.rename(entry, target)
+        else:
+            shutil.rmtree(entry, ignore_errors=True)
+        handled.append(entry)
+    return handled
+
+
+def _carry_over(old: Path, new: Path, replaced: set[str]) -> None:
+    """Hard-link (or copy) every entry of ``old`` that ``new`` does not have and the run does
+    not replace into ``new``."""
+    for entry in old.iterdir():
+        if entry.name in replaced or (new / entry.name).exists():
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.copytree(entry, new / entry.name, symlinks=True, copy_function=_link_or_copy)
+        else:
+            _link_or_copy(entry, new / entry.name)
+
+
+def _link_or_copy(source, target) -> None:
+    if os.path.islink(source):
+        os.symlink(os.readlink(source), target)
+        return
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copy2(source, target)
+
+
+def _folder_mode(target: Path) -> int:
+    if target.is_dir():
+        return target.stat().st_mode & 0o7777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o777 & ~umask
+
+
+def _error(target: Path, doing: str, exc: OSError) -> InputError:
+    reason = exc.strerror or str(exc)
+    hint = "Choose an output folder you can write to"
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EBUSY):
+        hint = ("A file in it may be open in another program (Excel locks open files on Windows) "
+                "or the folder is not writable: close it, or choose another output folder")
+    elif exc.errno == errno.ENOSPC:
+        hint = "Free some space or choose an output folder on another disk"
+    return InputError(f"{target}: {doing} ({reason}); the previous outputs there are unchanged",
+                      hint=hint)
+
+
+def _resolve_target(target: Path) -> Path:
+    target = Path(target)
+    if target.is_symlink():
+        target = target.resolve()
+    if target.exists() and not target.is_dir():
+        raise InputError(f"{target}: exists and is not a folder", hint="Choose another output folder")
+    return target
+
+
+def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
+    """Make the complete folder ``staging`` the new ``target`` in one step (see the module doc).
+
+    Entries of the old ``target`` that ``staging`` lacks and whose names are not in
+    ``replaces`` are carried over; those in ``replaces`` disappear with the old folder.
+    """
+    staging, target = Path(staging), _resolve_target(target)
+    try:
+        os.chmod(staging, _folder_mode(target))
+        if target.exists():
+            _carry_over(target, staging, set(replaces))
+    except OSError as exc:
+        raise _error(target, "cannot prepare the new output folder", exc) from None
+    old = _sibling(target, OLD)
+    had_old = target.exists()
+    try:
+        if had_old:
+            os.rename(target, old)
+    except OSError as exc:
+        raise _error(target, "cannot replace the output folder", exc) from None
+    try:
+        os.rename(staging, target)
+    except OSError as exc:
+        if had_old:
+            os.rename(old, target)
+        raise _error(target, "cannot replace the output folder", exc) from None
+    if had_old:
+        shutil.rmtree(old, ignore_errors=True)   # a locked leftover: the next run removes it
+
+
+@contextlib.contextmanager
+def new_output_folder(target: Path, replaces: Iterable[str] = ()) -> Iterator[Path]:
+    """Yield an empty staging folder beside ``target``; when the block ends without an
+    exception, it becomes ``target`` in one step (:func:`swap_in`). On an exception the
+    staging folder is removed and ``target`` is untouched. Leftovers of killed runs beside
+    ``target`` are cleaned first (:func:`clean_leftovers`)."""
+    target = _resolve_target(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        clean_leftovers(target)
+        staging = _sibling(target, STAGING)
+        staging.mkdir()
+    except OSError as exc:
+        raise InputError(f"{target}: cannot write here ({exc.strerror or exc})",
+                         hint="Choose an output folder you can write to") from None
+    try:
+        try:
+            yield staging
+        except OSError as exc:
+            # the file system refused an output (disk full, quota, permissions): the user's to fix
+            raise _error(target, "cannot write the outputs", exc) from None
+        swap_in(staging, target, replaces)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
