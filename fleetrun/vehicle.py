@@ -6,7 +6,8 @@ Units are in the field names; EPA road-load coefficients stay in the units EPA p
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import operator
+from dataclasses import dataclass, field, fields
 
 
 # VehicleSpec fields that do not change how a vehicle drives a cycle.
@@ -65,10 +66,8 @@ class VehicleSpec:
     def physics_key(self) -> tuple:
         """What decides how the vehicle drives a cycle: every field but BOOKKEEPING_FIELDS
         (rows equal in this key simulate once)."""
-        fields = tuple((name, value) for name, value in vars(self).items()
-                       if name not in BOOKKEEPING_FIELDS and name != "extra")
-        extra = tuple(sorted((k, repr(x)) for k, x in self.extra.items()))
-        return fields + (("extra", extra),)
+        extra = tuple(sorted((k, repr(x)) for k, x in self.extra.items())) if self.extra else ()
+        return _physics_fields(self), extra
 
     @property
     def converter_ratio(self) -> float:
@@ -76,3 +75,7 @@ class VehicleSpec:
             return float(self.torque_converter_ratio)
         return 3.0 if self.transmission == "automatic" else 1.0
 
+
+# the fields physics_key compares, read in one call (the key is built for every row of a fleet)
+_physics_fields = operator.attrgetter(*(f.name for f in fields(VehicleSpec)
+                                        if f.name not in BOOKKEEPING_FIELDS and f.name != "extra"))

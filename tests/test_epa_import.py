@@ -289,3 +289,18 @@ def test_imported_powertrain_columns_reach_the_simulation(tmp_path):
     assert arrays.cvt.tolist() == [True, False] and arrays.automatic.tolist() == [True, False]
     assert arrays.has_lockup.tolist() == [False, True]
     assert arrays.stroke_m[0] == pytest.approx(stroke_m(2.487, 6))
+
+
+def test_other_years_header_spacing_case_and_windows_1252(tmp_path):
+    """Lists of other model years differ in header spacing/case and older ones are
+    Windows-1252: the same vehicle comes out."""
+    frame = pd.DataFrame([epa_row(**{"Model Year": 2019, "Represented Test Veh Model": "CAMRY é"}),
+                          epa_row(**{"Model Year": 2019, "Test Procedure Description": "HWFE", "RND_ADJ_FE": 52.0})],
+                         columns=HEADER)
+    frame.columns = [f" {c.upper()}  " if i % 2 else c.lower() for i, c in enumerate(frame.columns)]
+    path = tmp_path / "19-tstcar.csv"
+    frame.to_csv(path, index=False, encoding="cp1252")
+    result = import_test_car_list(path, model_years=[2019])
+    assert [v["vehicle_id"] for v in result.vehicles] == ["18-AV3A_c1"]
+    assert result.vehicles[0]["model"] == "CAMRY é" and result.vehicles[0]["model_year"] == 2019
+    assert {m["test"] for m in result.measured} >= {"FTP", "HWFET"}

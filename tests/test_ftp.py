@@ -173,8 +173,8 @@ def test_a_warm_ftp_is_the_warm_udds():
 
 def test_camry_cold_start_against_argonne():
     """The 2018 Camry's measured cold start (inputs/dyno): +16.8 % fuel in the first 505 s of
-    a cold UDDS over the hot one, and the stabilised phase the same (-0.4 %). The model
-    (literature defaults, not fitted to this car) is compared at the FTP's nominal 25 C: its
+    a cold UDDS over the hot one, and the stabilised phase the same (-0.4 %). The model (no
+    fit uses these recordings) is compared at the FTP's nominal 25 C: its
     bag 1 penalty must lie within 5 points of the measured one (about the EPA list's spread
     between vehicles: bag 1 / bag 3 interquartile range 1.115-1.179), its bag 2 penalty below
     1 %."""
@@ -189,8 +189,9 @@ def test_camry_cold_start_against_argonne():
 def test_bag_ratio_against_the_epa_list(epa_gasoline):
     """Bag 1 / bag 3 fuel of the example cars against the EPA list's gasoline vehicles: at the
     FTP's 25 C inside the list's 5-95 % range (1.082-1.253), and at 20 F (-6.7 C, the "Cold CO"
-    FTP) inside its 5-95 % range (1.207-1.618): the literature defaults are not fitted to the
-    list (h10c's calibration does that), so the bound is the spread between vehicles."""
+    FTP, which no fit uses) inside its 5-95 % range (1.207-1.618). The example cars are not the
+    list's vehicles, so the bound is the spread between vehicles; the per-vehicle comparison
+    is validation/ftp_coldstart.py (docs/simulation.md)."""
     d = epa_gasoline
     warm = d[d["Test Procedure Description"].isin(FTP_PROCEDURES)]
     cold = d[d["Test Procedure Description"] == "Cold CO"]

@@ -140,7 +140,7 @@ def _integrals_figure(img_dir: Path, result: dict, name: str) -> None:
     ax.set_xticks(x, [f"{e['label']}\n{e['start_s']:.0f}-{e['end_s']:.0f} s" for e in ph], fontsize=8)
     ax.set_ylabel(f"fuel [{result['integral_unit']}]")
     ax.set_title("Fuel per phase (residual: " + result["baseline"].get("residual", "model") + ")")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.2))
     fig.savefig(img_dir / name, dpi=90, bbox_inches="tight")
     plt.close(fig)
 

@@ -368,9 +368,11 @@ def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, l
         for c in rest:
             statuses[c]["heldout_gain"] = round(float(1 - after[c].mean() / before.mean()), 5)
             statuses[c]["manufacturer_t"] = round(manufacturer_t(prob, before, after[c]), 3)
-            m = _model(prob, accepted + [c])
-            coef = _fit(prob.residual, m.X, m.lo, m.hi, np.isin(prob.test, HOT_TESTS))[-1]
-            statuses[c]["parameters"] = {PARAMETERS[c][0]: round(float(coef), 6)}
+            if not accepted:       # on its own, over the baseline: the story of each candidate
+                m = _model(prob, [c])
+                coef = _fit(prob.residual, m.X, m.lo, m.hi, np.isin(prob.test, HOT_TESTS))[-1]
+                statuses[c]["parameters_alone"] = {PARAMETERS[c][0]: round(float(coef), 6)}
+                statuses[c]["heldout_gain_vs_baseline"] = statuses[c]["heldout_gain"]
         best = max(rest, key=lambda c: statuses[c]["heldout_gain"])
         if statuses[best]["heldout_gain"] <= settings.min_gain or statuses[best]["manufacturer_t"] <= t_crit:
             break
@@ -506,7 +508,8 @@ def _finding(prob, effect, coef, before, after, settings) -> dict:
                    "fuel_added": round(added[t], 5)} for t in added}
     where = ", ".join(f"{t} {100 * added[t]:+.1f} %" for t in tests) or "no test by more than 1 %"
     absent = ", ".join(t for t in ("FTP:bag3", "HWFET", "US06") if t in added and t not in tests)
-    text = (f"{effect} with {name} = {coef:.3g} {unit} ({meaning}) for the whole fleet: it adds "
+    size = f"{coef:.3g}" + ("" if unit == "-" else f" {unit}")
+    text = (f"{effect} with {name} = {size} ({meaning}) for the whole fleet: it adds "
             f"fuel where the measured results ask for it ({where})"
             + (f", and not in {absent}" if absent else "") + ". ")
     if "FTP" in before and "FTP" in after:

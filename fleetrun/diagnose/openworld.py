@@ -6,8 +6,9 @@ answer. So after the selection (:mod:`.engine`) the remainder ``r - fitted`` is 
 
 * **Generic description.** The remainder is fitted by a model that knows no physics: an
   intercept plus a piecewise-linear function of each operating channel (hinges at its
-  quantiles), by the same blocked cross-validation as the
-  candidates. Its held-out SSE reduction over the intercept is compared with the reductions
+  quantiles) and, for the first two channels, each times a piecewise-linear function of the
+  other (:func:`generic_columns`), by the same blocked cross-validation as the candidates.
+  Its held-out SSE reduction over the intercept is compared with the reductions
   it reaches on circularly shifted remainders (the same null as the selection's: same
   autocorrelation and distribution, no link to the channels). ``significant`` when it beats
   the ``quantile`` of that null and cuts the held-out error by more than 10 %
@@ -15,7 +16,8 @@ answer. So after the selection (:mod:`.engine`) the remainder ``r - fitted`` is 
   ``noise_rmse`` is the held-out RMSE the generic model leaves: the part no function of the
   recorded channels explains.
 * **Findings judged against it.** When something is left, each finding is refitted with the
-  generic description of the remainder's significant drivers in the model; a finding that
+  generic description of the remainder's significant drivers (all channels, strongest first,
+  if none is significant on its own) in the model; a finding that
   then adds nothing beyond noise was a partial description of the unexplained physics and is
   moved to ``descriptions`` ("weak"), not reported as a finding. So is a finding whose
   parameter sits at a bound of its plausible range, or whose column is nearly the same as a

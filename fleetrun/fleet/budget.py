@@ -6,7 +6,7 @@ One owner for each budget fact (constants in ``models/budget.toml``, with their 
   ``none`` or a scenario factor (:func:`onroad_gal_per_mile`);
 - tax rates per fuel: :meth:`fleetrun.fleet.workbook.Scenario.state_tax_usd_per_gal` and
   ``federal_tax_usd_per_gal``, looked up for arrays by :func:`tax_rates`;
-- CO2 per gallon (EPA-420-F-11-041): :func:`co2_t`;
+- CO2 per gallon (EPA-420-F-11-041, the fuel table ``models/fuels.toml``): :func:`co2_t`;
 - budget year y -> fiscal year ``first_fiscal_year + y - 1`` and its share of the budget
   period's miles ``(1 + g)^(y - 1) / sum_k (1 + g)^(k - 1)`` (:func:`year_shares`);
 - parts that add up exactly to a total (:func:`exact_parts`), so fiscal-year rows reconcile
@@ -125,8 +125,10 @@ def tax_rates(scenario, fuels) -> tuple[np.ndarray, np.ndarray]:
 
 
 def co2_g_per_gal(fuel: str) -> float:
-    """Tailpipe CO2 per gallon burned (EPA-420-F-11-041)."""
-    return float(constants()["co2_g_per_gal"][fuel])
+    """Tailpipe CO2 per gallon burned (EPA-420-F-11-041, in models/fuels.toml); 0 for electric."""
+    from fleetrun.physics.fuels import fuel_properties
+
+    return 0.0 if fuel == "electric" else fuel_properties(fuel).co2_g_per_gal
 
 
 def co2_t(fuel_gal, fuel: str):

@@ -1,8 +1,9 @@
-"""Liquid fuel properties: lower heating value and density (``models/fuels.toml``).
+"""Liquid fuel properties: lower heating value, density and CO2 per gallon (``models/fuels.toml``).
 
 The one owner of these facts: the drive-cycle simulation (fuel equation, gallons), the
 vehicle-level effects (marginal fuel per unit of work) and the diagnosis recordings (cc -> g)
-read them here. Source: EPA certification fuels (40 CFR 1065.710 and 1065.703).
+read them here, the fleet budget its CO2. Sources: EPA certification fuels (40 CFR 1065.710
+and 1065.703); CO2 per gallon EPA-420-F-11-041.
 """
 from __future__ import annotations
 
@@ -16,10 +17,12 @@ from fleetrun.resources import models_dir
 
 @dataclass(frozen=True)
 class FuelProperties:
-    """``lhv_MJ_per_kg``: lower heating value [MJ/kg] (= kJ/g); ``density_kg_per_L`` [kg/L] (= g/cm^3)."""
+    """``lhv_MJ_per_kg``: lower heating value [MJ/kg] (= kJ/g); ``density_kg_per_L`` [kg/L] (= g/cm^3);
+    ``co2_g_per_gal``: tailpipe CO2 per gallon burned [g/gal]."""
 
     lhv_MJ_per_kg: float
     density_kg_per_L: float
+    co2_g_per_gal: float
 
 
 @lru_cache(maxsize=None)
@@ -27,7 +30,8 @@ def fuel_table() -> dict[str, FuelProperties]:
     """Every fuel of ``models/fuels.toml`` by its (lower-case) name."""
     with open(models_dir() / "fuels.toml", "rb") as fh:
         data = tomllib.load(fh)
-    return {name.lower(): FuelProperties(float(v["lhv_MJ_per_kg"]), float(v["density_kg_per_L"]))
+    return {name.lower(): FuelProperties(float(v["lhv_MJ_per_kg"]), float(v["density_kg_per_L"]),
+                                         float(v["co2_g_per_gal"]))
             for name, v in data.items()}
 
 

@@ -58,17 +58,18 @@ def stroke_m(displacement_L, cylinders, bore_stroke_ratio=1.0):
 
 def mean_piston_speed_m_s(speed_rpm, stroke_m):
     """Mean piston speed c_m = 2 S n [m/s] (Heywood 1988, Eq. 2.2)."""
-    return 2.0 * np.asarray(stroke_m, float) * np.asarray(speed_rpm, float) / 60.0
+    return (np.asarray(stroke_m, float) * (2.0 / 60.0)) * np.asarray(speed_rpm, float)   # per-engine factor first
 
 
 def mep_power_W_per_kPa(speed_rpm, displacement_L):
     """Power [W] of 1 kPa of mean effective pressure in a four-stroke engine: V_d omega / (4 pi)."""
-    return np.asarray(displacement_L, float) * 1e-3 * np.asarray(speed_rpm, float) * RPM_RAD_S * 1e3 / (4.0 * np.pi)
+    return (np.asarray(displacement_L, float) * (RPM_RAD_S / (4.0 * np.pi))) * np.asarray(speed_rpm, float)
 
 
 def load_fraction(torque_Nm, max_torque_Nm):
     """L = T_e / T_max in [0, 1] (0 on overrun)."""
-    return np.clip(np.maximum(torque_Nm, 0.0) / np.maximum(max_torque_Nm, 1e-9), 0.0, 1.0)
+    load = np.maximum(torque_Nm, 0.0) / np.maximum(max_torque_Nm, 1e-9)
+    return np.minimum(load, 1.0, out=load) if isinstance(load, np.ndarray) else min(load, 1.0)
 
 
 def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stroke_m, peak_torque_Nm, throttled,
@@ -128,9 +129,14 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
     shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
     power = np.zeros(shape)
     scratch = np.empty(shape)
-    for term, c in zip(terms, coefficients):   # in place: vehicles x steps arrays
-        np.multiply(term, c, out=scratch)
-        power += scratch
+    small = 0.0     # terms that do not vary over the steps (e.g. the accessory load) add once
+    for term, c in zip(terms, coefficients):
+        if np.shape(term) == shape:            # in place: vehicles x steps arrays
+            np.multiply(term, c, out=scratch)
+            power += scratch
+        else:
+            small = small + np.multiply(term, c)
+    power += small
     np.maximum(power, 0.0, out=power)
     power /= np.asarray(lhv_MJ_per_kg, float) * 1e3
     power *= fueled
@@ -141,9 +147,14 @@ def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep
                        fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction, pmep_throttle_kPa, throttled):
     """Torque [N m] to turn the unfuelled engine: friction plus closed-throttle pumping,
     (FMEP + PMEP(L=0)) V_d / (4 pi) with FMEP as in the module docstring."""
-    cm = mean_piston_speed_m_s(speed_rpm, stroke_m)
-    fmep_kPa = fmep_0_kPa + fmep_piston_speed_kPa_s_per_m * cm + np.where(throttled, pmep_throttle_kPa, 0.0)
-    return fmep_kPa * 1e3 * np.asarray(displacement_L, float) * 1e-3 / (4.0 * np.pi) + fmep_peak_fraction * peak_torque_Nm
+    # per-engine factors first (arrays of vehicles x 1), one pass over the steps for each of
+    # c_m, f_cm c_m and the sum
+    per_kPa = np.asarray(displacement_L, float) / (4.0 * np.pi)           # [N m per kPa]
+    constant = (fmep_0_kPa + np.where(throttled, pmep_throttle_kPa, 0.0)) * per_kPa + fmep_peak_fraction * peak_torque_Nm
+    torque = mean_piston_speed_m_s(speed_rpm, stroke_m)
+    torque *= fmep_piston_speed_kPa_s_per_m * per_kPa
+    torque += constant
+    return torque
 
 
 def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_rpm,

@@ -338,16 +338,19 @@ def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, Fleetru
     workbook reader can run this on every row (``fleetrun validate`` catches what ``run`` refuses)."""
     verdicts: dict = {}
     refused = []
+    unseen = object()
     for i, v in enumerate(vehicles):
         if v.fuel == "electric":  # battery-electric rows run on fleetrun.simulation.electric, not these
             continue
         key = v.physics_key()
-        if key not in verdicts:
+        verdict = verdicts.get(key, unseen)
+        if verdict is unseen:
             try:
                 _row_cached(v)
-                verdicts[key] = None
+                verdict = None
             except FleetrunError as exc:
-                verdicts[key] = exc
-        if verdicts[key] is not None:
-            refused.append((i, verdicts[key]))
+                verdict = exc
+            verdicts[key] = verdict
+        if verdict is not None:
+            refused.append((i, verdict))
     return refused
