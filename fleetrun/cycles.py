@@ -341,9 +341,44 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
     ``name`` defaults to the file stem. Raises :class:`InputError` naming the file, row
     (header = row 1), column and offending value.
     """
+    path = Path(path)
+    df = _read_csv_cells(path)
+    df, rows = _without_trailing_blank_rows(df, path)
+    speed_col = _speed_column(df, path)
+    if len(df) < 2:
+        raise InputError(f"a drive cycle needs at least 2 data rows, found {len(df)}",
+                         file=path, hint="Give the speed at two or more times")
+
+    t = _numeric(df, TIME_COLUMN, rows, path)
+    v = _numeric(df, speed_col, rows, path) * SPEED_COLUMNS[speed_col]
+    g = (_numeric(df, GRADE_COLUMN, rows, path) if GRADE_COLUMN in df.columns
+         else np.zeros(len(df)))
+
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(
+            f"time must strictly increase: {TIME_COLUMN} = {_cell_text(df[TIME_COLUMN].iloc[i])} "
+            f"follows {_cell_text(df[TIME_COLUMN].iloc[i - 1])} in row {int(rows[i - 1])}",
+            file=path, row=int(rows[i]), column=TIME_COLUMN,
+            value=_cell_text(df[TIME_COLUMN].iloc[i]),
+            hint="Sort the rows by time and remove repeated times")
+    neg = np.flatnonzero(v < 0)
+    if neg.size:
+        i = int(neg[0])
+        raise InputError(f"negative speed in column '{speed_col}': {_cell_text(df[speed_col].iloc[i])}",
+                         file=path, row=int(rows[i]), column=speed_col,
+                         value=_cell_text(df[speed_col].iloc[i]),
+                         hint="Speeds must be >= 0; replace reversing or sensor noise by 0")
+    return DriveCycle(name=name or path.stem, time_s=t, speed_mps=v, grade_pct=g)
+
+
+def _read_csv_cells(path: Path):
+    """The CSV's cells as text (pandas DataFrame, stripped column names); InputError for a
+    missing file, a folder, another extension, binary content, an undecodable or ragged file."""
     import pandas as pd
 
-    path = Path(path)
     if not path.exists():
         raise InputError("drive-cycle file not found", file=path,
                          hint="Check the path, or run `fleetrun cycles` for the shipped names")
@@ -380,10 +415,13 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
                          hint="Check that every row has the same number of comma-separated "
                               "fields as the header") from None
     df.columns = [str(c).strip() for c in df.columns]
+    return df
 
-    # Row numbers as a spreadsheet shows them: header row 1, first data row 2.
+
+def _without_trailing_blank_rows(df, path: Path):
+    """Drop fully blank lines at the end of the file (blank lines inside are errors); returns
+    the rows and their numbers as a spreadsheet shows them (header row 1, first data row 2)."""
     rows = np.arange(len(df)) + 2
-    # drop fully blank lines at the end of the file; blank lines inside are errors
     blank = np.array([all(_cell_text(v) == "" for v in rec) for rec in df.itertuples(index=False)],
                      dtype=bool) if len(df) else np.zeros(0, dtype=bool)
     keep = len(df)
@@ -394,7 +432,11 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
         r = int(rows[np.argmax(blank)])
         raise InputError("empty row inside the data", file=path, row=r,
                          hint="Delete the empty row")
+    return df, rows
 
+
+def _speed_column(df, path: Path) -> str:
+    """The one speed column (after checking the time column is there)."""
     if TIME_COLUMN not in df.columns:
         raise InputError(f"no '{TIME_COLUMN}' column (found: {', '.join(df.columns)})",
                          file=path, row=1, column=TIME_COLUMN,
@@ -409,35 +451,7 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
                          "which one to use is ambiguous", file=path, row=1,
                          column=speed_cols[1],
                          hint="Keep exactly one of " + ", ".join(SPEED_COLUMNS))
-    speed_col = speed_cols[0]
-
-    if len(df) < 2:
-        raise InputError(f"a drive cycle needs at least 2 data rows, found {len(df)}",
-                         file=path, hint="Give the speed at two or more times")
-
-    t = _numeric(df, TIME_COLUMN, rows, path)
-    v = _numeric(df, speed_col, rows, path) * SPEED_COLUMNS[speed_col]
-    g = (_numeric(df, GRADE_COLUMN, rows, path) if GRADE_COLUMN in df.columns
-         else np.zeros(len(df)))
-
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise InputError(
-            f"time must strictly increase: {TIME_COLUMN} = {_cell_text(df[TIME_COLUMN].iloc[i])} "
-            f"follows {_cell_text(df[TIME_COLUMN].iloc[i - 1])} in row {int(rows[i - 1])}",
-            file=path, row=int(rows[i]), column=TIME_COLUMN,
-            value=_cell_text(df[TIME_COLUMN].iloc[i]),
-            hint="Sort the rows by time and remove repeated times")
-    neg = np.flatnonzero(v < 0)
-    if neg.size:
-        i = int(neg[0])
-        raise InputError(f"negative speed in column '{speed_col}': {_cell_text(df[speed_col].iloc[i])}",
-                         file=path, row=int(rows[i]), column=speed_col,
-                         value=_cell_text(df[speed_col].iloc[i]),
-                         hint="Speeds must be >= 0; replace reversing or sensor noise by 0")
-    return DriveCycle(name=name or path.stem, time_s=t, speed_mps=v, grade_pct=g)
+    return speed_cols[0]
 
 
 def _cell_text(value) -> str:

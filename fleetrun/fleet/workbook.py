@@ -196,7 +196,8 @@ def read_fleet(path) -> Fleet:
     vehicles, vehicle_rows = ([], {})
     if vehicle_table is not None:
         vehicles, vehicle_rows = _vehicles(vehicle_table, problems)
-        _simulation_checks(vehicle_table, vehicles, vehicle_rows, problems)
+        if not problems.errors:  # the simulation's checks presume cells that passed their own
+            _simulation_checks(vehicle_table, vehicles, vehicle_rows, problems)
     scenarios, scenario_rows = ([], {})
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)

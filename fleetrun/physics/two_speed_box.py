@@ -27,6 +27,7 @@ import tomllib
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -369,180 +370,163 @@ def auxiliary_box(torque_fraction, speed_rpm, low_gear_ratio, axle_gear, geometr
 _CHUNK = 1 << 16
 
 
-def _box(tq, rpm_in, lo, gear, g):
-    """B.5 from ``peak_torque=...`` to the two ``EtaNTorqCorrect`` calls (see auxiliary_box)."""
-    with np.errstate(all="ignore"):
-        # ---- JRV constants / general constants (B.5) ----
-        peak_torque = g["peak_torque"]
-        input_torque_aux = tq * peak_torque
-        alpha_n = g["normal_pressure_angle"]
-        C = g["centre_distance"]
-        mu_fGP = g["mesh_friction_coefficient"]
-        X = g["upper_countershaft_immersion"]
-        C_E = g["windage_loose_constant"]
-        torqueloss_seal_output = output_seal_loss(g["output_seal_diameter"], g["seal_tangential_friction"])
+def _gear_pairs(g, lo) -> SimpleNamespace:
+    """B.5's initial and low gear pairs: ratios, pitch radii (with the JRV low-gear scaling)
+    and mesh efficiencies."""
+    C = g["centre_distance"]
+    t_D_i_aux = g["initial_drive_teeth"]
+    t_d_i_aux = g["initial_driven_teeth"]
+    G_i_aux = t_d_i_aux / t_D_i_aux
+    R_p_D_i_aux = C / (1 + (t_d_i_aux / t_D_i_aux))
+    t_D_L_aux = g["low_drive_teeth"]
+    t_d_L_aux = g["low_driven_teeth"]
+    G_L_aux = lo / G_i_aux
+    R_p_D_L_aux = C / (1 + (t_d_L_aux / t_D_L_aux))
+    R_p_d_L_aux = C - R_p_D_L_aux
+    OD_D_L_aux = g["low_drive_outer_diameter"]
+    # QUIRK (B.5 "JRV: Accounting for different low gear ratio by changing driven gear
+    # size"): R_p_D_L_aux=R_p_D_L_aux*G_L_aux/(t_d_L_aux/t_D_L_aux) (and R_b_D_L_aux,
+    # OD_D_L_aux). It scales the DRIVE gear, and UP with the ratio; the driven gear and the
+    # centre distance stay. A corrected model keeps C and sets R_p_D = C/(1+G_L_aux) (or
+    # scales the driven gear up). Identity for the measured box (G_L_aux = 62/16).
+    drive_scale_L = G_L_aux / (t_d_L_aux / t_D_L_aux)
+    alpha_n, mu_fGP = g["normal_pressure_angle"], g["mesh_friction_coefficient"]
+    return SimpleNamespace(
+        G_i=G_i_aux, R_p_D_i=R_p_D_i_aux, R_p_d_i=C - R_p_D_i_aux, G_L=G_L_aux,
+        R_p_D_L=R_p_D_L_aux * drive_scale_L, R_p_d_L=R_p_d_L_aux, OD_D_L_scaled=OD_D_L_aux * drive_scale_L,
+        GPEff_i=gear_pair_efficiency(t_D_i_aux, t_d_i_aux, g["initial_helix_angle"],
+                                     g["initial_drive_outer_diameter"], g["initial_driven_outer_diameter"],
+                                     C, alpha_n, mu_fGP),
+        GPEff_L=gear_pair_efficiency(t_D_L_aux, t_d_L_aux, g["low_helix_angle"], OD_D_L_aux,
+                                     g["low_driven_outer_diameter"], C, alpha_n, mu_fGP, gear_ratio=G_L_aux,
+                                     drive_scale=drive_scale_L))
 
-        # ---- initial gear pair ----
-        t_D_i_aux = g["initial_drive_teeth"]
-        t_d_i_aux = g["initial_driven_teeth"]
-        G_i_aux = t_d_i_aux / t_D_i_aux
-        gamma_i_aux = g["initial_helix_angle"]
-        R_p_D_i_aux = C / (1 + (t_d_i_aux / t_D_i_aux))
-        R_p_d_i_aux = C - R_p_D_i_aux
-        OD_D_i_aux = g["initial_drive_outer_diameter"]
-        OD_d_i_aux = g["initial_driven_outer_diameter"]
-        X_D_i_aux = g["initial_drive_immersion"]
-        X_d_i_aux_lower = g["initial_driven_immersion_lower"]
-        L_FW_i_aux = g["initial_face_width"]
 
-        # ---- low gear pair ----
-        t_D_L_aux = g["low_drive_teeth"]
-        t_d_L_aux = g["low_driven_teeth"]
-        G_L_aux = lo / G_i_aux
-        gamma_L_aux = g["low_helix_angle"]
-        R_p_D_L_aux = C / (1 + (t_d_L_aux / t_D_L_aux))
-        R_p_d_L_aux = C - R_p_D_L_aux
-        OD_D_L_aux = g["low_drive_outer_diameter"]
-        OD_d_L_aux = g["low_driven_outer_diameter"]
-        X_D_L_aux_lower = g["low_drive_immersion_lower"]
-        X_d_L_aux = g["low_driven_immersion"]
-        L_FW_L_aux = g["low_face_width"]
-        # QUIRK (B.5 "JRV: Accounting for different low gear ratio by changing driven gear
-        # size"): R_p_D_L_aux=R_p_D_L_aux*G_L_aux/(t_d_L_aux/t_D_L_aux) (and R_b_D_L_aux,
-        # OD_D_L_aux). It scales the DRIVE gear, and UP with the ratio; the driven gear and the
-        # centre distance stay. A corrected model keeps C and sets R_p_D = C/(1+G_L_aux) (or
-        # scales the driven gear up). Identity for the measured box (G_L_aux = 62/16).
-        drive_scale_L = G_L_aux / (t_d_L_aux / t_D_L_aux)
-        R_p_D_L_aux = R_p_D_L_aux * drive_scale_L
-        OD_D_L_aux_scaled = OD_D_L_aux * drive_scale_L
+def _windage_torques(g, pairs, fluids, RPM_aux, RPM_C_aux) -> SimpleNamespace:
+    """B.5's windage torques of the input-shaft and counter-shaft gears (oil share X, air
+    share 1 - X), and the function for the low driven gear (its speed depends on the range)."""
+    rho_air, mu_air, rho_oil, mu_oil, _ = fluids
+    C_E = g["windage_loose_constant"]
 
-        GPEff_i_aux = gear_pair_efficiency(t_D_i_aux, t_d_i_aux, gamma_i_aux, OD_D_i_aux, OD_d_i_aux,
-                                           C, alpha_n, mu_fGP)
-        GPEff_L_aux = gear_pair_efficiency(t_D_L_aux, t_d_L_aux, gamma_L_aux, OD_D_L_aux, OD_d_L_aux,
-                                           C, alpha_n, mu_fGP, gear_ratio=G_L_aux,
-                                           drive_scale=drive_scale_L)
+    def wind(face, radius, rpm, od, share):
+        oil = _windage(rho_oil, C_E, face, radius, rpm, od, mu_oil)
+        air = _windage(rho_air, C_E, face, radius, rpm, od, mu_air)
+        return (share * oil) + ((1 - share) * air)
 
-        # ---- fluids ----
-        rho_air, mu_air, rho_oil, mu_oil, mu_oil_dynamic = oil_and_air_properties(
-            g["ambient_temperature"], g["oil_temperature_rise"])
-        # (B.5 also computes mu_air_dynamic; it is never used.)
+    L_FW_i, L_FW_L, X = g["initial_face_width"], g["low_face_width"], g["upper_countershaft_immersion"]
+    OD_d_i = g["initial_driven_outer_diameter"]
+    return SimpleNamespace(
+        i_D=wind(L_FW_i, pairs.R_p_D_i, RPM_aux, g["initial_drive_outer_diameter"], g["initial_drive_immersion"]),
+        i_d_upper=wind(L_FW_i, pairs.R_p_d_i, RPM_C_aux, OD_d_i, X),
+        i_d_lower=wind(L_FW_i, pairs.R_p_d_i, RPM_C_aux, OD_d_i, g["initial_driven_immersion_lower"]),
+        L_D_upper=wind(L_FW_L, pairs.R_p_D_L, RPM_C_aux, pairs.OD_D_L_scaled, X),
+        L_D_lower=wind(L_FW_L, pairs.R_p_D_L, RPM_C_aux, pairs.OD_D_L_scaled, g["low_drive_immersion_lower"]),
+        low_driven=lambda rpm: wind(L_FW_L, pairs.R_p_d_L, rpm, g["low_driven_outer_diameter"],
+                                    g["low_driven_immersion"]))
 
-        RPM_aux = rpm_in
-        RPM_C_aux = RPM_aux / G_i_aux
 
-        # ---- windage (every gear: oil share X, air share 1-X) ----
-        def wind(face, radius, rpm, od, share):
-            oil = _windage(rho_oil, C_E, face, radius, rpm, od, mu_oil)
-            air = _windage(rho_air, C_E, face, radius, rpm, od, mu_air)
-            return (share * oil) + ((1 - share) * air)
+def _shaft_bearing_forces(g, pairs, torque_i, torque_L, L_d_B8, L_LD_B8, L_B7_d, L_B7_LD, L_B7_B8, shaft):
+    """Radial loads of one counter shaft's two bearings (#7/#8 lower, #9/#10 upper) from the
+    forces of its initial driven and low drive gears: (F_apc, F_r) of each bearing. ``shaft``
+    ("lower" or "upper") as B.5 writes it: the lower shaft's first bearing prints
+    ``(-1/L)*(a+b+c+d)``, the upper one's ``(1/L)*(-a-b-c-d)``."""
+    alpha_n, R_C, H_C = g["normal_pressure_angle"], g["countershaft_rotation"], g["countershaft_hand"]
+    F_t_i, F_s_i, F_a_i = _gear_forces(torque_i, R_C, H_C, pairs.R_p_d_i, alpha_n, g["initial_helix_angle"])
+    F_t_L, F_s_L, F_a_L = _gear_forces(torque_L, R_C, H_C, pairs.R_p_D_L, alpha_n, g["low_helix_angle"])
+    if shaft == "lower":
+        F_apc_a = np.abs((-1 / L_B7_B8) * ((F_s_i * L_d_B8) + (F_s_L * L_LD_B8)
+                                           + (F_a_i * pairs.R_p_d_i) + (F_a_L * pairs.R_p_D_L)))
+    else:
+        F_apc_a = np.abs((1 / L_B7_B8) * (-(F_s_i * L_d_B8) - (F_s_L * L_LD_B8)
+                                          - (F_a_i * pairs.R_p_d_i) - (F_a_L * pairs.R_p_D_L)))
+    F_apc_b = np.abs((1 / L_B7_B8) * ((F_a_i * pairs.R_p_d_i) + (F_a_L * pairs.R_p_D_L)
+                                      - (F_s_i * L_B7_d) - (F_s_L * L_B7_LD)))
+    F_ppc_a = np.abs((1 / L_B7_B8) * ((F_t_i * L_d_B8) + (F_t_L * L_LD_B8)))
+    F_ppc_b = np.abs((1 / L_B7_B8) * ((F_t_i * L_B7_d) + (F_t_L * L_B7_LD)))
+    return (F_apc_a, np.sqrt((F_apc_a) ** 2 + (F_ppc_a) ** 2)), (F_apc_b, np.sqrt((F_apc_b) ** 2 + (F_ppc_b) ** 2))
 
-        torque_i_D_aux = wind(L_FW_i_aux, R_p_D_i_aux, RPM_aux, OD_D_i_aux, X_D_i_aux)
-        torque_i_d_aux_upper = wind(L_FW_i_aux, R_p_d_i_aux, RPM_C_aux, OD_d_i_aux, X)
-        torque_i_d_aux_lower = wind(L_FW_i_aux, R_p_d_i_aux, RPM_C_aux, OD_d_i_aux, X_d_i_aux_lower)
-        torque_L_D_aux_upper = wind(L_FW_L_aux, R_p_D_L_aux, RPM_C_aux, OD_D_L_aux_scaled, X)
-        torque_L_D_aux_lower = wind(L_FW_L_aux, R_p_D_L_aux, RPM_C_aux, OD_D_L_aux_scaled, X_D_L_aux_lower)
 
-        torque_D_IS_aux = input_torque_aux - torque_i_D_aux
-
-        # ---- bearings ----
-        R_C_aux = g["countershaft_rotation"]
-        H_C_aux = g["countershaft_hand"]
-        K78910 = g["countershaft_bearing_k"]
-        G78910 = g["countershaft_bearing_g"]
-        K11 = g["output_bearing_k"]
-        G11 = g["output_bearing_g"]
-        R_IO_aux = g["output_rotation"]
-        H_IO_aux = g["output_hand"]
-        L_B7_d = g["bearing7_to_initial_driven_gear"]
-        L_B7_LD = g["bearing7_to_low_drive_gear"]
-        L_B7_B8 = g["bearing7_to_bearing8"]
-        L_d_B8 = L_B7_B8 - L_B7_d
-        L_LD_B8 = L_B7_B8 - L_B7_LD
-        L_B9_d = L_B7_d
-        L_B9_LD = L_B7_LD
-        L_B9_B10 = L_B7_B8
-        L_d_B10 = L_d_B8
-        L_LD_B10 = L_LD_B8
-        L_B11_aux = g["shaft_end_to_bearing11"]
-        L_d_aux = g["shaft_end_to_low_driven_gear"]
-
-        if gear == 1:
-            torque_d_IS_aux_lower = 0.5 * G_i_aux * torque_D_IS_aux * GPEff_i_aux
-            torque_d_IS_aux_upper = 0.5 * G_i_aux * torque_D_IS_aux * GPEff_i_aux
-            RPM_O_aux = RPM_C_aux / G_L_aux
-            torque_L_d_aux = wind(L_FW_L_aux, R_p_d_L_aux, RPM_C_aux / G_L_aux, OD_d_L_aux, X_d_L_aux)
-            # gear forces on the counter shafts; the low drive gear torque is "assumed"
-            # without the bearing losses (B.5 recomputes it after them)
-            cs_torque_i_lower = torque_d_IS_aux_lower
-            cs_torque_L_lower = torque_d_IS_aux_lower - torque_i_d_aux_lower - torque_L_D_aux_lower
-            cs_torque_i_upper = torque_d_IS_aux_upper
-            cs_torque_L_upper = torque_d_IS_aux_upper - torque_i_d_aux_upper - torque_L_D_aux_upper
-        else:
-            RPM_O_aux = RPM_aux
-            # QUIRK: `torque_oil_L_d_aux = ... .* ((RPM_O_aux).^1.85) ...` - in high gear the
-            # low driven gear freewheels on the output shaft, meshed with the counter shaft, so
-            # it turns at RPM_C_aux/G_L_aux, not at the output speed. Corrected: RPM_C_aux/G_L_aux.
-            torque_L_d_aux = wind(L_FW_L_aux, R_p_d_L_aux, RPM_O_aux, OD_d_L_aux, X_d_L_aux)
-            # In high gear the counter shafts idle: B.5 loads their gears with their own
-            # windage torques (`F_t_i_d_aux_lower = (1000 .* torque_i_d_aux_lower ...`).
-            cs_torque_i_lower = torque_i_d_aux_lower
-            cs_torque_L_lower = torque_L_D_aux_lower
-            cs_torque_i_upper = torque_i_d_aux_upper
-            cs_torque_L_upper = torque_L_D_aux_upper
-
-        F_t_i_d_aux_lower, F_s_i_d_aux_lower, F_a_i_d_aux_lower = _gear_forces(
-            cs_torque_i_lower, R_C_aux, H_C_aux, R_p_d_i_aux, alpha_n, gamma_i_aux)
-        F_t_L_D_aux_lower, F_s_L_D_aux_lower, F_a_L_D_aux_lower = _gear_forces(
-            cs_torque_L_lower, R_C_aux, H_C_aux, R_p_D_L_aux, alpha_n, gamma_L_aux)
-        F_t_i_d_aux_upper, F_s_i_d_aux_upper, F_a_i_d_aux_upper = _gear_forces(
-            cs_torque_i_upper, R_C_aux, H_C_aux, R_p_d_i_aux, alpha_n, gamma_i_aux)
-        F_t_L_D_aux_upper, F_s_L_D_aux_upper, F_a_L_D_aux_upper = _gear_forces(
-            cs_torque_L_upper, R_C_aux, H_C_aux, R_p_D_L_aux, alpha_n, gamma_L_aux)
-
-        # bearings #7 and #8 (lower counter shaft)
-        F_apc_B7 = np.abs((-1 / L_B7_B8) * ((F_s_i_d_aux_lower * L_d_B8) + (F_s_L_D_aux_lower * L_LD_B8)
-                                            + (F_a_i_d_aux_lower * R_p_d_i_aux) + (F_a_L_D_aux_lower * R_p_D_L_aux)))
-        F_apc_B8 = np.abs((1 / L_B7_B8) * ((F_a_i_d_aux_lower * R_p_d_i_aux) + (F_a_L_D_aux_lower * R_p_D_L_aux)
-                                           - (F_s_i_d_aux_lower * L_B7_d) - (F_s_L_D_aux_lower * L_B7_LD)))
-        F_ppc_B7 = np.abs((1 / L_B7_B8) * ((F_t_i_d_aux_lower * L_d_B8) + (F_t_L_D_aux_lower * L_LD_B8)))
-        F_ppc_B8 = np.abs((1 / L_B7_B8) * ((F_t_i_d_aux_lower * L_B7_d) + (F_t_L_D_aux_lower * L_B7_LD)))
-        F_r_B7 = np.sqrt((F_apc_B7) ** 2 + (F_ppc_B7) ** 2)
-        F_r_B8 = np.sqrt((F_apc_B8) ** 2 + (F_ppc_B8) ** 2)
-        # bearings #9 and #10 (upper counter shaft)
-        F_apc_B9 = np.abs((1 / L_B9_B10) * (-(F_s_i_d_aux_upper * L_d_B10) - (F_s_L_D_aux_upper * L_LD_B10)
-                                            - (F_a_i_d_aux_upper * R_p_d_i_aux) - (F_a_L_D_aux_upper * R_p_D_L_aux)))
-        F_apc_B10 = np.abs((1 / L_B9_B10) * ((F_a_i_d_aux_upper * R_p_d_i_aux) + (F_a_L_D_aux_upper * R_p_D_L_aux)
-                                             - (F_s_i_d_aux_upper * L_B9_d) - (F_s_L_D_aux_upper * L_B9_LD)))
-        F_ppc_B9 = np.abs((1 / L_B9_B10) * ((F_t_i_d_aux_upper * L_d_B10) + (F_t_L_D_aux_upper * L_LD_B10)))
-        F_ppc_B10 = np.abs((1 / L_B9_B10) * ((F_t_i_d_aux_upper * L_B9_d) + (F_t_L_D_aux_upper * L_B9_LD)))
-        F_r_B9 = np.sqrt((F_apc_B9) ** 2 + (F_ppc_B9) ** 2)
-        F_r_B10 = np.sqrt((F_apc_B10) ** 2 + (F_ppc_B10) ** 2)
-
+def _counter_shaft_bearing_losses(g, pairs, mu_oil_dynamic, RPM_C_aux, gear, cs_torques):
+    """Torque losses of bearings #7-#10 (B.5), from the counter shafts' gear torques
+    ``cs_torques`` = (initial lower, low lower, initial upper, low upper)."""
+    L_B7_d, L_B7_LD, L_B7_B8 = (g["bearing7_to_initial_driven_gear"], g["bearing7_to_low_drive_gear"],
+                                g["bearing7_to_bearing8"])
+    L_d_B8 = L_B7_B8 - L_B7_d
+    L_LD_B8 = L_B7_B8 - L_B7_LD
+    i_lower, L_lower, i_upper, L_upper = cs_torques
+    B7, B8 = _shaft_bearing_forces(g, pairs, i_lower, L_lower, L_d_B8, L_LD_B8, L_B7_d, L_B7_LD, L_B7_B8, "lower")
+    # bearings #9 and #10 (upper counter shaft): B.5's L_B9_d = L_B7_d, L_B9_B10 = L_B7_B8, ...
+    B9, B10 = _shaft_bearing_forces(g, pairs, i_upper, L_upper, L_d_B8, L_LD_B8, L_B7_d, L_B7_LD, L_B7_B8, "upper")
+    K78910, G78910 = g["countershaft_bearing_k"], g["countershaft_bearing_g"]
+    losses = []
+    for (F_apc, F_r), third_test in ((B7, False), (B8, gear == 1), (B9, False), (B10, gear == 1)):
         # QUIRK: LF = abs(K.*F_apc./F_r) - the Timken load factor is K*Fa/Fr with Fa the
         # bearing's THRUST load; B.5 uses F_apc, a radial component (moment balance in the
         # plane of the separating forces) that is also inside F_r, so LF <= K < 2 always.
         # Corrected: Fa = the shaft's net gear thrust (sum of F_a) carried by that bearing.
-        LF7 = np.abs(K78910 * F_apc_B7 / F_r_B7)
-        LF8 = np.abs(K78910 * F_apc_B8 / F_r_B8)
-        LF9 = np.abs(K78910 * F_apc_B9 / F_r_B9)
-        LF10 = np.abs(K78910 * F_apc_B10 / F_r_B10)
-        # low gear prints `elseif 0.94 <= LF8 < 2.0` / `... LF10 < 2.0` (whole array)
-        f1_B7 = _bearing_f1(LF7)
-        f1_B8 = _bearing_f1(LF8, whole_array_third_test=(gear == 1))
-        f1_B9 = _bearing_f1(LF9)
-        f1_B10 = _bearing_f1(LF10, whole_array_third_test=(gear == 1))
-        torqueloss_B7 = _bearing_loss(G78910, K78910, RPM_C_aux, mu_oil_dynamic, f1_B7, F_r_B7)
-        torqueloss_B8 = _bearing_loss(G78910, K78910, RPM_C_aux, mu_oil_dynamic, f1_B8, F_r_B8)
-        torqueloss_B9 = _bearing_loss(G78910, K78910, RPM_C_aux, mu_oil_dynamic, f1_B9, F_r_B9)
-        torqueloss_B10 = _bearing_loss(G78910, K78910, RPM_C_aux, mu_oil_dynamic, f1_B10, F_r_B10)
+        # Low gear prints `elseif 0.94 <= LF8 < 2.0` / `... LF10 < 2.0` (whole array).
+        f1 = _bearing_f1(np.abs(K78910 * F_apc / F_r), whole_array_third_test=third_test)
+        losses.append(_bearing_loss(G78910, K78910, RPM_C_aux, mu_oil_dynamic, f1, F_r))
+    return losses
 
+
+def _output_bearing_loss(g, pairs, mu_oil_dynamic, torque_d_L_aux, RPM_O_aux):
+    """Torque loss of the output-shaft bearing #11 (B.5)."""
+    # QUIRK (high gear): the force on the low driven gear is computed from the full
+    # throughput torque `F_t_L_d_aux = (1000 .* torque_d_L_aux ...)` although in high gear
+    # that gear freewheels and the torque passes the direct coupling; bearing #11 is loaded
+    # by a gear force that does not exist. Corrected: no mesh force in direct drive.
+    alpha_n, gamma_L_aux = g["normal_pressure_angle"], g["low_helix_angle"]
+    R_IO_aux, H_IO_aux = g["output_rotation"], g["output_hand"]
+    L_B11_aux, L_d_aux = g["shaft_end_to_bearing11"], g["shaft_end_to_low_driven_gear"]
+    K11, G11 = g["output_bearing_k"], g["output_bearing_g"]
+    F_t_L_d_aux = (1000 * torque_d_L_aux * R_IO_aux) / (pairs.R_p_d_L)
+    F_s_L_d_aux = (np.abs(F_t_L_d_aux) * _tand(alpha_n) / _cosd(gamma_L_aux))
+    F_a_L_d_aux = H_IO_aux * R_IO_aux * np.abs(F_t_L_d_aux) * _tand(gamma_L_aux)
+    F_apc_B11 = np.abs((1 / L_B11_aux) * ((F_a_L_d_aux * pairs.R_p_d_L) + (F_s_L_d_aux * L_d_aux)))
+    F_ppc_B11 = np.abs((1 / L_B11_aux) * ((F_t_L_d_aux * L_d_aux)))
+    F_r_B11 = np.sqrt((F_apc_B11) ** 2 + (F_ppc_B11) ** 2)
+    f1_B11 = _bearing_f1(np.abs(K11 * F_apc_B11 / F_r_B11))
+    return _bearing_loss(G11, K11, RPM_O_aux, mu_oil_dynamic, f1_B11, F_r_B11)
+
+
+def _box(tq, rpm_in, lo, gear, g):
+    """B.5 from ``peak_torque=...`` to the two ``EtaNTorqCorrect`` calls (see auxiliary_box):
+    gear pairs, windage, counter-shaft bearings, output bearing and seal, efficiency."""
+    with np.errstate(all="ignore"):
+        peak_torque = g["peak_torque"]
+        input_torque_aux = tq * peak_torque
+        pairs = _gear_pairs(g, lo)
+        G_i_aux, G_L_aux = pairs.G_i, pairs.G_L
+        fluids = oil_and_air_properties(g["ambient_temperature"], g["oil_temperature_rise"])
+        # (B.5 also computes mu_air_dynamic; it is never used.)
+        RPM_C_aux = rpm_in / G_i_aux
+        w = _windage_torques(g, pairs, fluids, rpm_in, RPM_C_aux)
+        torque_D_IS_aux = input_torque_aux - w.i_D
         if gear == 1:
-            torque_D_L_aux_lower = (torque_d_IS_aux_lower - torque_i_d_aux_lower - torque_L_D_aux_lower
-                                    - torqueloss_B7 - torqueloss_B8)
-            torque_D_L_aux_upper = (torque_d_IS_aux_upper - torque_i_d_aux_upper - torque_L_D_aux_upper
-                                    - torqueloss_B9 - torqueloss_B10)
-            torque_d_L_aux = ((torque_D_L_aux_lower * G_L_aux * GPEff_L_aux)
-                              + (torque_D_L_aux_upper * G_L_aux * GPEff_L_aux))
+            torque_d_IS_aux_lower = 0.5 * G_i_aux * torque_D_IS_aux * pairs.GPEff_i
+            torque_d_IS_aux_upper = 0.5 * G_i_aux * torque_D_IS_aux * pairs.GPEff_i
+            RPM_O_aux = RPM_C_aux / G_L_aux
+            torque_L_d_aux = w.low_driven(RPM_C_aux / G_L_aux)
+            # gear forces on the counter shafts; the low drive gear torque is "assumed"
+            # without the bearing losses (B.5 recomputes it after them)
+            cs_torques = (torque_d_IS_aux_lower, torque_d_IS_aux_lower - w.i_d_lower - w.L_D_lower,
+                          torque_d_IS_aux_upper, torque_d_IS_aux_upper - w.i_d_upper - w.L_D_upper)
+        else:
+            RPM_O_aux = rpm_in
+            # QUIRK: `torque_oil_L_d_aux = ... .* ((RPM_O_aux).^1.85) ...` - in high gear the
+            # low driven gear freewheels on the output shaft, meshed with the counter shaft, so
+            # it turns at RPM_C_aux/G_L_aux, not at the output speed. Corrected: RPM_C_aux/G_L_aux.
+            torque_L_d_aux = w.low_driven(RPM_O_aux)
+            # In high gear the counter shafts idle: B.5 loads their gears with their own
+            # windage torques (`F_t_i_d_aux_lower = (1000 .* torque_i_d_aux_lower ...`).
+            cs_torques = (w.i_d_lower, w.L_D_lower, w.i_d_upper, w.L_D_upper)
+        B7, B8, B9, B10 = _counter_shaft_bearing_losses(g, pairs, fluids[4], RPM_C_aux, gear, cs_torques)
+        if gear == 1:
+            torque_D_L_aux_lower = torque_d_IS_aux_lower - w.i_d_lower - w.L_D_lower - B7 - B8
+            torque_D_L_aux_upper = torque_d_IS_aux_upper - w.i_d_upper - w.L_D_upper - B9 - B10
+            torque_d_L_aux = ((torque_D_L_aux_lower * G_L_aux * pairs.GPEff_L)
+                              + (torque_D_L_aux_upper * G_L_aux * pairs.GPEff_L))
         else:
             # QUIRK: `torque_d_L_aux = torque_D_IS_aux - (torque_i_d_aux_upper + ... ) -
             # (torqueloss_B7 + ... + torqueloss_B10)` subtracts counter-shaft torques (windage,
@@ -550,44 +534,31 @@ def _box(tq, rpm_in, lo, gear, g):
             # they are 1/G_i_aux as large (the counter shafts turn G_i_aux times slower), and
             # the initial mesh that drives them has its own loss. Corrected: divide the sum by
             # G_i_aux*GPEff_i_aux.
-            torque_d_L_aux = (torque_D_IS_aux
-                              - (torque_i_d_aux_upper + torque_i_d_aux_lower + torque_L_D_aux_upper
-                                 + torque_L_D_aux_lower)
-                              - (torqueloss_B7 + torqueloss_B8 + torqueloss_B9 + torqueloss_B10))
-
-        # ---- output shaft, bearing #11 ----
-        # QUIRK (high gear): the force on the low driven gear is computed from the full
-        # throughput torque `F_t_L_d_aux = (1000 .* torque_d_L_aux ...)` although in high gear
-        # that gear freewheels and the torque passes the direct coupling; bearing #11 is loaded
-        # by a gear force that does not exist. Corrected: no mesh force in direct drive.
-        F_t_L_d_aux = (1000 * torque_d_L_aux * R_IO_aux) / (R_p_d_L_aux)
-        F_s_L_d_aux = (np.abs(F_t_L_d_aux) * _tand(alpha_n) / _cosd(gamma_L_aux))
-        F_a_L_d_aux = H_IO_aux * R_IO_aux * np.abs(F_t_L_d_aux) * _tand(gamma_L_aux)
-        F_apc_B11 = np.abs((1 / L_B11_aux) * ((F_a_L_d_aux * R_p_d_L_aux) + (F_s_L_d_aux * L_d_aux)))
-        F_ppc_B11 = np.abs((1 / L_B11_aux) * ((F_t_L_d_aux * L_d_aux)))
-        F_r_B11 = np.sqrt((F_apc_B11) ** 2 + (F_ppc_B11) ** 2)
-        LF11 = np.abs(K11 * F_apc_B11 / F_r_B11)
-        f1_B11 = _bearing_f1(LF11)
-        torqueloss_B11 = _bearing_loss(G11, K11, RPM_O_aux, mu_oil_dynamic, f1_B11, F_r_B11)
-
+            torque_d_L_aux = (torque_D_IS_aux - (w.i_d_upper + w.i_d_lower + w.L_D_upper + w.L_D_lower)
+                              - (B7 + B8 + B9 + B10))
+        torqueloss_B11 = _output_bearing_loss(g, pairs, fluids[4], torque_d_L_aux, RPM_O_aux)
         torque_d_L_aux_final = torque_d_L_aux - torque_L_d_aux - torqueloss_B11
-        torque_d_OS_aux = torque_d_L_aux_final - torqueloss_seal_output
-        if gear == 1:
-            trans_efficiency_aux = (torque_d_OS_aux / (input_torque_aux * G_i_aux * G_L_aux))
-            # QUIRK: the output torque fraction is output torque / (peak_torque * box ratio),
-            # and B.5 hands it to EffDiffRearHD (B.4), which multiplies it by ITS peak torque
-            # (32000 N m): the differential sees 32000/5794.088 = 5.52 times the box output
-            # torque divided by the box ratio. Corrected: pass torque_d_OS_aux [N m] / 32000.
-            torque_d_OS_aux = torque_d_OS_aux / peak_torque / G_i_aux / G_L_aux
-        else:
-            trans_efficiency_aux = (torque_d_OS_aux / (input_torque_aux))
-            torque_d_OS_aux = torque_d_OS_aux / peak_torque
+        seal = output_seal_loss(g["output_seal_diameter"], g["seal_tangential_friction"])
+        torque_d_OS_aux = torque_d_L_aux_final - seal
+        return _efficiency(torque_d_OS_aux, input_torque_aux, peak_torque, G_i_aux, G_L_aux, gear, RPM_O_aux)
 
-        shape = np.broadcast_shapes(np.shape(trans_efficiency_aux), np.shape(RPM_O_aux))
-        trans_efficiency_aux = np.broadcast_to(trans_efficiency_aux, shape)
-        torque_d_OS_aux = np.broadcast_to(torque_d_OS_aux, shape)
-        # JRV: EtaNTorqCorrect(..., true) then EtaNTorqCorrect(..., false) (thesis B.6)
-        trans_efficiency_aux, torque_d_OS_aux = mark_negative(trans_efficiency_aux, torque_d_OS_aux)
-        trans_efficiency_aux, torque_d_OS_aux = zero_nan(trans_efficiency_aux, torque_d_OS_aux)
 
+def _efficiency(torque_d_OS_aux, input_torque_aux, peak_torque, G_i_aux, G_L_aux, gear, RPM_O_aux):
+    """B.5's box efficiency and output torque fraction, after the two B.6 floors."""
+    if gear == 1:
+        trans_efficiency_aux = (torque_d_OS_aux / (input_torque_aux * G_i_aux * G_L_aux))
+        # QUIRK: the output torque fraction is output torque / (peak_torque * box ratio),
+        # and B.5 hands it to EffDiffRearHD (B.4), which multiplies it by ITS peak torque
+        # (32000 N m): the differential sees 32000/5794.088 = 5.52 times the box output
+        # torque divided by the box ratio. Corrected: pass torque_d_OS_aux [N m] / 32000.
+        torque_d_OS_aux = torque_d_OS_aux / peak_torque / G_i_aux / G_L_aux
+    else:
+        trans_efficiency_aux = (torque_d_OS_aux / (input_torque_aux))
+        torque_d_OS_aux = torque_d_OS_aux / peak_torque
+    shape = np.broadcast_shapes(np.shape(trans_efficiency_aux), np.shape(RPM_O_aux))
+    trans_efficiency_aux = np.broadcast_to(trans_efficiency_aux, shape)
+    torque_d_OS_aux = np.broadcast_to(torque_d_OS_aux, shape)
+    # JRV: EtaNTorqCorrect(..., true) then EtaNTorqCorrect(..., false) (thesis B.6)
+    trans_efficiency_aux, torque_d_OS_aux = mark_negative(trans_efficiency_aux, torque_d_OS_aux)
+    trans_efficiency_aux, torque_d_OS_aux = zero_nan(trans_efficiency_aux, torque_d_OS_aux)
     return trans_efficiency_aux, torque_d_OS_aux, RPM_O_aux
