@@ -267,7 +267,7 @@ def test_dates_booleans_and_errors_are_not_numbers(tmp_path):
     path = write_fleet(tmp_path / "d.xlsx", [vehicle(annual_miles=datetime.datetime(2024, 1, 5),
                                                       count=True, peak_engine_torque_Nm="#DIV/0!")])
     problems = problems_of(path)
-    assert "Vehicles!F2 annual_miles: 2024-01-05T00:00:00 is a date, not a number (format the column as Number)" in problems
+    assert "Vehicles!F2 annual_miles: 2024-01-05 is a date, not a number (format the column as Number)" in problems
     assert "Vehicles!E2 count: True is not a number" in problems
     assert "Vehicles!H2 peak_engine_torque_Nm: '#DIV/0!' is not a number" in problems
 

@@ -8,6 +8,7 @@ a cell reference (``Vehicles!H4 peak_engine_torque_Nm: ...``) or a TOML key.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from functools import lru_cache
 
@@ -25,6 +26,10 @@ Report = Callable[..., None]     # report(column_name, text, warning=False)
 def parse_value(column: Column, raw):
     """The typed value of a non-blank cell of ``column``, inside the column's physical range;
     CellProblem (quoting the value) otherwise."""
+    if type(raw) is float and column.kind == "number":
+        low, high = _bounds(column)
+        if low <= raw <= high:          # the common case: a number cell within its range
+            return raw
     if type(raw) is str:
         return _parse_text_cached(column, raw)
     if column.kind == "number" and type(raw) in (int, float):
@@ -95,6 +100,16 @@ def check_range(column: Column, value, raw) -> None:
             shown = cells.show(raw) if number == value else f"{cells.show(raw)}: {number:g}"
             raise CellProblem(f"{shown} {problem} (the range of {column.name} is "
                               f"{column.range_text()}; check the units)")
+
+
+@lru_cache(maxsize=None)
+def _bounds(column: Column) -> tuple[float, float]:
+    """The closed interval of a number column's range (strictly positive: from the smallest
+    positive float); NaN never lies inside."""
+    low = -math.inf if column.minimum is None else float(column.minimum)
+    if column.strictly_positive:
+        low = max(low, math.nextafter(0.0, 1.0))
+    return low, math.inf if column.maximum is None else float(column.maximum)
 
 
 def _out_of_range(column: Column, number: float) -> str | None:

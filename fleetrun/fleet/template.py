@@ -38,6 +38,8 @@ INSTRUCTIONS = [
     ("   e.g. HD-UDDS:0.6,HWFET:0.4 (a loaded truck cannot follow US06). Empty: cycle_mix.", None),
     ("budget_years: 2 = a biennium. Year y uses annual_miles x (1 + growth/100)^(y - 1).", None),
     ("Tax rates in US dollars per gallon.", None),
+    ("Every number has a physical range (below): outside it `validate` and `run` refuse the cell;", None),
+    ("   outside the usual range they warn (check the units). Sheets up to 12,000,000 cells.", None),
     ("", None),
     ("The example rows (ids starting EXAMPLE-) show the format: replace or delete them;", None),
     ("   `fleetrun validate` warns while one is left in.", None),
@@ -117,19 +119,33 @@ def _number_rule(ws, column: Column, letter: str) -> None:
 
 
 def _fill_instructions(ws) -> None:
-    ws.column_dimensions["A"].width = 34
-    ws.column_dimensions["B"].width = 12
-    ws.column_dimensions["C"].width = 70
+    for letter, width in zip("ABCDE", (34, 12, 70, 22, 22)):
+        ws.column_dimensions[letter].width = width
     row = 1
     for text, _ in INSTRUCTIONS:
         ws.cell(row=row, column=1, value=text)
         row += 1
     ws["A1"].font = Font(bold=True, size=14)
-    ws.cell(row=row - 1, column=1).font = Font(bold=True)
+    for index, text in enumerate(("", "", "", "range (outside: refused)", "usual (outside: warning)"), start=1):
+        if text:
+            ws.cell(row=row - 1, column=index, value=text)
+        ws.cell(row=row - 1, column=index).font = Font(bold=True)
     for sheet, columns in ((VEHICLES_SHEET, VEHICLE_COLUMNS), (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
         for column in columns:
             ws.cell(row=row, column=1, value=f"{sheet}.{column.name}")
             ws.cell(row=row, column=2, value="required" if column.required else "optional")
             choices = f" ({', '.join(column.choices)})" if column.choices else ""
             ws.cell(row=row, column=3, value=column.note + choices)
+            ws.cell(row=row, column=4, value=column.range_text() or None)
+            ws.cell(row=row, column=5, value=usual_text(column) or None)
             row += 1
+
+
+def usual_text(column) -> str:
+    """The plausible range of a column as the Instructions sheet and docs show it."""
+    usual = column.plausible
+    if not usual:
+        return ""
+    if isinstance(usual, dict):
+        return "; ".join(f"{duty} {low:g} to {high:g}" for duty, (low, high) in usual.items())
+    return f"{usual[0]:g} to {usual[1]:g}"

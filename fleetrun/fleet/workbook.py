@@ -166,18 +166,18 @@ def file_sha256(path: Path) -> str:
 
 def read_fleet(path) -> Fleet:
     """Read, validate and return the fleet in ``path``; InputError lists every problem."""
-    from xml.parsers.expat import ExpatError
+    from python_calamine import CalamineError
 
-    from fleetrun.fleet.xlsx_reader import ForbiddenXml, XlsxBook, XlsxFormatError
+    from fleetrun.fleet.xlsx_read import XlsxBook
     from fleetrun.fleet.xlsx_safety import HINT, check_xlsx, scan_sheets
 
     path = Path(path)
     check_xlsx(path)
-    scan_sheets(path, (VEHICLES_SHEET, SCENARIOS_SHEET))
+    scans = scan_sheets(path, (VEHICLES_SHEET, SCENARIOS_SHEET))   # before any allocation
     problems = Problems()
     vehicle_table = scenario_table = None
     try:
-        with XlsxBook(path) as book:
+        with XlsxBook(path, scans) as book:
             sheets = {s.name: s for s in book.sheets}
             for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
                 if name not in sheets:
@@ -189,11 +189,7 @@ def read_fleet(path) -> Fleet:
                 vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
             if SCENARIOS_SHEET in sheets:
                 scenario_table = _read_table(book, sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
-    except ForbiddenXml:
-        raise InputError("contains a DTD or XML entities; refusing to open it (XML entity attack?)",
-                         file=path, hint=HINT) from None
-    except (XlsxFormatError, ExpatError, KeyError, ValueError, IndexError, zipfile.BadZipFile,
-            OSError, EOFError) as exc:
+    except (CalamineError, KeyError, ValueError, IndexError, zipfile.BadZipFile, OSError, EOFError) as exc:
         raise InputError(f"cannot be read as an .xlsx workbook (corrupt? {type(exc).__name__}: {exc})",
                          file=path, hint=HINT) from None
 
@@ -230,6 +226,14 @@ class _Table:
     extra_columns: dict[str, int]        # other headers -> column index
     rows: list[tuple[int, tuple]]        # (Excel row number, values)
     uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
+
+    def present(self, schema) -> list[tuple[Column, int]]:
+        """The schema's columns this sheet has, with their indices (computed once)."""
+        found = self.__dict__.setdefault("_present", {})
+        key = id(schema)
+        if key not in found:
+            found[key] = [(c, self.columns[c.name]) for c in schema if c.name in self.columns]
+        return found[key]
 
 
 def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
@@ -305,49 +309,36 @@ def _cell(values: tuple, index: int | None):
 def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> tuple[dict, bool]:
     """The row's schema columns as typed values (None when blank or bad), and whether all
     cells were good (row-level checks still run on the good ones)."""
-    parsed: dict = {}
+    parsed = {c.name: None for c in schema}
     ok = True
-    empty_required = [(c.name, table.columns[c.name]) for c in schema
-                      if c.required and c.name in table.columns
-                      and cells.is_blank(_cell(values, table.columns[c.name]))
-                      and (row_number, table.columns[c.name]) not in table.uncached]
-    if len(empty_required) >= ROW_MOSTLY_EMPTY:
-        # A half-filled row: one line for the row, not one per cell.
-        listed = ", ".join(f"{name} ({get_column_letter(i)})" for name, i in empty_required)
-        problems.error(f"{len(empty_required)} required cells are empty: {listed}", table.sheet,
-                       row_number)
-        ok = False
-    for column in schema:
-        index = table.columns.get(column.name)
-        if index is None:
-            parsed[column.name] = None
-            continue
-        raw = values[index - 1] if index <= len(values) else None
-        formula = table.uncached.get((row_number, index)) if table.uncached else None
-        if formula is not None:
-            problems.error(f"formula {cells.show(formula)} has no saved result; open and save the "
-                           "workbook in Excel or LibreOffice (or type the value)", table.sheet,
+    blanks: list[tuple[Column, int]] = []
+    uncached, width = table.uncached, len(values)
+    for column, index in table.present(schema):
+        if uncached and (row_number, index) in uncached:
+            problems.error(f"formula {cells.show(uncached[(row_number, index)])} has no saved result; open "
+                           "and save the workbook in Excel or LibreOffice (or type the value)", table.sheet,
                            row_number, index, column.name)
             ok = False
-            parsed[column.name] = None
             continue
-        if cells.is_blank(raw):
-            if column.required and len(empty_required) < ROW_MOSTLY_EMPTY:
-                problems.error("is empty (required)", table.sheet, row_number, index, column.name)
-                ok = False
-            parsed[column.name] = None
+        raw = values[index - 1] if index <= width else None
+        if raw is None or (type(raw) is str and not raw.strip()):
+            if column.required:
+                blanks.append((column, index))
             continue
         try:
-            value = rows.parse_value(column, raw)
+            parsed[column.name] = rows.parse_value(column, raw)
         except CellProblem as problem:
             problems.error(str(problem), table.sheet, row_number, index, column.name)
             ok = False
-            parsed[column.name] = None
-            continue
-        parsed[column.name] = value
+    if len(blanks) >= ROW_MOSTLY_EMPTY:
+        # A half-filled row: one line for the row, not one per cell.
+        listed = ", ".join(f"{c.name} ({get_column_letter(i)})" for c, i in blanks)
+        problems.error(f"{len(blanks)} required cells are empty: {listed}", table.sheet, row_number)
+    for column, index in (blanks if len(blanks) < ROW_MOSTLY_EMPTY else ()):
+        problems.error("is empty (required)", table.sheet, row_number, index, column.name)
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
     parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
-    return parsed, ok
+    return parsed, ok and not blanks
 
 
 def _text_or_blank(raw) -> str:

@@ -111,11 +111,11 @@ def _rows_xml(rows: Iterable[tuple], first_row: int, letters: list[str], styles:
 def append_rows(path: Path, tables: dict[str, tuple[int, int, Iterable[tuple]]]) -> None:
     """For each sheet title: (template row, column count, rows) -> rows appended after the
     template row (which must be the sheet's last row), styled like it."""
-    from fleetrun.fleet.xlsx_reader import XlsxBook
+    from fleetrun.fleet.xlsx_safety import sheet_parts
 
     path = Path(path)
-    with XlsxBook(path) as book:
-        parts = {s.name: s.part for s in book.sheets}
+    with zipfile.ZipFile(path) as archive:
+        parts = sheet_parts(archive)
     targets = {parts[title]: spec for title, spec in tables.items()}
     handle, temporary = tempfile.mkstemp(suffix=".xlsx", dir=path.parent)
     os.close(handle)

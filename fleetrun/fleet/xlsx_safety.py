@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import zipfile
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
@@ -149,6 +150,41 @@ def _count_tags(text: bytes) -> tuple[int, int]:
     return cells, rows
 
 
+@dataclass
+class SheetScan:
+    """What the pre-scan of one sheet found besides its extent (the reader reports neither)."""
+    hidden_rows: list[int] = field(default_factory=list)
+    hidden_columns: list[int] = field(default_factory=list)
+    uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)   # (row, col) -> "=..."
+
+
+_HIDDEN_ROW = re.compile(rb'<(?:\w+:)?row\b[^>]*?\br="([0-9]+)"[^>]*?\bhidden="(?:1|true)"')
+_HIDDEN_ROW_REVERSED = re.compile(rb'<(?:\w+:)?row\b[^>]*?\bhidden="(?:1|true)"[^>]*?\br="([0-9]+)"')
+_HIDDEN_COL = re.compile(rb'<(?:\w+:)?col\b([^>]*?)\bhidden="(?:1|true)"([^>]*)>')
+_MIN_MAX = re.compile(rb'\b(min|max)="([0-9]+)"')
+# a cell whose formula has no saved value: <c r="F2"><f>1000*12</f></c> (or <v/>, <v></v>)
+_UNCACHED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*>\s*'
+                       rb'<(?:\w+:)?f\b[^>]*?(?:/>|>([^<]*)</(?:\w+:)?f>)\s*'
+                       rb'(?:<(?:\w+:)?v\s*/>|<(?:\w+:)?v>\s*</(?:\w+:)?v>)?\s*</(?:\w+:)?c>')
+
+
+def _notes(text: bytes, scan: SheetScan) -> None:
+    """Hidden rows and columns, formulas without a saved result (searched only where the
+    text mentions them: most sheets have none)."""
+    if b'hidden="' in text:
+        for pattern in (_HIDDEN_ROW, _HIDDEN_ROW_REVERSED):
+            scan.hidden_rows.extend(int(r) for r in pattern.findall(text))
+        for before, after in _HIDDEN_COL.findall(text):
+            bounds = dict(_MIN_MAX.findall(before + after))
+            first, last = int(bounds.get(b"min", 0)), int(bounds.get(b"max", 0))
+            scan.hidden_columns.extend(range(first, min(last, first + 1000) + 1))
+    if b"<f" in text or b":f" in text:
+        for letters, row, formula in _UNCACHED.findall(text):
+            key = (int(row), column_number(letters.decode("ascii")))
+            body = formula.decode("utf-8", "replace")
+            scan.uncached_formulas[key] = "=" + body if body else "=(shared formula)"
+
+
 def column_number(letters: str) -> int:
     """A column's letters as its 1-based index (A = 1, XFD = 16,384)."""
     index = 0
@@ -177,24 +213,28 @@ def sheet_parts(archive: zipfile.ZipFile) -> dict[str, str]:
     return parts
 
 
-def scan_sheets(path: Path, names) -> None:
+def scan_sheets(path: Path, names) -> dict[str, SheetScan]:
     """InputError unless each named sheet's cell references lie within Excel's limits and its
-    used range spans at most MAX_SHEET_CELLS cells. Streams the sheet XML in chunks."""
+    used range spans at most MAX_SHEET_CELLS cells; what else the scan found, by sheet name.
+    Streams the sheet XML in chunks."""
+    scans: dict[str, SheetScan] = {}
     try:
         with zipfile.ZipFile(path) as archive:
             parts = sheet_parts(archive)
             for name in names:
                 part = parts.get(name)
                 if part and part in archive.namelist():
-                    _scan_part(archive, part, name, path)
+                    scans[name] = _scan_part(archive, part, name, path)
     except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"is corrupt ({type(exc).__name__}: {exc})", file=path, hint=HINT) from None
+    return scans
 
 
-def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> None:
+def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> SheetScan:
     max_row = max_col = rows = unreferenced = 0
+    scan = SheetScan()
     carry = b""
     with archive.open(part) as stream:
         while True:
@@ -210,6 +250,7 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> N
             cells, found_rows = _count_tags(text)
             rows += found_rows
             unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
+            _notes(text, scan)
             if not block:
                 break
     # cells without a reference take the next column: bound their reach by their number
@@ -220,6 +261,7 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> N
                          f"{MAX_SHEET_CELLS:,} cells per sheet", file=path,
                          hint="Delete stray cells far from the table, or split the fleet into smaller "
                               "workbooks (fleetrun run --config batch.toml runs them together)")
+    return scan
 
 
 def _beyond(path: Path, sheet: str, ref: str, limit: str) -> None:
