@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.units import METERS_PER_MILE
 
-MILE_M = 1609.344          # international mile [m], exact
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
 KPH_TO_MPS = 1.0 / 3.6     # 1 km/h in m/s, exact
 
@@ -124,7 +124,7 @@ class DriveCycle:
     @property
     def miles(self) -> float:
         """Distance driven [mi] (international mile, 1609.344 m)."""
-        return self.distance_m / MILE_M
+        return self.distance_m / METERS_PER_MILE
 
     @property
     def max_speed_mps(self) -> float:

@@ -5,6 +5,7 @@ fleetrun carries copies as ``fleetrun/_data/<name>`` (see ``pyproject.toml``).
 """
 from __future__ import annotations
 
+import tomllib
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,3 +31,11 @@ def templates_dir() -> Path:
 
 def inputs_dir() -> Path:
     return data_dir("inputs")
+
+
+@lru_cache(maxsize=None)
+def model_file(name: str) -> dict:
+    """The parsed TOML file ``models/<name>``, read once per process. Callers must not
+    mutate the returned mapping (it is shared); copy what they change."""
+    with open(models_dir() / name, "rb") as handle:
+        return tomllib.load(handle)

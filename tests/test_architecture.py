@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fleetrun"
 #: A module belongs to the first entry whose name is the module or a package containing it.
 #: Keep in step with docs/architecture.md.
 LAYERS = (
-    ("base", ("fleetrun", "fleetrun.errors", "fleetrun.registry", "fleetrun.resources",
+    ("base", ("fleetrun", "fleetrun.errors", "fleetrun.registry", "fleetrun.resources", "fleetrun.units",
               "fleetrun.fileio", "fleetrun.output_folder")),
     ("physics", ("fleetrun.physics",)),
     ("differential", ("fleetrun.differential",)),

@@ -17,7 +17,7 @@ from pathlib import Path
 from fleetrun.differential.expressions import evaluate
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C, fluid_properties
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file, models_dir
 
 
 @dataclass(frozen=True)
@@ -109,5 +109,4 @@ def reference_model(model_id: str) -> ReferenceModel:
 @lru_cache(maxsize=None)
 def configuration_table() -> dict[str, dict]:
     """``models/configurations.toml``: configuration id -> description, equation, factors."""
-    with open(models_dir() / "configurations.toml", "rb") as fh:
-        return tomllib.load(fh)["configuration"]
+    return model_file("configurations.toml")["configuration"]

@@ -7,19 +7,16 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from functools import lru_cache
 
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 
 CONSTANTS_FILE = "epa_import.toml"
 
 
-@lru_cache(maxsize=1)
 def constants() -> dict:
     """The parsed ``models/epa_import.toml``."""
-    with open(models_dir() / CONSTANTS_FILE, "rb") as handle:
-        return tomllib.load(handle)
+    return model_file(CONSTANTS_FILE)
 
 
 def peak_torque_Nm(rated_power_kW: float, displacement_L: float, diesel: bool = False) -> tuple[float, float]:

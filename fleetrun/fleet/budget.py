@@ -15,23 +15,18 @@ One owner for each budget fact (constants in ``models/budget.toml``, with their 
 from __future__ import annotations
 
 import math
-import tomllib
-from functools import lru_cache
 
 import numpy as np
 
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 
 CITY, HIGHWAY = "city", "highway"
-KM_PER_MILE = 1.609344
 GRAMS_PER_TONNE = 1e6
 
 
-@lru_cache(maxsize=None)
 def constants() -> dict:
     """``models/budget.toml``."""
-    with open(models_dir() / "budget.toml", "rb") as handle:
-        return tomllib.load(handle)
+    return model_file("budget.toml")
 
 
 def epa_label_gal_per_mile(cycle_gal_per_mile, intercept_gal_per_mile: float, slope: float):

@@ -30,6 +30,7 @@ import pandas as pd
 
 from fleetrun.fleet import budget
 from fleetrun.fleet.schema import DUTY_CLASSES
+from fleetrun.units import METERS_PER_MILE
 
 ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
                  "wheel_energy_J")
@@ -66,7 +67,7 @@ def cycle_mean_speed_kph(cycle: str) -> float:
 
     trace = load_cycle(cycle)
     hours = float(trace.time_s[-1] - trace.time_s[0]) / 3600.0
-    return float(trace.miles) * budget.KM_PER_MILE / hours
+    return float(trace.miles) * METERS_PER_MILE / 1000.0 / hours
 
 
 def _cycle_kind(cycle: str) -> str:

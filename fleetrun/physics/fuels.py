@@ -7,12 +7,11 @@ and 1065.703); CO2 per gallon EPA-420-F-11-041.
 """
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 
 from fleetrun.errors import unknown_name_error
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 
 
 @dataclass(frozen=True)
@@ -28,8 +27,7 @@ class FuelProperties:
 @lru_cache(maxsize=None)
 def fuel_table() -> dict[str, FuelProperties]:
     """Every fuel of ``models/fuels.toml`` by its (lower-case) name."""
-    with open(models_dir() / "fuels.toml", "rb") as fh:
-        data = tomllib.load(fh)
+    data = model_file("fuels.toml")
     return {name.lower(): FuelProperties(float(v["lhv_MJ_per_kg"]), float(v["density_kg_per_L"]),
                                          float(v["co2_g_per_gal"]))
             for name, v in data.items()}

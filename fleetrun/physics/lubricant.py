@@ -10,14 +10,13 @@ printed code (B.7) fixes ``T = 70 + 273.15`` and ``--physics thesis`` keeps that
 """
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
 from fleetrun.errors import unknown_name_error
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 
 KELVIN = 273.15
 #: Temperature rise of the lubricant over ambient in steady operation (thesis Sec. 3.1.2).
@@ -99,8 +98,7 @@ class FluidProperties:
 @lru_cache(maxsize=None)
 def lubricant_data() -> dict:
     """The lubricants of ``models/lubricants.toml`` keyed by upper-case name."""
-    with open(models_dir() / "lubricants.toml", "rb") as fh:
-        data = tomllib.load(fh)
+    data = model_file("lubricants.toml")
     return {name.upper(): spec for name, spec in data["lubricant"].items()}
 
 

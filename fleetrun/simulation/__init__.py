@@ -21,11 +21,10 @@ from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_e
 from fleetrun.simulation.params import vehicle_arrays
 from fleetrun.simulation.thermal import (ThermalConstants, cold_start_extra_fuel, start_temperature_C,
                                          thermal_constants)
+from fleetrun.units import LITERS_PER_GALLON, METERS_PER_MILE
 
 __all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
 
-METERS_PER_MILE = 1609.344
-LITERS_PER_GALLON = 3.785411784
 MODES = diffmodes.MODES
 # "auto" = the fastest mode whose cycle fuel stays within 0.2 % of direct for every example
 # vehicle (tests/test_simulation_modes.py checks it): the cached 3-D map.

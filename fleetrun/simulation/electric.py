@@ -17,23 +17,19 @@ budget's (:func:`fleetrun.fleet.budget.electric_onroad_factor`).
 """
 from __future__ import annotations
 
-import tomllib
-from functools import lru_cache
 
 import numpy as np
 
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si, tractive_force_N
+from fleetrun.units import METERS_PER_MILE
 
 J_PER_KWH = 3.6e6
-METERS_PER_MILE = 1609.344
 
 
-@lru_cache(maxsize=None)
 def constants() -> dict:
     """``models/electric.toml``."""
-    with open(models_dir() / "electric.toml", "rb") as handle:
-        return tomllib.load(handle)
+    return model_file("electric.toml")
 
 
 def battery_power_W(wheel_power_W, drive_efficiency, regen_share, regen_efficiency):

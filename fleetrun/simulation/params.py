@@ -18,7 +18,6 @@ docs/simulation.md):
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Sequence
@@ -28,19 +27,13 @@ import numpy as np
 from fleetrun.differential import dual_configuration_ids
 from fleetrun.errors import FleetrunError, InputError
 from fleetrun.physics.fuels import fuel_properties
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
 
 DUAL_CONFIGURATIONS = frozenset(dual_configuration_ids())  # models/configurations.toml
-
-
-@lru_cache(maxsize=None)
-def _toml(name: str) -> dict:
-    with open(models_dir() / name, "rb") as fh:
-        return tomllib.load(fh)
 
 
 CALIBRATION_FILE = "engine_calibration.toml"
@@ -52,7 +45,7 @@ FUEL_CONSTANTS = ("eta_indicated", "high_load_factor", "fmep_0_kPa", "fmep_pisto
 def engine_defaults(fuel: str, duty_class: str) -> dict:
     """The engine set of ``models/engines.toml`` for the fuel and duty class, with the fitted
     constants of ``models/engine_calibration.toml`` (``[<fuel>.<duty>.constants]``) on top."""
-    sets = _toml("engines.toml")
+    sets = model_file("engines.toml")
     if fuel not in sets:
         raise InputError(f"unknown fuel '{fuel}'", column="fuel", value=fuel,
                          hint="Use gasoline or diesel")
@@ -62,13 +55,13 @@ def engine_defaults(fuel: str, duty_class: str) -> dict:
     fuel_props = fuel_properties(fuel)
     values.update(lhv_MJ_per_kg=fuel_props.lhv_MJ_per_kg, density_kg_per_L=fuel_props.density_kg_per_L)
     if (models_dir() / CALIBRATION_FILE).exists():
-        fitted = _toml(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
+        fitted = model_file(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
         values.update({key: fitted[key]["value"] for key in FUEL_CONSTANTS if key in fitted})
     return values
 
 
 def transmission_defaults(gearbox_type: str) -> dict:
-    sets = _toml("transmissions.toml")
+    sets = model_file("transmissions.toml")
     if gearbox_type not in sets:
         raise InputError(f"unknown gearbox_type '{gearbox_type}'", column="gearbox_type",
                          value=gearbox_type, hint="Use " + ", ".join(GEARBOX_TYPES))

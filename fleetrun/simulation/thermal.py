@@ -30,14 +30,13 @@ A plain cycle is driven warm (as EPA's HWFET and US06 after their preconditionin
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
 from fleetrun.physics.lubricant import KELVIN, walther_coefficients, walther_kinematic_viscosity_m2_s
-from fleetrun.resources import models_dir
+from fleetrun.resources import model_file
 from fleetrun.simulation.core import engine_motoring_torque_Nm
 from fleetrun.simulation.engine import RPM_RAD_S, fuel_rate_g_per_s
 
@@ -62,8 +61,7 @@ class ThermalConstants:
 @lru_cache(maxsize=None)
 def thermal_constants() -> ThermalConstants:
     """``models/thermal.toml`` as :class:`ThermalConstants`."""
-    with open(models_dir() / "thermal.toml", "rb") as fh:
-        data = tomllib.load(fh)
+    data = model_file("thermal.toml")
     engine, friction = data["engine"], data["friction"]
     oils = {fuel: walther_coefficients(o["nu1_cSt"], o["T1_K"], o["nu2_cSt"], o["T2_K"])
             for fuel, o in data["oil"].items()}
