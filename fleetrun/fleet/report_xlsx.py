@@ -169,6 +169,22 @@ def _series(ws, column: int, first_row: int, last_row: int, title: str) -> Serie
     return Series(Reference(ws, min_col=column, min_row=first_row, max_row=last_row), title=title)
 
 
+def _scenario_bars(ws, pivot: pd.DataFrame, header_row: int, bar_type: str, title: str,
+                   axes: tuple[str, str, str], size: tuple[float, float]) -> None:
+    """A bar chart of ``pivot`` as written below ``header_row`` (labels in column A, one
+    column and one series per scenario), placed two rows under the table."""
+    first, last = header_row + 1, header_row + len(pivot)
+    chart = BarChart()
+    chart.type = bar_type
+    chart.title = title
+    _axes(chart, *axes)
+    for k, scenario_id in enumerate(pivot.columns):
+        chart.series.append(_series(ws, 2 + k, first, last, f"Scenario {scenario_id}"))
+    chart.set_categories(Reference(ws, min_col=1, min_row=first, max_row=last))
+    chart.height, chart.width = size
+    ws.add_chart(chart, f"A{last + 2}")
+
+
 def _summary(wb, result: RunResult, totals: pd.DataFrame):
     ws = wb.create_sheet("Summary")
     header_row = 6
@@ -284,16 +300,9 @@ def _by_class(wb, result: RunResult):
     ws.append([text_cell(ws, "vehicle_class")] + [text_cell(ws, s) for s in pivot.columns])
     for label, row in pivot.iterrows():
         ws.append([text_cell(ws, label)] + [_value(ws, float(v), "#,##0") for v in row])
-    header = start + 1
-    chart = BarChart()
-    chart.type = "bar"
-    chart.title = "Fuel by vehicle class over the budget period"
-    _axes(chart, "Vehicle class", "US gallons", "#,##0")
-    for k, scenario_id in enumerate(pivot.columns):
-        chart.series.append(_series(ws, 2 + k, header + 1, header + len(pivot), f"Scenario {scenario_id}"))
-    chart.set_categories(Reference(ws, min_col=1, min_row=header + 1, max_row=header + len(pivot)))
-    chart.height, chart.width = max(7.5, 0.5 * len(pivot) * len(pivot.columns)), 18
-    ws.add_chart(chart, f"A{header + len(pivot) + 2}")
+    _scenario_bars(ws, pivot, start + 1, "bar", "Fuel by vehicle class over the budget period",
+                   ("Vehicle class", "US gallons", "#,##0"),
+                   (max(7.5, 0.5 * len(pivot) * len(pivot.columns)), 18))
 
 
 def _by_vehicle(wb, result: RunResult, bulk: dict):
@@ -360,15 +369,8 @@ def _by_fiscal_year(ws, result: RunResult, title_row: int) -> None:
     ws.append([text_cell(ws, "fiscal_year")] + [text_cell(ws, s) for s in pivot.columns])
     for year, row in pivot.iterrows():
         ws.append([text_cell(ws, str(int(year)))] + [_value(ws, float(v), FORMATS["state_tax_usd"]) for v in row])
-    chart = BarChart()
-    chart.type = "col"
-    chart.title = "State fuel-tax revenue by fiscal year"
-    _axes(chart, "Fiscal year", "US$ (state fuel tax)", '"$"#,##0')
-    for k, scenario_id in enumerate(pivot.columns):
-        chart.series.append(_series(ws, 2 + k, pivot_row + 1, pivot_row + len(pivot), f"Scenario {scenario_id}"))
-    chart.set_categories(Reference(ws, min_col=1, min_row=pivot_row + 1, max_row=pivot_row + len(pivot)))
-    chart.height, chart.width = 7.5, 16
-    ws.add_chart(chart, f"A{pivot_row + len(pivot) + 2}")
+    _scenario_bars(ws, pivot, pivot_row, "col", "State fuel-tax revenue by fiscal year",
+                   ("Fiscal year", "US$ (state fuel tax)", '"$"#,##0'), (7.5, 16))
 
 
 def _fiscal(wb, result: RunResult):
