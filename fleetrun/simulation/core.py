@@ -182,8 +182,9 @@ def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
 
 @dataclass
 class Kinematics:
-    """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps;
-    quantities of time only are 1 x steps)."""
+    """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps,
+    or 1 x steps when every vehicle drives the same speeds; quantities of time only are 1 x
+    steps)."""
 
     dt: np.ndarray
     grade: np.ndarray            # mean grade of the step [%]
@@ -387,8 +388,9 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
-        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start, k.v_avg,
-                                                            wheel_power, burning), 0.0)
+        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start,
+                                                            np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
+                                                            burning), 0.0)
     return t_max, infeasible, engine_torque, fuel
 
 
@@ -399,13 +401,15 @@ def _shaft_power_W(torque_Nm, speed_rpm):
 
 
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects()):
+             effects: CycleEffects = CycleEffects(), losses: bool = True):
     """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
-    vehicle's achieved speed).
+    vehicle's achieved speed), or (1, N) when every vehicle drives the same speeds (then the
+    motion of the steps, ``dt`` to ``moving``, is (1, N) too).
 
     ``columns``: compute only these steps (the caller skips steps where the whole block
     stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
     physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
+    ``losses``: also the power lost in the differential, gearbox and converter (the trace's).
     """
     k = kinematics(time_s, speed_mps, grade_pct, columns)
     force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
@@ -416,21 +420,23 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
     t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
                                                     wheel_power)
-    diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
-    turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     V, N = wheel_torque.shape
-    return dict(
+    out = dict(
         dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
         moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
         diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
         transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
-        converter_unlocked=unlocked & k.moving, engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
-        engine_max_torque_Nm=t_max, infeasible=infeasible & k.moving, fuel_rate_g_per_s=fuel,
-        wheel_power_W=wheel_power, diff_loss_W=diff_in_power - wheel_power,
-        transmission_loss_W=turbine_power - diff_in_power, converter_loss_W=engine_power - turbine_power,
-        engine_power_W=engine_power,
+        converter_unlocked=k.at_rest(unlocked, False), engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
+        engine_max_torque_Nm=t_max, infeasible=k.at_rest(infeasible, False), fuel_rate_g_per_s=fuel,
+        wheel_power_W=wheel_power, engine_power_W=engine_power,
     )
+    if losses:
+        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
+        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+        out.update(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
+                   converter_loss_W=engine_power - turbine_power)
+    return out
 
 
 REDRIVE_SPEED_GRID = np.linspace(0.0, 70.0, 281)  # m/s, 0.25 m/s steps, beyond any cycle
