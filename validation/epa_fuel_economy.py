@@ -289,6 +289,31 @@ def group_table(err, table, by):
     return pd.DataFrame(rows)
 
 
+def limits(err, table, specs):
+    """What limits the held-out accuracy: the correlation of a vehicle's errors across tests,
+    and the split of each test's error into manufacturer means and the scatter within them
+    (with the share within 5 % that even exact manufacturer means would leave)."""
+    lines = ["correlation of held-out errors: " + ", ".join(
+        f"{a} vs {b} {err[[a, b]].dropna().corr().iloc[0, 1]:.2f}" for a, b in
+        (("UDDS:hot", "HWFET"), ("UDDS:hot", "US06"), ("HWFET", "US06"), ("FTP", "HWFET")))]
+    for test in REPORTED:
+        e = pd.Series(err[test].to_numpy(), index=table.manufacturer.to_numpy()).dropna()
+        means = e.groupby(level=0).transform("mean")
+        lines.append(f"{test}: sd {e.std():.3f} (manufacturer means: sd {means.std():.3f}; within manufacturers: sd "
+                     f"{(e - means).std():.3f}); within 5 % with each manufacturer's mean error removed (in sample): "
+                     f"{np.mean(np.abs(e - means) <= 0.05):.0%}")
+    nv = pd.Series([getattr(v, "nv_ratio_rpm_per_mph", None) for v in specs], index=table.index, dtype=float)
+    for name, key, edges in (("specific power [kW/L]", table.specific_power_kW_per_L, [0, 100, 130, 1000]),
+                             ("N/V [rpm/mph]", nv, [0, 25, 30, 100]),
+                             ("displacement [L]", table.displacement_L, [0, 1.6, 2.1, 2.6, 3.1, 4, 5, 9])):
+        bins = pd.cut(key, edges)
+        cells = [f"{b}: n={int(err.FTP[(bins == b).to_numpy()].notna().sum())} "
+                 + " / ".join(f"{err[t][(bins == b).to_numpy()].median():+.1%}" for t in ("FTP", "HWFET"))
+                 for b in bins.cat.categories]
+        lines.append(f"median error FTP / HWFET by {name}: " + "; ".join(cells))
+    return lines
+
+
 def thermal_variant(heat_capacity_kJ_per_K_per_L, enrichment_gasoline):
     """The cold-start constants of models/thermal.toml with the two fitted ones replaced."""
     k = thermal_constants()
@@ -570,6 +595,8 @@ def main(argv=None):
     print_summaries("  bags held out", summaries(r["err"], ("FTP:bag1", "FTP:bag2", "FTP:bag3")))
     for fuel, c in r["final"].items():
         print(fuel, {k: round(float(v), 4) for k, v in constants_of(c).items()})
+    for line in limits(r["err"], table, specs):
+        print(line)
     for by in ("gearbox_type", "fuel"):
         print(group_table(r["err"], table, by).round(3).to_string(index=False))
     if args.plots:
