@@ -174,11 +174,14 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
-    idle speed and zero load."""
-    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
-                                va.idle_T_frac)
-    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    idle speed and zero load. Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which
+    its subsets carry; the vehicles' parameters do not change during a simulation)."""
+    if va.idle_fuel_rate is None:
+        t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                    va.idle_T_frac)
+        idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+        va.idle_fuel_rate = np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    return va.idle_fuel_rate
 
 
 @dataclass
