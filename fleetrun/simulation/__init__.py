@@ -189,8 +189,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C, thermal)
     va = vehicle_arrays(vehicles)
     V = va.n
-    if V:
-        va.power_table = power_speed_table(va)  # once for the whole call, shared by the blocks
+    if V:  # once for the whole call, shared by the blocks: the power table and idle fuel (kept in va)
+        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.

@@ -121,7 +121,8 @@ class DifferentialSolver:
             # per vehicle (V, 1), broadcast against the steps inside the lookup
             map_id = self.map_id[:, None]
             n_max = self.n_max[self.map_id][:, None]
-            return diffmodes.interp_maps(self.maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=True)
+            ranges = axle_low if self.va.combo_axle_low.any() else 0   # no two-speed axle: the high range
+            return diffmodes.interp_maps(self.maps, n_max, map_id, ranges, out_frac, speed_rpm, per_step=True)
         result = np.zeros((V, N))
         idx = np.flatnonzero(active)
         rows = np.broadcast_to(np.arange(V)[:, None], (V, N)).reshape(-1)[idx]
@@ -173,11 +174,14 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
-    idle speed and zero load."""
-    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
-                                va.idle_T_frac)
-    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    idle speed and zero load. Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which
+    its subsets carry; the vehicles' parameters do not change during a simulation)."""
+    if va.idle_fuel_rate is None:
+        t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                    va.idle_T_frac)
+        idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+        va.idle_fuel_rate = np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    return va.idle_fuel_rate
 
 
 @dataclass
@@ -260,7 +264,7 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     choice = choose_gear(wheel_rpm * _col(va.final_drive), n_req, _col(va.n_rated), overall, va.n_combos)
     flat_k = rows * overall.shape[1] + choice
     trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
-    axle_low = va.combo_axle_low.reshape(-1)[flat_k]
+    axle_low = va.combo_axle_low.reshape(-1)[flat_k] if va.combo_axle_low.any() else np.zeros(flat_k.shape, bool)
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
     gear = va.combo_gear.reshape(-1)[flat_k]
     if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
@@ -276,8 +280,9 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
 
 
 def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
-                 wheel_torque, wheel_rpm, axle_low):
-    """The differential backwards: input speed, input torque and step efficiency.
+                 wheel_torque, wheel_rpm, axle_low, efficiency: bool = True):
+    """The differential backwards: input speed, input torque and step efficiency (None
+    without ``efficiency``).
 
     The thesis chain is inverted by ``solver`` (any mode); the ``--with`` effects add their
     extra pinion torque on the drive-side input at |T_out| (so on overrun the drags still take
@@ -303,6 +308,8 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
                                                 pinion_accel, k.since_start, solver.ambient, G_tot, kim)
         diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
     diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
+    if not efficiency:
+        return diff_rpm, diff_torque, None
     with np.errstate(divide="ignore", invalid="ignore"):
         # with inertia a decelerating pinion gives energy back: the step efficiency may exceed 1
         turning = (active & (out_Nm + diff_loss_Nm > 0)) if effects.differential else diff_loss_Nm > 0
@@ -382,7 +389,8 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col)
     idle_fuel = _col(va.idle_fuel_g_s)
-    np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
+    if np.isfinite(idle_fuel).any():
+        np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
     if not k.all_moving:
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if effects.vehicle:
@@ -409,13 +417,14 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     ``columns``: compute only these steps (the caller skips steps where the whole block
     stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
     physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
-    ``losses``: also the power lost in the differential, gearbox and converter (the trace's).
+    ``losses``: also the differential's step efficiency and the power lost in the
+    differential, gearbox and converter (the trace's).
     """
     k = kinematics(time_s, speed_mps, grade_pct, columns)
     force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
     wheel_power = wheel_torque * wheel_omega
     trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
-    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low)
+    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
     trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
     t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,

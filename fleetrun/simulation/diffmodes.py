@@ -327,7 +327,8 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
 
 
 def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=False):
-    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) (arrays of one shape).
+    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) (arrays of one shape;
+    ``map_id`` and ``axle_low``, the range, may broadcast against them).
 
     ``n_max`` is the top of each map's speed grid, per map (or per step with ``per_step``).
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
@@ -347,10 +348,11 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
     np.minimum(j, N_SPEED - 2, out=j)
     ws = s - j
     flat = maps.reshape(-1)
-    base = map_id * 2 + axle_low.astype(np.intp)
-    base = base * N_U + i
+    # flat index ((map_id * 2 + range) * N_U + i) * N_SPEED + j (integers: exact in any order)
+    base = i
     base *= N_SPEED
     base += j
+    base += (map_id * 2 + np.asarray(axle_low, np.intp)) * (N_U * N_SPEED)
     m00 = flat.take(base)
     base += 1
     m01 = flat.take(base)
