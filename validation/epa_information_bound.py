@@ -8,8 +8,8 @@ scatter any model of the available inputs could remove, in four parts:
 
 1. **Repeatability** of EPA's own numbers: rows of the list that are repeat tests of one test
    vehicle and configuration (same vehicle id, same test, several test numbers, on the vehicle's
-   own fuel): the spread of their mpg about the configuration's mean. Measured rows and
-   analytically derived ones (ADFE, 40 CFR 600.006(e)) are reported apart.
+   own fuel, the rows the importer averages: analytically derived values left out): the
+   spread of their mpg about the configuration's mean.
 2. **Twins**: distinct configurations whose every model input (the whole Vehicles row that
    ``fleetrun import-epa`` writes, identity columns excepted) is identical. No deterministic
    function of the inputs can tell them apart; predicting each twin group by its geometric mean
@@ -62,10 +62,11 @@ WITHIN = 0.05
 
 
 # ----------------------------------------------------------------------------- the list's rows
-def test_rows(path=TSTCAR):
-    """Every fuel-economy test row (FTP, HWFET, US06) of a modelled vehicle on its own fuel
-    with a valid mpg, with all columns of the list, ``vehicle_id``, ``test`` and ``mpg``:
-    the rows the importer's measured values are made of (fleetrun/epa/measured.py)."""
+def test_rows(path=TSTCAR, derived=False):
+    """Every fuel-economy test row (FTP, HWFET, US06) with a valid mpg, with all columns of the
+    list, ``vehicle_id``, ``test`` and ``mpg``; without the analytically derived ones (as
+    fleetrun/epa/measured.py: with ``own_fuel_rows`` these are the rows the importer's measured
+    values are made of), or only those with ``derived=True``."""
     named = read_test_car_list(path)
     raw = pd.read_csv(path, encoding="utf-8-sig", dtype=str)
     raw.columns = [" ".join(c.split()) for c in raw.columns]
@@ -74,7 +75,9 @@ def test_rows(path=TSTCAR):
     raw["mpg"] = named["fe_mpg"].to_numpy()
     raw["row_fuel"] = named["fuel_description"].map(fuel_of).to_numpy()
     limit = import_constants()["measured"]["max_valid_mpg"]
-    return raw[raw.test.notna() & (raw.mpg > 0) & (raw.mpg < limit)]
+    marks = {str(v).lower() for v in import_constants()["measured"]["analytically_derived"]}
+    adfe = raw["Analytically Derived FE?"].fillna("").str.strip().str.lower().isin(marks).to_numpy()
+    return raw[raw.test.notna() & (raw.mpg > 0) & (raw.mpg < limit) & (adfe == derived)]
 
 
 def own_fuel_rows(rows, table):
@@ -111,42 +114,49 @@ def spread_summary(rep):
 
 
 def repeatability(rows):
-    """Spread of repeat tests: all repeat rows as the importer averages them, and only the
-    measured ones (ADFE rows left out). Among measured rows no group mixes procedures or
-    originators, so these are same-procedure repeats."""
-    measured = rows[~is_adfe(rows)]
-    return {"all rows (as averaged by the importer)": spread_summary(repeat_spread(rows)),
-            "measured rows (ADFE rows left out)": spread_summary(repeat_spread(measured))}
+    """Spread of repeat tests (the measured rows the importer averages). No group of them mixes
+    procedures or originators: these are same-procedure repeats."""
+    return spread_summary(repeat_spread(rows))
 
 
-def is_adfe(rows):
-    return (rows["Analytically Derived FE?"].fillna("").str.strip() == "Yes").to_numpy()
+def adfe_road_load(path=TSTCAR):
+    """Analytically derived rows: their ADFE road-load power [hp] over the power of the row's
+    target coefficients at 50 mph, and their ADFE N/V and weight over the row's (why the
+    importer does not use them: they describe another configuration)."""
+    x = test_rows(path, derived=True)
+    num = lambda c: pd.to_numeric(x[c], errors="coerce")  # noqa: E731
+    target_hp = (num("Target Coef A (lbf)") + 50 * num("Target Coef B (lbf/mph)")
+                 + 2500 * num("Target Coef C (lbf/mph**2)")) * 50 / 375
+    out = {"rows": int(len(x))}
+    for name, ratio in (("road_load_power", num("ADFE Total Road Load HP") / target_hp),
+                        ("nv", num("ADFE N/V Ratio") / num("N/V Ratio")),
+                        ("weight", num("ADFE Equiv. Test Weight (lbs.)") / num("Equivalent Test Weight (lbs.)"))):
+        r = ratio.dropna()
+        out[name] = dict(n=int(r.size), min=float(r.min()), max=float(r.max()), std=float(r.std()),
+                         differ_over_3pct=float(np.mean(np.abs(r - 1) > 0.03)))
+    return out
 
 
 def wide_repeats(rows, limit=0.10):
     """(vehicle_id, test) of measured repeat groups whose rows differ by more than ``limit``
     (max / min - 1), with the vehicle's make and model."""
-    rep = repeat_spread(rows[~is_adfe(rows)])
+    rep = repeat_spread(rows)
     rng = rep.groupby(["vehicle_id", "test"]).lg.agg(lambda v: v.max() - v.min())
     return rng[rng > np.log1p(limit)].reset_index()[["vehicle_id", "test"]]
 
 
 def data_limits(rows, table, err):
     """The physics' held-out errors on the vehicles whose measured value mixes rows the inputs
-    cannot describe: repeat rows more than 10 % apart, ADFE rows (derived for the ADFE road
-    load, N/V and weight), and on the rest."""
+    cannot describe (repeat rows more than 10 % apart) and on the rest."""
     wide = wide_repeats(rows)
     e = err.set_axis(table.vehicle_id)
     models = table.set_index("vehicle_id").loc[wide.vehicle_id.unique(), ["make", "model"]]
     out = {"wide_repeat_models": sorted({f"{a} {b}" for a, b in models.itertuples(index=False)})}
     for test in TESTS:
-        x = rows[rows.test == test]
-        adfe = set(x.vehicle_id[is_adfe(x)])
         wide_t = set(wide.vehicle_id[wide.test == test])
         ok = e[test].notna()
         masks = {"all": ok, "repeat rows > 10 % apart": ok & e.index.isin(wide_t),
-                 "with ADFE rows": ok & e.index.isin(adfe),
-                 "neither": ok & ~e.index.isin(wide_t | adfe)}
+                 "the others": ok & ~e.index.isin(wide_t)}
         out[test] = {k: efe.summary(e[test][m]) for k, m in masks.items()}
     return out
 
@@ -226,7 +236,7 @@ def list_features(rows, table, test):
     """(b) extras: every other non-outcome column of the list for ``test`` (per vehicle, from the
     rows of that test the measured value averages): engine code, test group characters, test
     fuel, aftertreatment, vehicle type, set coefficients and target minus set, drive-quality
-    ratings, overdrive, shift indicator, ADFE, originator, procedure, number of rows."""
+    ratings, overdrive, shift indicator, originator, procedure, number of rows."""
     x = rows[rows.test == test].copy()
     num = lambda c: pd.to_numeric(x[c], errors="coerce")  # noqa: E731
     for s in "ABC":
@@ -237,23 +247,13 @@ def list_features(rows, table, test):
         x[f"target_minus_set_{mph}mph_lbf"] = x.tms_A + mph * x.tms_B + mph ** 2 * x.tms_C
     for k, c in enumerate(DT_RATINGS):
         x[f"dt_{('iwr', 'ascr', 'eer')[k]}"] = num(c)
-    x["adfe"] = (x["Analytically Derived FE?"].str.strip() == "Yes").astype(float)
-    # an ADFE row's result is derived for its own road load, N/V and weight (the ADFE columns),
-    # not for the target coefficients of the row: their ratios (1 for a measured row)
-    target_hp = (num("Target Coef A (lbf)") + 50 * num("Target Coef B (lbf/mph)")
-                 + 2500 * num("Target Coef C (lbf/mph**2)")) * 50 / 375
-    x["adfe_road_load_ratio"] = (num("ADFE Total Road Load HP") / target_hp).where(x.adfe > 0, 1.0)
-    x["adfe_nv_ratio"] = (num("ADFE N/V Ratio") / num("N/V Ratio")).where(x.adfe > 0, 1.0)
-    x["adfe_weight_ratio"] = (num("ADFE Equiv. Test Weight (lbs.)")
-                              / num("Equivalent Test Weight (lbs.)")).where(x.adfe > 0, 1.0)
     x["epa_originator"] = (x["Test Originator"].str.strip() == "EPA").astype(float)
     tg = x["Actual Tested Testgroup"].fillna("").str.strip().str.upper().str.pad(12, "right", "_")
     for i, name in ((0, "testgroup_year_char"), (4, "testgroup_class_char"), (9, "testgroup_char10"),
                     (10, "testgroup_char11"), (11, "testgroup_char12")):
         x[name] = tg.str[i]
     numeric = ["set_A", "set_B", "set_C", "tms_A", "tms_B", "tms_C", "target_minus_set_20mph_lbf",
-               "target_minus_set_50mph_lbf", "dt_iwr", "dt_ascr", "dt_eer", "adfe", "adfe_road_load_ratio",
-               "adfe_nv_ratio", "adfe_weight_ratio", "epa_originator"]
+               "target_minus_set_50mph_lbf", "dt_iwr", "dt_ascr", "dt_eer", "epa_originator"]
     text = {"Engine Code": "engine_code", "Test Fuel Type Description": "test_fuel",
             "Aftertreatment Device Desc": "aftertreatment", "Vehicle Type": "vehicle_type",
             "Transmission Overdrive Desc": "overdrive", "Shift Indicator Light Use Desc": "shift_indicator",
@@ -548,7 +548,9 @@ def main(argv=None):
     err = efe.relative_errors(plain_pred, table)
     outer = nested_physics(d, table)
     report["test_fuel"] = test_fuel_effect(rows, table, err)
-    report["carbon_balance"] = carbon_balance_check(test_rows())
+    report["carbon_balance"] = carbon_balance_check(pd.concat([test_rows(), test_rows(derived=True)]))
+    report["adfe"] = adfe_road_load()
+    _print("analytically derived rows", report["adfe"])
     report["drive_quality"] = drive_quality_effect(table, vehicles, rows, outer, plain_pred)
     report["data_limits"] = data_limits(rows, table, err)
     report["peer_correction"] = peer_correction(err, table, rows, vehicles=vehicles)
