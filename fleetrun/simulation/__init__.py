@@ -308,7 +308,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         sums["trace"] = {
             "time_s": np.broadcast_to(t, (V, N)), "vehicle_speed_mps": np.broadcast_to(speed, (V, N)), "wheel_torque_Nm": out["wheel_torque_Nm"],
             "diff_input_torque_Nm": out["diff_input_torque_Nm"], "diff_input_speed_rpm": out["diff_input_speed_rpm"],
-            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"], "engine_speed_rpm": out["engine_speed_rpm"],
+            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"].astype(np.intp), "engine_speed_rpm": out["engine_speed_rpm"],
             "engine_torque_Nm": out["engine_torque_Nm"], "fuel_rate_g_per_s": out["fuel_rate_g_per_s"],
             "target_speed_mps": np.broadcast_to(v_target, (V, N)), "grade_pct": np.broadcast_to(grade, (V, N)),
             "tractive_force_N": out["force"],

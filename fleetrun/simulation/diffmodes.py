@@ -301,13 +301,12 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
     that is not scale-free (:func:`map_torque_scale_Nm`).
     """
     V = len(configurations)
-    index = np.empty(V, np.intp)
+    lows = [None if low != low else low for low in np.asarray(low_ratios, float).tolist()]   # NaN: single speed
+    scales = ([None] * V if kim_scales_Nm is None or map_torque_scale_Nm(physics, 1.0) is None else
+              [map_torque_scale_Nm(physics, k) for k in np.asarray(kim_scales_Nm, float).tolist()])
     keys: dict = {}
-    for v in range(V):
-        low = float(low_ratios[v])
-        scale = None if kim_scales_Nm is None else map_torque_scale_Nm(physics, kim_scales_Nm[v])
-        key = (configurations[v], float(gear_ratios[v]), None if np.isnan(low) else low, scale)
-        index[v] = keys.setdefault(key, len(keys))
+    index = np.array([keys.setdefault(key, len(keys)) for key in
+                      zip(configurations, np.asarray(gear_ratios, float).tolist(), lows, scales)], np.intp).reshape(V)
     maps = np.empty((len(keys), 2, N_U, N_SPEED))
     n_max = np.empty(len(keys))
     grids = {}

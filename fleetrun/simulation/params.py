@@ -150,7 +150,7 @@ class VehicleArrays:
     # gear table: combinations of transmission gear x axle range, largest overall first
     combo_trans_ratio: np.ndarray   # (V, K) transmission ratio (0 padding)
     combo_axle_low: np.ndarray      # (V, K) bool
-    combo_gear: np.ndarray          # (V, K) 1-based transmission gear
+    combo_gear: np.ndarray          # (V, K) 1-based transmission gear (int16: per-step gathers stay small)
     combo_gear_eff: np.ndarray      # (V, K)
     n_combos: np.ndarray
     automatic: np.ndarray           # bool: torque converter (automatic and CVT)
@@ -309,7 +309,7 @@ def _gather(rows: list) -> VehicleArrays:
     combos = np.array([[c[:4] for c in r["combos"]] + [_NO_COMBO] * (K - len(r["combos"])) for r in rows],
                       float).reshape(V, K, 4)
     ctr, clow = np.ascontiguousarray(combos[:, :, 0]), combos[:, :, 1] != 0
-    cg, ceff = combos[:, :, 2].astype(np.intp), np.ascontiguousarray(combos[:, :, 3])
+    cg, ceff = combos[:, :, 2].astype(np.int16), np.ascontiguousarray(combos[:, :, 3])
     numbers = np.array([itemgetter(*_NUMBERS)(r) for r in rows], float).reshape(V, len(_NUMBERS))
     columns = dict(zip(_NUMBERS, np.ascontiguousarray(numbers.T)))
     a = columns.__getitem__
