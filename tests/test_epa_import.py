@@ -119,6 +119,22 @@ def test_excerpt_duplicate_tests_are_combined_by_harmonic_mean(excerpt):
     assert tests["HWFET"]["mpg"] == 52.0 and tests["HWFET"]["n_tests"] == 1
 
 
+def test_analytically_derived_values_are_not_measurements(tmp_path):
+    """An analytically derived row (EPA's estimate for the configuration of its ADFE columns,
+    here a lighter one at 38 mpg) is not averaged into the tested vehicle's 36 mpg; a
+    configuration with only derived values is modelled but has no measured result."""
+    rows = [epa_row(), epa_row(**{"RND_ADJ_FE": 38.0, "Test Number": "T9", "Analytically Derived FE?": "Yes",
+                                  "ADFE Equiv. Test Weight (lbs.)": 3500}),
+            epa_row(**{"Test Procedure Description": "HWFE", "RND_ADJ_FE": 52.0, "Analytically Derived FE?": "No"}),
+            epa_row(**{"Test Vehicle ID": "DERIVED", "Analytically Derived FE?": "Yes"})]
+    result = import_test_car_list(write_list(tmp_path / "l.csv", rows))
+    tests = {m["test"]: m for m in result.measured if m["vehicle_id"] == "18-AV3A_c1"}
+    assert tests["FTP"]["mpg"] == 36.0 and tests["FTP"]["test_numbers"] == "T1"
+    assert tests["HWFET"]["mpg"] == 52.0
+    assert "DERIVED_c1" in {v["vehicle_id"] for v in result.vehicles}
+    assert not [m for m in result.measured if m["vehicle_id"] == "DERIVED_c1"]
+
+
 def tyre_radius_m(size: str) -> float:
     """Half the nominal diameter of a P-metric size, written out here independently."""
     width, aspect, rim = map(float, re.match(r"P?(\d+)/(\d+)R(\d+)", size).groups())

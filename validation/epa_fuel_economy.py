@@ -1,6 +1,6 @@
 """Fleet-wide calibration and held-out validation of the fuel model on the EPA 2022 Test Car List.
 
-    PYTHONPATH=. python validation/epa_fuel_economy.py [--write] [--plots docs/img] [--ablation]
+    PYTHONPATH=. python validation/epa_fuel_economy.py [--write] [--plots docs/img] [--ablation] [--candidates]
 
 1. The fleet is what `fleetrun import-epa inputs/epa/22-tstcar.csv` writes, read back as
    `fleetrun run` reads it (validation/epa_table.py): every vehicle of the list that can be
@@ -18,6 +18,8 @@
    with the fold's warm bag-1 fuel). The distribution of those held-out errors per test is
    ``models/fuel_economy_error.toml`` (read by the budget's ranges), and the spread of the
    fitted constants over the folds is their uncertainty in ``models/engine_calibration.toml``.
+5. ``--ablation`` refits without each term or drivetrain piece; ``--candidates`` refits with
+   each candidate term added (``candidate_columns``) and prints the test fuels of the rows.
 
 Errors are predicted mpg / measured mpg - 1.
 """
@@ -33,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import nnls
+from scipy.optimize import lsq_linear, nnls
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -69,15 +71,31 @@ def trace_terms(va, tr):
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time")
+
+
+def trace_extras(va, tr):
+    """(V, N, 5) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
+    time [s] and the time the engine turns in fuel cut-off [s] (warm engine)."""
+    cold = tr.get("cold_start_fuel_g_per_s", 0.0)
+    fueled = (tr["fuel_rate_g_per_s"] - cold) > 0
+    dt, v = tr["_dt"], tr["_v_avg"]
+    driving = dt * (fueled & (tr["wheel_power_W"] > 0))
+    out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
+           dt * (~fueled & (tr["engine_speed_rpm"] > 0))]
+    return np.stack(out, axis=2)
+
+
 def cycle_sums(specs, cycle):
-    """Per vehicle: {part: (term sums (V, 8), miles (V,), simulated fuel (V,), cold fuel (V,))}
+    """Per vehicle: {part: (term sums (V, 8 + 5 extras), miles (V,), simulated fuel (V,), cold fuel (V,))}
     with part "" for a plain cycle and the bag names for the FTP."""
     parts = {}
     for a in range(0, len(specs), CHUNK):
         chunk = specs[a:a + CHUNK]
         r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C)
         tr, va = r.trace, vehicle_arrays(chunk)
-        terms = trace_terms(va, tr)
+        terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
             phase = np.asarray(tr["phase"])
             cold = tr["cold_start_fuel_g_per_s"] * tr["_dt"]
@@ -99,7 +117,7 @@ def build_dataset(specs, table):
     runs.update({f"FTP:{b}": {"": part} for b, part in cycle_sums(specs, "FTP").items()})
     for test, parts in runs.items():
         S, miles, fuel_g, cold_g = parts[""]
-        f = pd.DataFrame(S, columns=[f"S_{k}" for k in FUEL_TERMS])
+        f = pd.DataFrame(S, columns=[f"S_{k}" for k in FUEL_TERMS] + [f"X_{k}" for k in EXTRA_SUMS])
         f["vehicle"], f["test"], f["miles"], f["sim_fuel_g"], f["cold_g"] = np.arange(len(specs)), test, miles, fuel_g, cold_g
         f["measured_mpg"] = table[test].to_numpy(float)
         frames.append(f)
@@ -112,9 +130,10 @@ def build_dataset(specs, table):
     return d
 
 
-def design(d):
-    """Fuel [g] per unit coefficient: terms / (LHV [MJ/kg] x 1e3)."""
-    return d[[f"S_{k}" for k in FUEL_TERMS]].to_numpy() / (d.lhv.to_numpy()[:, None] * 1e3)
+def design(d, extra=()):
+    """Fuel [g] per unit coefficient: terms / (LHV [MJ/kg] x 1e3); ``extra``: names of candidate
+    columns of ``d`` (energy [J] per unit coefficient) appended after the eight terms."""
+    return d[[f"S_{k}" for k in FUEL_TERMS] + list(extra)].to_numpy() / (d.lhv.to_numpy()[:, None] * 1e3)
 
 
 def coefficients_of(constants):
@@ -125,19 +144,28 @@ def coefficients_of(constants):
 PUMPING = FUEL_TERMS.index("pumping")
 
 
-def fit(d, columns=None):
-    """Non-negative least squares on the relative fuel error of the hot tests: {fuel: (8,)}.
+def fit(d, columns=None, extra=(), lower=None):
+    """Non-negative least squares on the relative fuel error of the hot tests: {fuel: (8 + extras,)}.
 
     Gasoline: all eight coefficients (``columns``: the terms kept, others 0). Diesel: the
     gasoline coefficients scaled by one factor (its Willans slope), pumping term 0.
+    ``extra``: candidate columns (gasoline only) whose coefficients have the lower bounds
+    ``lower`` (default 0; bounded least squares when one is negative).
     """
     columns = list(range(len(FUEL_TERMS))) if columns is None else list(columns)
+    columns += list(range(len(FUEL_TERMS), len(FUEL_TERMS) + len(extra)))
     d = d[d.test.isin(list(HOT_TESTS)) & np.isfinite(d.measured_fuel_g)]
-    X, y = design(d), d.measured_fuel_g.to_numpy()
+    X, y = design(d, extra), d.measured_fuel_g.to_numpy()
     gas = (d.fuel == "gasoline").to_numpy()
-    c = np.zeros(len(FUEL_TERMS))
-    c[columns], _ = nnls(X[gas][:, columns] / y[gas, None], np.ones(gas.sum()))
+    c = np.zeros(len(FUEL_TERMS) + len(extra))
+    A = X[gas][:, columns] / y[gas, None]
+    if lower is None or min(lower) >= 0:
+        c[columns], _ = nnls(A, np.ones(gas.sum()))
+    else:
+        bounds = np.r_[np.zeros(len(columns) - len(extra)), lower]
+        c[columns] = lsq_linear(A, np.ones(gas.sum()), bounds=(bounds, np.inf)).x
     unthrottled = np.where(np.arange(len(c)) == PUMPING, 0.0, c)
+    unthrottled[len(FUEL_TERMS):] = 0.0
     result = {"gasoline": c, "diesel": unthrottled}
     if (~gas).any():
         base = X[~gas] @ unthrottled / y[~gas]
@@ -145,11 +173,11 @@ def fit(d, columns=None):
     return result
 
 
-def predicted_fuel_g(d, coef):
+def predicted_fuel_g(d, coef, extra=()):
     """Fuel [g] of every row with the coefficients ``coef``: warm terms . c, plus on the FTP
     bags the simulated cold-start fuel scaled with the bag's warm fuel."""
     c = np.where((d.fuel == "gasoline").to_numpy()[:, None], coef["gasoline"], coef["diesel"])
-    warm = (design(d) * c).sum(axis=1)
+    warm = (design(d, extra) * c).sum(axis=1)
     sim_warm = (d.sim_fuel_g - d.cold_g).to_numpy()
     with np.errstate(divide="ignore", invalid="ignore"):
         return warm + np.where(sim_warm > 0, d.cold_g.to_numpy() * warm / sim_warm, 0.0)
@@ -175,13 +203,13 @@ def relative_errors(pred_mpg, table):
     return pd.DataFrame({t: pred_mpg[t].to_numpy() / table[t].to_numpy() - 1.0 for t in pred_mpg.columns})
 
 
-def held_out(d, table, columns=None):
+def held_out(d, table, columns=None, extra=(), lower=None):
     """Predicted mpg of each vehicle by the fit without its manufacturer; the folds' fits."""
     parts, fits = [], {}
     for g in table.manufacturer.unique():
         out = (d.manufacturer == g).to_numpy()
-        coef = fit(d[~out], columns)
-        parts.append(errors(d[out], predicted_fuel_g(d[out], coef)))
+        coef = fit(d[~out], columns, extra, lower)
+        parts.append(errors(d[out], predicted_fuel_g(d[out], coef, extra)))
         fits[g] = coef
     return pd.concat(parts).sort_index(), fits
 
@@ -259,6 +287,31 @@ def group_table(err, table, by):
             row[f"{t} within 5 %"] = np.mean(np.abs(x) <= 0.05) if len(x) else np.nan
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def limits(err, table, specs):
+    """What limits the held-out accuracy: the correlation of a vehicle's errors across tests,
+    and the split of each test's error into manufacturer means and the scatter within them
+    (with the share within 5 % that even exact manufacturer means would leave)."""
+    lines = ["correlation of held-out errors: " + ", ".join(
+        f"{a} vs {b} {err[[a, b]].dropna().corr().iloc[0, 1]:.2f}" for a, b in
+        (("UDDS:hot", "HWFET"), ("UDDS:hot", "US06"), ("HWFET", "US06"), ("FTP", "HWFET")))]
+    for test in REPORTED:
+        e = pd.Series(err[test].to_numpy(), index=table.manufacturer.to_numpy()).dropna()
+        means = e.groupby(level=0).transform("mean")
+        lines.append(f"{test}: sd {e.std():.3f} (manufacturer means: sd {means.std():.3f}; within manufacturers: sd "
+                     f"{(e - means).std():.3f}); within 5 % with each manufacturer's mean error removed (in sample): "
+                     f"{np.mean(np.abs(e - means) <= 0.05):.0%}")
+    nv = pd.Series([getattr(v, "nv_ratio_rpm_per_mph", None) for v in specs], index=table.index, dtype=float)
+    for name, key, edges in (("specific power [kW/L]", table.specific_power_kW_per_L, [0, 100, 130, 1000]),
+                             ("N/V [rpm/mph]", nv, [0, 25, 30, 100]),
+                             ("displacement [L]", table.displacement_L, [0, 1.6, 2.1, 2.6, 3.1, 4, 5, 9])):
+        bins = pd.cut(key, edges)
+        cells = [f"{b}: n={int(err.FTP[(bins == b).to_numpy()].notna().sum())} "
+                 + " / ".join(f"{err[t][(bins == b).to_numpy()].median():+.1%}" for t in ("FTP", "HWFET"))
+                 for b in bins.cat.categories]
+        lines.append(f"median error FTP / HWFET by {name}: " + "; ".join(cells))
+    return lines
 
 
 def thermal_variant(heat_capacity_kJ_per_K_per_L, enrichment_gasoline):
@@ -403,6 +456,100 @@ def ablation(specs, table, r):
     return lines
 
 
+LBF_N, MPH_M_S = 4.4482216152605, 0.44704
+ROW_TEST = {"UDDS:hot": "FTP", "FTP:bag1": "FTP", "FTP:bag2": "FTP", "FTP:bag3": "FTP", "HWFET": "HWFET", "US06": "US06"}
+LIST_COLUMNS = {"Set Coef A (lbf)": "set_A", "Set Coef B (lbf/mph)": "set_B", "Set Coef C (lbf/mph**2)": "set_C",
+                "Target Coef A (lbf)": "target_A", "Target Coef B (lbf/mph)": "target_B",
+                "Target Coef C (lbf/mph**2)": "target_C", "DT-Inertia Work Ratio Rating": "IWR",
+                "DT-Energy Economy Rating": "EER"}
+
+
+def list_rows(table, path=None):
+    """The list's rows behind the measured values (fleetrun.epa.measured's rules: a fuel-economy
+    test, a valid value, not analytically derived) of the vehicles of ``table``: per vehicle
+    and test (FTP, HWFET, US06) the mean of the LIST_COLUMNS (drive-quality sentinels 99.99 ->
+    NaN), and the test fuel descriptions of those rows."""
+    from fleetrun.epa import rules
+    from epa_table import TSTCAR
+
+    raw = pd.read_csv(path or TSTCAR, encoding="utf-8-sig", dtype=str)
+    raw.columns = [" ".join(c.split()) for c in raw.columns]
+    c = rules.constants()
+    number = pd.to_numeric(raw["Test Veh Configuration #"], errors="coerce")
+    rows = pd.DataFrame({"vehicle_id": raw["Test Vehicle ID"].str.strip() + "_c" + number.map(
+        lambda x: "" if pd.isna(x) else f"{int(x)}"), "test": raw["Test Procedure Description"].str.strip().map(
+        c["procedures"]), "fuel_description": raw["Test Fuel Type Description"].str.strip(),
+        "fe": pd.to_numeric(raw["RND_ADJ_FE"], errors="coerce"),
+        "derived": raw["Analytically Derived FE?"].fillna("").str.strip().str.lower().isin(
+            c["measured"]["analytically_derived"])})
+    for col, name in LIST_COLUMNS.items():
+        rows[name] = pd.to_numeric(raw[col], errors="coerce")
+    for name in ("IWR", "EER"):
+        rows.loc[rows[name].abs() >= 99, name] = np.nan
+    fuel = dict(zip(table.vehicle_id, table.fuel))
+    rows = rows[rows.test.notna() & ~rows.derived & (rows.fe > 0) & (rows.fe < c["measured"]["max_valid_mpg"])
+                & (rows.vehicle_id.map(fuel) == rows.fuel_description.map(rules.fuel_of))]
+    return rows.groupby(["vehicle_id", "test"])[list(LIST_COLUMNS.values())].mean(), rows.fuel_description
+
+
+def _row_values(d, table, per_test, name):
+    """Per row of ``d``: the list value ``name`` of its vehicle and test (0 where missing)."""
+    ids = table.vehicle_id.to_numpy()[d.vehicle.to_numpy()]
+    keys = pd.MultiIndex.from_arrays([ids, d.test.map(ROW_TEST).to_numpy()])
+    return np.nan_to_num(per_test[name].reindex(keys).to_numpy(float))
+
+
+def candidate_columns(d, specs, table):
+    """The candidate terms (docs/validation-epa.md, "Candidates measured"): name -> (columns
+    {name: energy [J] per unit coefficient, per row of ``d``}, lower bounds of their
+    coefficients). A coefficient multiplies the term like the eight of the fuel equation."""
+    va = vehicle_arrays(specs)
+    per = lambda x: np.asarray(x, float)[d.vehicle.to_numpy()]  # noqa: E731
+    sp = per(table.specific_power_kW_per_L.to_numpy()) / 100.0                      # [100 kW/L]
+    bmep = per(4.0 * np.pi * va.T_peak / va.displacement_L) / 1e3                   # bmep_max [MPa]
+    per_test, _ = list_rows(table)
+    val = lambda name: _row_values(d, table, per_test, name)  # noqa: E731
+    dA, dB, dC = (val(f"target_{k}") - val(f"set_{k}") for k in "ABC")
+    own_loss_J = LBF_N * (dA * d.X_speed + dB / MPH_M_S * d.X_speed2 + dC / MPH_M_S ** 2 * d.X_speed3)
+    drag_W = np.where(va.automatic, (va.n_idle / va.K_tc) ** 2, 0.0) * va.n_idle * (2.0 * np.pi / 60.0)
+    S = lambda k: d[f"S_{k}"].to_numpy()  # noqa: E731
+    free = [-np.inf]
+    return {
+        "brake work x (P/V_d - 100 kW/L)+ (efficiency falls at high specific output)":
+            ({"C": S("brake") * np.maximum(sp - 1.0, 0.0)}, [0.0]),
+        "brake work x bmep_max (efficiency falls with boost)": ({"C": S("brake") * bmep}, [0.0]),
+        "FMEP x P/V_d (friction rises with specific output)": ({"C": S("friction") * sp}, [0.0]),
+        "FMEP c_m x P/V_d": ({"C": S("friction_piston_speed") * sp}, [0.0]),
+        "target - set road-load work (free sign)": ({"C": own_loss_J.to_numpy()}, free),
+        "converter drag at standstill in drive (automatics)": ({"C": d.X_idle_time.to_numpy() * per(drag_W)}, [0.0]),
+        "standstill time (free sign)": ({"C": d.X_idle_time.to_numpy()}, free),
+        "time in fuel cut-off (free sign)": ({"C": d.X_cutoff_time.to_numpy()}, free),
+        "acceleration term x IWR (drive quality, free sign)": ({"C": S("transient") * val("IWR") / 100.0}, free),
+        "brake work x EER (drive quality, free sign)": ({"C": S("brake") * val("EER") / 100.0}, free),
+    }
+
+
+def candidates(r, specs, table):
+    """Held-out summaries with each candidate term added to the eight (refit), and the test
+    fuels of the measured rows."""
+    _, fuels = list_rows(table)
+    lines = [f"test fuels of the measured rows: {fuels.value_counts().to_dict()}",
+             "| candidate | FTP | hot UDDS | HWFET | US06 | > 100 kW/L: FTP / HWFET median | coefficient x eta_indicated |"]
+    high = (table.specific_power_kW_per_L > 100.0).to_numpy()
+
+    def line(name, err, coef):
+        group = " / ".join(f"{err[t][high].median():+.1%}" for t in ("FTP", "HWFET"))
+        return _summary_line(name, summaries(err))[:-1] + f"| {group} | {coef} |"
+
+    lines.append(line("none (the model)", r["err"], ""))
+    for name, (cols, lower) in candidate_columns(r["d"], specs, table).items():
+        d = r["d"].assign(**cols)
+        pred, _ = held_out(d, table, extra=list(cols), lower=lower)
+        c = fit(d, extra=list(cols), lower=lower)["gasoline"]
+        lines.append(line(name, relative_errors(pred, table), f"{c[len(FUEL_TERMS)] / c[0]:.4g}"))
+    return lines
+
+
 def _summary_line(label, s):
     return "| " + label + " | " + " | ".join(
         f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
@@ -427,6 +574,7 @@ def main(argv=None):
                     "models/fuel_economy_error.toml")
     ap.add_argument("--plots", type=Path, help="folder for the figures (docs/img)")
     ap.add_argument("--ablation", action="store_true", help="refit without each fuel term")
+    ap.add_argument("--candidates", action="store_true", help="refit with each candidate term added")
     ap.add_argument("--thermal", action="store_true", help="fit the cold start on bag 1 / bag 3 (16 FTP runs)")
     args = ap.parse_args(argv)
 
@@ -447,12 +595,17 @@ def main(argv=None):
     print_summaries("  bags held out", summaries(r["err"], ("FTP:bag1", "FTP:bag2", "FTP:bag3")))
     for fuel, c in r["final"].items():
         print(fuel, {k: round(float(v), 4) for k, v in constants_of(c).items()})
+    for line in limits(r["err"], table, specs):
+        print(line)
     for by in ("gearbox_type", "fuel"):
         print(group_table(r["err"], table, by).round(3).to_string(index=False))
     if args.plots:
         plots(r["err"], r["pred"], table, args.plots)
     if args.ablation:
         for line in ablation(specs, table, r):
+            print(line, flush=True)
+    if args.candidates:
+        for line in candidates(r, specs, table):
             print(line, flush=True)
     if args.write:
         write_calibration_toml(r["final"], r["folds"], ROOT / "models" / "engine_calibration.toml", len(specs))

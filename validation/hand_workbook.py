@@ -48,7 +48,7 @@ TYPED = {
     "8EBPYUDG1-002_c0": (186, MAZDA_6, "225/65R17", 187, 2.5, "gasoline"),  # Mazda CX-5 2.5 FWD
     "AE81240_c0": (295, ZF_8HP50, "225/45R18", 255, 2.0, "gasoline"),       # BMW 330i
     "J5100034_c0": (420, FORD_GM_10, "255/40R19", 460, 5.0, "gasoline"),    # Ford Mustang GT
-    "J5100017_c1": (350, FORD_GM_10, "235/55R17", 310, 2.3, "gasoline"),    # Ford Mustang 2.3 EcoBoost
+    "JZG1-2.3-J-086_c1": (350, FORD_GM_10, "235/55R17", 310, 2.3, "gasoline"),  # Ford Mustang 2.3 EcoBoost
     "L6WKT7878_c0": (260, ZF_8HP, "265/60R18", 295, 3.6, "gasoline"),      # Jeep Grand Cherokee 3.6 4x2
 }
 TESTS = ("FTP", "HWFET", "US06")

@@ -3,7 +3,10 @@
 Tests (CONTRACT): ``FTP`` (the composite, `RND_ADJ_FE` of an FTP-75 row), ``FTP:bag1..3``
 (`FE Bag 1..3` of the FTP rows), ``HWFET`` (`HWFE`) and ``US06``. Only rows on the vehicle's
 own fuel count, and values at or above ``[measured] max_valid_mpg`` (placeholders such as
-10000) or not above 0 are ignored. Several rows of one test (repeats, 2-day and 3-day FTP
+10000) or not above 0 are ignored, and so are analytically derived values (`Analytically
+Derived FE?` = Yes, ``[measured] analytically_derived``): EPA's estimate, from another test,
+for a configuration whose weight, N/V or road load differ from the facts on the row, not a
+measurement of the vehicle the row describes. Several rows of one test (repeats, 2-day and 3-day FTP
 runs) give one value: their harmonic mean, i.e. the mean fuel per mile.
 """
 from __future__ import annotations
@@ -27,7 +30,9 @@ def _valid(value) -> bool:
 def measured_results(rows: list[dict], fuel: str) -> list[dict]:
     """One dict per test measured on ``fuel``: test, mpg, n_tests, test_numbers, procedure, csv_rows."""
     out = []
-    own = [r for r in rows if r["fuel"] == fuel and r["test"]]
+    derived = {str(v).lower() for v in rules.constants()["measured"]["analytically_derived"]}
+    own = [r for r in rows if r["fuel"] == fuel and r["test"]
+           and str(r.get("analytically_derived") or "").lower() not in derived]
     for test in ("FTP", "HWFET", "US06"):
         these = [r for r in own if r["test"] == test]
         _append(out, test, these, "fe_mpg")

@@ -47,6 +47,7 @@ OPTIONAL_COLUMNS = {
     "FE Bag 1": "fe_bag1",
     "FE Bag 2": "fe_bag2",
     "FE Bag 3": "fe_bag3",
+    "Analytically Derived FE?": "analytically_derived",
 }
 NUMERIC = ("model_year", "configuration_number", "displacement_L", "rated_hp", "gears", "test_weight_lb",
            "axle_ratio", "nv_ratio", "coef_A_lbf", "coef_B_lbf_per_mph", "coef_C_lbf_per_mph2", "fe_mpg",
@@ -70,7 +71,8 @@ def read_test_car_list(path) -> pd.DataFrame:
         if name in table:
             table[name] = pd.to_numeric(table[name], errors="coerce")
     for name in ("manufacturer", "make", "model", "test_vehicle_id", "transmission_code", "drive_code",
-                 "procedure", "fuel_description", "vehicle_type", "lockup", "test_number", "fe_unit"):
+                 "procedure", "fuel_description", "vehicle_type", "lockup", "test_number", "fe_unit",
+                 "analytically_derived"):
         if name in table:
             table[name] = table[name].fillna("").astype(str).str.strip()
     table["csv_row"] = table.index + 2          # header is line 1

@@ -30,7 +30,11 @@ MODES = diffmodes.MODES
 # vehicle (tests/test_simulation_modes.py checks it): the cached 3-D map.
 DEFAULT_MODE = "map3d"
 REDRIVE_MARGINS = (0.9, 0.8, 0.7, 0.6, 0.5)
-BLOCK_STEPS = 22000  # vehicles x steps per block: ~16 UDDS vehicles, whose arrays fit the L2 cache
+# vehicles x steps per block: ~64 UDDS vehicles. Each (block x steps) array (~0.7 MB) stays
+# in the CPU's L2/L3 cache and below the size where malloc returns freed memory to the system
+# (twice as large blocks spend a third of their time in page faults); smaller blocks pay
+# numpy's per-call cost more often (benchmarks: 16 vehicles per block was ~20 % slower)
+BLOCK_STEPS = 88000
 
 # CONTRACT.md trace columns first, then extras
 TRACE_COLUMNS = (
@@ -185,8 +189,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C, thermal)
     va = vehicle_arrays(vehicles)
     V = va.n
-    if V:
-        va.power_table = power_speed_table(va)  # once for the whole call, shared by the blocks
+    if V:  # once for the whole call, shared by the blocks: the power table and idle fuel (kept in va)
+        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
@@ -201,8 +205,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
             else:
                 va_sub = va.subset(sub)
                 solver_sub = solver.subset(sub, va_sub)
-            parts.append(_run_block(va_sub, solver_sub, t, speed[first:first + block], v_target, grade, trace,
-                                    effects, plan))
+            parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
+                                    v_target, grade, trace, effects, plan))
         out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + PHASE_FIELDS + ("_behind",)}
         if trace:
             out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else
@@ -210,7 +214,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         return out
 
     everyone = np.arange(V)
-    sums = run(everyone, np.broadcast_to(v_target, (V, t.size))) if V else None
+    sums = run(everyone, None) if V else None  # first every vehicle drives the trace itself
     # vehicles that cannot follow: re-drive them (all together) at full effort, with a
     # smaller margin on the estimated maximum effort each round, until the backward pass
     # finds every step feasible
@@ -252,27 +256,25 @@ SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff
 
 
 def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(), plan=None):
-    """Simulate one block of vehicles at the speeds ``speed`` (V, N): per-vehicle sums (and
-    the trace if asked for); ``_behind`` marks vehicles with steps above full load. ``plan``:
-    a composed cycle's cold-start plan (:func:`_thermal_plan`), None for a plain cycle."""
+    """Simulate one block of vehicles at the speeds ``speed`` (V, N), or None: the trace
+    ``v_target`` itself (then the steps' motion is computed once, (1, N), for all vehicles).
+    Per-vehicle sums (and the trace if asked for); ``_behind`` marks vehicles with steps above
+    full load. ``plan``: a composed cycle's cold-start plan (:func:`_thermal_plan`), None for
+    a plain cycle."""
     V, N = va.n, t.size
-    speed = np.asarray(speed)
+    on_trace = speed is None
+    speed = v_target[None, :] if on_trace else np.asarray(speed)
     # Without a trace, steps where the trace stands still (and so every vehicle, which is
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
     columns = None if trace else np.flatnonzero(target_avg > 0)
-    out = backward(va, t, speed, grade, solver, columns, effects)
+    out = backward(va, t, speed, grade, solver, columns, effects, losses=trace)
     dt = out["dt"]
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    distance_m = (out["v_avg"] * dt).sum(axis=1)
+    distance_m = _distance_m(out["v_avg"] * dt, V, on_trace)
     target_m = float((target_avg * dt_all).sum())
-    deficit = v_target[None, :] - speed
-    not_followed = deficit > FOLLOW_TOL_MPS
-    if columns is None:
-        not_followed |= out["infeasible"]
-    else:
-        if out["infeasible"].any():
-            not_followed[:, columns] |= out["infeasible"]
+    not_followed, shortfall_time_s, shortfall_max_speed_mps = _shortfall(v_target, None if on_trace else speed,
+                                                                         dt_all, columns, out["infeasible"])
     if plan is None:
         fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
         if columns is not None:
@@ -297,16 +299,16 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         diff_input_energy_J=e(out["diff_input_torque_Nm"] * out["diff_input_speed_rpm"] * (2 * np.pi / 60)),
         diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out["engine_power_W"]), wheel_energy_J=wheel,
         engine_energy_J=(np.maximum(out["engine_power_W"], 0.0) * dt).sum(axis=1),
-        shortfall_time_s=(not_followed * dt_all).sum(axis=1), shortfall_distance_m=target_m - distance_m,
-        shortfall_max_speed_mps=np.maximum(deficit.max(axis=1), 0.0),
+        shortfall_time_s=shortfall_time_s, shortfall_distance_m=target_m - distance_m,
+        shortfall_max_speed_mps=shortfall_max_speed_mps,
         shortfall_steps=out["infeasible"].sum(axis=1), _behind=out["infeasible"].any(axis=1),
         phase_fuel_g=phase_fuel_g, phase_miles=phase_miles,
     )
     if trace:
         sums["trace"] = {
-            "time_s": np.broadcast_to(t, (V, N)), "vehicle_speed_mps": speed, "wheel_torque_Nm": out["wheel_torque_Nm"],
+            "time_s": np.broadcast_to(t, (V, N)), "vehicle_speed_mps": np.broadcast_to(speed, (V, N)), "wheel_torque_Nm": out["wheel_torque_Nm"],
             "diff_input_torque_Nm": out["diff_input_torque_Nm"], "diff_input_speed_rpm": out["diff_input_speed_rpm"],
-            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"], "engine_speed_rpm": out["engine_speed_rpm"],
+            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"].astype(np.intp), "engine_speed_rpm": out["engine_speed_rpm"],
             "engine_torque_Nm": out["engine_torque_Nm"], "fuel_rate_g_per_s": out["fuel_rate_g_per_s"],
             "target_speed_mps": np.broadcast_to(v_target, (V, N)), "grade_pct": np.broadcast_to(grade, (V, N)),
             "tractive_force_N": out["force"],
@@ -320,9 +322,37 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
             "engine_power_W": out["engine_power_W"], "not_followed": not_followed,
             **_thermal_trace(V, N, plan, cold, temp),
             # internals for tests (not written to CSV)
-            "_v_avg": out["v_avg"], "_accel": out["accel"], "_dt": np.broadcast_to(dt, (V, N)), "_driving": driving,
+            "_v_avg": np.broadcast_to(out["v_avg"], (V, N)), "_accel": np.broadcast_to(out["accel"], (V, N)), "_dt": np.broadcast_to(dt, (V, N)), "_driving": driving,
         }
     return sums
+
+
+def _distance_m(step_m, V, on_trace):
+    """Distance [m] (V,) driven by a block's vehicles, from the distance of each step (V, N),
+    or (1, N) when they drive the trace (``on_trace``). V > 1 vehicles on the trace: summed
+    step after step, the order in which numpy summed the (V, N) array that held the shared
+    trace's steps before they were computed once (kept so that no figure changes); else
+    numpy's pairwise row sum."""
+    if on_trace and V > 1:
+        return np.broadcast_to(np.add.accumulate(step_m, axis=1)[:, -1], (V,))
+    return step_m.sum(axis=1)
+
+
+def _shortfall(v_target, speed, dt_all, columns, infeasible):
+    """Where a block's vehicles do not follow the trace (V, N): more than FOLLOW_TOL_MPS below
+    it, or above full load in the ``columns`` steps ``infeasible`` covers (all steps if None);
+    the time [s] they do not and their largest speed deficit [m/s] (V,). ``speed`` None: the
+    vehicles drive the trace itself (no deficit)."""
+    V = infeasible.shape[0]
+    if speed is None and not infeasible.any():  # on the trace and never above full load
+        return np.zeros((V, v_target.size), bool), np.zeros(V), np.zeros(V)
+    deficit = v_target[None, :] - np.broadcast_to(v_target if speed is None else speed, (V, v_target.size))
+    not_followed = deficit > FOLLOW_TOL_MPS
+    if columns is None:
+        not_followed |= infeasible
+    elif infeasible.any():
+        not_followed[:, columns] |= infeasible
+    return not_followed, (not_followed * dt_all).sum(axis=1), np.maximum(deficit.max(axis=1), 0.0)
 
 
 def _still(N, columns):

@@ -121,7 +121,8 @@ class DifferentialSolver:
             # per vehicle (V, 1), broadcast against the steps inside the lookup
             map_id = self.map_id[:, None]
             n_max = self.n_max[self.map_id][:, None]
-            return diffmodes.interp_maps(self.maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=True)
+            ranges = axle_low if self.va.combo_axle_low.any() else 0   # no two-speed axle: the high range
+            return diffmodes.interp_maps(self.maps, n_max, map_id, ranges, out_frac, speed_rpm, per_step=True)
         result = np.zeros((V, N))
         idx = np.flatnonzero(active)
         rows = np.broadcast_to(np.arange(V)[:, None], (V, N)).reshape(-1)[idx]
@@ -173,17 +174,21 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
-    idle speed and zero load."""
-    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
-                                va.idle_T_frac)
-    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    idle speed and zero load. Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which
+    its subsets carry; the vehicles' parameters do not change during a simulation)."""
+    if va.idle_fuel_rate is None:
+        t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                    va.idle_T_frac)
+        idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+        va.idle_fuel_rate = np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
+    return va.idle_fuel_rate
 
 
 @dataclass
 class Kinematics:
-    """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps;
-    quantities of time only are 1 x steps)."""
+    """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps,
+    or 1 x steps when every vehicle drives the same speeds; quantities of time only are 1 x
+    steps)."""
 
     dt: np.ndarray
     grade: np.ndarray            # mean grade of the step [%]
@@ -259,7 +264,7 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     choice = choose_gear(wheel_rpm * _col(va.final_drive), n_req, _col(va.n_rated), overall, va.n_combos)
     flat_k = rows * overall.shape[1] + choice
     trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
-    axle_low = va.combo_axle_low.reshape(-1)[flat_k]
+    axle_low = va.combo_axle_low.reshape(-1)[flat_k] if va.combo_axle_low.any() else np.zeros(flat_k.shape, bool)
     gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
     gear = va.combo_gear.reshape(-1)[flat_k]
     if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
@@ -275,8 +280,9 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
 
 
 def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
-                 wheel_torque, wheel_rpm, axle_low):
-    """The differential backwards: input speed, input torque and step efficiency.
+                 wheel_torque, wheel_rpm, axle_low, efficiency: bool = True):
+    """The differential backwards: input speed, input torque and step efficiency (None
+    without ``efficiency``).
 
     The thesis chain is inverted by ``solver`` (any mode); the ``--with`` effects add their
     extra pinion torque on the drive-side input at |T_out| (so on overrun the drags still take
@@ -302,6 +308,8 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
                                                 pinion_accel, k.since_start, solver.ambient, G_tot, kim)
         diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
     diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
+    if not efficiency:
+        return diff_rpm, diff_torque, None
     with np.errstate(divide="ignore", invalid="ignore"):
         # with inertia a decelerating pinion gives energy back: the step efficiency may exceed 1
         turning = (active & (out_Nm + diff_loss_Nm > 0)) if effects.differential else diff_loss_Nm > 0
@@ -381,14 +389,16 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col)
     idle_fuel = _col(va.idle_fuel_g_s)
-    np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
+    if np.isfinite(idle_fuel).any():
+        np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
     if not k.all_moving:
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
-        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start, k.v_avg,
-                                                            wheel_power, burning), 0.0)
+        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start,
+                                                            np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
+                                                            burning), 0.0)
     return t_max, infeasible, engine_torque, fuel
 
 
@@ -399,38 +409,43 @@ def _shaft_power_W(torque_Nm, speed_rpm):
 
 
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects()):
+             effects: CycleEffects = CycleEffects(), losses: bool = True):
     """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
-    vehicle's achieved speed).
+    vehicle's achieved speed), or (1, N) when every vehicle drives the same speeds (then the
+    motion of the steps, ``dt`` to ``moving``, is (1, N) too).
 
     ``columns``: compute only these steps (the caller skips steps where the whole block
     stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
     physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
+    ``losses``: also the differential's step efficiency and the power lost in the
+    differential, gearbox and converter (the trace's).
     """
     k = kinematics(time_s, speed_mps, grade_pct, columns)
     force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
     wheel_power = wheel_torque * wheel_omega
     trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
-    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low)
+    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
     trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
     t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
                                                     wheel_power)
-    diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
-    turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     V, N = wheel_torque.shape
-    return dict(
+    out = dict(
         dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
         moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
         diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
         transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
-        converter_unlocked=unlocked & k.moving, engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
-        engine_max_torque_Nm=t_max, infeasible=infeasible & k.moving, fuel_rate_g_per_s=fuel,
-        wheel_power_W=wheel_power, diff_loss_W=diff_in_power - wheel_power,
-        transmission_loss_W=turbine_power - diff_in_power, converter_loss_W=engine_power - turbine_power,
-        engine_power_W=engine_power,
+        converter_unlocked=k.at_rest(unlocked, False), engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
+        engine_max_torque_Nm=t_max, infeasible=k.at_rest(infeasible, False), fuel_rate_g_per_s=fuel,
+        wheel_power_W=wheel_power, engine_power_W=engine_power,
     )
+    if losses:
+        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
+        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+        out.update(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
+                   converter_loss_W=engine_power - turbine_power)
+    return out
 
 
 REDRIVE_SPEED_GRID = np.linspace(0.0, 70.0, 281)  # m/s, 0.25 m/s steps, beyond any cycle

@@ -301,13 +301,12 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
     that is not scale-free (:func:`map_torque_scale_Nm`).
     """
     V = len(configurations)
-    index = np.empty(V, np.intp)
+    lows = [None if low != low else low for low in np.asarray(low_ratios, float).tolist()]   # NaN: single speed
+    scales = ([None] * V if kim_scales_Nm is None or map_torque_scale_Nm(physics, 1.0) is None else
+              [map_torque_scale_Nm(physics, k) for k in np.asarray(kim_scales_Nm, float).tolist()])
     keys: dict = {}
-    for v in range(V):
-        low = float(low_ratios[v])
-        scale = None if kim_scales_Nm is None else map_torque_scale_Nm(physics, kim_scales_Nm[v])
-        key = (configurations[v], float(gear_ratios[v]), None if np.isnan(low) else low, scale)
-        index[v] = keys.setdefault(key, len(keys))
+    index = np.array([keys.setdefault(key, len(keys)) for key in
+                      zip(configurations, np.asarray(gear_ratios, float).tolist(), lows, scales)], np.intp).reshape(V)
     maps = np.empty((len(keys), 2, N_U, N_SPEED))
     n_max = np.empty(len(keys))
     grids = {}
@@ -327,7 +326,8 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
 
 
 def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=False):
-    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) (arrays of one shape).
+    """Bilinear lookup T_in/kim = maps[map_id, range](sqrt(out_frac), speed) (arrays of one shape;
+    ``map_id`` and ``axle_low``, the range, may broadcast against them).
 
     ``n_max`` is the top of each map's speed grid, per map (or per step with ``per_step``).
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
@@ -347,10 +347,11 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
     np.minimum(j, N_SPEED - 2, out=j)
     ws = s - j
     flat = maps.reshape(-1)
-    base = map_id * 2 + axle_low.astype(np.intp)
-    base = base * N_U + i
+    # flat index ((map_id * 2 + range) * N_U + i) * N_SPEED + j (integers: exact in any order)
+    base = i
     base *= N_SPEED
     base += j
+    base += (map_id * 2 + np.asarray(axle_low, np.intp)) * (N_U * N_SPEED)
     m00 = flat.take(base)
     base += 1
     m01 = flat.take(base)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from operator import itemgetter
 from typing import Sequence
 
 import numpy as np
@@ -149,7 +150,7 @@ class VehicleArrays:
     # gear table: combinations of transmission gear x axle range, largest overall first
     combo_trans_ratio: np.ndarray   # (V, K) transmission ratio (0 padding)
     combo_axle_low: np.ndarray      # (V, K) bool
-    combo_gear: np.ndarray          # (V, K) 1-based transmission gear
+    combo_gear: np.ndarray          # (V, K) 1-based transmission gear (int16: per-step gathers stay small)
     combo_gear_eff: np.ndarray      # (V, K)
     n_combos: np.ndarray
     automatic: np.ndarray           # bool: torque converter (automatic and CVT)
@@ -181,6 +182,7 @@ class VehicleArrays:
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
     fuel: list                      # "gasoline" / "diesel" (vehicle-level effects price extra work by it)
     power_table: np.ndarray | None = None   # filled by the simulation on first use
+    idle_fuel_rate: np.ndarray | None = None   # [g/s] idem (simulation.core.idle_fuel_rate_g_per_s)
 
     def subset(self, rows) -> "VehicleArrays":
         """The same parameters for the vehicles ``rows`` only."""
@@ -219,10 +221,9 @@ def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
 def _row_cached(v: VehicleSpec) -> dict:
     try:
         key = (v, tuple(sorted((v.extra or {}).items())))
-        hash(key)
-    except TypeError:
+        return _ROW_CACHE(key)
+    except TypeError:   # unhashable (e.g. a list in ``extra``): not cached
         return _row(v)
-    return _ROW_CACHE(key)
 
 
 @lru_cache(maxsize=65536)
@@ -295,14 +296,23 @@ def _row(v: VehicleSpec) -> dict:
     )
 
 
+_NUMBERS = ("mass", "rot", "radius", "fd", "low", "kim", "stall_TR", "stall_rpm", "lockup", "launch", "T_peak", "P",
+            "n_rated", "n_idle", "n_pk", "idle_T", "disp", "stroke", "lhv", "rho", "shift", "shift_accel", "reserve",
+            "cut", "idle_fuel")
+_NO_COMBO = (0.0, False, 1, 1.0)   # padding beyond a vehicle's combos: ratio 0, high range, gear 1, efficiency 1
+
+
 def _gather(rows: list) -> VehicleArrays:
     V = len(rows)
     K = max((len(r["combos"]) for r in rows), default=1)
-    ctr = np.zeros((V, K)); clow = np.zeros((V, K), bool); cg = np.ones((V, K), np.intp); ceff = np.ones((V, K))
-    for i, r in enumerate(rows):
-        for k, c in enumerate(r["combos"]):
-            ctr[i, k], clow[i, k], cg[i, k], ceff[i, k] = c[0], c[1], c[2], c[3]
-    a = lambda key: np.array([r[key] for r in rows], float)  # noqa: E731
+    # one conversion per kind of value (not one per value): (V, K, 4) combos, (V, numbers)
+    combos = np.array([[c[:4] for c in r["combos"]] + [_NO_COMBO] * (K - len(r["combos"])) for r in rows],
+                      float).reshape(V, K, 4)
+    ctr, clow = np.ascontiguousarray(combos[:, :, 0]), combos[:, :, 1] != 0
+    cg, ceff = combos[:, :, 2].astype(np.int16), np.ascontiguousarray(combos[:, :, 3])
+    numbers = np.array([itemgetter(*_NUMBERS)(r) for r in rows], float).reshape(V, len(_NUMBERS))
+    columns = dict(zip(_NUMBERS, np.ascontiguousarray(numbers.T)))
+    a = columns.__getitem__
     coast = np.array([r["coast"] for r in rows], float).reshape(V, 3)
     T_peak = a("T_peak")
     return VehicleArrays(

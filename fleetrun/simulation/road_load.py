@@ -41,7 +41,8 @@ def coastdown_force_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
 def road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
     """Coastdown road-load force [N] at ``speed_mps`` (0 at standstill: nothing rolls)."""
     v = np.asarray(speed_mps, float)
-    return np.where(v > 0.0, coastdown_force_N(v, A_N, B_N_s_per_m, C_N_s2_per_m2), 0.0)
+    force = coastdown_force_N(v, A_N, B_N_s_per_m, C_N_s2_per_m2)
+    return force if (v > 0.0).all() else np.where(v > 0.0, force, 0.0)
 
 
 def grade_force_N(mass_kg, grade_pct):
