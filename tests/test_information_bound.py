@@ -107,3 +107,18 @@ def test_correction_never_trains_on_the_held_out_manufacturer(monkeypatch):
         assert set(groups[list(train)]) == set("abcd") - {m}          # M never in training
         idx = sorted(train)
         np.testing.assert_allclose(y.loc[idx], log_meas.loc[idx] - np.log(outer[m]["FTP"].loc[idx]))
+
+
+def test_no_measured_outcome_reaches_the_features(fleet):
+    """Features (b) and (c) are the same whatever the list's measured outcomes (mpg, bags, CO2,
+    emissions) say: scrambling every outcome column changes no feature."""
+    _, table, vehicles = fleet
+    rows = eib.own_fuel_rows(eib.test_rows(), table)
+    rng = np.random.default_rng(0)
+    scrambled = rows.copy()
+    for col in eib.OUTCOMES + ("mpg",):
+        scrambled[col] = rows[col].to_numpy()[rng.permutation(len(rows))]
+    for test in eib.TESTS:
+        a = eib.feature_sets(table, vehicles, rows, test)["c"]
+        b = eib.feature_sets(table, vehicles, scrambled, test)["c"]
+        pd.testing.assert_frame_equal(a, b)

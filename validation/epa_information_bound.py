@@ -4,7 +4,7 @@
 
 The physics model (validation/epa_fuel_economy.py) misses EPA's measured mpg by a vehicle-level
 efficiency that the Vehicles row does not describe. This script measures how much of that
-scatter any model of the available inputs could remove, in four parts:
+scatter any model of the available inputs could remove:
 
 1. **Repeatability** of EPA's own numbers: rows of the list that are repeat tests of one test
    vehicle and configuration (same vehicle id, same test, several test numbers, on the vehicle's
@@ -25,7 +25,9 @@ scatter any model of the available inputs could remove, in four parts:
    Measured outcomes (mpg, bags, CO2, emissions) are never features. Held-out permutation
    importance of the features.
 4. Protocol effects: the test fuel of each row, and the drive-quality ratings (DT-*) of the
-   test runs.
+   test runs; the analytically derived rows (why they are not measurements of the row).
+5. Where the information is (reference, not a model): each vehicle's physics error corrected
+   by the median error of the other vehicles of its manufacturer, engine code or test group.
 
 Errors are predicted mpg / measured mpg - 1 as in validation/epa_fuel_economy.py.
 """
