@@ -3,6 +3,7 @@
     python benchmarks/bench_simulate.py                         # 1,000 vehicles, all modes
     python benchmarks/bench_simulate.py --vehicles 1000 --modes auto --cycle UDDS
     python benchmarks/bench_simulate.py --markdown docs/benchmarks-simulation.md
+    python benchmarks/bench_simulate.py --fleet cars --modes auto --single 1 --block-steps 22000
 
 Two ways of calling it:
 - fleet: all vehicles in one ``simulate`` call (arrays over vehicles), as the fleet runner does;
@@ -120,7 +121,11 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--single", type=int, default=200, help="vehicles timed one per call")
     p.add_argument("--markdown", help="also write the table here (Markdown)")
+    p.add_argument("--block-steps", type=int, help="vehicles x steps per block (fleetrun.simulation.BLOCK_STEPS)")
     args = p.parse_args(argv)
+    if args.block_steps:
+        import fleetrun.simulation
+        fleetrun.simulation.BLOCK_STEPS = args.block_steps
     info = machine()
     rows = run(args.vehicles, args.modes, args.cycle, args.repeat, args.single, args.fleet)
     text = markdown(rows, args, info)

@@ -1,8 +1,9 @@
 """A/B benchmark of ``simulate`` between two checkouts, by CPU time (for a shared machine).
 
-    python benchmarks/bench_simulate_ab.py BEFORE_CHECKOUT AFTER_CHECKOUT [--vehicles 1000] [--rounds 3]
+    python benchmarks/bench_simulate_ab.py BEFORE_CHECKOUT AFTER_CHECKOUT [MORE ...] [--vehicles 1000]
+                                           [--rounds 3] [--fleets cars example]
 
-Each checkout is timed in its own process, alternating before/after ``--rounds`` times; each
+Each checkout is timed in its own process, the checkouts in turn, ``--rounds`` times; each
 process builds its map cache in a fresh folder, then reports the best of five ``simulate``
 calls of the fleet (``bench_simulate.make_fleet``, 1,000 vehicles, UDDS, mode auto) in
 process CPU time, which a loaded machine disturbs less than wall time.
@@ -41,20 +42,21 @@ def rate(checkout: str, kind: str, vehicles: int) -> int:
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("before")
-    p.add_argument("after")
+    p.add_argument("checkouts", nargs="+", help="two or more checkouts (BEFORE AFTER ...), timed in turn")
     p.add_argument("--vehicles", type=int, default=1000)
     p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--fleets", nargs="+", choices=("cars", "example"), default=("cars", "example"))
     args = p.parse_args(argv)
-    runs = {(who, kind): [] for who in ("before", "after") for kind in ("cars", "example")}
+    runs = {(checkout, kind): [] for checkout in args.checkouts for kind in args.fleets}
     for _ in range(args.rounds):
-        for who, checkout in (("before", args.before), ("after", args.after)):
-            for kind in ("cars", "example"):
-                runs[(who, kind)].append(rate(checkout, kind, args.vehicles))
-    print("| fleet | before (best; all) | after (best; all) |\n|---|---:|---:|")
-    for kind in ("cars", "example"):
-        b, a = runs[("before", kind)], runs[("after", kind)]
-        print(f"| {kind} | {max(b):,} /s; {', '.join(map(str, b))} | {max(a):,} /s; {', '.join(map(str, a))} |")
+        for checkout in args.checkouts:
+            for kind in args.fleets:
+                runs[(checkout, kind)].append(rate(checkout, kind, args.vehicles))
+    print(f"| fleet | {' | '.join(f'{c} (best; all)' for c in args.checkouts)} |\n"
+          f"|---|{'---:|' * len(args.checkouts)}")
+    for kind in args.fleets:
+        cells = [f"{max(r):,} /s; {', '.join(map(str, r))}" for r in (runs[(c, kind)] for c in args.checkouts)]
+        print(f"| {kind} | {' | '.join(cells)} |")
 
 
 if __name__ == "__main__":
