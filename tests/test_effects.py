@@ -117,21 +117,51 @@ def test_vehicle_extra_fuel():
 
     t = np.array([0.0, 100.0, 1e6])
     v = np.array([10.0, 10.0, 10.0])
+    eta = 0.5   # any Willans slope: the caller passes the engine's own
     warm = vehicle_extra_fuel_g_per_s("warmup:extra_fuel_g_per_s=1:tau_s=100", time_s=t,
-                                      vehicle_speed_mps=v, vehicle_mass_kg=1500, fuel="gasoline")
+                                      vehicle_speed_mps=v, vehicle_mass_kg=1500, fuel="gasoline", eta_indicated=eta)
     np.testing.assert_allclose(warm, [1.0, np.exp(-1), 0.0], atol=1e-12)
-    gpj = marginal_fuel_g_per_J("gasoline")
+    gpj = marginal_fuel_g_per_J("gasoline", eta)
+    # 1 J at the crank at a 50 % Willans slope burns 2 J of gasoline; published gasoline LHVs
+    # are 42-44 MJ/kg (E10 to E0)
+    assert gpj == pytest.approx(2.0 / 43.0e3, rel=0.025)
     grade = vehicle_extra_fuel_g_per_s("road_grade:grade_pct=2", time_s=t, vehicle_speed_mps=v,
-                                       vehicle_mass_kg=1500, fuel="gasoline",
+                                       vehicle_mass_kg=1500, fuel="gasoline", eta_indicated=eta,
                                        wheel_power_W=np.array([1.0, -1.0, 1.0]))
     # m g v grade/100 of extra work while driving the wheels, none while braking
     np.testing.assert_allclose(grade, [1500 * 9.80665 * 10 * 0.02 * gpj, 0.0, 1500 * 9.80665 * 10 * 0.02 * gpj])
     acc = vehicle_extra_fuel_g_per_s("accessory_load:power_kW=2", time_s=t, vehicle_speed_mps=v,
-                                     vehicle_mass_kg=1500, fuel="gasoline", engine_on=np.array([1, 0, 1]))
+                                     vehicle_mass_kg=1500, fuel="gasoline", eta_indicated=eta,
+                                     engine_on=np.array([1, 0, 1]))
     np.testing.assert_allclose(acc, [2000 * gpj, 0.0, 2000 * gpj])
     # differential effects do not add fuel here
     assert np.all(vehicle_extra_fuel_g_per_s("inertia", time_s=t, vehicle_speed_mps=v,
-                                             vehicle_mass_kg=1500, fuel="gasoline") == 0)
+                                             vehicle_mass_kg=1500, fuel="gasoline", eta_indicated=eta) == 0)
+
+
+def test_extra_work_costs_the_fuel_equations_willans_slope():
+    """One owner of the Willans slope: a vehicle-level accessory load of 1 kW in the simulation
+    costs 1 kW / (eta_indicated x LHV) with the vehicle's own eta_indicated (calibrated, or
+    overridden per vehicle), as the engine's accessory_power_W term does (models/engines.toml)."""
+    import dataclasses
+
+    from fleetrun.cycles import load_cycle
+    from fleetrun.physics.fuels import fuel_properties
+    from fleetrun.simulation import simulate
+    from fleetrun.simulation.params import willans_slope
+    from fleetrun.testing.vehicles import CAMRY as base
+
+    cycle = load_cycle("HWFET")
+    for spec in (base, dataclasses.replace(base, extra={**(base.extra or {}), "eta_indicated": 0.3})):
+        plain = simulate([spec], cycle, mode="direct")
+        loaded = simulate([spec], cycle, mode="direct", effects="accessory_load:power_kW=1")
+        eta = willans_slope([spec])[0]
+        lhv_J_per_g = fuel_properties(spec.fuel).lhv_MJ_per_kg * 1e3
+        burning_s = cycle.time_s[-1] - cycle.time_s[0]   # HWFET: the engine never stops
+        extra_g = loaded.fuel_g[0] - plain.fuel_g[0]
+        # fuel cut-off on overrun adds none: the extra is at most the whole cycle's, and most of it
+        assert 0.8 * 1000 * burning_s / (eta * lhv_J_per_g) < extra_g <= 1.0001 * 1000 * burning_s / (eta * lhv_J_per_g)
+    assert willans_slope([dataclasses.replace(base, extra={"eta_indicated": 0.3})])[0] == 0.3
 
 
 def test_map_with_effects_cli():

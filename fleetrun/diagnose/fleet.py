@@ -231,6 +231,7 @@ def _bag1_share_column(warm, rows_v, rows_t) -> np.ndarray:
 def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     """Each candidate's effect on ``r`` per unit of its global parameter, per row."""
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
+    from fleetrun.simulation.params import willans_slope
 
     def gpm(model, v, t):
         return sim[model][t]["g"][v] / sim[model][t]["mi"][v]
@@ -240,7 +241,9 @@ def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     cols, untestable = {}, {}
     cols["warmup"] = _bag1_share_column(sim["warm"], rows_v, rows_t)
     cols["warmup_thermal"] = full / warm - 1.0
-    gpj = np.array([marginal_fuel_g_per_J(vehicles[v].fuel) for v in rows_v])
+    simulated = sorted(set(rows_v))
+    eta = dict(zip(simulated, willans_slope([vehicles[v] for v in simulated])))
+    gpj = np.array([marginal_fuel_g_per_J(vehicles[v].fuel, eta[v]) for v in rows_v])
     s_per_mi = np.array([sim["s_per_mi"][t][v] for v, t in zip(rows_v, rows_t)])
     cols["accessory_load"] = 1000.0 * gpj * s_per_mi / warm
     cyl = np.array([getattr(vehicles[v], "cylinders", None) or np.nan for v in rows_v], float)

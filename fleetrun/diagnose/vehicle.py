@@ -23,6 +23,7 @@ from fleetrun.diagnose.select import Candidate, full_fit
 from fleetrun.effects import effects_for_level
 from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 from fleetrun.errors import InputError
+from fleetrun.simulation.params import willans_slope
 
 ENGINE_OFF_MIN_S = 5.0
 #: Share of the engine-on samples a reference of the same trace must cover for the
@@ -192,7 +193,7 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis",
         notes.append(f"no --calibrate-on: fuel = a x simulated + b fitted on this recording "
                      f"(a = {a:.4g}, b = {b:.4g} g/s) and refitted in every fold")
         info.update({"fuel_scale": round(float(a), 6), "idle_offset_g_per_s": round(float(b), 6)})
-    gpj = marginal_fuel_g_per_J(spec.fuel)
+    gpj = marginal_fuel_g_per_J(spec.fuel, willans_slope([spec])[0])
     driving = (tr["wheel_power_W"].to_numpy() > 0).astype(float)
     ch = {"time_s": t0, "vehicle_speed_mps": v * driving, "engine_on": on,
           "vehicle_mass_kg": float(spec.test_weight_kg), "marginal_fuel_g_per_J": gpj}

@@ -182,12 +182,12 @@ def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_rati
 
 
 def vehicle_extra_fuel_g_per_s(effects, *, time_s, vehicle_speed_mps, vehicle_mass_kg, fuel,
-                               engine_on=1.0, wheel_power_W=None) -> np.ndarray:
+                               eta_indicated, engine_on=1.0, wheel_power_W=None) -> np.ndarray:
     """Extra fuel rate [g/s] of the vehicle-level ``effects`` for a simulation to add.
 
     ``time_s`` is the time since the (cold) start; ``wheel_power_W`` (when given) limits the
     grade's extra work to steps that drive the wheels; ``engine_on`` is 0 where the engine is
-    off. Extra work costs fuel at the Willans-line slope of ``fuel`` (see
+    off. Extra work costs fuel at the engine's Willans-line slope ``eta_indicated`` (see
     :func:`fleetrun.effects.vehicle.marginal_fuel_g_per_J`).
     """
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
@@ -198,7 +198,7 @@ def vehicle_extra_fuel_g_per_s(effects, *, time_s, vehicle_speed_mps, vehicle_ma
         v = v * (np.asarray(wheel_power_W, dtype=float) > 0)
     on = np.broadcast_to(np.asarray(engine_on, dtype=float), t.shape)
     ch = {"time_s": t, "vehicle_speed_mps": v, "engine_on": on,
-          "vehicle_mass_kg": float(vehicle_mass_kg), "marginal_fuel_g_per_J": marginal_fuel_g_per_J(fuel)}
+          "vehicle_mass_kg": float(vehicle_mass_kg), "marginal_fuel_g_per_J": marginal_fuel_g_per_J(fuel, eta_indicated)}
     total = np.zeros(np.broadcast_shapes(t.shape, v.shape))
     for effect, params in _as_effect_list(effects):
         if effect.level == "vehicle":

@@ -12,17 +12,25 @@ from fleetrun.effects.base import Effect, Parameter
 from fleetrun.physics.fuels import fuel_properties
 
 G_M_S2 = 9.80665
-#: Marginal (Willans-line) brake efficiency of extra engine work: the slope of fuel power
-#: against brake power of a warm spark-ignition (0.38) or diesel (0.42) engine. Extra load
-#: on a running engine costs fuel at this slope, not at the (much lower) average efficiency.
-MARGINAL_EFFICIENCY = {"gasoline": 0.38, "diesel": 0.42}
 
 
-def marginal_fuel_g_per_J(fuel: str, drivetrain_efficiency: float = 1.0) -> float:
-    """Fuel [g] per J of extra work at the wheels (or at the crank with efficiency 1)."""
-    fuel = fuel.lower()
-    lhv_J_per_g = fuel_properties(fuel).lhv_MJ_per_kg * 1e3   # models/fuels.toml
-    return 1.0 / (MARGINAL_EFFICIENCY[fuel] * lhv_J_per_g * drivetrain_efficiency)
+def marginal_fuel_g_per_J(fuel: str, eta_indicated: float, drivetrain_efficiency: float = 1.0) -> float:
+    """Fuel [g] per J of extra work at the wheels (or at the crank with efficiency 1).
+
+    Extra load on a running engine costs fuel at the slope of the Willans line (fuel power
+    against brake power), not at the engine's (much lower) average efficiency.
+
+    Parameters
+    ----------
+    fuel : ``gasoline`` or ``diesel`` (its lower heating value: models/fuels.toml).
+    eta_indicated : the engine's Willans-line slope [-], brake power per fuel power at the
+        margin: the vehicle's ``eta_indicated`` as the simulation's fuel equation uses it
+        (models/engines.toml, fitted in models/engine_calibration.toml, per-vehicle override;
+        resolved by ``fleetrun.simulation.params``). This module keeps no value of its own.
+    drivetrain_efficiency : wheel work per crank work [-] (1: work at the crank).
+    """
+    lhv_J_per_g = fuel_properties(fuel.lower()).lhv_MJ_per_kg * 1e3
+    return 1.0 / (float(eta_indicated) * lhv_J_per_g * drivetrain_efficiency)
 
 
 def cold_start_extra_fuel(time_s, tau_s, engine_on=1.0):

@@ -364,8 +364,7 @@ def _still_effects_fuel(va, t, columns, effects):
     """Fuel rate (V, len(still)) of the vehicle-level effects at rest in the skipped steps."""
     still = _still(t.size, columns)
     zeros = np.zeros((va.n, still.size))
-    return vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, step_time_since_start_s(t)[still], zeros, zeros,
-                                      1.0)
+    return vehicle_extra_fuel_g_per_s(effects, va, step_time_since_start_s(t)[still], zeros, zeros, 1.0)
 
 
 def _every_step(va, t, columns, out, effects, plan):

@@ -396,7 +396,7 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
-        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va.fuel, va.mass_kg, k.since_start,
+        fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va, k.since_start,
                                                             np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
                                                             burning), 0.0)
     return t_max, infeasible, engine_torque, fuel

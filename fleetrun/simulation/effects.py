@@ -128,12 +128,15 @@ def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_inp
     return out
 
 
-def vehicle_extra_fuel_g_per_s(effects: CycleEffects, fuels, masses_kg, time_since_start_s, vehicle_speed_mps,
+def vehicle_extra_fuel_g_per_s(effects: CycleEffects, va, time_since_start_s, vehicle_speed_mps,
                                wheel_power_W, engine_on) -> np.ndarray:
-    """Extra fuel rate [g/s] of the vehicle-level effects, (V, N); row v is a vehicle with
-    fuel ``fuels[v]`` and test weight ``masses_kg[v]``."""
+    """Extra fuel rate [g/s] of the vehicle-level effects, (V, N); row v is vehicle v of the
+    arrays ``va`` (params.VehicleArrays): its fuel, test weight and Willans slope
+    ``eta_indicated``, the one the fuel equation uses, so extra work costs what it costs there."""
     from fleetrun.effects import vehicle_extra_fuel_g_per_s as extra
+    from fleetrun.simulation.params import willans_slope
 
+    fuels, masses_kg, willans = va.fuel, va.mass_kg, willans_slope(va)
     speed = np.asarray(vehicle_speed_mps, float)
     out = np.zeros(speed.shape)
     if not effects.vehicle:
@@ -143,6 +146,6 @@ def vehicle_extra_fuel_g_per_s(effects: CycleEffects, fuels, masses_kg, time_sin
     on = np.broadcast_to(np.asarray(engine_on, float), speed.shape)
     for v in range(speed.shape[0]):
         out[v] = extra(effects.vehicle, time_s=time[v], vehicle_speed_mps=speed[v],
-                       vehicle_mass_kg=float(masses_kg[v]), fuel=str(fuels[v]), engine_on=on[v],
-                       wheel_power_W=power[v])
+                       vehicle_mass_kg=float(masses_kg[v]), fuel=str(fuels[v]), eta_indicated=float(willans[v]),
+                       engine_on=on[v], wheel_power_W=power[v])
     return out

@@ -218,6 +218,14 @@ def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
     return _gather(rows)
 
 
+def willans_slope(vehicles: Sequence[VehicleSpec] | VehicleArrays) -> np.ndarray:
+    """Each vehicle's ``eta_indicated`` (Willans-line slope of its fuel equation, defaults,
+    calibration and per-vehicle overrides filled in): what extra engine work costs
+    (fleetrun.effects.vehicle.marginal_fuel_g_per_J)."""
+    va = vehicles if isinstance(vehicles, VehicleArrays) else vehicle_arrays(vehicles)
+    return va.fuel_constants[:, FUEL_CONSTANTS.index("eta_indicated")]
+
+
 def _row_cached(v: VehicleSpec) -> dict:
     try:
         key = (v, tuple(sorted((v.extra or {}).items())))

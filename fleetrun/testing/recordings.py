@@ -371,6 +371,7 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
     from fleetrun.effects.vehicle import marginal_fuel_g_per_J
     from fleetrun.resources import inputs_dir
     from fleetrun.simulation import simulate
+    from fleetrun.simulation.params import willans_slope
     from fleetrun.fleet.vehicle_file import read_vehicle_toml
 
     vehicle_toml = vehicle_toml or inputs_dir() / "dyno" / "camry2018_udds_hot.toml"
@@ -395,7 +396,7 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
     on = np.ones_like(t)
     ch = {"time_s": t - t[0], "vehicle_speed_mps": v * (tr["wheel_power_W"].to_numpy() > 0),
           "engine_on": on, "vehicle_mass_kg": float(spec.test_weight_kg),
-          "marginal_fuel_g_per_J": marginal_fuel_g_per_J(spec.fuel)}
+          "marginal_fuel_g_per_J": marginal_fuel_g_per_J(spec.fuel, willans_slope([spec])[0])}
     effect_list = _as_effect_list(effects)
     extra = np.zeros_like(t)
     for e, p in effect_list:
