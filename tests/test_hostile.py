@@ -312,9 +312,13 @@ def test_killed_between_moves_never_mixes_runs(tmp_path):
     run = ["run", str(fleet), "--out", str(out), "-q", "--no-cache"]
     assert subprocess.run([sys.executable, "-c", KILLER, str(tmp_path), "0", *run], env=env).returncode == 0
     first = json.loads((out / "manifest.json").read_text())["created_utc"]
-    for when in (1, 2, 3):
+    # kill at every move into the folder (files into staging, the two folder renames) in turn,
+    # until a run has fewer moves than ``when`` and completes
+    for when in range(1, 10):
         time.sleep(1.1)      # a new run has a new created_utc
         code = subprocess.run([sys.executable, "-c", KILLER, str(tmp_path), str(when), *run], env=env).returncode
+        if code == 0:
+            break
         assert code == 9
         if out.exists():
             assert _outputs_consistent(out)
@@ -322,6 +326,7 @@ def test_killed_between_moves_never_mixes_runs(tmp_path):
         assert code == 0 and _outputs_consistent(out)
         assert json.loads((out / "manifest.json").read_text())["created_utc"] != first
         assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+    assert code == 0 and when >= 3, when     # the two folder renames at least were kill points
 
 
 def test_disk_full_is_an_input_error_naming_the_output(tmp_path, fake_simulation, monkeypatch):

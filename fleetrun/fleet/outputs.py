@@ -9,22 +9,14 @@ import os
 from pathlib import Path
 
 from fleetrun.errors import InputError
+from fleetrun.fleet.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
                 "manifest.json")
 
-# OWASP, "CSV Injection": a cell starting with one of these is taken as a formula by Excel,
-# LibreOffice and Google Sheets. Such text cells get a leading apostrophe.
-FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
-
-
-def csv_safe_text(value: str) -> str:
-    """``value`` with a leading ``'`` when a spreadsheet would read it as a formula."""
-    return "'" + value if value.startswith(FORMULA_START) else value
-
 
 def write_csv(frame, path: Path) -> None:
-    """``frame`` as CSV with every text cell neutralised (:func:`csv_safe_text`); numeric
+    """``frame`` as CSV with every text cell neutralised (:func:`fleetrun.fleet.text_cells.csv_safe_text`); numeric
     columns are written as numbers, unchanged."""
     safe = frame.copy(deep=False)
     for name in safe.columns:

@@ -1,37 +1,43 @@
 """``report.xlsx``: the run as a workbook an analyst can hand on.
 
-Sheets: Summary, ByClass, ByVehicle, Scenario comparison, Efficiency maps, Inputs, RunInfo.
-Native Excel charts, number formats, frozen headers. Written with openpyxl's write-only mode
-so 100,000 vehicle rows x scenarios stay fast and memory-bounded.
+Sheets: Summary, Assumptions, ByClass, ByVehicle, Scenario comparison, Fiscal years,
+Efficiency maps, Inputs, RunInfo, What changed. Native Excel charts, number formats, frozen
+headers, a page setup on every sheet. Written with XlsxWriter in its ``constant_memory``
+mode: each sheet is streamed row by row to a temporary file, so 100,000 vehicle rows x
+scenarios stay memory-bounded.
 
-Every text that came from the input workbook is written as a text cell: a label such as
-``=HYPERLINK(...)`` or ``+cmd|...`` shows as typed and is never evaluated.
+Numbers: XlsxWriter writes 16 significant digits (``%.16G``), Excel keeps 15; results.csv
+is the exact copy (shortest round-trip repr). Non-finite numbers are never written (the
+cell stays empty). Every text is written as a text cell, never a formula or a link
+(``strings_to_formulas``, ``strings_to_urls``, ``strings_to_numbers`` all off); a text that a
+spreadsheet would take for a formula (``=HYPERLINK(...)``, ``+cmd|...``,
+:mod:`fleetrun.fleet.text_cells`) also gets Excel's quote prefix, so it stays text when a
+user edits the cell.
 """
 from __future__ import annotations
 
-import contextlib
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
-from openpyxl import Workbook
-from openpyxl.cell import WriteOnlyCell
-from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
-from openpyxl.chart import BarChart, LineChart, Reference, Series
-from openpyxl.formatting.rule import ColorScaleRule
-from openpyxl.styles import Alignment, Font, PatternFill
-from openpyxl.utils import get_column_letter
-from openpyxl.worksheet.page import PageMargins
-from openpyxl.worksheet.properties import PageSetupProperties
+import xlsxwriter
+from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.fleet.charts import efficiency_scale
 from fleetrun.fleet.runner import RunResult
-from fleetrun.fleet.totals import scenario_totals, yearly_totals
 from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.fleet.text_cells import looks_like_formula
+from fleetrun.fleet.totals import scenario_totals, yearly_totals
 
-HEADER_FONT = Font(bold=True, color="FFFFFF")
-HEADER_FILL = PatternFill("solid", fgColor="1F4E78")
-TITLE_FONT = Font(bold=True, size=14)
+#: Cell styles by name (XlsxWriter format properties); any other style name is a number format.
+STYLES = {
+    "header": {"bold": True, "font_color": "#FFFFFF", "bg_color": "#1F4E78", "pattern": 1,
+               "align": "center", "text_wrap": True},
+    "title": {"bold": True, "font_size": 14},
+    "bold": {"bold": True},
+    "wrap": {"text_wrap": True, "valign": "top"},
+}
 
 FORMATS = {
     "count": "#,##0", "vehicles": "#,##0", "vehicle_types": "#,##0",
@@ -47,246 +53,264 @@ FORMATS = {
     "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.0%", "scale": "0.0000",
 }
 
-
-def text_cell(ws, value):
-    """A cell that shows ``value`` as text, never a formula (and without XML-illegal chars)."""
-    cell = WriteOnlyCell(ws, value=ILLEGAL_CHARACTERS_RE.sub("", str(value)))
-    cell.data_type = "s"
-    return cell
+WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "strings_to_urls": False,
+                    "strings_to_numbers": False, "nan_inf_to_errors": False}
+ZIP64_CELLS = 20_000_000   # above this many cells a sheet's XML may pass 4 GB: zip64 archive
+CM_TO_PIXELS = 96 / 2.54   # chart sizes are given in cm, XlsxWriter takes pixels at 96 dpi
 
 
-def _value(ws, value, number_format=None):
-    if isinstance(value, str):
-        return text_cell(ws, value)
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return None
-    if number_format:
-        cell = WriteOnlyCell(ws, value=value)
-        cell.number_format = number_format
-        return cell
-    return value
+class Sheet:
+    """One worksheet written top to bottom (constant_memory needs the rows in order).
+    ``row`` is the 1-based number of the last row written, as Excel counts."""
+
+    def __init__(self, book: "Book", name: str):
+        self.book, self.name, self.ws, self.row = book, name, book.workbook.add_worksheet(name), 0
+        self.row_breaks: list[int] = []
+
+    def append(self, values=(), styles=None, height: float | None = None) -> int:
+        """Write ``values`` into the next row (None: empty cell); ``styles``: one style name
+        for every cell or one per cell. Returns the row's 1-based number."""
+        index, self.row = self.row, self.row + 1
+        if height is not None:
+            self.ws.set_row(index, height)
+        for column, value in enumerate(values):
+            style = styles if styles is None or isinstance(styles, str) else styles[column]
+            self.book.write(self.ws, index, column, value, style)
+        return self.row
+
+    def rows(self, columns: list[list], styles: list) -> None:
+        """Many rows at once: ``columns`` are the table's columns as lists (a DataFrame's
+        ``tolist()``), ``styles`` one style name (or None) per column. The fast path."""
+        write = self.book.write
+        formats = [self.book.style(s) for s in styles]
+        number, index = self.ws.write_number, self.row
+        for values in zip(*columns):
+            for column, value in enumerate(values):
+                if type(value) is float:   # the common case first: a finite float
+                    if value - value == 0.0:
+                        number(index, column, value, formats[column])
+                elif value is not None:
+                    write(self.ws, index, column, value, styles[column])
+            index += 1
+        self.row = index
 
 
-def _header(ws, names):
-    cells = []
-    for name in names:
-        cell = text_cell(ws, name)
-        cell.font = HEADER_FONT
-        cell.fill = HEADER_FILL
-        cell.alignment = Alignment(horizontal="center", wrap_text=True)
-        cells.append(cell)
-    ws.append(cells)
+class Book:
+    """The XlsxWriter workbook and its formats (made once per style, as XlsxWriter wants)."""
+
+    def __init__(self, path: Path, cells: int):
+        options = {**WORKBOOK_OPTIONS, "tmpdir": str(Path(path).parent), "use_zip64": cells > ZIP64_CELLS}
+        self.workbook = xlsxwriter.Workbook(str(path), options)
+        self._formats: dict = {}
+
+    def style(self, name: str | None, quoted: bool = False):
+        """The Format of style ``name`` (STYLES or a number format), with the quote prefix."""
+        key = (name, quoted)
+        if key not in self._formats:
+            properties = dict(STYLES.get(name, {"num_format": name} if name else {}))
+            if quoted:
+                properties["quote_prefix"] = True
+            self._formats[key] = self.workbook.add_format(properties) if properties else None
+        return self._formats[key]
+
+    def write(self, ws, row: int, column: int, value, style: str | None = None) -> None:
+        """One cell: text as text, finite numbers as numbers, booleans, nothing for None/NaN."""
+        if isinstance(value, str):
+            self.text(ws, row, column, value, style)
+        elif isinstance(value, (bool, np.bool_)):
+            ws.write_boolean(row, column, bool(value), self.style(style))
+        elif isinstance(value, (int, float)) or hasattr(value, "__float__") and not pd.isna(value):
+            number = float(value)
+            if math.isfinite(number):
+                ws.write_number(row, column, value if isinstance(value, int) else number, self.style(style))
+        elif value is not None and not pd.isna(value):
+            self.text(ws, row, column, str(value), style)
+
+    def text(self, ws, row: int, column: int, value: str, style: str | None = None) -> None:
+        """A text cell that shows ``value`` as typed. In constant_memory mode XlsxWriter passes
+        a string that starts with ``<r>`` and ends with ``</r>`` into the sheet XML unescaped
+        (its marker for a pre-built rich string): such text is written as a rich string of
+        three plain runs, which XlsxWriter escapes; it shows the same text."""
+        cell_format = self.style(style, quoted=looks_like_formula(value))
+        if value.startswith("<r>") and value.endswith("</r>"):
+            runs = [value[:1], value[1:2], value[2:]]
+            ws.write_rich_string(row, column, *runs, *([cell_format] if cell_format else []))
+        else:
+            ws.write_string(row, column, value, cell_format)
+
+    def close(self) -> None:
+        self.workbook.close()
 
 
-def _widths(ws, names, minimum=10, maximum=40):
-    for i, name in enumerate(names, start=1):
-        ws.column_dimensions[get_column_letter(i)].width = max(minimum, min(maximum, len(name) + 2))
+def _widths(sheet: Sheet, names, minimum=10, maximum=40):
+    for i, name in enumerate(names):
+        sheet.ws.set_column(i, i, max(minimum, min(maximum, len(name) + 2)))
 
 
-def _table(ws, frame: pd.DataFrame, styled: bool = True, widths: bool = True):
-    names = list(frame.columns)
+def _table(sheet: Sheet, frame: pd.DataFrame, styled: bool = True, widths: bool = True) -> None:
+    names = [str(n) for n in frame.columns]
     if widths:
-        _widths(ws, names)      # write-only sheets: layout before the first row
-    _header(ws, names)
-    formats = [FORMATS.get(n) if styled else None for n in names]
-    for row in frame.itertuples(index=False, name=None):
-        ws.append([_value(ws, v, f) for v, f in zip(row, formats)])
-
-
-@contextlib.contextmanager
-def _full_precision_numbers():
-    """openpyxl writes floats with 16 significant digits ("%.16g"), which changes the last bit
-    of some values; Excel reads 17. Write the shortest round-trip repr instead so every number
-    in report.xlsx equals the one in the CSVs bit for bit."""
-    from openpyxl.cell import _writer
-
-    original = _writer.safe_string
-
-    def safe_string(value):
-        if isinstance(value, float) and math.isfinite(value):
-            return repr(float(value))
-        return original(value)
-
-    _writer.safe_string = safe_string
-    try:
-        yield
-    finally:
-        _writer.safe_string = original
+        _widths(sheet, names)
+    sheet.append(names, "header")
+    sheet.rows([frame[n].tolist() for n in frame.columns], [FORMATS.get(n) if styled else None for n in names])
 
 
 def write_report_xlsx(result: RunResult, path: Path) -> None:
-    from fleetrun.fleet.xlsx_bulk import append_rows
-
-    bulk: dict = {}   # sheet title -> (template row, columns, remaining rows), see xlsx_bulk
-    # Write-only sheets stream their rows as they are appended: the whole build is inside.
-    with _full_precision_numbers():
-        wb = Workbook(write_only=True)
-        totals = scenario_totals(result.classes)
-        _summary(wb, result, totals)
-        _assumptions(wb, result)
-        _by_class(wb, result)
-        _by_vehicle(wb, result, bulk)
-        _comparison(wb, result)
-        _fiscal(wb, result)
-        _maps(wb, result)
-        _inputs(wb, result, bulk)
-        _run_info(wb, result)
-        _what_changed(wb, result)
-        wb.save(path)
-    if bulk:
-        append_rows(path, bulk)
+    cells = (len(result.results) * len(result.results.columns)
+             + len(result.fleet.vehicles) * (len(VEHICLE_COLUMNS) + 5))
+    book = Book(path, cells)
+    totals = scenario_totals(result.classes)
+    _summary(book, result, totals)
+    _assumptions(book, result)
+    _by_class(book, result)
+    _by_vehicle(book, result)
+    _comparison(book, result)
+    _fiscal(book, result)
+    _maps(book, result)
+    _inputs(book, result)
+    _run_info(book, result)
+    _what_changed(book, result)
+    book.close()
 
 
 # --- printing and charts ------------------------------------------------------------------
 
-def page_setup(ws, *, landscape: bool = True, title_rows: str | None = "1:1", one_page: bool = False) -> None:
+def page_setup(sheet: Sheet, *, landscape: bool = True, title_row: int | None = 1, one_page: bool = False) -> None:
     """Print layout of a sheet: US letter, fit to the page width (and height for one page),
-    the header row repeated on every page, the sheet name and page number in the footer."""
-    ws.page_setup.orientation = "landscape" if landscape else "portrait"
-    ws.page_setup.paperSize = "1"   # US letter (ECMA-376 paper size 1)
-    ws.page_setup.fitToWidth = 1
-    ws.page_setup.fitToHeight = 1 if one_page else 0
-    ws.sheet_properties.pageSetUpPr = PageSetupProperties(fitToPage=True)
-    ws.page_margins = PageMargins(left=0.4, right=0.4, top=0.5, bottom=0.6)
-    ws.oddFooter.center.text = "&A, page &P of &N"
-    if title_rows:
-        ws.print_title_rows = title_rows
+    the header row ``title_row`` (1-based) repeated on every page, the sheet name and page
+    number in the footer."""
+    ws = sheet.ws
+    if landscape:
+        ws.set_landscape()
+    else:
+        ws.set_portrait()
+    ws.set_paper(1)   # US letter (ECMA-376 paper size 1)
+    ws.fit_to_pages(1, 1 if one_page else 0)
+    ws.set_margins(left=0.4, right=0.4, top=0.5, bottom=0.6)
+    ws.set_footer("&C&A, page &P of &N")
+    if title_row:
+        ws.repeat_rows(title_row - 1)
 
 
-def _axes(chart, x_title: str, y_title: str, y_format: str) -> None:
-    """Axis titles with units, a value axis from zero, the legend below the plot."""
-    chart.x_axis.title = x_title
-    chart.y_axis.title = y_title
-    chart.y_axis.numFmt = y_format
-    chart.y_axis.scaling.min = 0
-    chart.x_axis.delete = False
-    chart.y_axis.delete = False
-    chart.legend.position = "b"
+def _chart(book: Book, kind: str, title: str, axes: tuple[str, str, str], size: tuple[float, float]):
+    """A chart with axis titles with units, a value axis from zero, the legend below the plot;
+    ``kind``: XlsxWriter's chart type (bar: horizontal, column, line); size (height, width) in cm."""
+    x_title, y_title, y_format = axes
+    chart = book.workbook.add_chart({"type": kind})
+    chart.set_title({"name": title})
+    category_axis, value_axis = (chart.set_y_axis, chart.set_x_axis) if kind == "bar" else (chart.set_x_axis, chart.set_y_axis)
+    category_axis({"name": x_title})
+    value_axis({"name": y_title, "num_format": y_format, "min": 0})
+    chart.set_legend({"position": "bottom"})
+    chart.set_size({"height": round(size[0] * CM_TO_PIXELS), "width": round(size[1] * CM_TO_PIXELS)})
+    return chart
 
 
-def _series(ws, column: int, first_row: int, last_row: int, title: str) -> Series:
-    """One chart series over ``column``'s rows with a human legend text."""
-    return Series(Reference(ws, min_col=column, min_row=first_row, max_row=last_row), title=title)
+def _series(sheet: Sheet, column: int, first_row: int, last_row: int, name, categories_column: int = 1) -> dict:
+    """One chart series over 1-based ``column``'s rows ``first_row``..``last_row``, with the
+    categories in ``categories_column``; ``name``: a legend text or a (row, column) cell."""
+    name = [sheet.name, name[0] - 1, name[1] - 1] if isinstance(name, tuple) else name
+    return {"name": name, "values": [sheet.name, first_row - 1, column - 1, last_row - 1, column - 1],
+            "categories": [sheet.name, first_row - 1, categories_column - 1, last_row - 1, categories_column - 1]}
 
 
-def _scenario_bars(ws, pivot: pd.DataFrame, header_row: int, bar_type: str, title: str,
+def _scenario_bars(sheet: Sheet, pivot: pd.DataFrame, header_row: int, kind: str, title: str,
                    axes: tuple[str, str, str], size: tuple[float, float]) -> None:
     """A bar chart of ``pivot`` as written below ``header_row`` (labels in column A, one
     column and one series per scenario), placed two rows under the table."""
     first, last = header_row + 1, header_row + len(pivot)
-    chart = BarChart()
-    chart.type = bar_type
-    chart.title = title
-    _axes(chart, *axes)
+    chart = _chart(sheet.book, kind, title, axes, size)
     for k, scenario_id in enumerate(pivot.columns):
-        chart.series.append(_series(ws, 2 + k, first, last, f"Scenario {scenario_id}"))
-    chart.set_categories(Reference(ws, min_col=1, min_row=first, max_row=last))
-    chart.height, chart.width = size
-    ws.add_chart(chart, f"A{last + 2}")
+        chart.add_series(_series(sheet, 2 + k, first, last, f"Scenario {scenario_id}"))
+    sheet.ws.insert_chart(f"A{last + 2}", chart)
 
 
-def _summary(wb, result: RunResult, totals: pd.DataFrame):
-    ws = wb.create_sheet("Summary")
+def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
+    sheet = Sheet(book, "Summary")
     header_row = 6
-    ws.freeze_panes = f"A{header_row + 1}"   # write-only sheets: layout before the first row
-    page_setup(ws, title_rows=None, one_page=True)
+    sheet.ws.freeze_panes(f"A{header_row + 1}")
+    page_setup(sheet, title_row=None, one_page=True)
     names = ["scenario_id", "description", "budget_years"] + list(totals.columns[1:])
-    _widths(ws, names, minimum=12)
-    ws.column_dimensions["B"].width = 30
+    _widths(sheet, names, minimum=12)
+    sheet.ws.set_column("B:B", 30)
     descriptions = {s.scenario_id: s.description for s in result.scenarios}
     years = {s.scenario_id: s.budget_years for s in result.scenarios}
-    title = text_cell(ws, "Fleet fuel and fuel-tax forecast")
-    title.font = TITLE_FONT
-    ws.append([title])
-    ws.append([text_cell(ws, "Fleet workbook"), text_cell(ws, result.fleet.path.name)])
-    ws.append([text_cell(ws, "sha256"), text_cell(ws, result.fleet.sha256)])
-    ws.append([text_cell(ws, "Warnings"), len(result.warnings)])
-    ws.append([])
+    sheet.append(["Fleet fuel and fuel-tax forecast"], "title")
+    sheet.append(["Fleet workbook", result.fleet.path.name])
+    sheet.append(["sha256", result.fleet.sha256])
+    sheet.append(["Warnings", len(result.warnings)])
+    sheet.append([])
     frame = totals.copy()
     frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
     frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
-    _table(ws, frame, widths=False)
+    _table(sheet, frame, widths=False)
     n = len(frame)
-    row = header_row + n
-    row = _summary_words(ws, result, row)
+    row = _summary_words(sheet, result)
     if n:
-        chart = BarChart()
-        chart.type = "col"
-        chart.title = "Fuel-tax revenue over the budget period"
-        _axes(chart, "Scenario", "US$ over the budget period", '"$"#,##0')
+        chart = _chart(book, "column", "Fuel-tax revenue over the budget period",
+                       ("Scenario", "US$ over the budget period", '"$"#,##0'), (7.5, 16))
         cols = list(frame.columns)
         for name, label in (("state_tax_usd", "State fuel tax"), ("federal_tax_usd", "Federal fuel tax")):
-            chart.series.append(_series(ws, cols.index(name) + 1, header_row + 1, header_row + n, label))
-        chart.set_categories(Reference(ws, min_col=1, min_row=header_row + 1, max_row=header_row + n))
-        chart.height, chart.width = 7.5, 16
-        ws.add_chart(chart, f"A{row + 2}")
+            chart.add_series(_series(sheet, cols.index(name) + 1, header_row + 1, header_row + n, label))
+        sheet.ws.insert_chart(f"A{row + 2}", chart)
 
 
-def _summary_words(ws, result: RunResult, row: int) -> int:
+def _summary_words(sheet: Sheet, result: RunResult) -> int:
     """The headline of each scenario (rounded to its range; state and federal apart) and
     where the ranges come from; the last row written."""
     from fleetrun.fleet import report_text
 
     ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
-    bold = Font(bold=True)
-    heads = [text_cell(ws, "Headline (rounded to its range)")] + [None] * 12
-    for column, label in ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax")):
-        heads[column] = text_cell(ws, label)
-    for cell in heads:
-        if cell is not None:
-            cell.font = bold
-    lines: list[list] = [[], heads]
+    labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
+    heads = ["Headline (rounded to its range)"] + [None] * 12
+    for column, label in labels:
+        heads[column] = label
+    sheet.append([])
+    sheet.append(heads, "bold")
     for s in result.scenarios:
         texts = dict(report_text.headline(s, ranges[s.scenario_id]))
-        line = [text_cell(ws, s.scenario_id)] + [None] * 12
-        for column, label in ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax")):
-            line[column] = text_cell(ws, texts[label])
-        lines.append(line)
-    for sentence in report_text.range_source_lines(result.error_model):
-        lines.append([None, text_cell(ws, sentence)])
-    lines.append([None, text_cell(ws, "Rates, mixes, growth, temperature and on-road fuel of each scenario: "
-                                      "see the Assumptions sheet.")])
-    for line in lines:
-        ws.append(line)
-    return row + len(lines)
+        line = [s.scenario_id] + [None] * 12
+        for column, label in labels:
+            line[column] = texts[label]
+        sheet.append(line)
+    sentences = report_text.range_source_lines(result.error_model) + [
+        "Rates, mixes, growth, temperature and on-road fuel of each scenario: see the Assumptions sheet."]
+    for sentence in sentences:
+        sheet.append([None, sentence])
+    return sheet.row
 
 
 ASSUMPTION_WIDTH = 48   # characters per scenario column of the Assumptions sheet
 
 
-def _assumptions(wb, result: RunResult):
+def _assumptions(book: Book, result: RunResult):
     """One column per scenario, one row per assumption (report_text.assumptions)."""
     from fleetrun.fleet import report_text
 
-    ws = wb.create_sheet("Assumptions")
-    page_setup(ws)
-    ws.column_dimensions["A"].width = 30
-    for k in range(len(result.scenarios)):
-        ws.column_dimensions[get_column_letter(2 + k)].width = ASSUMPTION_WIDTH
-    ws.freeze_panes = "B2"
-    _header(ws, ["assumption"] + [s.scenario_id for s in result.scenarios])
+    sheet = Sheet(book, "Assumptions")
+    page_setup(sheet)
+    sheet.ws.set_column(0, 0, 30)
+    if result.scenarios:
+        sheet.ws.set_column(1, len(result.scenarios), ASSUMPTION_WIDTH)
+    sheet.ws.freeze_panes("B2")
+    sheet.append(["assumption"] + [s.scenario_id for s in result.scenarios], "header")
     table = [dict(report_text.assumptions(s)) for s in result.scenarios]
     labels = list(dict.fromkeys(label for t in table for label in t))
-    wrap = Alignment(wrap_text=True, vertical="top")
-    for row, label in enumerate(labels, start=2):
+    for label in labels:
         texts = [label] + [t.get(label, "") for t in table]
-        # write-only sheets cannot grow a row to its wrapped text: give it the lines it needs
+        # rows are streamed: give each the lines its wrapped text needs
         lines = max(math.ceil(len(text) / (ASSUMPTION_WIDTH * 1.05)) for text in texts)
-        ws.row_dimensions[row].height = 15 * max(1, lines)
-        cells = [text_cell(ws, text) for text in texts]
-        for cell in cells:
-            cell.alignment = wrap
-        ws.append(cells)
+        sheet.append(texts, "wrap", height=15 * max(1, lines))
 
 
-def _by_class(wb, result: RunResult):
-    ws = wb.create_sheet("ByClass")
+def _by_class(book: Book, result: RunResult):
+    sheet = Sheet(book, "ByClass")
     frame = result.classes
-    ws.freeze_panes = "C2"
-    page_setup(ws)
-    _widths(ws, list(frame.columns))
-    ws.column_dimensions["B"].width = 28
-    _table(ws, frame, widths=False)
+    sheet.ws.freeze_panes("C2")
+    page_setup(sheet)
+    _widths(sheet, list(frame.columns))
+    sheet.ws.set_column("B:B", 28)
+    _table(sheet, frame, widths=False)
     n = len(frame)
     if not n:
         return
@@ -294,182 +318,153 @@ def _by_class(wb, result: RunResult):
     pivot = frame.pivot_table(index="vehicle_class", columns="scenario_id", values="fuel_gal_total",
                               aggfunc="sum", sort=False)
     start = n + 4
-    for _ in range(n + 1, start - 1):
-        ws.append([])
-    ws.append([text_cell(ws, "Fuel over the budget period [gal] by class and scenario")])
-    ws.append([text_cell(ws, "vehicle_class")] + [text_cell(ws, s) for s in pivot.columns])
+    sheet.row = start - 1   # two empty rows under the table
+    sheet.append(["Fuel over the budget period [gal] by class and scenario"])
+    sheet.append(["vehicle_class"] + list(pivot.columns))
     for label, row in pivot.iterrows():
-        ws.append([text_cell(ws, label)] + [_value(ws, float(v), "#,##0") for v in row])
-    _scenario_bars(ws, pivot, start + 1, "bar", "Fuel by vehicle class over the budget period",
+        sheet.append([label] + [float(v) for v in row], [None] + ["#,##0"] * len(row))
+    _scenario_bars(sheet, pivot, start + 1, "bar", "Fuel by vehicle class over the budget period",
                    ("Vehicle class", "US gallons", "#,##0"),
                    (max(7.5, 0.5 * len(pivot) * len(pivot.columns)), 18))
 
 
-def _by_vehicle(wb, result: RunResult, bulk: dict):
-    ws = wb.create_sheet("ByVehicle")
-    ws.freeze_panes = "C2"
-    page_setup(ws)
+def _by_vehicle(book: Book, result: RunResult):
+    sheet = Sheet(book, "ByVehicle")
+    sheet.ws.freeze_panes("C2")
+    page_setup(sheet)
     frame = result.results
-    ws.auto_filter.ref = f"A1:{get_column_letter(len(frame.columns))}{len(frame) + 1}"
-    # openpyxl writes the header and the first row (and so the styles); the rest in bulk.
-    _table(ws, frame.iloc[:1])
-    if len(frame) > 1:
-        bulk[ws.title] = (2, len(frame.columns), frame.iloc[1:].itertuples(index=False, name=None))
+    sheet.ws.autofilter(0, 0, len(frame), len(frame.columns) - 1)
+    _table(sheet, frame)
 
 
-def _comparison(wb, result: RunResult):
-    ws = wb.create_sheet("Scenario comparison")
-    page_setup(ws, title_rows="2:2")
+def _comparison(book: Book, result: RunResult):
+    sheet = Sheet(book, "Scenario comparison")
+    page_setup(sheet, title_row=2)
     classes = result.classes
     scenario_ids = [s.scenario_id for s in result.scenarios]
     base = scenario_ids[0] if scenario_ids else None
     names = ["vehicle_class", "scenario_id", "fuel_gal_total", "mpg", "state_tax_usd",
              "federal_tax_usd", "fuel_change_pct", "state_tax_change_pct"]
-    _widths(ws, names, minimum=14)
-    ws.column_dimensions["A"].width = 28
-    ws.freeze_panes = "C3"
-    title = text_cell(ws, f"Change against the first scenario ({base})")
-    title.font = TITLE_FONT
-    ws.append([title])
-    _header(ws, names)
+    _widths(sheet, names, minimum=14)
+    sheet.ws.set_column("A:A", 28)
+    sheet.ws.freeze_panes("C3")
+    sheet.append([f"Change against the first scenario ({base})"], "title")
+    sheet.append(names, "header")
     baseline = classes[classes["scenario_id"] == base].set_index("vehicle_class")
+    styles = [None, None] + [FORMATS[n] for n in ("fuel_gal_total", "mpg", "state_tax_usd", "federal_tax_usd")] \
+        + [FORMATS["change_pct"]] * 2
     for _, row in classes.iterrows():
         ref = baseline.loc[row["vehicle_class"]] if row["vehicle_class"] in baseline.index else None
         fuel_change = (row["fuel_gal_total"] / ref["fuel_gal_total"] - 1.0
                        if ref is not None and ref["fuel_gal_total"] else None)
         tax_change = (row["state_tax_usd"] / ref["state_tax_usd"] - 1.0
                       if ref is not None and ref["state_tax_usd"] else None)
-        ws.append([text_cell(ws, row["vehicle_class"]), text_cell(ws, row["scenario_id"]),
-                   _value(ws, row["fuel_gal_total"], FORMATS["fuel_gal_total"]),
-                   _value(ws, row["mpg"], FORMATS["mpg"]),
-                   _value(ws, row["state_tax_usd"], FORMATS["state_tax_usd"]),
-                   _value(ws, row["federal_tax_usd"], FORMATS["federal_tax_usd"]),
-                   _value(ws, fuel_change, FORMATS["change_pct"]),
-                   _value(ws, tax_change, FORMATS["change_pct"])])
-    ws.append([])
-    _by_fiscal_year(ws, result, len(classes) + 4)
+        sheet.append([row["vehicle_class"], row["scenario_id"], row["fuel_gal_total"], row["mpg"],
+                      row["state_tax_usd"], row["federal_tax_usd"], fuel_change, tax_change], styles)
+    sheet.append([])
+    _by_fiscal_year(sheet, result)
 
 
-def _by_fiscal_year(ws, result: RunResult, title_row: int) -> None:
+def _by_fiscal_year(sheet: Sheet, result: RunResult) -> None:
     """Fleet totals per scenario and fiscal year, and a chart of state revenue per year."""
-    t = text_cell(ws, "By fiscal year (fleet totals)")
-    t.font = Font(bold=True)
-    ws.append([t])
+    sheet.append(["By fiscal year (fleet totals)"], "bold")
     years = yearly_totals(result.fiscal)
-    _header(ws, list(years.columns))
-    for row in years.itertuples(index=False, name=None):
-        ws.append([_value(ws, v, FORMATS.get(c)) for v, c in zip(row, years.columns)])
+    sheet.append(list(years.columns), "header")
+    sheet.rows([years[c].tolist() for c in years.columns], [FORMATS.get(c) for c in years.columns])
     if not len(years):
         return
     # State revenue per fiscal year, one series per scenario.
     pivot = years.pivot_table(index="fiscal_year", columns="scenario_id", values="state_tax_usd",
                               aggfunc="sum", sort=False)
-    ws.append([])
-    pivot_row = title_row + len(years) + 3
-    ws.append([text_cell(ws, "fiscal_year")] + [text_cell(ws, s) for s in pivot.columns])
+    sheet.append([])
+    pivot_row = sheet.append(["fiscal_year"] + list(pivot.columns))
     for year, row in pivot.iterrows():
-        ws.append([text_cell(ws, str(int(year)))] + [_value(ws, float(v), FORMATS["state_tax_usd"]) for v in row])
-    _scenario_bars(ws, pivot, pivot_row, "col", "State fuel-tax revenue by fiscal year",
+        sheet.append([str(int(year))] + [float(v) for v in row], [None] + [FORMATS["state_tax_usd"]] * len(row))
+    _scenario_bars(sheet, pivot, pivot_row, "column", "State fuel-tax revenue by fiscal year",
                    ("Fiscal year", "US$ (state fuel tax)", '"$"#,##0'), (7.5, 16))
 
 
-def _fiscal(wb, result: RunResult):
+def _fiscal(book: Book, result: RunResult):
     """Fiscal year x fuel x class (fiscal_summary.csv) and the calibration to collections."""
-    ws = wb.create_sheet("Fiscal years")
-    page_setup(ws)
+    sheet = Sheet(book, "Fiscal years")
+    page_setup(sheet)
     frame = result.fiscal
-    _widths(ws, list(frame.columns), minimum=12)
-    ws.freeze_panes = "E2"
-    _table(ws, frame, widths=False)
+    _widths(sheet, list(frame.columns), minimum=12)
+    sheet.ws.freeze_panes("E2")
+    _table(sheet, frame, widths=False)
     calibration = result.calibration
     if calibration is not None and len(calibration):
-        ws.append([])
-        t = text_cell(ws, "Calibration to collections: model vs observed taxable gallons, first fiscal year")
-        t.font = Font(bold=True)
-        ws.append([t])
-        _table(ws, calibration, widths=False)
+        sheet.append([])
+        sheet.append(["Calibration to collections: model vs observed taxable gallons, first fiscal year"], "bold")
+        _table(sheet, calibration, widths=False)
 
 
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table
 
 
-def _maps(wb, result: RunResult):
-    ws = wb.create_sheet("Efficiency maps")
-    page_setup(ws, title_rows=None)
-    ws.column_dimensions["A"].width = 24
-    title = text_cell(ws, "Differential efficiency: torque fraction (rows) x input speed (columns); "
-                          "one colour scale for all maps")
-    title.font = TITLE_FONT
-    ws.append([title])
+def _maps(book: Book, result: RunResult):
+    sheet = Sheet(book, "Efficiency maps")
+    page_setup(sheet, title_row=None)
+    sheet.ws.set_column("A:A", 24)
+    sheet.append(["Differential efficiency: torque fraction (rows) x input speed (columns); "
+                  "one colour scale for all maps"], "title")
     if not result.maps:
-        ws.append([text_cell(ws, "No efficiency maps (see RunInfo warnings).")])
+        sheet.append(["No efficiency maps (see RunInfo warnings)."])
         return
     low, high = efficiency_scale(result.maps)
-    row = 1   # the last row written
     for m in result.maps:
-        row = _map_block(ws, m, row, low, high)
+        _map_block(sheet, m, low, high)
+    sheet.ws.set_h_pagebreaks(sheet.row_breaks)
 
 
-def _map_block(ws, m: dict, row: int, low: float, high: float) -> int:
+def _map_block(sheet: Sheet, m: dict, low: float, high: float) -> None:
     """One map: its efficiency table, its loss table (what the chart draws, from zero) and
-    the chart beside them; the last row written. Rows are counted as they are written."""
-    from openpyxl.worksheet.pagebreak import Break
-
-    if row > 1:
-        ws.row_breaks.append(Break(id=row))   # each map starts a printed page
+    the chart beside them."""
+    if sheet.row > 1:
+        sheet.row_breaks.append(sheet.row)   # each map starts a printed page
     label = f"{m['configuration']}: gear ratio {m['gear_ratio']:g}"
     if m["low_gear_ratio"]:
         label += f", low ratio {m['low_gear_ratio']:g} (axle in high gear)"
-    head = text_cell(ws, label + f"; {m['vehicle_types']} vehicle type(s)")
-    head.font = Font(bold=True)
-    ws.append([])
-    ws.append([head])
-    row += MAP_BLOCK_ROWS
+    sheet.append([])
+    sheet.append([label + f"; {m['vehicle_types']} vehicle type(s)"], "bold")
     speeds = [f"{s:g} rpm" for s in m["speeds_rpm"]]
-    n_rows, last_col = len(m["torque_fractions"]), get_column_letter(1 + len(speeds))
+    n_rows, last_col = len(m["torque_fractions"]), xl_col_to_name(len(speeds))
+    styles = [None] + [FORMATS["efficiency"]] * len(speeds)
+    header_rows = {}
     for kind in ("efficiency", "loss"):
-        ws.append([text_cell(ws, f"{kind} \\ torque fraction")] + [text_cell(ws, s) for s in speeds])
-        header_row = row = row + 1
+        header_rows[kind] = sheet.append([f"{kind} \\ torque fraction"] + speeds)
         for tf, etas in zip(m["torque_fractions"], m["efficiency"]):
             values = etas if kind == "efficiency" else [1.0 - e for e in etas]
-            ws.append([tf] + [_value(ws, float(e), FORMATS["efficiency"]) for e in values])
-            row += 1
-        if kind == "efficiency":
-            efficiency_header = header_row
-            ws.conditional_formatting.add(
-                f"B{header_row + 1}:{last_col}{row}",
-                ColorScaleRule(start_type="num", start_value=low, start_color="F8696B", mid_type="num",
-                               mid_value=(low + high) / 2, mid_color="FFEB84", end_type="num", end_value=high,
-                               end_color="63BE7B"))
-    chart = _map_chart(ws, m, header_row, n_rows, len(speeds))
-    ws.add_chart(chart, f"{get_column_letter(len(speeds) + 3)}{efficiency_header}")
-    return row
+            sheet.append([tf] + [float(e) for e in values], styles)
+    first = header_rows["efficiency"] + 1
+    sheet.ws.conditional_format(f"B{first}:{last_col}{first + n_rows - 1}", {
+        "type": "3_color_scale", "min_type": "num", "min_value": low, "min_color": "#F8696B",
+        "mid_type": "num", "mid_value": (low + high) / 2, "mid_color": "#FFEB84",
+        "max_type": "num", "max_value": high, "max_color": "#63BE7B"})
+    chart = _map_chart(sheet, m, header_rows["loss"], n_rows, len(speeds))
+    sheet.ws.insert_chart(f"{xl_col_to_name(len(speeds) + 2)}{header_rows['efficiency']}", chart)
 
 
-def _map_chart(ws, m: dict, header_row: int, n_rows: int, n_speeds: int) -> LineChart:
+def _map_chart(sheet: Sheet, m: dict, header_row: int, n_rows: int, n_speeds: int):
     """Loss (1 - efficiency) against torque fraction, one line per input speed, from zero."""
-    chart = LineChart()
-    chart.title = f"{m['configuration']} differential loss"
-    _axes(chart, "Torque fraction (input torque / Kim torque scale)", "Loss, share of input power", "0%")
-    chart.add_data(Reference(ws, min_col=2, max_col=1 + n_speeds, min_row=header_row,
-                             max_row=header_row + n_rows), titles_from_data=True)
-    chart.set_categories(Reference(ws, min_col=1, min_row=header_row + 1, max_row=header_row + n_rows))
-    chart.height, chart.width = 11, 16
+    chart = _chart(sheet.book, "line", f"{m['configuration']} differential loss",
+                   ("Torque fraction (input torque / Kim torque scale)", "Loss, share of input power", "0%"),
+                   (11, 16))
+    for column in range(2, 2 + n_speeds):
+        chart.add_series(_series(sheet, column, header_row + 1, header_row + n_rows, (header_row, column)))
     return chart
 
 
-def _inputs(wb, result: RunResult, bulk: dict):
-    ws = wb.create_sheet("Inputs")
-    page_setup(ws, title_rows=None)
+def _inputs(book: Book, result: RunResult):
+    sheet = Sheet(book, "Inputs")
+    page_setup(sheet, title_row=None)
     fleet = result.fleet
     extra_names = list(dict.fromkeys(k for v in fleet.vehicles for k in v.extra))
     vehicle_names = [c.name for c in VEHICLE_COLUMNS] + extra_names
-    _widths(ws, vehicle_names)
+    _widths(sheet, vehicle_names)
     # Scenarios first (a few rows), then the Vehicles table, whose rows may be many.
-    t = text_cell(ws, "Scenarios (as read)")
-    t.font = Font(bold=True)
-    ws.append([t])
-    _header(ws, [c.name for c in SCENARIO_COLUMNS])
+    sheet.append(["Scenarios (as read)"], "bold")
+    sheet.append([c.name for c in SCENARIO_COLUMNS], "header")
     for s in fleet.scenarios:
         values = []
         for c in SCENARIO_COLUMNS:
@@ -477,84 +472,66 @@ def _inputs(wb, result: RunResult, bulk: dict):
             if c.kind == "cycle_mix" and value:
                 value = ",".join(f"{Path(k).name if k.lower().endswith('.csv') else k}:{w:g}"
                                  for k, w in value.items())
-            values.append(_value(ws, value))
-        ws.append(values)
-    ws.append([])
-    t = text_cell(ws, "Vehicles (as read)")
-    t.font = Font(bold=True)
-    ws.append([t])
-    _header(ws, vehicle_names)
-    header_row = len(fleet.scenarios) + 5
-
-    def row_of(v):
-        values = []
-        for c in VEHICLE_COLUMNS:
-            value = getattr(v, c.name)
-            if c.name == "transmission_gear_ratios":
-                value = ",".join(f"{r:g}" for r in value)
             values.append(value)
-        return values + [v.extra.get(k) for k in extra_names]
+        sheet.append(values)
+    sheet.append([])
+    sheet.append(["Vehicles (as read)"], "bold")
+    sheet.append(vehicle_names, "header")
+    columns = [[getattr(v, c.name) for v in fleet.vehicles] for c in VEHICLE_COLUMNS]
+    ratios = [c.name for c in VEHICLE_COLUMNS].index("transmission_gear_ratios")
+    columns[ratios] = [",".join(f"{r:g}" for r in value) for value in columns[ratios]]
+    columns += [[v.extra.get(k) for v in fleet.vehicles] for k in extra_names]
+    sheet.rows(columns, [None] * len(columns))
 
-    if fleet.vehicles:
-        ws.append([_value(ws, x) for x in row_of(fleet.vehicles[0])])
-        if len(fleet.vehicles) > 1:
-            bulk[ws.title] = (header_row + 1, len(vehicle_names),
-                              (row_of(v) for v in fleet.vehicles[1:]))
 
-
-def _run_info(wb, result: RunResult):
+def _run_info(book: Book, result: RunResult):
     from fleetrun.fleet.manifest import manifest_dict, physics_label
 
-    ws = wb.create_sheet("RunInfo")
-    page_setup(ws, landscape=False, title_rows=None)
-    ws.column_dimensions["A"].width = 30
-    ws.column_dimensions["B"].width = 90
+    sheet = Sheet(book, "RunInfo")
+    page_setup(sheet, landscape=False, title_row=None)
+    sheet.ws.set_column("A:A", 30)
+    sheet.ws.set_column("B:B", 90)
     info = manifest_dict(result)
     for key in ("fleetrun_version", "created_utc", "physics", "mode"):
-        ws.append([text_cell(ws, key), text_cell(ws, info[key])])
-    ws.append([text_cell(ws, "with (effects)"), text_cell(ws, physics_label(info) if info.get("with") else "none")])
+        sheet.append([key, str(info[key])])
+    sheet.append(["with (effects)", physics_label(info) if info.get("with") else "none"])
     for key, value in info["engine"].items():
-        ws.append([text_cell(ws, key), text_cell(ws, value)])
-    ws.append([text_cell(ws, "scenarios"), text_cell(ws, ", ".join(info["scenarios"]))])
+        sheet.append([key, str(value)])
+    sheet.append(["scenarios", ", ".join(info["scenarios"])])
     for key, value in info["timings_s"].items():
-        ws.append([text_cell(ws, f"time {key} [s]"), round(value, 3)])
-    ws.append([])
-    ws.append([text_cell(ws, "Inputs"), text_cell(ws, "sha256")])
+        sheet.append([f"time {key} [s]", round(value, 3)])
+    sheet.append([])
+    sheet.append(["Inputs", "sha256"])
     for item in info["inputs"]:
-        ws.append([text_cell(ws, item["path"]), text_cell(ws, item["sha256"])])
-    ws.append([])
-    ws.append([text_cell(ws, "Drive cycles"), text_cell(ws, "miles, duration")])
-    for name, c in result.cycles.items():
-        ws.append([text_cell(ws, c["name"]), text_cell(ws, f"{c['miles']:.3f} mi, {c['duration_s']:.0f} s")])
-    ws.append([])
-    ws.append([text_cell(ws, f"Warnings ({len(result.warnings)})")])
+        sheet.append([item["path"], item["sha256"]])
+    sheet.append([])
+    sheet.append(["Drive cycles", "miles, duration"])
+    for c in result.cycles.values():
+        sheet.append([c["name"], f"{c['miles']:.3f} mi, {c['duration_s']:.0f} s"])
+    sheet.append([])
+    sheet.append([f"Warnings ({len(result.warnings)})"])
     for warning in result.warnings:
-        ws.append([None, text_cell(ws, warning)])
+        sheet.append([None, warning])
 
 
-def _what_changed(wb, result: RunResult):
+def _what_changed(book: Book, result: RunResult):
     """The comparison with the run that was in the output folder (fleetrun.fleet.changes)."""
-    ws = wb.create_sheet("What changed")
-    page_setup(ws, title_rows=None)
-    for letter, width in zip("ABCDE", (40, 18, 20, 20, 14)):
-        ws.column_dimensions[letter].width = width
+    sheet = Sheet(book, "What changed")
+    page_setup(sheet, title_row=None)
+    for column, width in enumerate((40, 18, 20, 20, 14)):
+        sheet.ws.set_column(column, column, width)
     changes = result.changes
-    title = text_cell(ws, "What changed since the earlier run in this output folder")
-    title.font = TITLE_FONT
-    ws.append([title])
+    sheet.append(["What changed since the earlier run in this output folder"], "title")
     if not changes:
-        ws.append([text_cell(ws, "No earlier run in this folder: nothing to compare.")])
+        sheet.append(["No earlier run in this folder: nothing to compare."])
         return
-    ws.append([text_cell(ws, "Earlier run"), text_cell(ws, f"{changes['earlier_created_utc']} "
-                                                           f"(fleetrun {changes['earlier_version']})")])
-    ws.append([])
-    _header(ws, ["input", "status", "earlier sha256", "sha256"])
+    sheet.append(["Earlier run", f"{changes['earlier_created_utc']} (fleetrun {changes['earlier_version']})"])
+    sheet.append([])
+    sheet.append(["input", "status", "earlier sha256", "sha256"], "header")
     for item in changes["inputs"]:
-        ws.append([text_cell(ws, item["path"]), text_cell(ws, item["status"]),
-                   text_cell(ws, item["earlier_sha256"] or ""), text_cell(ws, item["sha256"] or "")])
-    ws.append([])
-    _header(ws, ["scenario_id", "total", "earlier", "now", "change"])
+        sheet.append([item["path"], item["status"], item["earlier_sha256"] or "", item["sha256"] or ""])
+    sheet.append([])
+    sheet.append(["scenario_id", "total", "earlier", "now", "change"], "header")
     for row in changes["totals"]:
-        ws.append([text_cell(ws, row["scenario_id"]), text_cell(ws, row["total"]),
-                   _value(ws, row["earlier"], "#,##0"), _value(ws, row["now"], "#,##0"),
-                   _value(ws, row["change_pct"], FORMATS["change_pct"])])
+        sheet.append([row["scenario_id"], row["total"], row["earlier"], row["now"], row["change_pct"]],
+                     [None, None, "#,##0", "#,##0", FORMATS["change_pct"]])

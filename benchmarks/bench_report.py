@@ -1,0 +1,63 @@
+"""Benchmark writing ``report.xlsx`` alone (``fleetrun.fleet.report_xlsx.write_report_xlsx``).
+
+    python benchmarks/bench_report.py [--rows 100000] [--repeat 3] [--keep DIR]
+
+Builds the fleet of ``bench_run.make_fleet`` (ROWS vehicle rows x the example's 3 scenarios),
+runs it once (local engine, map cache in DIR, so a second invocation is warm), then times
+``write_report_xlsx`` REPEAT times and, for scale, ``results.csv`` (``outputs.write_csv``).
+Prints the best and median wall time of each and the size of the report.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_run import make_fleet  # noqa: E402
+
+from fleetrun.fleet import read_fleet  # noqa: E402
+from fleetrun.fleet.outputs import write_csv  # noqa: E402
+from fleetrun.fleet.report_xlsx import write_report_xlsx  # noqa: E402
+from fleetrun.fleet.runner import run_fleet  # noqa: E402
+
+
+def _timed(function, repeat: int) -> list[float]:
+    times = []
+    for _ in range(repeat):
+        started = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - started)
+    return times
+
+
+def main():
+    parser = argparse.ArgumentParser(description="Benchmark writing report.xlsx")
+    parser.add_argument("--rows", type=int, default=100_000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--keep", type=Path, help="build (or reuse) the workbook and map cache in this folder")
+    args = parser.parse_args()
+    folder = args.keep or Path(tempfile.mkdtemp(prefix="fleetrun-bench-report-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"fleet_{args.rows}.xlsx"
+    if not path.exists():
+        make_fleet(args.rows, path)
+    result = run_fleet(read_fleet(path), cache_dir=str(folder / "cache"))
+    report, csv = folder / "report.xlsx", folder / "results.csv"
+    print(f"{args.rows} vehicle rows, {len(result.results)} result rows x {len(result.results.columns)} columns")
+    for name, function in (("report.xlsx", lambda: write_report_xlsx(result, report)),
+                           ("results.csv", lambda: write_csv(result.results, csv))):
+        times = _timed(function, args.repeat)
+        target = report if name == "report.xlsx" else csv
+        print(f"  {name}: best {min(times):.2f} s, median {statistics.median(times):.2f} s "
+              f"({target.stat().st_size / 1e6:.1f} MB)", flush=True)
+
+
+if __name__ == "__main__":
+    main()
