@@ -33,7 +33,7 @@ REDRIVE_MARGINS = (0.9, 0.8, 0.7, 0.6, 0.5)
 # vehicles x steps per block: ~64 UDDS vehicles. Each (block x steps) array (~0.7 MB) stays
 # in the CPU's L2/L3 cache and below the size where malloc returns freed memory to the system
 # (twice as large blocks spend a third of their time in page faults); smaller blocks pay
-# numpy's per-call cost more often (benchmarks: 16 vehicles per block was ~20 % slower)
+# numpy's per-call cost more often (docs/benchmarks-simulation.md: the sweep of block sizes)
 BLOCK_STEPS = 88000
 
 # CONTRACT.md trace columns first, then extras
