@@ -183,8 +183,9 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     ``dt_s`` (N,) step durations [s]; ``step_soak_s``, ``start_temp_C``, ``ambient_temp_C``
     as for :func:`engine_temperature_C`. Fixed-point iteration: the extra fuel also heats the
     engine, so the temperature is recomputed from warm + extra fuel until the extra fuel per
-    step changes by less than 1e-6 g (plain iteration; the change shrinks by a factor 3-5 per
-    pass: 7 passes at 25 C, 12 at -20 C for the test vehicles). Only the steps where some
+    step changes by less than 1e-6 g, each vehicle on its own, so that a vehicle's result does
+    not depend on the others in the call (plain iteration; the change shrinks by a factor 3-5
+    per pass: 7 passes at 25 C, 12 at -20 C for the test vehicles). Only the steps where some
     engine is below the thermostat on the warm fuel alone take part: more fuel only warms
     sooner, and once at ``T_open`` the rest of an engine run adds nothing and does not change
     the temperature (so the sub-problem on those steps is exact).
@@ -200,13 +201,18 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     rate, rpm, dt, soak = fuel_rate[:, cold], engine_speed_rpm[:, cold], dt[:, cold], np.asarray(step_soak_s)[cold]
     cold_fuel = _cold_fuel_function(va, rate, rpm, k)
     part, part_temp = np.zeros_like(rate), temp[:, cold]   # the first pass: warm fuel only
+    # Each vehicle stops iterating when its own change is below the tolerance, so its result
+    # does not depend on which other vehicles share the call or the block.
+    active = np.ones(rate.shape[0], bool)
     for _ in range(FIXED_POINT_MAX_ITER):
         new = cold_fuel(part_temp)
-        converged = np.max(np.abs(new - part) * dt, initial=0.0) <= FIXED_POINT_TOL_G
-        part = new
-        if converged:
+        change_g = np.max(np.abs(new - part) * dt, axis=1, initial=0.0)
+        part[active] = new[active]
+        active &= change_g > FIXED_POINT_TOL_G
+        if not active.any():
             break
-        part_temp = engine_temperature_C((rate + part) * dt, capacity, va.lhv, start_temp_C, soak, ambient_temp_C, k)
+        again = engine_temperature_C((rate + part) * dt, capacity, va.lhv, start_temp_C, soak, ambient_temp_C, k)
+        part_temp[active] = again[active]
     extra[:, cold], temp[:, cold] = part, part_temp
     return extra, temp
 
