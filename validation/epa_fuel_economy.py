@@ -469,14 +469,13 @@ def list_rows(table, path=None):
     the vehicle's own fuel: fleetrun.epa.measured's rules) of the vehicles of ``table``: per
     vehicle and test (FTP, HWFET, US06) the mean of the LIST_COLUMNS (drive-quality sentinels
     99.99 -> NaN), and the test fuel descriptions of those rows."""
-    from epa_table import TSTCAR, own_fuel_rows, test_rows
+    from epa_table import TSTCAR, drive_quality_rating, own_fuel_rows, test_rows
 
     raw = own_fuel_rows(test_rows(path or TSTCAR), table)
     rows = raw[["vehicle_id", "test"]].copy()
     for col, name in LIST_COLUMNS.items():
-        rows[name] = pd.to_numeric(raw[col], errors="coerce")
-    for name in ("IWR", "EER"):
-        rows.loc[rows[name].abs() >= 99, name] = np.nan
+        rows[name] = (drive_quality_rating(raw[col]) if col.startswith("DT-")
+                      else pd.to_numeric(raw[col], errors="coerce"))
     fuels = raw["Test Fuel Type Description"].str.strip().rename("fuel_description")
     return rows.groupby(["vehicle_id", "test"])[list(LIST_COLUMNS.values())].mean(), fuels
 

@@ -47,7 +47,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import epa_fuel_economy as efe  # noqa: E402
-from epa_table import TSTCAR, epa_fleet, own_fuel_rows, test_rows  # noqa: E402
+from epa_table import TSTCAR, drive_quality_rating, epa_fleet, own_fuel_rows, test_rows  # noqa: E402
 
 from fleetrun.epa import import_test_car_list  # noqa: E402
 
@@ -222,7 +222,7 @@ def list_features(rows, table, test):
     for mph in (20, 50):
         x[f"target_minus_set_{mph}mph_lbf"] = x.tms_A + mph * x.tms_B + mph ** 2 * x.tms_C
     for k, c in enumerate(DT_RATINGS):
-        x[f"dt_{('iwr', 'ascr', 'eer')[k]}"] = num(c)
+        x[f"dt_{('iwr', 'ascr', 'eer')[k]}"] = drive_quality_rating(x[c])
     x["epa_originator"] = (x["Test Originator"].str.strip() == "EPA").astype(float)
     tg = x["Actual Tested Testgroup"].fillna("").str.strip().str.upper().str.pad(12, "right", "_")
     for i, name in ((0, "testgroup_year_char"), (4, "testgroup_class_char"), (9, "testgroup_char10"),

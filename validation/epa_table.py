@@ -25,6 +25,15 @@ UDDS_BAG1_END_S = 505.0
 TESTS = ("FTP", "FTP:bag1", "FTP:bag2", "FTP:bag3", "HWFET", "US06")
 
 
+DT_NOT_RATED = 99.0   # the list's drive-quality ratings (DT-*) hold 99.99 where none was computed
+
+
+def drive_quality_rating(values) -> pd.Series:
+    """A DT-* drive-quality rating column as numbers, its 99.99 placeholders as missing."""
+    numbers = pd.to_numeric(values, errors="coerce")
+    return numbers.where(numbers.abs() < DT_NOT_RATED)
+
+
 def udds_bag_miles() -> tuple[float, float]:
     """Distances [mi] of the UDDS trace up to 505 s (bag 1 = bag 3) and after it (bag 2)."""
     from fleetrun.cycles import load_cycle
