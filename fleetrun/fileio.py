@@ -28,6 +28,20 @@ def prepare_output_folder(folder: Path, what: Path) -> None:
         raise InputError(f"{what}: {folder} is not a folder", hint="Choose another output path")
 
 
+def is_same_file(path: Path, other: Path) -> bool:
+    """True when ``path`` and ``other`` both exist and are one file (by any name or link)."""
+    return Path(path).exists() and Path(other).exists() and os.path.samefile(path, other)
+
+
+def refuse_replacing_inputs(output: Path, inputs, option: str = "-o") -> None:
+    """InputError if writing ``output`` would replace one of ``inputs`` (None entries skipped):
+    a command's output never overwrites what it reads."""
+    for source in inputs:
+        if source is not None and is_same_file(output, source):
+            raise InputError(f"{source}: is an input of this command, and {option} {output} would replace it",
+                             hint=f"Choose another output path ({option})")
+
+
 def default_file_mode() -> int:
     """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
     umask = os.umask(0)

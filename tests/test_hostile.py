@@ -62,6 +62,37 @@ def test_out_never_overwrites_the_input_workbook(tmp_path, fake_simulation):
     assert workbook.read_bytes() == before
 
 
+@pytest.mark.parametrize("option", ["-o", "--measured-out"])
+def test_import_epa_never_overwrites_its_input(tmp_path, option):
+    """Before: `import-epa list.csv -o fleet.xlsx --measured-out list.csv` replaced the EPA list
+    with the measured results (exit 0). Both outputs are checked against the input."""
+    source = Path(__file__).resolve().parents[1] / "inputs" / "epa" / "22-tstcar.csv"
+    listed = tmp_path / "list.xlsx" if option == "-o" else tmp_path / "list.csv"
+    listed.write_bytes(source.read_bytes()[:200_000])
+    before = listed.read_bytes()
+    args = ["import-epa", str(listed), "-o", str(listed if option == "-o" else tmp_path / "fleet.xlsx")]
+    if option == "--measured-out":
+        args += ["--measured-out", str(listed)]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 1, result.output
+    line = first_line(result)
+    assert line.startswith("Error:") and str(listed) in line and option in line
+    assert listed.read_bytes() == before
+
+
+def test_simulate_trace_never_overwrites_the_fleet(tmp_path):
+    """Before: `simulate fleet.xlsx --vehicle ID --cycle UDDS -o fleet.xlsx` replaced the
+    workbook with the trace CSV (exit 0)."""
+    workbook = small_fleet(tmp_path / "fleet.xlsx")
+    before = workbook.read_bytes()
+    result = CliRunner().invoke(cli, ["simulate", str(workbook), "--vehicle", "CAR-1", "--cycle", "UDDS",
+                                      "-o", str(workbook)])
+    assert result.exit_code == 1, result.output
+    line = first_line(result)
+    assert line.startswith("Error:") and "fleet.xlsx" in line and "-o" in line
+    assert workbook.read_bytes() == before
+
+
 def test_out_keeps_other_files_of_the_folder(tmp_path, fake_simulation):
     """An input (or any other file) in the output folder that is not an output name stays."""
     folder = tmp_path / "d"

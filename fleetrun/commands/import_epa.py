@@ -23,12 +23,19 @@ def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, 
     and configuration, with Measured, Derived and Excluded sheets (docs/epa-import.md)."""
     from fleetrun.epa import import_test_car_list
     from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
+    from fleetrun.fileio import refuse_replacing_inputs
     from fleetrun.fleet.workbook import file_sha256
 
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")
     if not tstcar.is_file():
         raise InputError("does not exist", file=tstcar, hint="Check the path of the EPA Test Car List CSV")
+    refuse_replacing_inputs(output, [tstcar], "-o")
+    if measured_out is not None:
+        refuse_replacing_inputs(measured_out, [tstcar, output], "--measured-out")
+        if measured_out.resolve() == output.resolve():
+            raise InputError(f"--measured-out {measured_out} is the workbook -o writes",
+                             hint="Give the measured results another name, e.g. measured.csv")
     result = import_test_car_list(tstcar, model_years, makes)
     if not result.vehicles:
         picked = f" of the {result.rows_selected} selected rows" if (model_years or makes) else ""

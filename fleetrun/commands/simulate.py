@@ -47,6 +47,9 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
     from fleetrun.simulation import simulate
 
     effects = parse_with(with_effects)  # a misspelt effect fails here, before any work
+    if output:
+        from fleetrun.fileio import refuse_replacing_inputs
+        refuse_replacing_inputs(Path(output), [fleet_file, vehicle_file, cycle_name], "-o")
 
     ambient = 20.0
     if vehicle_file:

@@ -5,10 +5,10 @@ assembled in a staging folder and swapped in as one step (:mod:`fleetrun.output_
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from fleetrun.errors import InputError
+from fleetrun.fileio import is_same_file
 from fleetrun.fleet.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
@@ -36,7 +36,7 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
         target = out_dir / name
         for source in inputs:
             source = Path(source)
-            if target.exists() and source.exists() and os.path.samefile(target, source):
+            if is_same_file(target, source):
                 raise InputError(f"{source}: is an input of this run, and --out {out_dir} would "
                                  f"replace it with the run's {name}",
                                  hint="Choose another output folder (--out)")
