@@ -9,10 +9,8 @@ is off for the timings and on for one extra pass).
 """
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
-import tempfile
 import time
 import tracemalloc
 from pathlib import Path
@@ -21,22 +19,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_run import make_fleet  # noqa: E402
+from bench_run import workbook_from_args  # noqa: E402
 
 from fleetrun.fleet import read_fleet  # noqa: E402
 
 
 def main():
-    parser = argparse.ArgumentParser(description="Benchmark reading a fleet workbook")
-    parser.add_argument("--rows", type=int, default=100_000)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--keep", type=Path, help="build (or reuse) the workbook in this folder")
-    args = parser.parse_args()
-    folder = args.keep or Path(tempfile.mkdtemp(prefix="fleetrun-bench-read-"))
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"fleet_{args.rows}.xlsx"
-    if not path.exists():
-        make_fleet(args.rows, path)
+    args, _, path = workbook_from_args("Benchmark reading a fleet workbook",
+                                       "build (or reuse) the workbook in this folder", "fleetrun-bench-read-")
     print(f"{path} ({path.stat().st_size / 1e6:.1f} MB, {args.rows} vehicle rows)")
     times = []
     for _ in range(args.repeat):

@@ -9,10 +9,8 @@ Prints the best and median wall time of each and the size of the report.
 """
 from __future__ import annotations
 
-import argparse
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -20,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_run import make_fleet  # noqa: E402
+from bench_run import workbook_from_args  # noqa: E402
 
 from fleetrun.fleet import read_fleet  # noqa: E402
 from fleetrun.fleet.outputs import write_csv  # noqa: E402
@@ -38,16 +36,9 @@ def _timed(function, repeat: int) -> list[float]:
 
 
 def main():
-    parser = argparse.ArgumentParser(description="Benchmark writing report.xlsx")
-    parser.add_argument("--rows", type=int, default=100_000)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--keep", type=Path, help="build (or reuse) the workbook and map cache in this folder")
-    args = parser.parse_args()
-    folder = args.keep or Path(tempfile.mkdtemp(prefix="fleetrun-bench-report-"))
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"fleet_{args.rows}.xlsx"
-    if not path.exists():
-        make_fleet(args.rows, path)
+    args, folder, path = workbook_from_args("Benchmark writing report.xlsx",
+                                            "build (or reuse) the workbook and map cache in this folder",
+                                            "fleetrun-bench-report-")
     result = run_fleet(read_fleet(path), cache_dir=str(folder / "cache"))
     report, csv = folder / "report.xlsx", folder / "results.csv"
     print(f"{args.rows} vehicle rows, {len(result.results)} result rows x {len(result.results.columns)} columns")

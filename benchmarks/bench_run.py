@@ -90,6 +90,23 @@ def make_fleet(rows: int, path: Path, variants: int = 10, seed: int = 1) -> tupl
     return path, len(used)
 
 
+def workbook_from_args(description: str, keep_help: str, prefix: str) -> tuple[argparse.Namespace, Path, Path]:
+    """The ``--rows/--repeat/--keep`` command line of the in-process benchmarks (bench_read,
+    bench_report): parsed arguments, the working folder (``--keep`` or a new temporary one) and
+    the fleet workbook ``fleet_ROWS.xlsx`` in it, built with :func:`make_fleet` unless it exists."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--rows", type=int, default=100_000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--keep", type=Path, help=keep_help)
+    args = parser.parse_args()
+    folder = args.keep or Path(tempfile.mkdtemp(prefix=prefix))
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"fleet_{args.rows}.xlsx"
+    if not path.exists():
+        make_fleet(args.rows, path)
+    return args, folder, path
+
+
 def measure(command: list[str], env: dict) -> tuple[float, float, int, str]:
     """(wall seconds, peak tree RSS in MB, exit code, stderr tail) of one command."""
     started = time.perf_counter()

@@ -465,31 +465,20 @@ LIST_COLUMNS = {"Set Coef A (lbf)": "set_A", "Set Coef B (lbf/mph)": "set_B", "S
 
 
 def list_rows(table, path=None):
-    """The list's rows behind the measured values (fleetrun.epa.measured's rules: a fuel-economy
-    test, a valid value, not analytically derived) of the vehicles of ``table``: per vehicle
-    and test (FTP, HWFET, US06) the mean of the LIST_COLUMNS (drive-quality sentinels 99.99 ->
-    NaN), and the test fuel descriptions of those rows."""
-    from fleetrun.epa import rules
-    from epa_table import TSTCAR
+    """The list's rows behind the measured values (validation/epa_table.py's ``test_rows`` on
+    the vehicle's own fuel: fleetrun.epa.measured's rules) of the vehicles of ``table``: per
+    vehicle and test (FTP, HWFET, US06) the mean of the LIST_COLUMNS (drive-quality sentinels
+    99.99 -> NaN), and the test fuel descriptions of those rows."""
+    from epa_table import TSTCAR, own_fuel_rows, test_rows
 
-    raw = pd.read_csv(path or TSTCAR, encoding="utf-8-sig", dtype=str)
-    raw.columns = [" ".join(c.split()) for c in raw.columns]
-    c = rules.constants()
-    number = pd.to_numeric(raw["Test Veh Configuration #"], errors="coerce")
-    rows = pd.DataFrame({"vehicle_id": raw["Test Vehicle ID"].str.strip() + "_c" + number.map(
-        lambda x: "" if pd.isna(x) else f"{int(x)}"), "test": raw["Test Procedure Description"].str.strip().map(
-        c["procedures"]), "fuel_description": raw["Test Fuel Type Description"].str.strip(),
-        "fe": pd.to_numeric(raw["RND_ADJ_FE"], errors="coerce"),
-        "derived": raw["Analytically Derived FE?"].fillna("").str.strip().str.lower().isin(
-            c["measured"]["analytically_derived"])})
+    raw = own_fuel_rows(test_rows(path or TSTCAR), table)
+    rows = raw[["vehicle_id", "test"]].copy()
     for col, name in LIST_COLUMNS.items():
         rows[name] = pd.to_numeric(raw[col], errors="coerce")
     for name in ("IWR", "EER"):
         rows.loc[rows[name].abs() >= 99, name] = np.nan
-    fuel = dict(zip(table.vehicle_id, table.fuel))
-    rows = rows[rows.test.notna() & ~rows.derived & (rows.fe > 0) & (rows.fe < c["measured"]["max_valid_mpg"])
-                & (rows.vehicle_id.map(fuel) == rows.fuel_description.map(rules.fuel_of))]
-    return rows.groupby(["vehicle_id", "test"])[list(LIST_COLUMNS.values())].mean(), rows.fuel_description
+    fuels = raw["Test Fuel Type Description"].str.strip().rename("fuel_description")
+    return rows.groupby(["vehicle_id", "test"])[list(LIST_COLUMNS.values())].mean(), fuels
 
 
 def _row_values(d, table, per_test, name):

@@ -47,11 +47,9 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import epa_fuel_economy as efe  # noqa: E402
-from epa_table import TSTCAR, epa_fleet  # noqa: E402
+from epa_table import TSTCAR, epa_fleet, own_fuel_rows, test_rows  # noqa: E402
 
-from fleetrun.epa import import_test_car_list, read_test_car_list  # noqa: E402
-from fleetrun.epa.rules import constants as import_constants  # noqa: E402
-from fleetrun.epa.rules import fuel_of  # noqa: E402
+from fleetrun.epa import import_test_car_list  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 #: Vehicles-row columns that identify a vehicle but are no model input.
@@ -61,30 +59,6 @@ OUTCOMES = ("THC (g/mi)", "CO (g/mi)", "CO2 (g/mi)", "NOx (g/mi)", "PM (g/mi)", 
             "RND_ADJ_FE", "FE_UNIT", "FE Bag 1", "FE Bag 2", "FE Bag 3", "FE Bag 4")
 DT_RATINGS = ("DT-Inertia Work Ratio Rating", "DT-Absolute Speed Change Ratg", "DT-Energy Economy Rating")
 WITHIN = 0.05
-
-
-# ----------------------------------------------------------------------------- the list's rows
-def test_rows(path=TSTCAR, derived=False):
-    """Every fuel-economy test row (FTP, HWFET, US06) with a valid mpg, with all columns of the
-    list, ``vehicle_id``, ``test`` and ``mpg``; without the analytically derived ones (as
-    fleetrun/epa/measured.py: with ``own_fuel_rows`` these are the rows the importer's measured
-    values are made of), or only those with ``derived=True``."""
-    named = read_test_car_list(path)
-    raw = pd.read_csv(path, encoding="utf-8-sig", dtype=str)
-    raw.columns = [" ".join(c.split()) for c in raw.columns]
-    raw["vehicle_id"], raw["csv_row"] = named["vehicle_id"].to_numpy(), named["csv_row"].to_numpy()
-    raw["test"] = named["procedure"].map(import_constants()["procedures"]).to_numpy()
-    raw["mpg"] = named["fe_mpg"].to_numpy()
-    raw["row_fuel"] = named["fuel_description"].map(fuel_of).to_numpy()
-    limit = import_constants()["measured"]["max_valid_mpg"]
-    marks = {str(v).lower() for v in import_constants()["measured"]["analytically_derived"]}
-    adfe = raw["Analytically Derived FE?"].fillna("").str.strip().str.lower().isin(marks).to_numpy()
-    return raw[raw.test.notna() & (raw.mpg > 0) & (raw.mpg < limit) & (adfe == derived)]
-
-
-def own_fuel_rows(rows, table):
-    fuel = dict(zip(table.vehicle_id, table.fuel))
-    return rows[rows.row_fuel.to_numpy() == rows.vehicle_id.map(fuel).to_numpy()]
 
 
 # ----------------------------------------------------------------------------- 1. repeatability

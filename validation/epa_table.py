@@ -6,6 +6,10 @@ Measured (unadjusted certification values, mpg): ``FTP`` (the composite), ``FTP:
 ``HWFET`` (EPA's "HWFE"), ``US06``, and ``UDDS:hot`` = the hot-start UDDS made of bag 3 (the
 bag-1 trace driven hot) and bag 2: mpg = (d1 + d2) / (d1 / mpg3 + d2 / mpg2) with d1, d2 the
 distances of the UDDS trace before and after 505 s.
+
+``test_rows`` / ``own_fuel_rows``: the list's own rows behind those measured values (all its
+columns), for the scripts that look past the Vehicles row (epa_fuel_economy ``--candidates``,
+epa_information_bound).
 """
 from __future__ import annotations
 
@@ -54,3 +58,31 @@ def epa_fleet(path=TSTCAR):
     table["UDDS:hot"] = (d1 + d2) / (d1 / table["FTP:bag3"] + d2 / table["FTP:bag2"])
     table["specific_power_kW_per_L"] = table.rated_power_kW / table.displacement_L
     return specs, table
+
+
+def test_rows(path=TSTCAR, derived=False):
+    """Every fuel-economy test row (FTP, HWFET, US06) with a valid mpg, with all columns of the
+    list, ``vehicle_id``, ``test`` and ``mpg``; without the analytically derived ones (as
+    fleetrun/epa/measured.py: with ``own_fuel_rows`` these are the rows the importer's measured
+    values are made of), or only those with ``derived=True``."""
+    from fleetrun.epa import read_test_car_list
+    from fleetrun.epa.rules import constants, fuel_of
+
+    named = read_test_car_list(path)
+    raw = pd.read_csv(path, encoding="utf-8-sig", dtype=str)
+    raw.columns = [" ".join(c.split()) for c in raw.columns]
+    raw["vehicle_id"], raw["csv_row"] = named["vehicle_id"].to_numpy(), named["csv_row"].to_numpy()
+    raw["test"] = named["procedure"].map(constants()["procedures"]).to_numpy()
+    raw["mpg"] = named["fe_mpg"].to_numpy()
+    raw["row_fuel"] = named["fuel_description"].map(fuel_of).to_numpy()
+    limit = constants()["measured"]["max_valid_mpg"]
+    marks = {str(v).lower() for v in constants()["measured"]["analytically_derived"]}
+    adfe = raw["Analytically Derived FE?"].fillna("").str.strip().str.lower().isin(marks).to_numpy()
+    return raw[raw.test.notna() & (raw.mpg > 0) & (raw.mpg < limit) & (adfe == derived)]
+
+
+def own_fuel_rows(rows, table):
+    """The rows of ``rows`` (of :func:`test_rows`) on their vehicle's own fuel (the vehicle's
+    fuel in ``table``)."""
+    fuel = dict(zip(table.vehicle_id, table.fuel))
+    return rows[rows.row_fuel.to_numpy() == rows.vehicle_id.map(fuel).to_numpy()]
