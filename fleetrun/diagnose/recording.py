@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from fleetrun.cycles import SPEED_COLUMNS
 from fleetrun.errors import InputError
 from fleetrun.physics.fuels import fuel_table
 
@@ -24,7 +25,8 @@ DIFF_OPTIONAL = ("diff_output_torque_Nm", "axle_torque_left_Nm", "axle_torque_ri
                  "vehicle_speed_kph")
 DIFF_META_REQUIRED = ("configuration", "gear_ratio", "peak_engine_torque_Nm",
                       "torque_converter_ratio", "max_transmission_gear_ratio")
-VEHICLE_SPEEDS = {"vehicle_speed_kph": 1 / 3.6, "vehicle_speed_mph": 0.44704, "vehicle_speed_mps": 1.0}
+#: Vehicle speed columns -> factor to m/s (the drive cycles' own factors, fleetrun.cycles).
+VEHICLE_SPEEDS = {c: SPEED_COLUMNS[c] for c in ("vehicle_speed_kph", "vehicle_speed_mph", "vehicle_speed_mps")}
 FUEL_RATES = ("fuel_rate_g_per_s", "fuel_rate_cc_per_s")
 #: Fuel densities [g/cm^3 = kg/L] for converting fuel_rate_cc_per_s (models/fuels.toml).
 FUEL_DENSITY_G_PER_CC = {name: f.density_kg_per_L for name, f in fuel_table().items()}

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.cycles import MPH_TO_MPS
+
 LBF_N = 4.4482216152605  # exact (avoirdupois pound x standard gravity)
-MPH_MPS = 0.44704        # exact
 G_MPS2 = 9.80665         # standard gravity
 
 # EPA's effective-mass allowance for rotating parts in coastdown analysis is 1.5 % of the
@@ -23,8 +24,8 @@ ROTATING_MASS_FRACTION = {"LD": 0.015, "MD": 0.03, "HD": 0.03}
 def coastdown_to_si(A_lbf, B_lbf_per_mph, C_lbf_per_mph2):
     """EPA coefficients (lbf, lbf/mph, lbf/mph^2) -> (N, N s/m, N s^2/m^2)."""
     A = np.asarray(A_lbf, float) * LBF_N
-    B = np.asarray(B_lbf_per_mph, float) * LBF_N / MPH_MPS
-    C = np.asarray(C_lbf_per_mph2, float) * LBF_N / MPH_MPS**2
+    B = np.asarray(B_lbf_per_mph, float) * LBF_N / MPH_TO_MPS
+    C = np.asarray(C_lbf_per_mph2, float) * LBF_N / MPH_TO_MPS**2
     return A, B, C
 
 
