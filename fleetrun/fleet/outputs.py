@@ -16,8 +16,9 @@ OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv
 
 
 def write_csv(frame, path: Path) -> None:
-    """``frame`` as CSV with every text cell neutralised (:func:`fleetrun.fleet.text_cells.csv_safe_text`); numeric
-    columns are written as numbers, unchanged."""
+    """``frame`` as CSV with a leading ``'`` on every text cell that starts like a formula
+    (:data:`fleetrun.fleet.text_cells.FORMULA_START`); numeric columns are written as numbers,
+    unchanged."""
     safe = frame.copy(deep=False)
     for name in safe.columns:
         column = safe[name]

@@ -31,14 +31,12 @@ def read_vehicle_toml(path) -> VehicleSpec:
 
 
 def vehicle_from_mapping(data: dict, path: Path) -> VehicleSpec:
-    """The VehicleSpec of a Vehicles row given as a mapping (TOML file, diagnose sidecar),
-    parsed by the workbook's rules (:mod:`fleetrun.fleet.rows`); InputError naming the file
-    and the key of the first problem."""
-    warnings: list[str] = []
+    """The VehicleSpec of a Vehicles row given as a mapping (a vehicle TOML file), parsed by
+    the workbook's rules (:mod:`fleetrun.fleet.rows`); InputError naming the file and the key
+    of the first problem. Warnings (implausible values) are not reported here."""
 
     def report(name: str, text: str, warning: bool = False):
         if warning:
-            warnings.append(f"{name}: {text}")
             return
         raise InputError(text, file=path, column=name, value=data.get(name),
                          hint="The keys are the Vehicles columns of CONTRACT.md")

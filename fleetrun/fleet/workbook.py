@@ -226,14 +226,7 @@ class _Table:
     extra_columns: dict[str, int]        # other headers -> column index
     rows: list[tuple[int, tuple]]        # (Excel row number, values)
     uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
-
-    def present(self, schema) -> list[tuple[Column, int]]:
-        """The schema's columns this sheet has, with their indices (computed once)."""
-        found = self.__dict__.setdefault("_present", {})
-        key = id(schema)
-        if key not in found:
-            found[key] = [(c, self.columns[c.name]) for c in schema if c.name in self.columns]
-        return found[key]
+    present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
 
 
 def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
@@ -297,7 +290,8 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
         body.append((row_number, row_values))
     if not body:
         problems.error("has no data rows below the header", sheet)
-    return _Table(sheet, columns, extra, body, values.uncached_formulas)
+    present = [(c, columns[c.name]) for c in schema if c.name in columns]
+    return _Table(sheet, columns, extra, body, values.uncached_formulas, present)
 
 
 def _cell(values: tuple, index: int | None):
@@ -313,7 +307,7 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     ok = True
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
-    for column, index in table.present(schema):
+    for column, index in table.present:
         if uncached and (row_number, index) in uncached:
             problems.error(f"formula {cells.show(uncached[(row_number, index)])} has no saved result; open "
                            "and save the workbook in Excel or LibreOffice (or type the value)", table.sheet,

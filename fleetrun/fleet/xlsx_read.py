@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from python_calamine import CalamineWorkbook, SheetTypeEnum, SheetVisibleEnum
+from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.fleet.xlsx_safety import SheetScan
-
 
 
 def _state(visible) -> str:
@@ -38,14 +38,6 @@ class SheetValues:
     hidden_rows: list[int] = field(default_factory=list)
     hidden_columns: list[int] = field(default_factory=list)
     uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)  # (row, col) -> "=..."
-
-
-def _column_letters(index: int) -> str:
-    letters = ""
-    while index:
-        index, rest = divmod(index - 1, 26)
-        letters = chr(65 + rest) + letters
-    return letters
 
 
 class XlsxBook:
@@ -79,7 +71,7 @@ class XlsxBook:
                 width -= 1
             if width:
                 rows.append((number, cells[:width]))
-        merged = [f"{_column_letters(c0 + 1)}{r0 + 1}:{_column_letters(c1 + 1)}{r1 + 1}"
+        merged = [f"{xl_col_to_name(c0)}{r0 + 1}:{xl_col_to_name(c1)}{r1 + 1}"
                   for (r0, c0), (r1, c1) in (data.merged_cell_ranges or [])]
         scan = self.scans.get(sheet.name) or SheetScan()
         return SheetValues(rows=rows, merged=merged, hidden_rows=scan.hidden_rows,
