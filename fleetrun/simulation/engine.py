@@ -92,18 +92,15 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     """
     n = np.asarray(speed_rpm, float)
     omega = n * RPM_RAD_S
-    brake = np.maximum(torque_Nm, 0.0)
-    brake *= omega
+    brake_W = np.maximum(torque_Nm, 0.0) * omega
     load = load_fraction(torque_Nm, max_torque_Nm)
     mep = mep_power_W_per_kPa(n, displacement_L)
-    pumping = 1.0 - load
-    pumping *= mep
-    pumping *= throttled
-    load *= brake                     # brake x L
+    pumping_W = (1.0 - load) * mep * throttled
+    brake_high_load_W = brake_W * load
     # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
     # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each
-    return [brake, load, mep, mep * mean_piston_speed_m_s(n, stroke_m), np.asarray(peak_torque_Nm) * omega,
-            pumping, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
+    return [brake_W, brake_high_load_W, mep, mep * mean_piston_speed_m_s(n, stroke_m),
+            np.asarray(peak_torque_Nm) * omega, pumping_W, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
 
 
 def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m,
