@@ -34,8 +34,8 @@ from fleetrun.simulation.records import StepResults, Trace
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
+from fleetrun.units import RPM_PER_RAD_S
 
-RPM = 60.0 / (2.0 * np.pi)          # rad/s -> rpm
 FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than this = not followed
 DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
 N_POWER_TABLE = 65
@@ -55,7 +55,7 @@ def power_speed_table(va: VehicleArrays) -> np.ndarray:
     n = col(va.n_idle) + x * col(va.n_rated - va.n_idle)
     T = full_load_torque_Nm(n, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
                             col(va.n_peak_torque), col(va.idle_T_frac))
-    p = np.maximum.accumulate(T * n / RPM / col(va.P_rated_kW * 1e3), axis=1)
+    p = np.maximum.accumulate(T * n / RPM_PER_RAD_S / col(va.P_rated_kW * 1e3), axis=1)
     p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
     # p is non-decreasing per row: count of grid points below each target = its index. Counted
     # as: each point lies below the targets from the first one above it on (a cumulative count)
@@ -247,7 +247,7 @@ def wheel_demand(va: VehicleArrays, k: Kinematics):
     force = k.at_rest(force, 0.0)  # at standstill the brakes hold the vehicle
     r = _col(va.radius_m)
     wheel_omega = k.v_avg / r
-    return force, force * r, wheel_omega, wheel_omega * RPM
+    return force, force * r, wheel_omega, wheel_omega * RPM_PER_RAD_S
 
 
 def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
@@ -412,7 +412,7 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
 
 def _shaft_power_W(torque_Nm, speed_rpm):
     power = torque_Nm * speed_rpm
-    power /= RPM
+    power /= RPM_PER_RAD_S
     return power
 
 
@@ -483,7 +483,7 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     v = REDRIVE_SPEED_GRID[None, :, None]
     col = lambda a: a[:, None, None]  # noqa: E731
     overall = (va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0))[:, None, :]
-    n_e = v / col(va.radius_m) * RPM * overall * col(va.final_drive)
+    n_e = v / col(va.radius_m) * RPM_PER_RAD_S * overall * col(va.final_drive)
     n_stall, T_stall = converter_stall_point(va)
     first = (va.combo_gear == 1)[:, None, :]
     auto = col(va.automatic)
