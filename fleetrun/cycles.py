@@ -19,7 +19,7 @@ for the FTP).
 A user cycle is a CSV with ``time_s`` and exactly one speed column (``vehicle_speed_kph``,
 ``vehicle_speed_mph``, ``vehicle_speed_mps``, ``speed_mps``, ``speed_kph`` or ``speed_mph``) and
 an optional ``grade_pct``; other columns are ignored, so a vehicle-level recording
-(CONTRACT.md, "Recordings") loads as its own drive cycle. Time steps may be uneven
+(docs/interface.md, "Recordings") loads as its own drive cycle. Time steps may be uneven
 (:func:`resample` puts a cycle on an even grid). Errors are :class:`fleetrun.errors.InputError`
 with the file, the row as a spreadsheet shows it (header = row 1), the column and the value.
 """
@@ -39,7 +39,7 @@ from fleetrun.units import METERS_PER_MILE
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
 KPH_TO_MPS = 1.0 / 3.6     # 1 km/h in m/s, exact
 
-# The first cycles `shipped_cycles()` lists, in this order (CONTRACT.md); others follow by name.
+# The first cycles `shipped_cycles()` lists, in this order (docs/interface.md); others follow by name.
 PRIMARY_CYCLES = ("UDDS", "HWFET", "US06", "NYCC", "HD-UDDS")
 
 # Accepted speed columns -> factor to m/s.

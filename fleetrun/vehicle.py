@@ -1,4 +1,4 @@
-"""A vehicle type as the fleet workbook describes it (CONTRACT.md, sheet ``Vehicles``).
+"""A vehicle type as the fleet workbook describes it (docs/interface.md, sheet ``Vehicles``).
 
 This dataclass is the hand-over between the workbook reader (``fleetrun.workbook``), the
 drive-cycle simulation (``fleetrun.simulation``) and the diagnosis at vehicle level.

@@ -128,7 +128,7 @@ def ftp_runs():
 
 
 def test_three_modes_agree_on_ftp_fuel(ftp_runs):
-    """CONTRACT: the three modes agree within 0.2 % on cycle fuel; also per bag."""
+    """docs/interface.md: the three modes agree within 0.2 % on cycle fuel; also per bag."""
     direct = ftp_runs["direct"]
     for mode in ("map2d", "map3d"):
         np.testing.assert_allclose(ftp_runs[mode].fuel_gal, direct.fuel_gal, rtol=0.002)

@@ -3,7 +3,7 @@
 Every test here failed on the code before the fixes (noted per test) and must keep passing:
 data loss, silently wrong numbers, internal errors and hangs for input mistakes, denial of
 service, formula injection, half-old/half-new output folders, diagnose's sidecar and header
-handling, and the form of error messages (CONTRACT.md: the first stderr line starts with
+handling, and the form of error messages (docs/interface.md: the first stderr line starts with
 ``Error:`` and names file, sheet, row, column and value).
 """
 from __future__ import annotations

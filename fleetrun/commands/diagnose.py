@@ -1,4 +1,4 @@
-"""``fleetrun diagnose``: find the physics a recording shows and the model leaves out (CONTRACT.md).
+"""``fleetrun diagnose``: find the physics a recording shows and the model leaves out (docs/interface.md).
 
     fleetrun diagnose RECORDING [--meta FILE] [--calibrate-on REFERENCE] [--out DIR]
                       [--residual auto|simulation|same-trace]

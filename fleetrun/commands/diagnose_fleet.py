@@ -1,4 +1,4 @@
-"""``fleetrun diagnose-fleet``: find physics hidden in a whole fleet's test results (CONTRACT.md).
+"""``fleetrun diagnose-fleet``: find physics hidden in a whole fleet's test results (docs/interface.md).
 
     fleetrun diagnose-fleet FLEET.xlsx --measured MEASURED.csv [--out DIR]
 

@@ -1,4 +1,4 @@
-"""``fleetrun simulate``: one vehicle over one drive cycle (CONTRACT.md).
+"""``fleetrun simulate``: one vehicle over one drive cycle (docs/interface.md).
 
     fleetrun simulate FLEET.xlsx --vehicle ID --cycle NAME [--scenario ID]
                      [--mode direct|map2d|map3d] [--with EFFECT[,EFFECT...]] [-o trace.csv]

@@ -43,7 +43,7 @@ from fleetrun.diagnose.select import _solve_bounded
 from fleetrun.errors import InputError
 
 SCHEMA = "fleetrun.fleet-diagnosis/1"
-#: Tests the measured-results CSV may hold (CONTRACT.md, diagnose-fleet).
+#: Tests the measured-results CSV may hold (docs/interface.md, diagnose-fleet).
 TESTS = ("FTP:bag1", "FTP:bag2", "FTP:bag3", "FTP", "HWFET", "US06")
 BAGS = ("FTP:bag1", "FTP:bag2", "FTP:bag3")
 #: Vehicle properties the unexplained residual is tested against.
@@ -81,7 +81,7 @@ class FleetProblem:
 
 # ----------------------------------------------------------------------------- inputs
 def read_measured(path, known_ids) -> dict:
-    """MEASURED.csv (CONTRACT.md): ``{(vehicle_id, test): (mpg, manufacturer or "")}``.
+    """MEASURED.csv (docs/interface.md): ``{(vehicle_id, test): (mpg, manufacturer or "")}``.
 
     Errors name the file, the row as a spreadsheet shows it, the column and the value.
     """
@@ -524,7 +524,7 @@ def _finding(prob, effect, coef, before, after, settings) -> dict:
 
 
 def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> dict:
-    """The fleet diagnosis as the JSON of CONTRACT.md (``fleetrun.fleet-diagnosis/1``)."""
+    """The fleet diagnosis as the JSON of docs/interface.md (``fleetrun.fleet-diagnosis/1``)."""
     st = settings or FleetSettings()
     folds = manufacturer_folds(prob.manufacturer, st.folds)
     r = prob.residual

@@ -109,7 +109,7 @@ def generic_test(r, cols, folds, k, *, n_shifts=200, rng=None):
 
 
 def unexplained(problem, remainder, settings, *, rng, folds) -> dict:
-    """The ``unexplained`` block of diagnosis.json for ``remainder`` (CONTRACT.md)."""
+    """The ``unexplained`` block of diagnosis.json for ``remainder`` (docs/interface.md)."""
     ch = problem.driver_channels
     cols = generic_columns(ch)
     n = len(remainder)

@@ -1,4 +1,4 @@
-"""Reading and checking recordings for ``fleetrun diagnose`` (CONTRACT.md, "Recordings").
+"""Reading and checking recordings for ``fleetrun diagnose`` (docs/interface.md, "Recordings").
 
 A recording is a CSV (units in the column names) plus a TOML sidecar with the same stem (or
 ``--meta FILE``). Every problem is an :class:`fleetrun.errors.InputError` naming the file,
@@ -112,7 +112,7 @@ def _check_header(path: Path) -> None:
     if len(head) > MAX_HEADER_CHARS and not head.endswith(b"\n"):
         raise InputError(f"the header line is longer than {MAX_HEADER_CHARS:,} characters "
                          f"(it starts {head[:60].decode('utf-8', 'replace')!r}...)", file=path,
-                         hint="A recording's header names its columns (CONTRACT.md, Recordings)")
+                         hint="A recording's header names its columns (docs/interface.md, Recordings)")
 
 
 def _shown(columns, limit: int = 20) -> str:
@@ -129,7 +129,7 @@ def _check_units(path: Path, columns) -> None:
                 raise InputError(f"column '{col}' has units fleetrun does not read",
                                  file=path, column=col,
                                  hint=f"Convert it to {what} and name the column '{expected}' "
-                                      "(CONTRACT.md, Recordings)")
+                                      "(docs/interface.md, Recordings)")
 
 
 def _level(path: Path, columns) -> str:

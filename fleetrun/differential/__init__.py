@@ -68,7 +68,7 @@ def _show(values):
 
 def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
                axle_gear="high", physics="thesis", oil_temp_C=None, kim_torque_scale_Nm=None):
-    """Differential efficiency of ``configuration`` (CONTRACT.md ids).
+    """Differential efficiency of ``configuration`` (docs/interface.md ids).
 
     ``torque_fraction``: input torque / Kim torque scale (thesis Sec. 5.2.1.A).
     ``speed_rpm``: differential input speed. ``gear_ratio`` and ``low_gear_ratio``: final-drive

@@ -32,7 +32,7 @@ def canonical_configuration(name: str) -> str:
     table = configuration_table()
     if key not in table:
         raise unknown_name_error("configuration", str(name), table,
-                                 hint="Configuration ids are listed in CONTRACT.md and `fleetrun map --help`")
+                                 hint="Configuration ids are listed in docs/interface.md and `fleetrun map --help`")
     return key
 
 

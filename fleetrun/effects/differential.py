@@ -54,7 +54,7 @@ def cornering_extra_torque_Nm(input_torque_Nm, input_speed_rad_s, wheel_speed_di
 
     Seed 003 (Antoni 2014), Eqs 9, 13-17: the spider/side-gear friction power grows with the
     carrier torque and the wheel-speed difference, ``P_loss = k_c T_c |w_L - w_R|`` with
-    ``T_c = G T_in`` (CONTRACT.md). Referred to the pinion: ``dT_in = P_loss / w_in``.
+    ``T_c = G T_in`` (docs/interface.md). Referred to the pinion: ``dT_in = P_loss / w_in``.
     Zero when the pinion is (nearly) stopped, where the power balance is undefined.
     """
     w_in = np.asarray(input_speed_rad_s, dtype=float)
@@ -90,7 +90,7 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
     """Sump temperature after a cold start: ``T_op - (T_op - T_amb) exp(-t / tau)``.
 
     First-order warm-up towards the thesis operating temperature ``T_op = T_amb + 50 K``
-    (thesis Sec. 3.1.2; CONTRACT.md oil_warmup).
+    (thesis Sec. 3.1.2; docs/interface.md oil_warmup).
     """
     t = np.maximum(np.asarray(time_s, dtype=float), 0.0)
     t_amb = np.asarray(ambient_temp_C, dtype=float)

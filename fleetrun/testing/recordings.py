@@ -203,7 +203,7 @@ def generate_differential_recording(
         min_drive_fraction: float = 0.04, oil_temp_column: bool = False,
         oil_tau_s: float | None = None, noise_oil_C: float = 0.3,
         hidden_loss=None) -> Recording:
-    """A differential-level recording (CONTRACT.md) with ``effects`` hidden in the output torque.
+    """A differential-level recording (docs/interface.md) with ``effects`` hidden in the output torque.
 
     ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
     coefficient ``noise_rho`` per sample on output torque, input torque and speed; offsets are
@@ -359,7 +359,7 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
                                fuel_scale: float = 0.85, idle_offset_g_per_s: float = 0.05,
                                noise_g_per_s: float = 0.05, noise_rho: float = 0.8,
                                name: str = "vehicle") -> Recording:
-    """A vehicle-level recording (CONTRACT.md): the simulation on ``cycles`` back to back, its
+    """A vehicle-level recording (docs/interface.md): the simulation on ``cycles`` back to back, its
     fuel rate scaled and offset (the engine the simulation does not know exactly), hidden
     vehicle-level ``effects`` added, AR(1) noise on the fuel meter.
 

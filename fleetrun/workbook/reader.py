@@ -1,4 +1,4 @@
-"""Read and validate the fleet workbook (CONTRACT.md, "Fleet workbook").
+"""Read and validate the fleet workbook (docs/interface.md, "Fleet workbook").
 
 ``read_fleet(path)`` checks everything before any simulation and reports every problem at
 once: one :class:`~fleetrun.errors.InputError` whose message is the count of problems followed
@@ -205,7 +205,7 @@ def read_fleet(path) -> Fleet:
     if problems.errors:
         errors = problems.sorted_errors()
         noun, pronoun = ("problem", "it") if len(errors) == 1 else ("problems", "them")
-        # CONTRACT.md: the first line names file, sheet, cell and value; the others follow
+        # docs/interface.md: the first line names file, sheet, cell and value; the others follow
         tail = (f"{len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again with "
                 f"`fleetrun validate {path.name}`")
         error = InputError("\n".join([f"{path}: {errors[0]}"] + ["  " + e for e in errors[1:]] + [tail]))
