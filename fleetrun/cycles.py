@@ -27,13 +27,16 @@ from __future__ import annotations
 
 import math
 import os
+import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.resources import inputs_dir
 from fleetrun.units import METERS_PER_MILE
 
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
@@ -162,8 +165,6 @@ class DriveCycle:
 # ----------------------------------------------------------------------------- shipped cycles
 
 def _cycles_dir() -> Path:
-    from fleetrun.resources import inputs_dir
-
     return inputs_dir() / "cycles"
 
 
@@ -297,8 +298,6 @@ def composite_per_mile(rule: str, amounts: dict, miles: dict):
 def read_composed_cycle(path, name: str | None = None) -> DriveCycle:
     """A composed cycle from its TOML (``inputs/cycles/FTP.toml`` documents the keys): the
     phases' parts of shipped schedules joined on one time axis, soaks as engine-off gaps."""
-    import tomllib
-
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -394,8 +393,6 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
 def _read_csv_cells(path: Path):
     """The CSV's cells as text (pandas DataFrame, stripped column names); InputError for a
     missing file, a folder, another extension, binary content, an undecodable or ragged file."""
-    import pandas as pd
-
     if not path.exists():
         raise InputError("drive-cycle file not found", file=path,
                          hint="Check the path, or run `fleetrun cycles` for the shipped names")

@@ -12,6 +12,9 @@ from pathlib import Path
 
 import click
 
+from fleetrun.diagnose import diagnose
+from fleetrun.diagnose.engine import Settings
+
 
 @click.command("diagnose")
 @click.argument("recording", type=click.Path(dir_okay=False))
@@ -34,8 +37,6 @@ import click
                    "recording).")
 def command(recording, meta, calibrate_on, out, physics, n_shifts, seed, residual):
     """Compare a recording with the model; name, fit and test the physics it leaves out."""
-    from fleetrun.diagnose import diagnose
-    from fleetrun.diagnose.engine import Settings
 
     out = out or f"diagnosis-{Path(recording).stem}"
     result = diagnose(recording, meta=meta, calibrate_on=calibrate_on, out=out, physics=physics,

@@ -7,7 +7,9 @@ import json
 import click
 import numpy as np
 
+from fleetrun.differential import canonical_configuration, efficiency, reference_capacity_Nm
 from fleetrun.errors import InputError
+from fleetrun.registry import PHYSICS
 
 DEFAULT_TORQUE_FRACTIONS = "0,0.25,0.5,0.75,1"     # thesis Table 6.1
 DEFAULT_SPEEDS_RPM = "0,1000,2000,3000,4000"        # thesis Table 6.2
@@ -47,8 +49,6 @@ def parse_number(text: str, option: str) -> float:
 def compute_map(configuration, gear_ratio, torque_fractions, speeds_rpm, *, low_gear_ratio=None,
                 axle_gear="high", physics="thesis", effects=None):
     """Efficiency on the grid torque fractions (outer) x speeds (inner); shape (n_tf, n_speed)."""
-    from fleetrun.differential import efficiency, reference_capacity_Nm
-
     tf = np.asarray(torque_fractions, dtype=float)[:, None]
     n = np.asarray(speeds_rpm, dtype=float)[None, :]
     kwargs = dict(low_gear_ratio=low_gear_ratio, axle_gear=axle_gear, physics=physics)
@@ -100,8 +100,6 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
             with_effects, fmt, output, plot):
     """Efficiency map of CONFIGURATION (LD_FWD, LD_RWD, LD_4WD, LD_AWD, HD_RWD, HD_DUAL,
     HD_TANDEM, HD_TANDEM_DUAL, HD_TAG, HD_TAG_DUAL) over torque fractions x speeds."""
-    from fleetrun.differential import canonical_configuration
-    from fleetrun.registry import PHYSICS
 
     config = canonical_configuration(configuration)
     g = parse_number(gear_ratio, "--gear-ratio")

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import click
 
+from fleetrun.effects import parse_with
+from fleetrun.run import batch
 from fleetrun.run.engines import ENGINES
 
 
@@ -48,8 +50,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
             no_cache, log_file, replace, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
-    from fleetrun.effects import parse_with
-    from fleetrun.run import batch
 
     settings: dict = {}
     if config is not None:

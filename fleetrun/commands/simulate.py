@@ -14,12 +14,14 @@ from pathlib import Path
 
 import click
 
+from fleetrun.cycles import load_cycle
+from fleetrun.effects import parse_with
 from fleetrun.errors import InputError
+from fleetrun.fileio import atomic_file
+from fleetrun.simulation import simulate
 
 
 def _write_atomic(frame, path: Path) -> None:
-    from fleetrun.fileio import atomic_file
-
     with atomic_file(path) as tmp:
         frame.to_csv(tmp, index=False, float_format="%.6g", lineterminator="\n")
 
@@ -42,9 +44,6 @@ def _write_atomic(frame, path: Path) -> None:
 def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode, physics, ambient_temp_C,
             with_effects, output):
     """Simulate one vehicle over a drive cycle; print a JSON summary line."""
-    from fleetrun.cycles import load_cycle
-    from fleetrun.effects import parse_with
-    from fleetrun.simulation import simulate
 
     effects = parse_with(with_effects)  # a misspelt effect fails here, before any work
     if output:

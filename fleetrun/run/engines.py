@@ -6,10 +6,12 @@ a bounded number of tasks is in flight, so memory stays bounded however large th
 """
 from __future__ import annotations
 
+import socket
 from collections.abc import Callable, Iterable, Iterator
+from urllib.parse import urlparse
 
 from fleetrun.budget.result import EngineInfo
-from fleetrun.errors import InputError
+from fleetrun.errors import InputError, unknown_name_error
 
 ENGINES = ("local", "dask")
 
@@ -107,8 +109,6 @@ class DaskEngine:
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
     """Fail fast with OSError when nothing listens at a tcp address (distributed would retry
     until its timeout)."""
-    import socket
-    from urllib.parse import urlparse
 
     parts = urlparse(address if "://" in address else f"tcp://{address}")
     if parts.scheme not in ("tcp", "tls") or not parts.hostname or not parts.port:
@@ -124,6 +124,5 @@ def make_engine(name: str, scheduler: str | None = None):
         return LocalEngine()
     if name == "dask":
         return DaskEngine(scheduler)
-    from fleetrun.errors import unknown_name_error
 
     raise unknown_name_error("engine", name, ENGINES)

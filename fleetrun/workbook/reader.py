@@ -19,14 +19,19 @@ from functools import lru_cache
 from pathlib import Path
 
 from openpyxl.utils import column_index_from_string, get_column_letter
+from python_calamine import CalamineError
 
-from fleetrun.errors import InputError
+from fleetrun.cycles import load_cycle, shipped_cycles
+from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.simulation.params import refused_vehicles
+from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells, rows
 from fleetrun.workbook.cells import CellProblem
 from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
                                    SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
-from fleetrun.vehicle import VehicleSpec
+from fleetrun.workbook.xlsx_read import XlsxBook
+from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, scan_sheets
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
 MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 (0.99) are normalised (with a warning)
@@ -105,7 +110,6 @@ class Fleet:
         for v in self.vehicles:
             if v.vehicle_id == vehicle_id:
                 return v
-        from fleetrun.errors import unknown_name_error
         error = unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
         error.file = self.path
         raise error
@@ -114,7 +118,6 @@ class Fleet:
         for s in self.scenarios:
             if s.scenario_id == scenario_id:
                 return s
-        from fleetrun.errors import unknown_name_error
         error = unknown_name_error("scenario_id", scenario_id, [s.scenario_id for s in self.scenarios],
                                    hint="Scenario ids are in the Scenarios sheet")
         error.file = self.path
@@ -166,10 +169,6 @@ def file_sha256(path: Path) -> str:
 
 def read_fleet(path) -> Fleet:
     """Read, validate and return the fleet in ``path``; InputError lists every problem."""
-    from python_calamine import CalamineError
-
-    from fleetrun.workbook.xlsx_read import XlsxBook
-    from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, scan_sheets
 
     path = Path(path)
     check_xlsx(path)
@@ -394,8 +393,6 @@ def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], first_rows: d
     """What the simulation would refuse in rows that passed the cell checks
     (:func:`fleetrun.simulation.params.refused_vehicles`), as problems at the row and column:
     `validate` catches what `run` would refuse."""
-    from fleetrun.simulation.params import refused_vehicles
-
     for i, exc in refused_vehicles(vehicles):
         column = exc.column if isinstance(exc.column, str) else None
         index = (table.columns.get(column) or table.extra_columns.get(column)) if column else None
@@ -515,8 +512,6 @@ def _cycle_file_problem(path: Path) -> str | None:
 
 @lru_cache(maxsize=256)
 def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
-    from fleetrun.cycles import load_cycle
-
     try:
         load_cycle(Path(path))
     except InputError as exc:
@@ -526,8 +521,6 @@ def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
 
 def _shipped_cycle_names() -> list[str]:
     """Names of the shipped drive cycles."""
-    from fleetrun.cycles import shipped_cycles
-
     found = shipped_cycles()
     if isinstance(found, dict):
         found = list(found)

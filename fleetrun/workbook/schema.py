@@ -5,7 +5,7 @@ writer (headers, drop-downs, notes) and the docs, so the three cannot drift apar
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from fleetrun.differential import configuration_ids, dual_configuration_ids
 
@@ -166,8 +166,6 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
 
 
 def _renamed(columns, name: str, new_name: str, note: str) -> Column:
-    from dataclasses import replace
-
     return replace(next(c for c in columns if c.name == name), name=new_name, note=note, required=False)
 
 

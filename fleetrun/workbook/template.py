@@ -13,6 +13,7 @@ from openpyxl.styles import Alignment, Font, PatternFill
 from openpyxl.utils import get_column_letter
 from openpyxl.worksheet.datavalidation import DataValidation
 
+from fleetrun.fileio import atomic_file
 from fleetrun.workbook.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 
@@ -52,8 +53,6 @@ INSTRUCTIONS = [
 
 def write_template(path: Path) -> None:
     """Write the template workbook to ``path`` (atomically)."""
-    from fleetrun.fileio import atomic_file
-
     workbook = build_template()
     with atomic_file(Path(path)) as temporary:
         workbook.save(temporary)
