@@ -209,6 +209,20 @@ def load_cycle(name_or_path) -> DriveCycle:
     A :class:`pathlib.Path`, or a string that contains a path separator or has a file
     extension, is read as a file; any other string is looked up among :func:`shipped_cycles`
     (and, failing that, read as a file if one of that name exists).
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike, a shipped name (``fleetrun cycles``) or a CSV file with
+        ``time_s`` [s], one speed column (m/s, km/h or mph by its name) and optional
+        ``grade_pct`` [%]
+
+    Returns
+    -------
+    :class:`DriveCycle` (speeds in m/s)
+
+    >>> udds = load_cycle("udds")
+    >>> udds.name, udds.duration_s, round(udds.miles, 2)
+    ('UDDS', 1369.0, 7.45)
     """
     if isinstance(name_or_path, DriveCycle):
         return name_or_path
@@ -260,6 +274,18 @@ def ftp_weighted_per_mile(bag1, bag2, bag3, miles1, miles2, miles3):
     city fuel economy from these weighted grams per mile (carbon balance), so the weighting
     applies to fuel per mile, not to mpg: composite mpg = 1 / (weighted gallons per mile).
     Works element-wise on arrays (one value per vehicle).
+
+    Parameters
+    ----------
+    bag1, bag2, bag3 : float or array, the bags' amounts (fuel [g] or [gal])
+    miles1, miles2, miles3 : float or array, the bags' distances [mi]
+
+    Returns
+    -------
+    amount per mile (the unit of the bags per mi)
+
+    >>> round(ftp_weighted_per_mile(100.0, 150.0, 90.0, 3.6, 3.9, 3.6), 4)
+    32.5733
     """
     return (FTP_TRANSIENT_WEIGHT * (bag1 + bag2) / (miles1 + miles2)
             + FTP_HOT_WEIGHT * (bag3 + bag2) / (miles3 + miles2))
@@ -508,6 +534,18 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0) -> DriveCycle:
 
     The grid ends at the last grid point not after the cycle's end (to within 1e-9 s), so a
     final stretch shorter than ``dt_s`` is dropped; speed and grade are interpolated linearly.
+
+    Parameters
+    ----------
+    cycle : :class:`DriveCycle`
+    dt_s : float, the grid step [s]
+
+    Returns
+    -------
+    :class:`DriveCycle` on the even grid, with the same phases and composite rule
+
+    >>> resample(load_cycle("UDDS"), 0.5).time_s[:3].tolist()
+    [0.0, 0.5, 1.0]
     """
     dt_s = float(dt_s)
     if not math.isfinite(dt_s) or dt_s <= 0:

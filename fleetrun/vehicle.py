@@ -9,6 +9,8 @@ from __future__ import annotations
 import operator
 from dataclasses import dataclass, field, fields
 
+from fleetrun.differential import kim_torque_scale_Nm
+
 
 # VehicleSpec fields that do not change how a vehicle drives a cycle.
 BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
@@ -56,8 +58,6 @@ class VehicleSpec:
 
     def __post_init__(self):
         if self.kim_torque_scale_Nm is None and self.transmission_gear_ratios:
-            from fleetrun.differential import kim_torque_scale_Nm
-
             object.__setattr__(self, "kim_torque_scale_Nm", float(kim_torque_scale_Nm(
                 self.peak_engine_torque_Nm, self.converter_ratio, max(self.transmission_gear_ratios))))
         elif self.kim_torque_scale_Nm is not None:

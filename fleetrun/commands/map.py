@@ -8,7 +8,9 @@ import click
 import numpy as np
 
 from fleetrun.differential import canonical_configuration, efficiency, reference_capacity_Nm
+from fleetrun.effects import efficiency_with_effects, parse_with
 from fleetrun.errors import InputError
+from fleetrun.fileio import write_text_atomic
 from fleetrun.registry import PHYSICS
 
 DEFAULT_TORQUE_FRACTIONS = "0,0.25,0.5,0.75,1"     # thesis Table 6.1
@@ -53,8 +55,6 @@ def compute_map(configuration, gear_ratio, torque_fractions, speeds_rpm, *, low_
     n = np.asarray(speeds_rpm, dtype=float)[None, :]
     kwargs = dict(low_gear_ratio=low_gear_ratio, axle_gear=axle_gear, physics=physics)
     if effects:
-        from fleetrun.effects import efficiency_with_effects
-
         return np.asarray(efficiency_with_effects(configuration, tf, n, gear_ratio, effects,
                                                   kim_torque_scale_Nm=reference_capacity_Nm(configuration), **kwargs))
     return np.asarray(efficiency(configuration, tf, n, gear_ratio, **kwargs))
@@ -109,8 +109,6 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
     PHYSICS.get(physics)  # an unknown name fails here, before any work
     effects = None
     if with_effects:
-        from fleetrun.effects import parse_with
-
         effects = parse_with(with_effects)
         vehicle_level = [e.id for e, _ in effects if e.level != "differential"]
         if vehicle_level:
@@ -126,13 +124,11 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
                 "physics": physics, "with": [e.id for e, _ in effects] if effects else []}
         text = render_json(meta, tfs, speeds, eta)
     if plot:
-        from fleetrun.plots import efficiency_map_figure, save_figure
+        from fleetrun.plots import efficiency_map_figure, save_figure   # matplotlib: only for --plot
 
         title = f"{config}, gear ratio {g:g}" + (f", low {low:g} ({axle_gear})" if low is not None else "")
         save_figure(efficiency_map_figure(tfs, speeds, eta, f"{title}, physics {physics}"), plot)
     if output:
-        from fleetrun.fileio import write_text_atomic
-
         write_text_atomic(output, text)
     else:
         click.echo(text, nl=False)

@@ -16,8 +16,10 @@ from pathlib import Path
 import click
 
 from fleetrun.effects import parse_with
+from fleetrun.errors import unknown_name_error
 from fleetrun.run import batch
 from fleetrun.run.engines import ENGINES
+from fleetrun.simulation.diffmodes import default_cache_dir
 
 
 @click.command("run")
@@ -65,8 +67,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     out = out or settings.get("out") or (Path("results") if batch_mode else Path(f"run-{Path(workbook).stem}"))
     engine = engine or settings.get("engine", "local")
     if engine not in ENGINES:
-        from fleetrun.errors import unknown_name_error
-
         raise unknown_name_error("engine", engine, ENGINES, hint=f"Fix 'engine' in {config}.")
     scheduler = scheduler or settings.get("scheduler")
     if scheduler and engine != "dask":
@@ -74,8 +74,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     if no_cache:
         cache = None
     else:
-        from fleetrun.simulation.diffmodes import default_cache_dir
-
         cache = cache_dir or settings.get("cache_dir") or default_cache_dir()
     if log_file is None:
         log_file = settings.get("log") or (Path(out) / "fleetrun-run.log" if batch_mode else None)

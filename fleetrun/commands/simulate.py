@@ -17,8 +17,10 @@ import click
 from fleetrun.cycles import load_cycle
 from fleetrun.effects import parse_with
 from fleetrun.errors import InputError
-from fleetrun.fileio import atomic_file
+from fleetrun.fileio import atomic_file, refuse_replacing_inputs
 from fleetrun.simulation import simulate
+from fleetrun.workbook.reader import read_fleet
+from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
 
 def _write_atomic(frame, path: Path) -> None:
@@ -47,7 +49,6 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
 
     effects = parse_with(with_effects)  # a misspelt effect fails here, before any work
     if output:
-        from fleetrun.fileio import refuse_replacing_inputs
         refuse_replacing_inputs(Path(output), [fleet_file, vehicle_file, cycle_name], "-o")
 
     ambient = 20.0
@@ -56,14 +57,12 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
             raise click.UsageError("give FLEET.xlsx or --vehicle-file, not both")
         if scenario_id:
             raise click.UsageError("--scenario needs FLEET.xlsx")
-        from fleetrun.workbook.vehicle_file import read_vehicle_toml
         vehicle = read_vehicle_toml(vehicle_file)
     else:
         if not fleet_file:
             raise click.UsageError("give FLEET.xlsx (with --vehicle ID) or --vehicle-file VEHICLE.toml")
         if not vehicle_id:
             raise click.UsageError("--vehicle ID is required with FLEET.xlsx")
-        from fleetrun.workbook.reader import read_fleet
         fleet = read_fleet(fleet_file)
         try:
             vehicle = fleet.vehicle(vehicle_id)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from fleetrun.budget.result import RunResult
+from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError
 from fleetrun.fileio import write_error_log
 from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
@@ -118,7 +119,6 @@ def read_config(path: Path) -> dict:
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise InputError("'with' must be a string or a list of strings of effects, e.g. "
                              "'bearing_preload:drag_torque_Nm=3,warmup'", file=path)
-        from fleetrun.effects import parse_with
 
         try:
             config["with"] = [pair for item in value for pair in parse_with(item)]

@@ -22,6 +22,7 @@ import pandas as pd
 from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
                                    aggregate_vehicles, fiscal_summary)
+from fleetrun.budget.uncertainty import read_error_model
 from fleetrun.cycles import load_cycle
 from fleetrun.differential import efficiency
 from fleetrun.effects import as_effect_list, efficiency_with_effects
@@ -29,6 +30,7 @@ from fleetrun.errors import DomainError
 from fleetrun.resources import inputs_dir
 from fleetrun.run.engines import LocalEngine
 from fleetrun.simulation import DEFAULT_MODE
+from fleetrun.simulation import simulate as simulate_vehicles
 from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
 from fleetrun.simulation.electric import simulate_electric
 from fleetrun.vehicle import VehicleSpec
@@ -69,9 +71,7 @@ def _cycle(name: str):
 
 def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
     """Run one chunk over its cycles: cycle -> per-vehicle sums (only these travel back)."""
-    simulate = task.simulate
-    if simulate is None:
-        from fleetrun.simulation import simulate
+    simulate = task.simulate or simulate_vehicles
     kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
     if task.cache_dir:
         kwargs["cache_dir"] = task.cache_dir
@@ -129,8 +129,6 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     warnings = list(fleet.warnings) + _map_grid_notes(fleet, mode) + _shortfall_warnings(vehicles, shortfalls)
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
-        from fleetrun.budget.uncertainty import read_error_model
-
         error_model = read_error_model()
     if error_model is None:
         warnings.append("totals carry no range: no measured fuel-economy error "

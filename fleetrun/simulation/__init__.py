@@ -110,12 +110,32 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
-    ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
-    DEFAULT_MODE). ``ambient_temp_C`` sets the lubricant temperature (ambient + 50 K, thesis
-    Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
-    ``effects``: physics the thesis left out (a ``--with`` string, or what
-    ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
-    cold-start constants (default ``models/thermal.toml``). See docs/simulation.md."""
+    Parameters
+    ----------
+    vehicles : sequence of :class:`fleetrun.vehicle.VehicleSpec`, simulated together (arrays over
+        vehicles x steps)
+    cycle : a :class:`fleetrun.cycles.DriveCycle` (time [s], speed [m/s], grade [%]), a shipped
+        cycle name or a CSV path
+    mode : ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, DEFAULT_MODE)
+    ambient_temp_C : float, ambient temperature [C]: the lubricant's (ambient + 50 K, thesis
+        Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start
+    physics : str, the differential baseline (``thesis``, ``vecto-generic``)
+    effects : physics the thesis left out (a ``--with`` string, or what
+        ``fleetrun.effects.parse_with`` returns), per step on top of any mode
+    trace : bool, also return the per-step trace (:class:`fleetrun.simulation.records.Trace`)
+    cache_dir : folder of the map3d cache (None: ``diffmodes.default_cache_dir``)
+    thermal : the cold-start constants (None: ``models/thermal.toml``)
+
+    Returns
+    -------
+    :class:`fleetrun.simulation.records.FleetCycleResult`: per-vehicle miles, fuel [g, gal], mpg,
+    energies [J], shortfall; per phase for a composed cycle. See docs/simulation.md.
+
+    >>> from fleetrun.testing.vehicles import CAMRY
+    >>> r = simulate([CAMRY], "UDDS")
+    >>> round(float(r.miles[0]), 2), 20 < float(r.mpg[0]) < 45
+    (7.45, True)
+    """
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE

@@ -22,7 +22,7 @@ from openpyxl.utils import column_index_from_string, get_column_letter
 from python_calamine import CalamineError
 
 from fleetrun.cycles import load_cycle, shipped_cycles
-from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.errors import InputError, closest_names, unknown_name_error
 from fleetrun.simulation.params import refused_vehicles
 from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells, rows
@@ -479,8 +479,6 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
         elif known is not None:
             match = {k.upper(): k for k in known}.get(name.upper())
             if match is None:
-                from fleetrun.errors import closest_names
-
                 near = closest_names(name, known)
                 guess = f" (did you mean {near[0]}?)" if near else ""
                 problems.error(f"unknown drive cycle '{name}'{guess}; shipped: {', '.join(known)}, "

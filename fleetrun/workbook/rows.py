@@ -13,7 +13,7 @@ from collections.abc import Callable
 from functools import lru_cache
 
 from fleetrun.differential import canonical_configuration
-from fleetrun.errors import InputError
+from fleetrun.errors import InputError, closest_names
 from fleetrun.physics.lubricant import lubricant_names
 from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells
@@ -80,8 +80,6 @@ def _lubricant(raw) -> str:
     text = cells.parse_text(raw)
     known = lubricant_names()
     if text.upper() not in known:
-        from fleetrun.errors import closest_names
-
         near = closest_names(text, known)
         guess = f" (did you mean {near[0]}?)" if near else ""
         raise CellProblem(f"{cells.show(raw)} is not a lubricant fleetrun knows{guess}; known: "
