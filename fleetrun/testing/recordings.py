@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.effects import _as_effect_list, differential_extra_torque_Nm, overall_ratio
+from fleetrun.units import RPM_PER_RAD_S, STANDARD_GRAVITY_M_S2
 
-G_M_S2 = 9.80665
 
 
 @dataclass
@@ -225,7 +225,7 @@ def generate_differential_recording(
     if hidden_loss is not None:
         d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_torque_scale_Nm": rig.kim_torque_scale_Nm,
                                                  "dt_s": dt}), t.shape)
-    n_rpm = w_in * 60 / (2 * np.pi)
+    n_rpm = w_in * RPM_PER_RAD_S
     t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
     n = len(t)
     meas = {
@@ -235,8 +235,8 @@ def generate_differential_recording(
         "diff_output_torque_Nm": t_out + offset_out_Nm + _ar1(n, noise_rho, noise_out_Nm, rng),
     }
     if wheel_speeds:
-        meas["wheel_speed_left_rpm"] = w_left * 60 / (2 * np.pi)
-        meas["wheel_speed_right_rpm"] = w_right * 60 / (2 * np.pi)
+        meas["wheel_speed_left_rpm"] = w_left * RPM_PER_RAD_S
+        meas["wheel_speed_right_rpm"] = w_right * RPM_PER_RAD_S
     if ambient_column:
         meas["ambient_temp_C"] = np.full(n, ambient_temp_C)
     if vehicle_speed:
