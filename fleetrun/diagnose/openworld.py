@@ -34,6 +34,10 @@ from fleetrun.diagnose.select import _circ_corr, _fold_gram, _heldout_sse
 
 #: Hinges per channel of the generic description (a piecewise-linear function of it).
 GENERIC_KNOTS = 6
+#: Tikhonov term of the generic description's fit, relative to the mean diagonal of its Gram
+#: matrix: a hinge that only a few samples of one fold reach (a rare wide turn) would
+#: otherwise get an arbitrary coefficient from the other folds and wreck that fold's error.
+GENERIC_RIDGE = 1e-3
 #: Smallest held-out gain of the generic description that counts as something left
 #: unexplained: 10 % means a structured part of at least half the size of what it leaves
 #: (sqrt(1 / 0.9^2 - 1) = 0.48). Smaller structure (a slightly misfitted shape, errors in the
@@ -109,7 +113,7 @@ def generic_test(r, cols, folds, k, *, n_shifts=200, rng=None):
     p = X.shape[0]
     inf = np.full(p, np.inf)
     sse_base = _heldout_sse(np.broadcast_to(G[:, :1, :1], (B, k, 1, 1)), c[..., :1], rr, -inf[:1], inf[:1])
-    sse_full = _heldout_sse(np.broadcast_to(G, (B,) + G.shape), c, rr, -inf, inf)
+    sse_full = _heldout_sse(np.broadcast_to(G, (B,) + G.shape), c, rr, -inf, inf, GENERIC_RIDGE)
     return sse_base, sse_full
 
 
