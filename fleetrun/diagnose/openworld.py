@@ -38,15 +38,17 @@ GENERIC_KNOTS = 6
 #: matrix: a hinge that only a few samples of one fold reach (a rare wide turn) would
 #: otherwise get an arbitrary coefficient from the other folds and wreck that fold's error.
 GENERIC_RIDGE = 1e-3
-#: Smallest held-out gain of the generic description that counts as something left
-#: unexplained: 10 % means a structured part of at least half the size of what it leaves
-#: (sqrt(1 / 0.9^2 - 1) = 0.48). Smaller structure (a slightly misfitted shape, errors in the
-#: measured channels the baseline uses, a generic model's reach into autocorrelated noise)
-#: is not worth a sentence in the report and must not overturn a finding.
-UNEXPLAINED_MIN_GAIN = 0.10
+#: Smallest held-out gain of the generic description (on what is left beyond the form
+#: allowance, :func:`form_columns`) that counts as something left unexplained: 5 % means a
+#: structured part of at least a third of the size of what it leaves
+#: (sqrt(1 / 0.95^2 - 1) = 0.33). Smaller structure (errors in the measured channels the
+#: baseline uses, a generic model's reach into autocorrelated noise) is not worth a sentence.
+UNEXPLAINED_MIN_GAIN = 0.05
 #: Largest change of an accepted effect's exponent on speed or torque that counts as a small
-#: form mismatch (:func:`form_columns`): n^0.6 for n^(2/3) is 0.07, a speed^2.2 windage 0.2.
-FORM_EXPONENT = 0.2
+#: form mismatch (:func:`form_columns`): n^0.6 for n^(2/3) is 0.07. Larger allowances absorb
+#: a torque share lost at every speed into a mesh friction's form (measured with
+#: validation/diagnose_perturbed.py: 0.2 let 4 of 10 such recordings pass as explained).
+FORM_EXPONENT = 0.1
 #: Inner knots of the piecewise-linear gain and offset of the drift check.
 DRIFT_KNOTS = 7
 #: Columns closer than this (cosine of the angle, after the calibration terms) cannot be told
@@ -266,7 +268,11 @@ def _at_bound(cand, effect, params: dict) -> list[str]:
         if v is None:
             continue
         if p.grid:
-            if v >= 0.99 * max(p.grid) or v <= 1.01 * min(p.grid):
+            # below the grid the refinement may go down to the parameter's own lower bound
+            # (a Camry's cold start fades in ~25 s, under the 30-s grid start): only there
+            # is it at the edge
+            low = cand.shape_bounds[0] if cand.shape_bounds else min(p.grid)
+            if v >= 0.99 * max(p.grid) or v <= 1.01 * low:
                 out.append(p.name)
         elif np.isclose(v, cand.upper, rtol=0.01) or np.isclose(v, cand.lower, rtol=0.01, atol=1e-9):
             out.append(p.name)
