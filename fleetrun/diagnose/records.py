@@ -9,11 +9,10 @@ an accepted effect (a joint refit of its shape, its final coefficient) makes a n
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 
 from fleetrun.diagnose.select import Candidate
+from fleetrun.fileio import JsonDocument
 
 
 @dataclass(frozen=True)
@@ -26,7 +25,7 @@ class Accepted:
     """
 
     cand: Candidate
-    shape: dict
+    shape: dict[str, float]
     column: np.ndarray = field(repr=False, compare=False)
     before: float
     after: float
@@ -47,13 +46,13 @@ class Finding:
     """One entry of diagnosis.json's ``findings``."""
 
     effect: str
-    parameters: dict
+    parameters: dict[str, float]
     heldout_rmse_before: float
     heldout_rmse_after: float
     explanation: str
     seed: str
 
-    def as_json(self) -> dict:
+    def as_json(self) -> JsonDocument:
         return {"effect": self.effect, "parameters": dict(self.parameters),
                 "heldout_rmse_before": self.heldout_rmse_before,
                 "heldout_rmse_after": self.heldout_rmse_after,
@@ -75,7 +74,7 @@ class Drift:
     start_s: float
     end_s: float
 
-    def as_json(self) -> dict:
+    def as_json(self) -> JsonDocument:
         return {"significant": self.significant, "heldout_gain": round(self.heldout_gain, 5),
                 "gain_change": round(self.gain_change, 6), "offset_change": round(self.offset_change, 6),
                 "start_s": round(self.start_s, 3), "end_s": round(self.end_s, 3)}
@@ -107,7 +106,7 @@ class Unexplained:
     drift: Drift | None = None
     integral_share: float | None = None
 
-    def as_json(self) -> dict:
+    def as_json(self) -> JsonDocument:
         out = {"significant": self.significant, "rmse": round(self.rmse, 6),
                "noise_rmse": round(self.noise_rmse, 6), "heldout_gain": round(self.heldout_gain, 5),
                "energy_share": round(self.energy_share, 5), "form_share": round(self.form_share, 5),
@@ -142,7 +141,7 @@ class Selection:
     accepted: tuple[Accepted, ...] = ()
     initial_coefficients: tuple[float, ...] = ()
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> JsonDocument:
         """The selection's part of diagnosis.json."""
         return {"findings": [f.as_json() for f in self.findings], "candidates": self.candidates,
                 "ambiguities": self.ambiguities, "descriptions": self.descriptions,
