@@ -6,9 +6,9 @@ present, ``models/heavy_duty/fhwa_classes.toml`` (one reference vehicle per FHWA
 replaces the interim entries of its classes and fuels. Rules (docs/registrations.md):
 
 1. a row with ``vehicle_id``: that Vehicles row;
-2. a row with ``make`` and ``model``: the EPA 2022 Test Car List configurations of that make
-   whose model starts with the given model (case and spaces ignored), all of them equally,
-   of the row's fuel where there are such;
+2. a row with ``make`` and ``model``: of the EPA 2022 Test Car List configurations of that make
+   whose model starts with the given model (case, spaces and punctuation ignored; the row's
+   fuel where there are such), the one of median test weight;
 3. otherwise the class's default mix for the fuel (the library vehicles of that class and fuel,
    by their weights); a class or fuel without one borrows as listed in :data:`BORROW`.
 """
@@ -122,9 +122,11 @@ def match_make_model(make: str, model: str, fuel: str) -> tuple[tuple[LibraryVeh
     if not hits:
         return (), ""
     same_fuel = [r for r in hits if r["fuel"] == fuel]
-    note = f"make + model ({len(same_fuel or hits)} EPA 2022 test configuration(s))"
+    chosen = sorted(same_fuel or hits, key=lambda r: (r["test_weight_kg"], r["vehicle_id"]))
+    r = chosen[(len(chosen) - 1) // 2]
+    note = (f"make + model: EPA 2022 test configuration {r['vehicle_id']} ({r['make']} {r['model']}), the median "
+            f"test weight of {len(chosen)}")
     if not same_fuel:
         note += f"; none is {fuel}: used as {fuel}"
-    chosen = same_fuel or hits
-    return tuple(_vehicle({**{k: v for k, v in r.items() if not k.startswith("_")}, "fuel": fuel},
-                          f"EPA:{r['vehicle_id']}", "", False) for r in chosen), note
+    return (_vehicle({**{k: v for k, v in r.items() if not k.startswith("_")}, "fuel": fuel},
+                     f"EPA:{r['vehicle_id']}", "", False),), note
