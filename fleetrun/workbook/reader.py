@@ -183,18 +183,21 @@ def read_fleet(path) -> Fleet:
     try:
         with XlsxBook(path, scans) as book:
             sheets = {s.name: s for s in book.sheets}
-            if REGISTRATIONS_SHEET in sheets:
-                registration_table = _read_table(book, sheets[REGISTRATIONS_SHEET], REGISTRATION_COLUMNS, problems)
+            if REGISTRATIONS_SHEET in sheets:   # an empty Registrations sheet (the template's) is no fleet
+                registration_table = _read_table(book, sheets[REGISTRATIONS_SHEET], REGISTRATION_COLUMNS, problems,
+                                                 allow_empty=True)
+            has_registrations = bool(registration_table and registration_table.rows)
             for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
-                if name == VEHICLES_SHEET and name not in sheets and REGISTRATIONS_SHEET in sheets:
+                if name == VEHICLES_SHEET and name not in sheets and has_registrations:
                     continue   # a fleet from registrations only
                 if name not in sheets:
                     similar = [t for t in sheets if t.strip().lower() == name.lower()]
                     hint = f" (found '{similar[0]}': rename it)" if similar else ""
                     problems.error(f"sheet is missing{hint}; the workbook has: "
                                    f"{', '.join(sheets) or 'no sheets'}", name)
-            if VEHICLES_SHEET in sheets:
-                vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
+            if VEHICLES_SHEET in sheets:   # may be empty beside registrations
+                vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems,
+                                            allow_empty=has_registrations)
             if SCENARIOS_SHEET in sheets:
                 scenario_table = _read_table(book, sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
     except (CalamineError, KeyError, ValueError, IndexError, zipfile.BadZipFile, OSError, EOFError) as exc:
@@ -238,7 +241,7 @@ class _Table:
     present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
 
 
-def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
+def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allow_empty: bool = False) -> _Table:
     sheet = info.name
     if info.state != "visible":
         problems.warn("sheet is hidden; read anyway", sheet)
@@ -297,7 +300,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
                 problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
                               "ignored", sheet, row_number, index)
         body.append((row_number, row_values))
-    if not body:
+    if not body and not allow_empty:
         problems.error("has no data rows below the header", sheet)
     present = [(c, columns[c.name]) for c in schema if c.name in columns]
     return _Table(sheet, columns, extra, body, values.uncached_formulas, present)
