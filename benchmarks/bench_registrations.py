@@ -32,8 +32,8 @@ def make_models() -> pd.DataFrame:
     pairs = table[["make", "model", "vehicle_type"]].dropna().drop_duplicates(["make", "model"])
     pairs["vehicle_class"] = np.where(pairs["vehicle_type"].astype(str).str.lower().str.contains("car"),
                                       "automobile", "light_truck")
-    unknown = pd.DataFrame({"make": [f"Make{i}" for i in range(100)], "model": [f"Model{i}" for i in range(100)],
-                            "vehicle_class": ["automobile", "light_truck"] * 50})
+    unknown = pd.DataFrame({"make": [f"Make{i}" for i in range(500)], "model": [f"Model{i}" for i in range(500)],
+                            "vehicle_class": ["automobile", "light_truck"] * 250})
     return pd.concat([pairs[["make", "model", "vehicle_class"]], unknown], ignore_index=True)
 
 

@@ -102,6 +102,19 @@ def run_state(row: pd.Series, later: pd.Series | None, folder: Path) -> dict:
     return out
 
 
+def summarize(table: pd.DataFrame) -> None:
+    """Hits per fuel; forecast and naive mean absolute errors; turnover in the published range."""
+    for fuel in ("gasoline", "diesel"):
+        print(f"{fuel}: {int(table[f'{fuel}_hit'].sum())} hits of {len(table)}")
+        if f"{fuel}_forecast_error_pct" in table:
+            both = table.dropna(subset=[f"{fuel}_forecast_error_pct"])
+            better = (both[f"{fuel}_forecast_error_pct"].abs() < both[f"{fuel}_naive_error_pct"].abs()).sum()
+            print(f"  forecast mean |error| {both[f'{fuel}_forecast_error_pct'].abs().mean():.2f} % vs naive "
+                  f"{both[f'{fuel}_naive_error_pct'].abs().mean():.2f} %; better in {better} of {len(both)}")
+    print(f"LD mpg change in the published range {PUBLISHED_MPG_CHANGE_PCT[0]:.2f}-{PUBLISHED_MPG_CHANGE_PCT[1]:.2f} "
+          f"%/yr: {int(table.mpg_change_in_published_range.sum())} of {len(table)}")
+
+
 def main(argv=None) -> pd.DataFrame:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", default="", help="comma list (default: every state with registrations)")
@@ -125,6 +138,7 @@ def main(argv=None) -> pd.DataFrame:
                      f"(naive {r['diesel_naive_error_pct']:+.1f} %)" if "gasoline_forecast_error_pct" in r else ""),
                   flush=True)
     table = pd.DataFrame(rows)
+    summarize(table)
     if args.out:
         table.to_csv(args.out, index=False, float_format="%.4g")
     return table

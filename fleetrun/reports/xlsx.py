@@ -400,7 +400,7 @@ def _fiscal(book: Book, result: RunResult):
         _table(sheet, calibration, widths=False)
 
 
-REGISTRATION_ROWS_SHOWN = 20_000   # more rows: registrations.csv has them all
+REGISTRATION_ROWS_SHOWN = 5_000   # more rows: registrations.csv has them all
 
 
 def _registrations(book: Book, result: RunResult):
