@@ -72,6 +72,12 @@ def timed(cmd: list[str]) -> float:
     return time.perf_counter() - started
 
 
+BASELINE = """
+import resource, sys
+sys.path.insert(0, {root!r})
+import fleetrun.registrations.extract
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
 READ_ONLY = """
 import resource, sys, time
 sys.path.insert(0, {root!r})
@@ -105,6 +111,9 @@ def main(argv=None) -> None:
     out = subprocess.run([sys.executable, "-c", READ_ONLY.format(root=str(ROOT), path=str(per_vehicle))],
                          check=True, capture_output=True, text=True).stdout.split()
     size_mb = per_vehicle.stat().st_size / 1e6
+    baseline = subprocess.run([sys.executable, "-c", BASELINE.format(root=str(ROOT))], check=True,
+                              capture_output=True, text=True).stdout.split()
+    print(f"a fresh process with pandas and the reader imported: {int(baseline[0]) / 1024:.0f} MB resident")
     print(f"per-vehicle extract: {args.lines:,} lines ({size_mb:.0f} MB) read in {float(out[0]):.1f} s, "
           f"peak resident memory {int(out[1]) / 1024:.0f} MB, {int(out[2]):,} distinct rows, {float(out[3]):,.0f} vehicles")
 

@@ -300,7 +300,11 @@ def expand(fleet, scenarios, extra_rows=()) -> Expansion | None:
     acc = _Cohorts(base_year(scenarios), {v.vehicle_id: v for v in fleet.vehicles})
     for label, row in rows:
         allocate(row, acc, label)
-    return build(acc, scenarios, fleet.path)
+    expansion = build(acc, scenarios, fleet.path)
+    if all(s.first_fiscal_year is None for s in scenarios):
+        expansion.warnings.append(f"registrations: no scenario gives first_fiscal_year; the counts are taken to "
+                                  f"describe {acc.base} (models/turnover.toml default_base_year) for ages and turnover")
+    return expansion
 
 
 class FleetYears:
