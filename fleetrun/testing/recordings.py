@@ -367,7 +367,7 @@ def _perturbed_oil_warmup(ch, p, dt):
 
 def _perturbed_bearing_drag(ch, p, dt):
     w = ch["input_speed_rad_s"]
-    n_rpm = np.abs(w) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
     return p["drag_1000rpm_Nm"] * (n_rpm / 1000.0) ** 0.6 * _step(w)
 
 
@@ -376,7 +376,7 @@ def _perturbed_mixed(ch, p, dt):
     from fleetrun.effects.differential import W_STOP_RAD_S, greenwood_tripp_F2
 
     w = ch["input_speed_rad_s"]
-    lam = (np.abs(w) * 60.0 / (2 * np.pi) / p["speed_ref_rpm"]) ** 0.6
+    lam = (np.abs(w) * RPM_PER_RAD_S / p["speed_ref_rpm"]) ** 0.6
     return (p["mu_b"] * np.abs(ch["input_torque_Nm"]) * greenwood_tripp_F2(lam) / 0.5
             * (np.abs(w) > W_STOP_RAD_S))
 
@@ -393,7 +393,7 @@ def _perturbed_churning(ch, p, dt):
     from fleetrun.effects.differential import ring_gear_churning_torque_Nm
 
     w = ch["input_speed_rad_s"]
-    n_rpm = np.abs(w) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
     return p["immersion_excess"] * ring_gear_churning_torque_Nm(w, ch["gear_ratio"]) * (n_rpm / 2000.0) ** 0.2
 
 
