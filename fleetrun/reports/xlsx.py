@@ -172,6 +172,7 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
     _by_vehicle(book, result)
     _comparison(book, result)
     _fiscal(book, result)
+    _registrations(book, result)
     _maps(book, result)
     _inputs(book, result)
     _run_info(book, result)
@@ -399,6 +400,29 @@ def _fiscal(book: Book, result: RunResult):
         sheet.append([])
         sheet.append(["Calibration to collections: model vs observed taxable gallons, first fiscal year"], "bold")
         _table(sheet, calibration, widths=False)
+
+
+REGISTRATION_ROWS_SHOWN = 5_000   # more rows: registrations.csv has them all
+
+
+def _registrations(book: Book, result: RunResult):
+    """Registrations (docs/registrations.md): the year-on-year change in gallons split into VMT
+    and gallons per mile (turnover), then every registration row's choice of vehicle."""
+    if result.registrations is None:
+        return
+    sheet = Sheet(book, "Registrations")
+    page_setup(sheet)
+    frame = result.registrations
+    _widths(sheet, list(frame.columns), minimum=12)
+    sheet.append(["Change in gallons from the year before: from VMT (change in miles x last year's gallons "
+                  "per mile) and from gallons per mile (turnover: newer model years replace older ones)"], "bold")
+    _table(sheet, result.turnover, widths=False)
+    sheet.append([])
+    shown = frame.head(REGISTRATION_ROWS_SHOWN)
+    more = f" (first {len(shown):,} of {len(frame):,}; all in registrations.csv)" if len(shown) < len(frame) else ""
+    sheet.append([f"Each registration row: the vehicle that represents it, matched on what, assumed what{more}"],
+                 "bold")
+    _table(sheet, shown, widths=False)
 
 
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table
