@@ -165,23 +165,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                                     v_target, grade, trace, effects, plan))
         return _concatenate(parts)
 
-    everyone = np.arange(V)
-    sums = run(everyone, None) if V else None  # first every vehicle drives the trace itself
-    # vehicles that cannot follow: re-drive them (all together) at full effort, with a
-    # smaller margin on the estimated maximum effort each round, until the backward pass
-    # finds every step feasible
-    force_tables = None
-    for margin in REDRIVE_MARGINS:
-        if not V:
-            break
-        behind = np.flatnonzero(sums.behind)
-        if behind.size == 0:
-            break
-        if force_tables is None:  # the drivetrain's maximum effort, once per simulate
-            force_tables = np.zeros((V, REDRIVE_SPEED_GRID.size))
-            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
-        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved), behind)
+    sums = None
+    if V:  # first every vehicle drives the trace itself, then those that cannot follow it
+        sums = _redrive_until_feasible(run(np.arange(V), None), va, t, v_target, grade, run)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -193,6 +179,23 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         **totals, duration_s=float(t[-1] - t[0]), effects=describe_effects(effects),
         trace=sums.trace if trace and V else None, phases=phases, composite=composite,
     )
+
+
+def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> BlockSums:
+    """Vehicles that cannot follow the trace are re-driven (all together) at full effort, with
+    a smaller margin on the estimated maximum effort each round, until the backward pass finds
+    every step feasible; ``run(rows, speed)`` simulates the vehicles ``rows`` at ``speed``."""
+    force_tables = None
+    for margin in REDRIVE_MARGINS:
+        behind = np.flatnonzero(sums.behind)
+        if behind.size == 0:
+            break
+        if force_tables is None:  # the drivetrain's maximum effort, once per simulate
+            force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
+            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
+        sums = _redriven(sums, run(behind, achieved), behind)
+    return sums
 
 
 def _concatenate(parts: list[BlockSums]) -> BlockSums:
