@@ -14,10 +14,10 @@ PLOT_FORMATS = (".png", ".svg")
 def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
     """A two-panel figure: the efficiency surface as filled contours over (speed, torque
     fraction), and efficiency against speed at each torque fraction (thesis Figs 6.1-6.6)."""
-    import matplotlib
+    import matplotlib  # matplotlib: slow to import, only figures need it
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
 
     tf = np.asarray(torque_fractions, dtype=float)
     n = np.asarray(speeds_rpm, dtype=float)
@@ -56,7 +56,7 @@ def save_figure(fig, path) -> None:
     if path.suffix.lower() not in PLOT_FORMATS:
         raise InputError(f"{path}: plot file must end in .png or .svg, got '{path.suffix or '(none)'}'",
                          hint="Name the plot e.g. map.png or map.svg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
 
     with atomic_file(path) as tmp:
         fig.savefig(tmp, format=path.suffix[1:].lower(), dpi=120)

@@ -2,17 +2,19 @@
 from __future__ import annotations
 
 import numpy as np
+from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from fleetrun.diagnose.report import _png, data_uri
+from fleetrun.resources import templates_dir
 
 
 def fleet_figures(result: dict) -> dict[str, bytes]:
     """Mean error per test (baseline, after the findings, full model) and the unexplained
     error against the strongest vehicle property."""
-    import matplotlib
+    import matplotlib  # matplotlib: slow to import, only figures need it
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
 
     tests = list(result["baseline"]["tests"])
     x = np.arange(len(tests))
@@ -62,10 +64,6 @@ def summary_words(result: dict) -> str:
 
 
 def render_fleet_html(prob, result: dict) -> str:
-    from jinja2 import Environment, FileSystemLoader, select_autoescape
-
-    from fleetrun.resources import templates_dir
-
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     figs = {k: data_uri(v) for k, v in fleet_figures(result).items()}

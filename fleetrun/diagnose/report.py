@@ -5,15 +5,17 @@ import base64
 import io
 
 import numpy as np
+from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from fleetrun.diagnose.locate import binned_profile, smooth
 from fleetrun.effects import EFFECTS
+from fleetrun.resources import templates_dir
 
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
 
     plt.close(fig)
     return buf.getvalue()
@@ -103,10 +105,10 @@ def _driver_figure(problem, result, fitted, plt) -> str | None:
 def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, bytes]:
     """The report's figures as PNG bytes, by name (measured, residual, cumulative, drivers,
     heldout)."""
-    import matplotlib
+    import matplotlib  # matplotlib: slow to import, only figures need it
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
 
     t = problem.time_s - problem.time_s[0]
     figs = _time_figures(problem, result, fitted, t, _thin(len(t)), plt)
@@ -209,10 +211,6 @@ def _summary(result: dict) -> str:
 
 
 def render_html(problem, result: dict, fitted: np.ndarray) -> str:
-    from jinja2 import Environment, FileSystemLoader, select_autoescape
-
-    from fleetrun.resources import templates_dir
-
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     tpl = env.get_template("diagnosis.html.j2")
