@@ -350,11 +350,12 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     coasting = unlocked & ~drive  # unlocked converter on overrun: the engine idles unloaded
     np.copyto(engine_rpm, np.maximum(idle, turbine_rpm), where=coasting)
     np.copyto(engine_torque, 0.0, where=coasting)
-    # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
-    # below idle on overrun
+    # manual: the clutch slips at take-off (first gear: engine held at launch speed) and is
+    # disengaged below idle on overrun; in a higher gear it is closed (a heavy diesel cruises
+    # below the launch speed, which is no slip)
     manual = ~auto
     launch = _col(va.launch_rpm)
-    slip = manual & drive & (turbine_rpm < launch)
+    slip = manual & drive & (gear == 1) & (turbine_rpm < launch)
     np.copyto(engine_rpm, launch, where=slip)
     declutch = manual & ~drive & (turbine_rpm < idle)
     np.copyto(engine_rpm, idle, where=declutch)

@@ -30,6 +30,7 @@ from fleetrun.errors import FleetrunError, InputError
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
+from fleetrun.simulation.heavy_duty_engine import with_heavy_duty_constants
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
@@ -255,6 +256,7 @@ def _row(v: VehicleSpec) -> dict:
                eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+    eng = with_heavy_duty_constants(eng, v, disp)   # MD/HD diesels: models/heavy_duty/engines.toml
     cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
