@@ -31,6 +31,7 @@ from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.heavy_duty_engine import with_heavy_duty_constants
+from fleetrun.simulation.heavy_duty_shift import with_heavy_duty_shifting
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
@@ -252,6 +253,8 @@ def _row(v: VehicleSpec) -> dict:
     T_peak = float(v.peak_engine_torque_Nm)
     n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
     n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
+    n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
+    trn = with_heavy_duty_shifting(trn, v, n_pk)   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
                eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
@@ -290,7 +293,7 @@ def _row(v: VehicleSpec) -> dict:
         lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
         launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
-        n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
+        n_pk=n_pk,
         idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
         disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
         throttled=v.fuel == "gasoline",
