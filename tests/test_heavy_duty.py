@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetrun.fleet.vehicle_file import vehicle_from_mapping
+from fleetrun.workbook.vehicle_file import vehicle_from_mapping
 from fleetrun.resources import models_dir
 from fleetrun.simulation.heavy_duty_road_load import gem_coastdown_lbf
 
