@@ -135,6 +135,23 @@ def check_example_combination_trucks() -> list[dict]:
     return rows
 
 
+def check_example_trucks_on_gem_weighting() -> list[dict]:
+    """The example fleet's combination trucks (as typed, fully loaded) on GEM's day- and
+    sleeper-cab weighting of the heavy-duty cycles."""
+    fleet = read_fleet(ROOT / "inputs" / "example_fleet.xlsx")
+    trucks = [v for v in fleet.vehicles if v.vehicle_class == COMBINATION_CLASS]
+    rows = []
+    for gem_type in ("day_cab", "sleeper_cab"):
+        gal_per_mile = np.zeros(len(trucks))
+        for cycle, share in gem_cycle_mix(gem_type).items():
+            r = simulate(trucks, cycle)
+            gal_per_mile += share * r.fuel_gal / r.miles
+        rows += [dict(gem_type=gem_type, vehicle=v.vehicle_id, mpg=round(float(1.0 / g), 3),
+                      within_vm1=bool(VM1_COMBINATION_MPG[0] <= 1.0 / g <= VM1_COMBINATION_MPG[1]))
+                 for v, g in zip(trucks, gal_per_mile)]
+    return rows
+
+
 def error_summary(errors) -> dict:
     e = np.asarray(errors, float)
     return dict(n=int(e.size), mean=round(float(e.mean()), 4), median=round(float(np.median(e)), 4),
@@ -189,7 +206,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--plot", type=Path, help="bar chart of the reference vehicles (PNG)")
     args = parser.parse_args(argv)
     report = dict(typed_tractor=check_typed_tractor(), reference_vehicles=check_reference_vehicles(),
-                  example_combination_trucks=check_example_combination_trucks())
+                  example_combination_trucks=check_example_combination_trucks(),
+                  example_combination_trucks_gem=check_example_trucks_on_gem_weighting())
     report["reference_error"] = error_groups(report["reference_vehicles"])
     print(json.dumps(report, indent=1))
     if args.write:
