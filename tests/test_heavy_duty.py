@@ -147,3 +147,19 @@ def test_heavy_duty_error_file_is_what_the_validation_measures(reference_rows):
     for name, summary in hd_validation.error_groups(reference_rows).items():
         for key in ("n", "mean", "p05", "p95"):
             assert stored[name][key] == pytest.approx(summary[key], abs=1e-4), (name, key)
+
+
+def test_model_year_chooses_the_engine_standard():
+    """A MY2027 tractor burns less than a MY2014 one in proportion to their SET standards
+    (432 / 475 g/hp-hr, 40 CFR 1036.108): at level cruise the Willans slope carries nearly all
+    of the fuel, so the mpg ratio is within 1 % of 475 / 432; the engine_model_year column wins
+    over model_year."""
+    import dataclasses
+
+    v = hd_validation.typed_tractor()
+    old, new, engine_only = (dataclasses.replace(v, model_year=2014), dataclasses.replace(v, model_year=2027),
+                             dataclasses.replace(v, model_year=2027, extra={"engine_model_year": 2014}))
+    mpg = simulate([old, new, engine_only], "CRUISE-65").mpg
+    assert mpg[1] / mpg[0] == pytest.approx(475.0 / 432.0, rel=0.01)
+    assert mpg[2] == pytest.approx(mpg[0], rel=1e-12)
+    assert old.physics_key() != new.physics_key()   # the run does not merge rows of different years

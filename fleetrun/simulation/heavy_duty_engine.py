@@ -129,14 +129,22 @@ def with_heavy_duty_constants(engine_set: dict, vehicle, displacement_L: float) 
     """``engine_set`` (params.engine_defaults) with the heavy-duty diesel constants for a
     medium- or heavy-duty diesel ``vehicle`` (VehicleSpec) of ``displacement_L``; other
     vehicles' sets are returned unchanged. Model year: the row's ``engine_model_year``
-    column, else the file's default."""
+    column (an engine older than its vehicle), else its ``model_year``, else the file's default."""
     if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
         return engine_set
-    year = (vehicle.extra or {}).get("engine_model_year")
-    year = int(year) if year not in (None, "") and year == year else model_file(ENGINES_FILE)["default_model_year"]
+    year = engine_model_year(vehicle)
     fitted = heavy_duty_constants(service_class(displacement_L), year, engine_set["idle_speed_rpm"],
                                   engine_set["peak_torque_speed_fraction"], engine_set["idle_torque_fraction"])
     return {**engine_set, **fitted}
+
+
+def engine_model_year(vehicle) -> int:
+    """The model year whose engine standard applies to ``vehicle`` (VehicleSpec): its
+    ``engine_model_year`` column, else ``model_year``, else ``default_model_year``."""
+    for year in ((vehicle.extra or {}).get("engine_model_year"), vehicle.model_year):
+        if year not in (None, "") and year == year:   # year == year: not NaN
+            return int(year)
+    return int(model_file(ENGINES_FILE)["default_model_year"])
 
 
 def bsfc_map_g_per_kWh(engine: dict, constants: dict, speed_rpm, load_fraction):
