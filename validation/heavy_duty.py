@@ -152,6 +152,26 @@ def check_example_trucks_on_gem_weighting() -> list[dict]:
     return rows
 
 
+FHWA_GEM_TYPES = {"combination_truck": ("day_cab", "sleeper_cab"),
+                  "single_unit_truck": ("vocational_regional", "vocational_multipurpose"),
+                  "bus": ("vocational_multipurpose", "vocational_urban")}
+
+
+def check_fhwa_class_defaults() -> list[dict]:
+    """mpg of the FHWA class defaults (models/heavy_duty/fhwa_classes.toml) on GEM weightings."""
+    with open(HD_DIR / "fhwa_classes.toml", "rb") as fh:
+        classes = tomllib.load(fh)
+    rows = []
+    for name, gem_types in FHWA_GEM_TYPES.items():
+        row = {k: v for k, v in classes[name].items() if k != "source"}
+        spec = vehicle_from_mapping(dict(row, vehicle_id=name, vehicle_class=name, count=1), Path(name))
+        for gem_type in gem_types:
+            gal = sum(share * float(r.fuel_gal[0] / r.miles[0])
+                      for cycle, share in gem_cycle_mix(gem_type).items() for r in [simulate([spec], cycle)])
+            rows.append(dict(fhwa_class=name, gem_type=gem_type, mpg=round(1.0 / gal, 3)))
+    return rows
+
+
 def error_summary(errors) -> dict:
     e = np.asarray(errors, float)
     return dict(n=int(e.size), mean=round(float(e.mean()), 4), median=round(float(np.median(e)), 4),
@@ -207,7 +227,8 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     report = dict(typed_tractor=check_typed_tractor(), reference_vehicles=check_reference_vehicles(),
                   example_combination_trucks=check_example_combination_trucks(),
-                  example_combination_trucks_gem=check_example_trucks_on_gem_weighting())
+                  example_combination_trucks_gem=check_example_trucks_on_gem_weighting(),
+                  fhwa_class_defaults=check_fhwa_class_defaults())
     report["reference_error"] = error_groups(report["reference_vehicles"])
     print(json.dumps(report, indent=1))
     if args.write:
