@@ -163,3 +163,65 @@ def test_model_year_chooses_the_engine_standard():
     assert mpg[1] / mpg[0] == pytest.approx(475.0 / 432.0, rel=0.01)
     assert mpg[2] == pytest.approx(mpg[0], rel=1e-12)
     assert old.physics_key() != new.physics_key()   # the run does not merge rows of different years
+
+
+def test_set_speeds_follow_the_1065_610_definition():
+    """n_lo / n_hi: lowest speed at 50 % and highest at 70 % of maximum power; A, B, C at
+    25 / 50 / 75 % between them (40 CFR 1065.610). A triangular power curve peaking at 1,500
+    rpm (0 at 500 and 2,500) has n_lo = 1,000 and n_hi = 1,800 exactly."""
+    from fleetrun.simulation.heavy_duty_engine import set_speeds_rpm
+
+    n = np.linspace(500.0, 2500.0, 2001)
+    power = np.where(n <= 1500.0, n - 500.0, 2500.0 - n)
+    speeds = set_speeds_rpm(n, power)
+    assert speeds["A"] == pytest.approx(1200.0, abs=1.0)
+    assert speeds["B"] == pytest.approx(1400.0, abs=1.0)
+    assert speeds["C"] == pytest.approx(1600.0, abs=1.0)
+
+
+def test_gem_composite_is_the_weighted_g_per_mile_over_payload():
+    """40 CFR 1037.510(c) / 1037.705: sum of weight x g CO2/mile over the payload; with
+    1/6 gal/mi on every cycle the composite is 10,180 / 6 / 19 g/ton-mile for a class-8 tractor
+    (diesel CO2 per gallon, models/fuels.toml), whatever the weights, which sum to 1."""
+    from fleetrun.simulation.heavy_duty_gem import composite_g_co2_per_ton_mile, gem_cycle_mix, payload_short_tons
+
+    for gem_type in ("day_cab", "sleeper_cab", "vocational_urban"):
+        mix = gem_cycle_mix(gem_type)
+        assert sum(mix.values()) == pytest.approx(1.0, abs=1e-12)
+        value = composite_g_co2_per_ton_mile({c: 1 / 6 for c in mix}, mix, payload_short_tons("class_8_tractor"))
+        assert value == pytest.approx(10180.0 / 6 / 19.0, rel=1e-12)
+    assert "CRUISE-65" not in gem_cycle_mix("vocational_urban")   # weight 0: left out
+
+
+def test_unknown_gem_vehicle_type_names_the_valid_ones():
+    from fleetrun.errors import FleetrunError
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix
+
+    with pytest.raises(FleetrunError) as e:
+        gem_cycle_mix("sleeper")
+    assert "sleeper_cab" in str(e.value)
+
+
+def test_cruise_cycles_are_their_speed_for_600_s():
+    """CRUISE-55 / CRUISE-65 (inputs/cycles/make_cruise.py): 600 s at exactly 55 / 65 mph,
+    so 55 x 600 / 3600 = 9.1667 and 10.8333 miles, level."""
+    from fleetrun.cycles import MPH_TO_MPS, load_cycle
+
+    for mph in (55, 65):
+        c = load_cycle(f"CRUISE-{mph}")
+        assert c.duration_s == 600 and np.all(c.grade_pct == 0)
+        assert np.allclose(c.speed_mps, mph * MPH_TO_MPS, atol=5e-6)
+        assert c.miles == pytest.approx(mph * 600 / 3600, abs=1e-4)
+
+
+def test_light_duty_and_gasoline_rows_keep_their_engine_and_shifting():
+    """The heavy-duty hooks change medium- and heavy-duty diesel rows only."""
+    from fleetrun.simulation.heavy_duty_engine import with_heavy_duty_constants
+    from fleetrun.simulation.heavy_duty_shift import with_heavy_duty_shifting
+    import dataclasses
+
+    v = hd_validation.typed_tractor()
+    for other in (dataclasses.replace(v, fuel="gasoline"), dataclasses.replace(v, duty_class="LD")):
+        engine_set, gearbox_set = {"idle_speed_rpm": 650.0}, {"gear_efficiency": 0.98}
+        assert with_heavy_duty_constants(engine_set, other, 15.0) is engine_set
+        assert with_heavy_duty_shifting(gearbox_set, other, 1200.0) is gearbox_set
