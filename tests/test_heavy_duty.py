@@ -225,3 +225,22 @@ def test_light_duty_and_gasoline_rows_keep_their_engine_and_shifting():
         engine_set, gearbox_set = {"idle_speed_rpm": 650.0}, {"gear_efficiency": 0.98}
         assert with_heavy_duty_constants(engine_set, other, 15.0) is engine_set
         assert with_heavy_duty_shifting(gearbox_set, other, 1200.0) is gearbox_set
+
+
+def test_force_table_once_per_drivetrain_is_bit_identical():
+    """max_tractive_force_table computes each distinct drivetrain once (the re-drive of heavy
+    trucks spent half its time there): the table of a fleet is the per-vehicle tables stacked,
+    bit for bit, for rows that share drivetrains and rows that do not."""
+    import dataclasses
+
+    from fleetrun.simulation import core
+    from fleetrun.simulation.params import vehicle_arrays
+
+    v = hd_validation.typed_tractor()
+    rows = [dataclasses.replace(v, vehicle_id=f"t{i}", test_weight_kg=v.test_weight_kg * (1 + 0.01 * i)) for i in range(4)]
+    rows.append(dataclasses.replace(v, vehicle_id="axle", final_drive_ratio=3.08))
+    va = vehicle_arrays(rows)
+    together = core.max_tractive_force_table(va, 0.9)
+    alone = np.vstack([core.max_tractive_force_table(va.subset([i]), 0.9) for i in range(va.n)])
+    assert np.array_equal(together, alone)
+    assert not np.array_equal(together[0], together[4])
