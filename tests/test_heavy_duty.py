@@ -59,28 +59,25 @@ import numpy as np  # noqa: E402
 
 from fleetrun.resources import model_file  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
-from fleetrun.simulation.heavy_duty_engine import (ENGINES_FILE, bsfc_map_g_per_kWh, heavy_duty_constants,  # noqa: E402
-                                                   set_co2_g_per_hp_hr, standard_for)
+from fleetrun.simulation.heavy_duty_engine import (bsfc_map_g_per_kWh, heavy_duty_constants,  # noqa: E402
+                                                   reference_engine, set_co2_g_per_hp_hr, standard_for)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
 import heavy_duty as hd_validation  # noqa: E402
 
 
 def _reference_engine(service="heavy", year=2021):
-    data = model_file(ENGINES_FILE)
     hd_set = model_file("engines.toml")["diesel"]["HD"]
     shape = (hd_set["idle_speed_rpm"], hd_set["peak_torque_speed_fraction"], hd_set["idle_torque_fraction"])
-    engine = dict(data["reference_engine"][service], idle_speed_rpm=shape[0], peak_torque_speed_fraction=shape[1],
-                  idle_torque_fraction=shape[2])
-    return engine, heavy_duty_constants(service, year, *shape), data["set_modes"]
+    return reference_engine(service, *shape), heavy_duty_constants(service, year, *shape)
 
 
 @pytest.mark.parametrize("year", [2017, 2021, 2027])
 def test_reference_engine_meets_its_set_standard(year):
     """The Willans slope is solved so that the SET-weighted CO2 is the 40 CFR 1036.108
     standard; recomputing it with that slope must give the standard to rounding."""
-    engine, constants, modes = _reference_engine(year=year)
-    co2 = set_co2_g_per_hp_hr(constants["eta_indicated"], constants, engine, modes)
+    engine, constants = _reference_engine(year=year)
+    co2 = set_co2_g_per_hp_hr(constants, engine)
     assert co2 == pytest.approx(standard_for("heavy", year), rel=1e-9)
 
 
@@ -88,7 +85,7 @@ def test_heavy_engine_peak_efficiency_is_a_current_heavy_diesels():
     """Peak brake efficiency of the MY2021 15 L map: production heavy-duty diesels of the
     Phase 2 years reach 44-47 % (DOE SuperTruck reports: 2009 baseline engines about 42 %,
     2020s production about 46 %); 43-48 % allows for the map's smooth shape."""
-    engine, constants, _ = _reference_engine()
+    engine, constants = _reference_engine()
     bsfc = bsfc_map_g_per_kWh(engine, constants, np.linspace(800, 1800, 41), np.linspace(0.1, 1.0, 37))
     peak = 3.6e6 / (np.nanmin(bsfc) * 42.8e3)
     assert 0.43 <= peak <= 0.48
@@ -216,15 +213,17 @@ def test_cruise_cycles_are_their_speed_for_600_s():
 
 def test_light_duty_and_gasoline_rows_keep_their_engine_and_shifting():
     """The heavy-duty hooks change medium- and heavy-duty diesel rows only."""
-    from fleetrun.simulation.heavy_duty_engine import with_heavy_duty_constants
-    from fleetrun.simulation.heavy_duty_shift import with_heavy_duty_shifting
     import dataclasses
 
+    from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
+    from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
+
     v = hd_validation.typed_tractor()
+    assert heavy_duty_fuel_constants(v, 15.0, 650.0, 0.6, 0.55) is not None
+    assert heavy_duty_shift_speeds(v, 1200.0) is not None
     for other in (dataclasses.replace(v, fuel="gasoline"), dataclasses.replace(v, duty_class="LD")):
-        engine_set, gearbox_set = {"idle_speed_rpm": 650.0}, {"gear_efficiency": 0.98}
-        assert with_heavy_duty_constants(engine_set, other, 15.0) is engine_set
-        assert with_heavy_duty_shifting(gearbox_set, other, 1200.0) is gearbox_set
+        assert heavy_duty_fuel_constants(other, 15.0, 650.0, 0.6, 0.55) is None
+        assert heavy_duty_shift_speeds(other, 1200.0) is None
 
 
 def test_force_table_once_per_drivetrain_is_bit_identical():

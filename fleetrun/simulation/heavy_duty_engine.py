@@ -17,6 +17,7 @@ the map is the fuel equation; :func:`bsfc_map_g_per_kWh` tabulates it.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -25,17 +26,16 @@ from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file
 from fleetrun.simulation.engine import (RPM_RAD_S, fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
                                         full_load_torque_Nm, stroke_m)
+from fleetrun.simulation.records import HeavyDutyFuelConstants, ReferenceEngine
 from fleetrun.units import LITERS_PER_GALLON
 
 ENGINES_FILE = "heavy_duty/engines.toml"
 HP_W = 745.699872                 # mechanical horsepower [W] (NIST SP 811)
 SET_SPEED_FRACTIONS = {"A": 0.25, "B": 0.50, "C": 0.75}
-CONSTANT_KEYS = ("high_load_factor", "fmep_0_kPa", "fmep_piston_speed_kPa_s_per_m", "fmep_peak_fraction",
-                 "pmep_throttle_kPa", "accessory_power_W", "transient_factor")
 HEAVY_DUTIES = ("MD", "HD")
 
 
-def set_speeds_rpm(speed_rpm, power_W):
+def set_speeds_rpm(speed_rpm, power_W) -> dict[str, float]:
     """SET speeds A, B, C [rpm] from a full-load power curve (40 CFR 1065.610).
 
     n_lo = the lowest speed at which power reaches 50 % of its maximum, n_hi = the highest at
@@ -53,22 +53,27 @@ def set_speeds_rpm(speed_rpm, power_W):
     return {k: lo + f * (hi - lo) for k, f in SET_SPEED_FRACTIONS.items()}
 
 
-def _full_load(engine: dict, speed_rpm):
-    return full_load_torque_Nm(speed_rpm, engine["peak_torque_Nm"], engine["rated_power_kW"],
-                               engine["rated_speed_rpm"], engine["idle_speed_rpm"],
-                               engine["peak_torque_speed_fraction"] * engine["rated_speed_rpm"],
-                               engine["idle_torque_fraction"])
+def _full_load(engine: ReferenceEngine, speed_rpm):
+    return full_load_torque_Nm(speed_rpm, engine.peak_torque_Nm, engine.rated_power_kW, engine.rated_speed_rpm,
+                               engine.idle_speed_rpm, engine.peak_torque_speed_fraction * engine.rated_speed_rpm,
+                               engine.idle_torque_fraction)
 
 
-def set_points(engine: dict, modes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Speed [rpm], torque [N m] and weight of each SET mode for ``engine`` (a reference
-    engine of models/heavy_duty/engines.toml with the full-load shape of its engines.toml set)."""
-    n = np.linspace(engine["idle_speed_rpm"], 1.1 * engine["rated_speed_rpm"], 881)
+def _set_modes() -> tuple[list, np.ndarray, np.ndarray]:
+    """The SET modes of engines.toml: speed labels, load fractions, weights."""
+    modes = model_file(ENGINES_FILE)["set_modes"]
+    return ([m["speed"] for m in modes], np.array([m["load_pct"] for m in modes]) / 100.0,
+            np.array([m["weight"] for m in modes]))
+
+
+def set_points(engine: ReferenceEngine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed [rpm], torque [N m] and weight of each SET mode (engines.toml) for ``engine``."""
+    labels, loads, weights = _set_modes()
+    n = np.linspace(engine.idle_speed_rpm, 1.1 * engine.rated_speed_rpm, 881)
     speeds = set_speeds_rpm(n, _full_load(engine, n) * n * RPM_RAD_S)
-    speeds["idle"] = engine["idle_speed_rpm"]
-    speed = np.array([speeds[m["speed"]] for m in modes])
-    torque = _full_load(engine, speed) * np.array([m["load_pct"] for m in modes]) / 100.0
-    return speed, torque, np.array([m["weight"] for m in modes])
+    speeds["idle"] = engine.idle_speed_rpm
+    speed = np.array([speeds[label] for label in labels])
+    return speed, _full_load(engine, speed) * loads, weights
 
 
 def co2_g_per_g_fuel(fuel: str = "diesel") -> float:
@@ -77,25 +82,32 @@ def co2_g_per_g_fuel(fuel: str = "diesel") -> float:
     return props.co2_g_per_gal / (props.density_kg_per_L * LITERS_PER_GALLON * 1e3)
 
 
-def set_co2_g_per_hp_hr(eta_indicated, constants: dict, engine: dict, modes: list) -> float:
+def _engine_fuel_g_per_s(engine: ReferenceEngine, constants: HeavyDutyFuelConstants, speed_rpm, torque_Nm):
+    """Fuel rate [g/s] of ``engine`` on the dynamometer (no accessory load) at speed x torque."""
+    disp = engine.displacement_L
+    terms = fuel_power_terms_W(torque_Nm, speed_rpm, _full_load(engine, speed_rpm), disp,
+                               stroke_m(disp, engine.cylinders), engine.peak_torque_Nm, False)
+    coeffs = fuel_coefficients(constants.eta_indicated, constants.high_load_factor, constants.fmep_0_kPa,
+                               constants.fmep_piston_speed_kPa_s_per_m, constants.fmep_peak_fraction,
+                               constants.pmep_throttle_kPa, 0.0, constants.transient_factor)
+    return fuel_rate_g_per_s(terms, coeffs, True, fuel_properties("diesel").lhv_MJ_per_kg)
+
+
+def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngine) -> float:
     """Cycle-weighted brake-specific CO2 [g/hp-hr] of ``engine`` over the SET modes:
     sum(w CO2 rate) / sum(w brake power) (40 CFR 1036.510 weighting), no accessory load
     (an engine on the dynamometer drives none)."""
-    speed, torque, weight = set_points(engine, modes)
-    disp = engine["displacement_L"]
-    terms = fuel_power_terms_W(torque, speed, _full_load(engine, speed), disp,
-                               stroke_m(disp, engine["cylinders"]), engine["peak_torque_Nm"], False)
-    coeffs = fuel_coefficients(eta_indicated, *(0.0 if k == "accessory_power_W" else constants[k]
-                                                for k in CONSTANT_KEYS))
-    fuel = fuel_rate_g_per_s(terms, coeffs, True, fuel_properties("diesel").lhv_MJ_per_kg)
+    speed, torque, weight = set_points(engine)
+    fuel = _engine_fuel_g_per_s(engine, constants, speed, torque)
     work_hp_h = float(np.sum(weight * torque * speed * RPM_RAD_S)) / HP_W
     return float(np.sum(weight * fuel)) * 3600.0 * co2_g_per_g_fuel() / work_hp_h
 
 
-def willans_slope_for_standard(standard_g_per_hp_hr, constants: dict, engine: dict, modes: list) -> float:
+def willans_slope_for_standard(standard_g_per_hp_hr: float, constants: HeavyDutyFuelConstants,
+                               engine: ReferenceEngine) -> float:
     """The eta_indicated at which ``engine`` meets the SET standard exactly. Every term of the
     fuel equation is divided by eta_indicated, so SET CO2 x eta is a constant."""
-    return set_co2_g_per_hp_hr(1.0, constants, engine, modes) / standard_g_per_hp_hr
+    return set_co2_g_per_hp_hr(replace(constants, eta_indicated=1.0), engine) / standard_g_per_hp_hr
 
 
 def service_class(displacement_L: float) -> str:
@@ -111,31 +123,27 @@ def standard_for(service: str, model_year: int) -> float:
     return in_force[-1] if in_force else steps[0][1]
 
 
+def reference_engine(service: str, idle_speed_rpm: float, peak_torque_speed_fraction: float,
+                     idle_torque_fraction: float) -> ReferenceEngine:
+    """The reference engine of ``service`` (engines.toml) with the full-load shape given (the
+    engines.toml set of the row's duty class)."""
+    size = model_file(ENGINES_FILE)["reference_engine"][service]
+    return ReferenceEngine(displacement_L=size["displacement_L"], peak_torque_Nm=size["peak_torque_Nm"],
+                           rated_power_kW=size["rated_power_kW"], rated_speed_rpm=size["rated_speed_rpm"],
+                           cylinders=int(size["cylinders"]), idle_speed_rpm=idle_speed_rpm,
+                           peak_torque_speed_fraction=peak_torque_speed_fraction,
+                           idle_torque_fraction=idle_torque_fraction)
+
+
 @lru_cache(maxsize=None)
 def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, peak_torque_speed_fraction: float,
-                         idle_torque_fraction: float) -> dict:
-    """The fuel-equation constants (params.FUEL_CONSTANTS names) of a ``service``-class diesel of
-    ``model_year``; the last three arguments shape the reference engine's full-load curve (the
-    engines.toml set of the row's duty class)."""
-    data = model_file(ENGINES_FILE)
-    constants = dict(data["constants"])
-    engine = dict(data["reference_engine"][service], idle_speed_rpm=idle_speed_rpm,
-                  peak_torque_speed_fraction=peak_torque_speed_fraction, idle_torque_fraction=idle_torque_fraction)
-    eta = willans_slope_for_standard(standard_for(service, model_year), constants, engine, data["set_modes"])
-    return dict(constants, eta_indicated=eta)
-
-
-def with_heavy_duty_constants(engine_set: dict, vehicle, displacement_L: float) -> dict:
-    """``engine_set`` (params.engine_defaults) with the heavy-duty diesel constants for a
-    medium- or heavy-duty diesel ``vehicle`` (VehicleSpec) of ``displacement_L``; other
-    vehicles' sets are returned unchanged. Model year: the row's ``engine_model_year``
-    column (an engine older than its vehicle), else its ``model_year``, else the file's default."""
-    if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
-        return engine_set
-    year = engine_model_year(vehicle)
-    fitted = heavy_duty_constants(service_class(displacement_L), year, engine_set["idle_speed_rpm"],
-                                  engine_set["peak_torque_speed_fraction"], engine_set["idle_torque_fraction"])
-    return {**engine_set, **fitted}
+                         idle_torque_fraction: float) -> HeavyDutyFuelConstants:
+    """The fuel-equation constants of a ``service``-class diesel of ``model_year``: the
+    literature constants of engines.toml and the Willans slope that meets the SET standard."""
+    literature = HeavyDutyFuelConstants(eta_indicated=1.0, **model_file(ENGINES_FILE)["constants"])
+    engine = reference_engine(service, idle_speed_rpm, peak_torque_speed_fraction, idle_torque_fraction)
+    eta = willans_slope_for_standard(standard_for(service, model_year), literature, engine)
+    return replace(literature, eta_indicated=eta)
 
 
 def engine_model_year(vehicle) -> int:
@@ -147,16 +155,23 @@ def engine_model_year(vehicle) -> int:
     return int(model_file(ENGINES_FILE)["default_model_year"])
 
 
-def bsfc_map_g_per_kWh(engine: dict, constants: dict, speed_rpm, load_fraction):
+def heavy_duty_fuel_constants(vehicle, displacement_L: float, idle_speed_rpm: float,
+                              peak_torque_speed_fraction: float,
+                              idle_torque_fraction: float) -> HeavyDutyFuelConstants | None:
+    """The fuel constants of a medium- or heavy-duty diesel ``vehicle`` (VehicleSpec) of
+    ``displacement_L`` whose engine set (params.engine_defaults) has the given full-load
+    shape; None for any other vehicle (it keeps its set's constants)."""
+    if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
+        return None
+    return heavy_duty_constants(service_class(displacement_L), engine_model_year(vehicle), idle_speed_rpm,
+                                peak_torque_speed_fraction, idle_torque_fraction)
+
+
+def bsfc_map_g_per_kWh(engine: ReferenceEngine, constants: HeavyDutyFuelConstants, speed_rpm, load_fraction):
     """Brake-specific fuel consumption [g/kWh] of ``engine`` on a grid of speeds [rpm] x load
-    fractions of full-load torque (the fuel map the docs plot), accessories excluded."""
+    fractions of full-load torque (the fuel map the docs quote), accessories excluded."""
     n = np.asarray(speed_rpm, float)[:, None]
     torque = _full_load(engine, n) * np.asarray(load_fraction, float)[None, :]
-    disp = engine["displacement_L"]
-    terms = fuel_power_terms_W(torque, n, _full_load(engine, n), disp, stroke_m(disp, engine["cylinders"]),
-                               engine["peak_torque_Nm"], False)
-    coeffs = fuel_coefficients(constants["eta_indicated"], *(0.0 if k == "accessory_power_W" else constants[k]
-                                                             for k in CONSTANT_KEYS))
-    fuel = fuel_rate_g_per_s(terms, coeffs, True, fuel_properties("diesel").lhv_MJ_per_kg)
+    fuel = _engine_fuel_g_per_s(engine, constants, n, torque)
     with np.errstate(divide="ignore", invalid="ignore"):
         return fuel * 3.6e6 / (torque * n * RPM_RAD_S)

@@ -17,23 +17,24 @@ A row's own column of the same name still wins (params._get reads it first).
 from __future__ import annotations
 
 from fleetrun.resources import model_file
+from fleetrun.simulation.records import EconomyShiftSpeeds
 
 DRIVELINES_FILE = "heavy_duty/drivelines.toml"
 HEAVY_DUTIES = ("MD", "HD")
 
 
-def economy_shift_speeds_rpm(peak_torque_speed_rpm: float) -> dict:
-    """shift_speed_min_rpm, shift_speed_accel_rpm and launch_speed_rpm [rpm] of a heavy diesel
-    whose full-load torque peaks at ``peak_torque_speed_rpm``."""
+def economy_shift_speeds_rpm(peak_torque_speed_rpm: float) -> EconomyShiftSpeeds:
+    """Shift speeds [rpm] of a heavy diesel whose full-load torque peaks at
+    ``peak_torque_speed_rpm``."""
     k = model_file(DRIVELINES_FILE)["economy_shifting"]
-    return {"shift_speed_min_rpm": k["min_fraction"] * peak_torque_speed_rpm,
-            "shift_speed_accel_rpm": k["accel_fraction"] * peak_torque_speed_rpm,
-            "launch_speed_rpm": k["launch_fraction"] * peak_torque_speed_rpm}
+    return EconomyShiftSpeeds(shift_speed_min_rpm=k["min_fraction"] * peak_torque_speed_rpm,
+                              shift_speed_accel_rpm=k["accel_fraction"] * peak_torque_speed_rpm,
+                              launch_speed_rpm=k["launch_fraction"] * peak_torque_speed_rpm)
 
 
-def with_heavy_duty_shifting(transmission_set: dict, vehicle, peak_torque_speed_rpm: float) -> dict:
-    """``transmission_set`` (params.transmission_defaults) with the economy shift speeds for a
-    medium- or heavy-duty diesel ``vehicle``; other vehicles' sets are returned unchanged."""
+def heavy_duty_shift_speeds(vehicle, peak_torque_speed_rpm: float) -> EconomyShiftSpeeds | None:
+    """The economy shift speeds of a medium- or heavy-duty diesel ``vehicle`` (VehicleSpec);
+    None for any other vehicle (it keeps its gearbox set's speeds)."""
     if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
-        return transmission_set
-    return {**transmission_set, **economy_shift_speeds_rpm(peak_torque_speed_rpm)}
+        return None
+    return economy_shift_speeds_rpm(peak_torque_speed_rpm)

@@ -18,7 +18,7 @@ docs/simulation.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from operator import itemgetter
 from typing import Sequence
@@ -30,8 +30,8 @@ from fleetrun.errors import FleetrunError, InputError
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
-from fleetrun.simulation.heavy_duty_engine import with_heavy_duty_constants
-from fleetrun.simulation.heavy_duty_shift import with_heavy_duty_shifting
+from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
+from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.vehicle import VehicleSpec
@@ -241,6 +241,11 @@ def _ROW_CACHE(key) -> dict:
     return _row(key[0])
 
 
+def _with(defaults: dict, record) -> dict:
+    """``defaults`` with the fields of ``record`` (a heavy-duty record) on top; None: unchanged."""
+    return defaults if record is None else {**defaults, **asdict(record)}
+
+
 def _row(v: VehicleSpec) -> dict:
     """One vehicle's checked parameters with defaults filled in."""
     _check(v)
@@ -254,12 +259,13 @@ def _row(v: VehicleSpec) -> dict:
     n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
     n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
     n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
-    trn = with_heavy_duty_shifting(trn, v, n_pk)   # MD/HD diesels: models/heavy_duty/drivelines.toml
+    trn = _with(trn, heavy_duty_shift_speeds(v, n_pk))   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
                eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
-    eng = with_heavy_duty_constants(eng, v, disp)   # MD/HD diesels: models/heavy_duty/engines.toml
+    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng["idle_speed_rpm"], eng["peak_torque_speed_fraction"],
+                                               eng["idle_torque_fraction"]))   # MD/HD diesels: models/heavy_duty/
     cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
