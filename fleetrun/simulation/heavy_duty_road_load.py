@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.cycles import MPH_TO_MPS
-from fleetrun.simulation.road_load import G_MPS2, LBF_N
+from fleetrun.simulation.road_load import LBF_N
+from fleetrun.units import STANDARD_GRAVITY_M_S2 as G_MPS2
 
 AIR_DENSITY_KG_M3 = 1.2   # the density make_example_fleet.py and the FHWA class defaults use
 
