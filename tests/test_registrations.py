@@ -201,3 +201,14 @@ def test_import_registrations_then_run_lists_every_row(tmp_path):
     assert "Registrations" in openpyxl.load_workbook(out / "report.xlsx", read_only=True).sheetnames
     fiscal = pd.read_csv(out / "fiscal_summary.csv")
     assert fiscal[fiscal.fiscal_year == 2027].miles.sum() == pytest.approx(0.05e6, rel=1e-9)
+
+
+def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
+    """Beyond EPA Trends' last model year (2022, 26.0 mpg) new model years improve by the
+    scenario's rate: MY2026 at 5 %/yr uses 26.0 x 1.05^4 mpg; MY2022 keeps the table's value."""
+    s = scenario(first_fiscal_year=2026, budget_years=1, new_vehicle_mpg_change_pct_per_year=5.0)
+    rows = [{"vehicle_class": "automobile", "count": 10, "model_year": my, "fuel": "gasoline"} for my in (2022, 2026)]
+    e = expand(fleet_of(rows), [s])
+    by_year = {v.model_year: f for v, f in zip(e.vehicles, e.fuel_factor(s))}
+    assert by_year[2022] == pytest.approx(1.0, rel=1e-12)
+    assert by_year[2026] == pytest.approx(1 / 1.05 ** 4, rel=1e-12)
