@@ -282,10 +282,9 @@ def _arrays(acc: _Cohorts, h: int, path) -> Expansion:
                      choices=pd.DataFrame(acc.choices, columns=CHOICE_COLUMNS), warnings=warnings)
 
 
-def expand(fleet, scenarios, extra_rows=()) -> Expansion | None:
-    """The cohorts of ``fleet.registrations`` (and ``extra_rows``: (label, row) pairs of an
-    extract), or None when there are none."""
-    rows = [(f"Registrations!row {r['_row']}", r) for r in fleet.registrations] + list(extra_rows)
+def expand(fleet, scenarios) -> Expansion | None:
+    """The cohorts of ``fleet.registrations``, or None when there are none."""
+    rows = [(f"Registrations!row {r['_row']}", r) for r in fleet.registrations]
     if not rows:
         return None
     acc = _Cohorts(base_year(scenarios), {v.vehicle_id: v for v in fleet.vehicles})
