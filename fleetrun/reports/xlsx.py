@@ -80,17 +80,14 @@ class Sheet:
 
     def rows(self, columns: list[list], styles: list) -> None:
         """Many rows at once: ``columns`` are the table's columns as lists (a DataFrame's
-        ``tolist()``), ``styles`` one style name (or None) per column. The fast path."""
-        write = self.book.write
+        ``tolist()``), ``styles`` one style name (or None) per column; each cell as
+        :meth:`Book.write` writes it."""
+        cell, ws, index = self.book.cell, self.ws, self.row
         formats = [self.book.style(s) for s in styles]
-        number, index = self.ws.write_number, self.row
         for values in zip(*columns):
             for column, value in enumerate(values):
-                if type(value) is float:   # the common case first: a finite float
-                    if value - value == 0.0:
-                        number(index, column, value, formats[column])
-                elif value is not None:
-                    write(self.ws, index, column, value, styles[column])
+                if value is not None:
+                    cell(ws, index, column, value, styles[column], formats[column])
             index += 1
         self.row = index
 
@@ -115,14 +112,21 @@ class Book:
 
     def write(self, ws, row: int, column: int, value, style: str | None = None) -> None:
         """One cell: text as text, finite numbers as numbers, booleans, nothing for None/NaN."""
-        if isinstance(value, str):
+        self.cell(ws, row, column, value, style, self.style(style))
+
+    def cell(self, ws, row: int, column: int, value, style: str | None, cell_format) -> None:
+        """:meth:`write` with the style's Format already looked up (``cell_format``)."""
+        if type(value) is float:   # the common case first
+            if math.isfinite(value):
+                ws.write_number(row, column, value, cell_format)
+        elif isinstance(value, str):
             self.text(ws, row, column, value, style)
         elif isinstance(value, (bool, np.bool_)):
-            ws.write_boolean(row, column, bool(value), self.style(style))
+            ws.write_boolean(row, column, bool(value), cell_format)
         elif isinstance(value, (int, float)) or hasattr(value, "__float__") and not pd.isna(value):
             number = float(value)
             if math.isfinite(number):
-                ws.write_number(row, column, value if isinstance(value, int) else number, self.style(style))
+                ws.write_number(row, column, value if isinstance(value, int) else number, cell_format)
         elif value is not None and not pd.isna(value):
             self.text(ws, row, column, str(value), style)
 
