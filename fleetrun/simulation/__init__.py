@@ -13,7 +13,8 @@ import numpy as np
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
+                                      standstill_fuel_rate_g_per_s,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
@@ -279,7 +280,12 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
         if columns is not None:
             standstill_s = dt_all.sum() - dt_all[columns].sum()
-            fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
+            if has_technology(va):   # start-stop: engine off at the warm stops
+                still = _still(N, columns)
+                fuel_g = fuel_g + (standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])[0]
+                                   * dt_all[still]).sum(axis=1)
+            else:
+                fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
             if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
                 fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
         phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
@@ -379,6 +385,10 @@ def _every_step(va, t, columns, out, effects, plan):
         return out["fuel_rate_g_per_s"].copy(), out["engine_speed_rpm"].copy()
     rate = np.repeat(idle_fuel_rate_g_per_s(va)[:, None], N, axis=1)
     rpm = np.repeat(va.n_idle[:, None], N, axis=1)
+    if has_technology(va):   # start-stop: engine off at the warm stops
+        still = _still(N, columns)
+        rate[:, still], off_still = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])
+        rpm[:, still] = np.where(off_still, 0.0, rpm[:, still])
     if effects.vehicle:
         rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)
     rate[:, columns] = out["fuel_rate_g_per_s"]
