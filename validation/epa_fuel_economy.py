@@ -45,6 +45,7 @@ from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
+from fleetrun.simulation.core import technology_fuel_inputs  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
@@ -65,25 +66,31 @@ def trace_terms(va, tr):
     n, T, Tmax = tr["engine_speed_rpm"], tr["engine_torque_Nm"], tr["engine_max_torque_Nm"]
     cold = tr.get("cold_start_fuel_g_per_s", 0.0)
     dt = tr["_dt"] * ((tr["fuel_rate_g_per_s"] - cold) > 0)
+    if "engine_off" in tr:    # technology classes: no fuel equation while the engine is off
+        dt = dt * ~tr["engine_off"]
     inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * tr["_accel"] * tr["_v_avg"]
-    terms = fuel_power_terms_W(np.minimum(T, Tmax), n, Tmax, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial)
+    Tf = np.minimum(T, Tmax)
+    pumping, gain = technology_fuel_inputs(va, Tf, n, Tmax, tr["_v_avg"] > 1e-6, col)
+    terms = fuel_power_terms_W(Tf, n, Tmax, col(va.displacement_L), col(va.stroke_m),
+                               col(va.T_peak), col(va.throttled), inertial, pumping, gain)
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
-EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time")
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time")
 
 
 def trace_extras(va, tr):
-    """(V, N, 5) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
-    time [s] and the time the engine turns in fuel cut-off [s] (warm engine)."""
+    time [s], the time the engine turns in fuel cut-off [s] (warm engine) and the standstill
+    time with the engine off under start-stop [s] (technology classes: its fuel power is fitted)."""
     cold = tr.get("cold_start_fuel_g_per_s", 0.0)
     fueled = (tr["fuel_rate_g_per_s"] - cold) > 0
     dt, v = tr["_dt"], tr["_v_avg"]
     driving = dt * (fueled & (tr["wheel_power_W"] > 0))
+    stop_off = dt * (tr["engine_off"] & (v <= 0.0)) if "engine_off" in tr else np.zeros(dt.shape)
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr["engine_speed_rpm"] > 0))]
+           dt * (~fueled & (tr["engine_speed_rpm"] > 0)), stop_off]
     return np.stack(out, axis=2)
 
 
