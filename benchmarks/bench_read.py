@@ -1,4 +1,4 @@
-"""Benchmark reading and checking a fleet workbook (``fleetrun.fleet.read_fleet``).
+"""Benchmark reading and checking a fleet workbook (``fleetrun.workbook.read_fleet``).
 
     python benchmarks/bench_read.py [--rows 100000] [--repeat 3] [--keep DIR]
 
@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_run import workbook_from_args  # noqa: E402
 
-from fleetrun.fleet import read_fleet  # noqa: E402
+from fleetrun.workbook import read_fleet  # noqa: E402
 
 
 def main():

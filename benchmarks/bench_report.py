@@ -1,4 +1,4 @@
-"""Benchmark writing ``report.xlsx`` alone (``fleetrun.fleet.report_xlsx.write_report_xlsx``).
+"""Benchmark writing ``report.xlsx`` alone (``fleetrun.reports.xlsx.write_report_xlsx``).
 
     python benchmarks/bench_report.py [--rows 100000] [--repeat 3] [--keep DIR]
 
@@ -20,10 +20,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from bench_run import workbook_from_args  # noqa: E402
 
-from fleetrun.fleet import read_fleet  # noqa: E402
-from fleetrun.fleet.outputs import write_csv  # noqa: E402
-from fleetrun.fleet.report_xlsx import write_report_xlsx  # noqa: E402
-from fleetrun.fleet.runner import run_fleet  # noqa: E402
+from fleetrun.workbook import read_fleet  # noqa: E402
+from fleetrun.run.outputs import write_csv  # noqa: E402
+from fleetrun.reports.xlsx import write_report_xlsx  # noqa: E402
+from fleetrun.run.runner import run_fleet  # noqa: E402
 
 
 def _timed(function, repeat: int) -> list[float]:

@@ -30,7 +30,7 @@ import numpy as np
 
 from fleetrun import __version__
 from fleetrun.cycles import load_cycle
-from fleetrun.fleet.workbook import read_fleet
+from fleetrun.workbook.reader import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import simulate
 

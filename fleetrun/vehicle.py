@@ -1,6 +1,6 @@
 """A vehicle type as the fleet workbook describes it (CONTRACT.md, sheet ``Vehicles``).
 
-This dataclass is the hand-over between the workbook reader (``fleetrun.fleet``), the
+This dataclass is the hand-over between the workbook reader (``fleetrun.workbook``), the
 drive-cycle simulation (``fleetrun.simulation``) and the diagnosis at vehicle level.
 Units are in the field names; EPA road-load coefficients stay in the units EPA publishes.
 """

@@ -167,8 +167,8 @@ def heavy_rows() -> list[dict]:
 
 def build(output: Path) -> Path:
     from fleetrun.fileio import atomic_file
-    from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
-    from fleetrun.fleet.template import build_template
+    from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+    from fleetrun.workbook.template import build_template
 
     epa = pd.read_csv(EPA_CSV, encoding="utf-8-sig", low_memory=False)
     vehicles = light_duty_rows(epa) + heavy_rows()

@@ -22,7 +22,11 @@ LAYERS = (
     ("differential", ("fleetrun.differential",)),
     ("effects", ("fleetrun.effects",)),
     ("simulation", ("fleetrun.vehicle", "fleetrun.cycles", "fleetrun.simulation")),
-    ("fleet", ("fleetrun.fleet", "fleetrun.epa", "fleetrun.plots")),
+    ("workbook", ("fleetrun.workbook",)),
+    ("epa", ("fleetrun.epa", "fleetrun.plots")),
+    ("budget", ("fleetrun.budget",)),
+    ("reports", ("fleetrun.reports",)),
+    ("run", ("fleetrun.run",)),
     ("diagnose", ("fleetrun.diagnose",)),
     ("commands", ("fleetrun.commands", "fleetrun.cli", "fleetrun.__main__")),
     ("testing", ("fleetrun.testing",)),  # fixtures for tests and scripts: nothing imports them
@@ -127,5 +131,5 @@ def test_the_checks_can_fail():
     """The circle finder and the layer order see a planted circle and an upward arrow."""
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert layer_of("fleetrun.physics.lubricant") < layer_of("fleetrun.simulation.core")
-    assert layer_of("fleetrun.fleet.outputs") > layer_of("fleetrun.fileio")
+    assert layer_of("fleetrun.run.outputs") > layer_of("fleetrun.fileio")
     assert layer_of("fleetrun.commands.run") > layer_of("fleetrun.diagnose.engine")

@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from fleetrun.cli import cli
 from fleetrun.cycles import load_cycle
 from fleetrun.effects import efficiency_with_effects, parse_with
-from fleetrun.fleet.workbook import read_fleet
+from fleetrun.workbook.reader import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import SUM_FIELDS, diffmodes, simulate
 from fleetrun.testing.vehicles import ALL, CAMRY, F150, HD_DUAL, HD_TRUCK

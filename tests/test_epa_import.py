@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 from fleetrun.cli import cli
 from fleetrun.epa import import_test_car_list, rules
-from fleetrun.fleet import read_fleet
+from fleetrun.workbook import read_fleet
 from fleetrun.resources import inputs_dir
 
 REAL = inputs_dir() / "epa" / "22-tstcar.csv"

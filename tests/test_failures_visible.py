@@ -69,7 +69,7 @@ def test_oserror_on_the_users_path_is_a_user_mistake(monkeypatch, tmp_path):
 def test_run_without_log_still_keeps_the_traceback(tmp_path, monkeypatch):
     from test_fleet_fakes import small_fleet
 
-    from fleetrun.fleet import report_html
+    from fleetrun.reports import html as report_html
 
     fleet = small_fleet(tmp_path / "fleet.xlsx")
 

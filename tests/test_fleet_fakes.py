@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import openpyxl
 
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
-from fleetrun.fleet.template import write_template
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.workbook.template import write_template
 from fleetrun.simulation import FleetCycleResult
 
 CONFIG_ETA = {"LD_FWD": 0.96, "LD_RWD": 0.95, "LD_4WD": 0.93, "LD_AWD": 0.92, "HD_RWD": 0.955,
@@ -120,7 +120,7 @@ ERROR_FIXTURE = Path(__file__).parent / "data" / "fuel_economy_error_fixture.tom
 def injected(simulate=fake_simulate, error_model=ERROR_FIXTURE) -> dict:
     """What the tests hand ``fleetrun run`` through click's context object: the stand-in
     simulation and the fixture error distribution (None: no ranges)."""
-    from fleetrun.fleet.uncertainty import read_error_model
+    from fleetrun.budget.uncertainty import read_error_model
 
     return {"simulate": simulate, "error_model": read_error_model(error_model) if error_model else None}
 

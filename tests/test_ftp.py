@@ -244,7 +244,7 @@ def test_run_uses_the_composite(tmp_path):
     r = CliRunner().invoke(cli, ["run", str(path), "--out", str(out), "--cache-dir", str(tmp_path / "c"), "-q"])
     assert r.exit_code == 0, r.output
     row = read_csv(out / "results.csv").iloc[0]
-    from fleetrun.fleet.workbook import read_fleet
+    from fleetrun.workbook.reader import read_fleet
     spec = read_fleet(path).vehicles[0]
     direct = simulate([spec], "FTP", ambient_temp_C=5.0)
     assert row.mpg == pytest.approx(direct.mpg[0], rel=1e-9)

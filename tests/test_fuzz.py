@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fleetrun.cli import cli
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 SHORT_CYCLE = "time_s,speed_mps\n" + "".join(

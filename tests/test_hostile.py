@@ -269,7 +269,7 @@ def _is_number(text: str) -> bool:
 # --- half-old, half-new outputs ---------------------------------------------------------------
 
 def _outputs_consistent(folder: Path) -> bool:
-    from fleetrun.fleet.workbook import file_sha256
+    from fleetrun.workbook.reader import file_sha256
 
     manifest = json.loads((folder / "manifest.json").read_text())
     return all(file_sha256(folder / name) == digest for name, digest in manifest["outputs"].items())
@@ -362,7 +362,7 @@ def test_killed_between_moves_never_mixes_runs(tmp_path):
 
 def test_disk_full_is_an_input_error_naming_the_output(tmp_path, fake_simulation, monkeypatch):
     """Before: disk full -> exit 4 naming the input file."""
-    from fleetrun.fleet import report_html
+    from fleetrun.reports import html as report_html
 
     fleet = small_fleet(tmp_path / "fleet.xlsx")
 

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
-from fleetrun.fleet import runner
+from fleetrun.run import runner
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
 SHEETS = ["Summary", "Assumptions", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
@@ -227,7 +227,7 @@ def _cells(wb, ref: str):
 def test_efficiency_map_charts_point_at_the_rows_and_columns_their_legend_names(outputs):
     """Issue 12: the map charts were one row off (legend showing efficiencies, first torque
     row dropped, an empty row included). Read every series back and follow its references."""
-    from fleetrun.fleet.runner import MAP_SPEEDS_RPM, MAP_TORQUE_FRACTIONS
+    from fleetrun.run.runner import MAP_SPEEDS_RPM, MAP_TORQUE_FRACTIONS
 
     wb = openpyxl.load_workbook(outputs / "report.xlsx")
     charts = wb["Efficiency maps"]._charts

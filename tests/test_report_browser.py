@@ -18,7 +18,7 @@ from click.testing import CliRunner
 
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
-from fleetrun.fleet import runner
+from fleetrun.run import runner
 from test_fleet_fakes import scenario, vehicle, write_fleet
 
 pytestmark = pytest.mark.browser

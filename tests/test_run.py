@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 import test_fleet_fakes as fakes
 from fleetrun.cli import cli
-from fleetrun.fleet import runner
+from fleetrun.run import runner
 from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
 
 OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
@@ -95,7 +95,7 @@ def test_budget_years_growth_and_cycle_mix(tmp_path):
 
     v = fakes.fake_simulate
     per_mile = 0.0
-    from fleetrun.fleet import read_fleet
+    from fleetrun.workbook import read_fleet
 
     spec = read_fleet(path).vehicles[0]
     # on-road fuel by EPA's derived 5-cycle formulas, 40 CFR 600.210-12(a)(2): city (UDDS)
@@ -154,7 +154,7 @@ def test_failed_run_keeps_previous_good_outputs(fleet_path, tmp_path, monkeypatc
     def broken(*args, **kwargs):
         raise RuntimeError("disk on fire")
 
-    from fleetrun.fleet import report_html
+    from fleetrun.reports import html as report_html
 
     monkeypatch.setattr(report_html, "render_summary", broken)
     result = run(fleet_path, "--out", out, "--no-cache", "-q")
@@ -271,7 +271,7 @@ def test_heavy_vehicles_drive_their_own_cycle_mix(tmp_path):
     assert result.exit_code == 0, result.stderr
     assert sorted(fakes.CALLS) == [(1, "HD-UDDS", 20), (1, "HWFET", 20), (1, "UDDS", 20)]
     from fleetrun.cycles import load_cycle
-    from fleetrun.fleet import read_fleet
+    from fleetrun.workbook import read_fleet
 
     spec = read_fleet(path).vehicle("TRUCK")
     sim = fakes.fake_simulate([spec], load_cycle("HD-UDDS"))

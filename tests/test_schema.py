@@ -7,10 +7,10 @@ from pathlib import Path
 import openpyxl
 import pytest
 
-from fleetrun.fleet.cells import CellProblem
-from fleetrun.fleet.rows import parse_value
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, SIDECAR_COLUMNS, VEHICLE_COLUMNS
-from fleetrun.fleet.template import write_template
+from fleetrun.workbook.cells import CellProblem
+from fleetrun.workbook.rows import parse_value
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, SIDECAR_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.workbook.template import write_template
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "workbook.md"
 NUMERIC = [c for c in VEHICLE_COLUMNS + SCENARIO_COLUMNS + SIDECAR_COLUMNS if c.numeric]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fleetrun.cycles import load_cycle
-from fleetrun.fleet.workbook import read_fleet
+from fleetrun.workbook.reader import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import DEFAULT_MODE, simulate
 from fleetrun.simulation import diffmodes

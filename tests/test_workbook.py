@@ -2,18 +2,24 @@
 from __future__ import annotations
 
 import io
+import os
+import subprocess
+import sys
 import zipfile
+from pathlib import Path
 
 import openpyxl
 from openpyxl.utils import get_column_letter
 import pytest
 from click.testing import CliRunner
 
+import fleetrun
 from fleetrun.cli import cli
 from fleetrun.errors import InputError
-from fleetrun.fleet import read_fleet
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
-from fleetrun.fleet.template import write_template
+from fleetrun.resources import inputs_dir
+from fleetrun.workbook import read_fleet
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.workbook.template import write_template
 from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
 
@@ -278,7 +284,7 @@ def test_large_fleet_reads_fast(tmp_path):
 
     from openpyxl import Workbook
 
-    from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+    from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 
     wb = Workbook(write_only=True)
     ws = wb.create_sheet("Vehicles")
@@ -311,11 +317,6 @@ def test_duty_class_cycle_mixes_checked(tmp_path):
 
 
 def test_shipped_example_fleet_is_clean_and_reproducible(tmp_path):
-    import subprocess
-    import sys
-
-    from fleetrun.resources import inputs_dir
-
     shipped = inputs_dir() / "example_fleet.xlsx"
     result = CliRunner().invoke(cli, ["validate", str(shipped)])
     assert result.exit_code == 0 and result.stderr == "", result.stderr
@@ -326,6 +327,9 @@ def test_shipped_example_fleet_is_clean_and_reproducible(tmp_path):
     assert [s.scenario_id for s in fleet.scenarios] == ["baseline", "hot_summer", "congested_urban"]
     rebuilt = tmp_path / "rebuilt.xlsx"
     script = inputs_dir() / "make_example_fleet.py"
-    subprocess.run([sys.executable, str(script), "-o", str(rebuilt)], check=True, capture_output=True)
+    # The script imports fleetrun: this checkout's, installed or not.
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(fleetrun.__file__).parents[1]),
+                                                                      os.environ.get("PYTHONPATH")]))}
+    subprocess.run([sys.executable, str(script), "-o", str(rebuilt)], check=True, capture_output=True, env=env)
     again = read_fleet(rebuilt)
     assert again.vehicles == fleet.vehicles and again.scenarios == fleet.scenarios

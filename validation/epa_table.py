@@ -50,7 +50,7 @@ def epa_fleet(path=TSTCAR):
     engine facts and measured mpg per test (NaN where not measured)."""
     from fleetrun.epa import import_test_car_list
     from fleetrun.epa.writer import write_fleet_workbook
-    from fleetrun.fleet.workbook import read_fleet
+    from fleetrun.workbook.reader import read_fleet
 
     result = import_test_car_list(path)
     with tempfile.TemporaryDirectory() as tmp:

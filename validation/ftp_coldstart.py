@@ -32,7 +32,7 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fleetrun.fleet.workbook import read_fleet  # noqa: E402
+from fleetrun.workbook.reader import read_fleet  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 

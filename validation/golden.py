@@ -125,7 +125,7 @@ def library_simulations(out: Path, tmp: Path) -> None:
 import sys
 from pathlib import Path
 import numpy as np
-from fleetrun.fleet.workbook import read_fleet
+from fleetrun.workbook.reader import read_fleet
 from fleetrun.simulation import simulate, SUM_FIELDS
 out, fleet, cache = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
 vehicles = read_fleet(fleet).vehicles

@@ -143,7 +143,7 @@ def camry_vehicle(dyno_dir=None, extra=None, **fields):
     (``rolling_radius_factor_from_n_per_v``), optional ``extra`` overrides (simulation keys
     such as ``transient_factor``) and replaced VehicleSpec ``fields``."""
     from fleetrun.resources import inputs_dir
-    from fleetrun.fleet.vehicle_file import read_vehicle_toml
+    from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     vehicle = read_vehicle_toml(folder / "camry2018_udds_hot.toml")

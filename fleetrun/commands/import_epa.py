@@ -24,7 +24,7 @@ def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, 
     from fleetrun.epa import import_test_car_list
     from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
     from fleetrun.fileio import refuse_replacing_inputs
-    from fleetrun.fleet.workbook import file_sha256
+    from fleetrun.workbook.reader import file_sha256
 
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")

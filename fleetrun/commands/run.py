@@ -15,7 +15,7 @@ from pathlib import Path
 
 import click
 
-from fleetrun.fleet.engines import ENGINES
+from fleetrun.run.engines import ENGINES
 
 
 @click.command("run")
@@ -49,7 +49,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
     from fleetrun.effects import parse_with
-    from fleetrun.fleet import batch
+    from fleetrun.run import batch
 
     settings: dict = {}
     if config is not None:

@@ -57,14 +57,14 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
             raise click.UsageError("give FLEET.xlsx or --vehicle-file, not both")
         if scenario_id:
             raise click.UsageError("--scenario needs FLEET.xlsx")
-        from fleetrun.fleet.vehicle_file import read_vehicle_toml
+        from fleetrun.workbook.vehicle_file import read_vehicle_toml
         vehicle = read_vehicle_toml(vehicle_file)
     else:
         if not fleet_file:
             raise click.UsageError("give FLEET.xlsx (with --vehicle ID) or --vehicle-file VEHICLE.toml")
         if not vehicle_id:
             raise click.UsageError("--vehicle ID is required with FLEET.xlsx")
-        from fleetrun.fleet.workbook import read_fleet
+        from fleetrun.workbook.reader import read_fleet
         fleet = read_fleet(fleet_file)
         try:
             vehicle = fleet.vehicle(vehicle_id)

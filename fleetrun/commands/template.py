@@ -15,7 +15,7 @@ from fleetrun.errors import InputError
 def command(output: Path, force: bool):
     """Write a fleet workbook template: Vehicles and Scenarios sheets with headers,
     drop-down lists, two example rows each, and an Instructions sheet."""
-    from fleetrun.fleet.template import write_template
+    from fleetrun.workbook.template import write_template
 
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx.")

@@ -12,7 +12,7 @@ import click
 def command(workbook: Path, strict: bool):
     """Check FLEET.xlsx: every problem at once (exit 1), warnings for implausible values."""
     from fleetrun.errors import InputError
-    from fleetrun.fleet import read_fleet
+    from fleetrun.workbook import read_fleet
 
     fleet = read_fleet(workbook)   # on errors, stderr holds just the one Error: message
     for warning in fleet.warnings:

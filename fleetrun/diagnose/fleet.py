@@ -468,7 +468,7 @@ def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) ->
 # ----------------------------------------------------------------------------- the diagnosis
 def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> FleetProblem:
     """Read the workbook and the measured results, simulate, and set up the residuals."""
-    from fleetrun.fleet.workbook import read_fleet
+    from fleetrun.workbook.reader import read_fleet
 
     fleet = read_fleet(fleet_path)
     vehicles = fleet.vehicles

@@ -85,10 +85,10 @@ def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path
 
 def check_sidecar_numbers(sidecar: dict, meta_path: Path) -> None:
     """Every differential-level sidecar value within the range its Vehicles/Scenarios column
-    has (fleetrun.fleet.schema.SIDECAR_COLUMNS); InputError naming the file and key."""
-    from fleetrun.fleet.cells import CellProblem
-    from fleetrun.fleet.rows import parse_value
-    from fleetrun.fleet.schema import SIDECAR_COLUMNS
+    has (fleetrun.workbook.schema.SIDECAR_COLUMNS); InputError naming the file and key."""
+    from fleetrun.workbook.cells import CellProblem
+    from fleetrun.workbook.rows import parse_value
+    from fleetrun.workbook.schema import SIDECAR_COLUMNS
 
     for column in SIDECAR_COLUMNS:
         value = sidecar.get(column.name)

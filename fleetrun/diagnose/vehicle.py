@@ -54,7 +54,7 @@ def engine_on(time_s, speed_mps, fuel_g_per_s, dt_s) -> np.ndarray:
 
 
 def _vehicle(rec: Recording):
-    from fleetrun.fleet.vehicle_file import read_vehicle_toml
+    from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
     if rec.meta_path is None:
         raise InputError("a vehicle-level recording needs a sidecar with one Vehicles row", file=rec.path)

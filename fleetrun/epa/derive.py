@@ -27,7 +27,7 @@ from fleetrun.epa import rules
 from fleetrun.epa.measured import measured_results
 from fleetrun.epa.technology import match_configuration
 from fleetrun.epa.vehicle import vehicle_row
-from fleetrun.fleet.schema import VEHICLE_COLUMNS, columns_by_name
+from fleetrun.workbook.schema import VEHICLE_COLUMNS, columns_by_name
 
 
 @dataclass

@@ -18,7 +18,7 @@ from fleetrun.cycles import shipped_cycles
 from fleetrun.epa import rules
 from fleetrun.epa.derive import ImportResult
 from fleetrun.fileio import atomic_file
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET
 
 MEASURED_COLUMNS = ("vehicle_id", "test", "mpg", "manufacturer", "make", "model", "model_year", "n_tests",
                     "test_numbers", "procedure", "csv_rows")

@@ -13,7 +13,7 @@ the backward simulation. The chain from the wheels back to the wall (constants i
   from the wall, SAE J1634).
 
 The result is the dynamometer (cycle) energy; the on-road factor (EPA's 0.7 for labels) is the
-budget's (:func:`fleetrun.fleet.budget.electric_onroad_factor`).
+budget's (:func:`fleetrun.budget.arithmetic.electric_onroad_factor`).
 """
 from __future__ import annotations
 

@@ -372,7 +372,7 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
     from fleetrun.resources import inputs_dir
     from fleetrun.simulation import simulate
     from fleetrun.simulation.params import willans_slope
-    from fleetrun.fleet.vehicle_file import read_vehicle_toml
+    from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
     vehicle_toml = vehicle_toml or inputs_dir() / "dyno" / "camry2018_udds_hot.toml"
     spec = read_vehicle_toml(vehicle_toml)

@@ -190,9 +190,9 @@ def teardown_logging(handlers) -> None:
 
 def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
     """Read, simulate and write one fleet; raises on failure (nothing written then)."""
-    from fleetrun.fleet.outputs import refuse_overwriting_inputs, write_run_outputs
-    from fleetrun.fleet.runner import CHUNK_SIZE, run_fleet
-    from fleetrun.fleet.workbook import read_fleet
+    from fleetrun.run.outputs import refuse_overwriting_inputs, write_run_outputs
+    from fleetrun.run.runner import CHUNK_SIZE, run_fleet
+    from fleetrun.workbook.reader import read_fleet
 
     started = time.perf_counter()
     fleet = read_fleet(fleet_path)
@@ -222,8 +222,8 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
 def _what_changed(result, out_dir: Path, fleet_path: Path) -> dict | None:
     """Compare with the run already in ``out_dir`` (inputs' sha256, totals by scenario): the
     comparison goes on ``result.changes`` and into the log; the earlier manifest, or None."""
-    from fleetrun.fleet.changes import compare, describe, read_earlier, scenario_totals_dict
-    from fleetrun.fleet.manifest import manifest_dict
+    from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
+    from fleetrun.reports.manifest import manifest_dict
 
     earlier = read_earlier(out_dir)
     if earlier is None:
@@ -236,7 +236,7 @@ def _what_changed(result, out_dir: Path, fleet_path: Path) -> dict | None:
 
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:
     """Run every fleet in the plan; return (exit code, error lines, what was written)."""
-    from fleetrun.fleet.engines import make_engine
+    from fleetrun.run.engines import make_engine
 
     errors: list[str] = []
     internal = False

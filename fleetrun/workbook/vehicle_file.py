@@ -1,6 +1,6 @@
 """A vehicle from a TOML file with the keys of one Vehicles row (like inputs/dyno/*.toml).
 
-Values are parsed by the workbook's rules (:mod:`fleetrun.fleet.rows`, ranges included), so a
+Values are parsed by the workbook's rules (:mod:`fleetrun.workbook.rows`, ranges included), so a
 TOML vehicle and a workbook row mean the same thing; keys that are not Vehicles columns go to
 ``VehicleSpec.extra`` (simulation overrides such as ``eta_indicated``).
 """
@@ -10,8 +10,8 @@ import tomllib
 from pathlib import Path
 
 from fleetrun.errors import InputError
-from fleetrun.fleet import rows
-from fleetrun.fleet.schema import VEHICLE_COLUMNS
+from fleetrun.workbook import rows
+from fleetrun.workbook.schema import VEHICLE_COLUMNS
 from fleetrun.vehicle import VehicleSpec
 
 
@@ -32,7 +32,7 @@ def read_vehicle_toml(path) -> VehicleSpec:
 
 def vehicle_from_mapping(data: dict, path: Path) -> VehicleSpec:
     """The VehicleSpec of a Vehicles row given as a mapping (a vehicle TOML file), parsed by
-    the workbook's rules (:mod:`fleetrun.fleet.rows`); InputError naming the file and the key
+    the workbook's rules (:mod:`fleetrun.workbook.rows`); InputError naming the file and the key
     of the first problem. Warnings (implausible values) are not reported here."""
 
     def report(name: str, text: str, warning: bool = False):

@@ -2,7 +2,7 @@
 
 OWASP, "CSV Injection": a cell starting with one of :data:`FORMULA_START` is taken as a
 formula by Excel, LibreOffice and Google Sheets. The CSVs get a leading apostrophe
-(:func:`fleetrun.fleet.outputs.write_csv`, column by column); report.xlsx writes such text as
+(:func:`fleetrun.run.outputs.write_csv`, column by column); report.xlsx writes such text as
 a text cell with Excel's quote prefix (the stored form of a typed ``'``), so it shows as
 typed and stays text when edited.
 """

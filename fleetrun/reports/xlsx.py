@@ -11,7 +11,7 @@ is the exact copy (shortest round-trip repr). Non-finite numbers are never writt
 cell stays empty). Every text is written as a text cell, never a formula or a link
 (``strings_to_formulas``, ``strings_to_urls``, ``strings_to_numbers`` all off); a text that a
 spreadsheet would take for a formula (``=HYPERLINK(...)``, ``+cmd|...``,
-:mod:`fleetrun.fleet.text_cells`) also gets Excel's quote prefix, so it stays text when a
+:mod:`fleetrun.workbook.text_cells`) also gets Excel's quote prefix, so it stays text when a
 user edits the cell.
 """
 from __future__ import annotations
@@ -24,11 +24,11 @@ import pandas as pd
 import xlsxwriter
 from xlsxwriter.utility import xl_col_to_name
 
-from fleetrun.fleet.charts import efficiency_scale
-from fleetrun.fleet.runner import RunResult
-from fleetrun.fleet.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
-from fleetrun.fleet.text_cells import looks_like_formula
-from fleetrun.fleet.totals import scenario_totals, yearly_totals
+from fleetrun.reports.charts import efficiency_scale
+from fleetrun.budget.result import RunResult
+from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
+from fleetrun.workbook.text_cells import looks_like_formula
+from fleetrun.budget.totals import scenario_totals, yearly_totals
 
 #: Cell styles by name (XlsxWriter format properties); any other style name is a number format.
 STYLES = {
@@ -258,7 +258,7 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
 def _summary_words(sheet: Sheet, result: RunResult) -> int:
     """The headline of each scenario (rounded to its range; state and federal apart) and
     where the ranges come from; the last row written."""
-    from fleetrun.fleet import report_text
+    from fleetrun.reports import text as report_text
 
     ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
@@ -285,7 +285,7 @@ ASSUMPTION_WIDTH = 48   # characters per scenario column of the Assumptions shee
 
 def _assumptions(book: Book, result: RunResult):
     """One column per scenario, one row per assumption (report_text.assumptions)."""
-    from fleetrun.fleet import report_text
+    from fleetrun.reports import text as report_text
 
     sheet = Sheet(book, "Assumptions")
     page_setup(sheet)
@@ -485,7 +485,7 @@ def _inputs(book: Book, result: RunResult):
 
 
 def _run_info(book: Book, result: RunResult):
-    from fleetrun.fleet.manifest import manifest_dict, physics_label
+    from fleetrun.reports.manifest import manifest_dict, physics_label
 
     sheet = Sheet(book, "RunInfo")
     page_setup(sheet, landscape=False, title_row=None)
@@ -515,7 +515,7 @@ def _run_info(book: Book, result: RunResult):
 
 
 def _what_changed(book: Book, result: RunResult):
-    """The comparison with the run that was in the output folder (fleetrun.fleet.changes)."""
+    """The comparison with the run that was in the output folder (fleetrun.reports.changes)."""
     sheet = Sheet(book, "What changed")
     page_setup(sheet, title_row=None)
     for column, width in enumerate((40, 18, 20, 20, 14)):

@@ -12,11 +12,12 @@ from pathlib import Path
 import jinja2
 
 from fleetrun import __version__
-from fleetrun.fleet import charts, report_text
-from fleetrun.fleet.changes import describe as describe_changes
-from fleetrun.fleet.manifest import manifest_dict, physics_label
-from fleetrun.fleet.runner import RunResult
-from fleetrun.fleet.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
+from fleetrun.reports import charts
+from fleetrun.reports import text as report_text
+from fleetrun.reports.changes import describe as describe_changes
+from fleetrun.reports.manifest import manifest_dict, physics_label
+from fleetrun.budget.result import RunResult
+from fleetrun.budget.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
 
 CLASS_TABLE_COLUMNS = CLASS_COLUMNS[:9]   # the class_summary.csv contract columns

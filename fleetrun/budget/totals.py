@@ -4,7 +4,7 @@ How the numbers are put together (also in docs/report.md):
 
 - A scenario's ``cycle_mix`` shares are shares of each vehicle's annual miles (MD and HD
   vehicles drive ``cycle_mix_MD`` / ``cycle_mix_HD`` where given). Per cycle, cycle fuel per
-  mile becomes on-road fuel per mile (:func:`fleetrun.fleet.budget.onroad_gal_per_mile`);
+  mile becomes on-road fuel per mile (:func:`fleetrun.budget.arithmetic.onroad_gal_per_mile`);
   fuel per mile on the mix is ``sum_c share_c * onroad_c``; likewise each energy per mile.
 - Budget miles per vehicle are ``annual_miles * sum_{y=1..Y} (1 + g)^(y-1)``; totals are over
   ``count`` vehicles. Gallons = miles x gallons per mile; taxes = gallons x the rate of the
@@ -12,7 +12,7 @@ How the numbers are put together (also in docs/report.md):
 - Calibration (``calibrate_to_observed`` = yes): each fuel's gallons are scaled by observed /
   modelled gallons of the first fiscal year; ``fuel_gal_uncalibrated_total`` keeps the raw ones.
 - ``fuel_gal_low_total`` / ``fuel_gal_high_total``: the range from the measured model error
-  (:mod:`fleetrun.fleet.uncertainty`); empty without an error file, equal to the total when
+  (:mod:`fleetrun.budget.uncertainty`); empty without an error file, equal to the total when
   calibrated (the level then comes from collections, not from the model).
 - Class and fiscal rows are exact sums (``math.fsum``) of the vehicle rows; each fiscal row is
   the group's total x the year's share of the miles, the last year absorbing the rounding so
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from fleetrun.fleet import budget
-from fleetrun.fleet.schema import DUTY_CLASSES
+from fleetrun.budget import arithmetic as budget
+from fleetrun.workbook.schema import DUTY_CLASSES
 from fleetrun.units import METERS_PER_MILE
 
 ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",

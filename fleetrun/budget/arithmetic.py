@@ -4,7 +4,7 @@ One owner for each budget fact (constants in ``models/budget.toml``, with their 
 
 - on-road fuel from cycle fuel: EPA's derived 5-cycle label formulas (40 CFR 600.210-12(a)(2)),
   ``none`` or a scenario factor (:func:`onroad_gal_per_mile`);
-- tax rates per fuel: :meth:`fleetrun.fleet.workbook.Scenario.state_tax_usd_per_gal` and
+- tax rates per fuel: :meth:`fleetrun.workbook.reader.Scenario.state_tax_usd_per_gal` and
   ``federal_tax_usd_per_gal``, looked up for arrays by :func:`tax_rates`;
 - CO2 per gallon (EPA-420-F-11-041, the fuel table ``models/fuels.toml``): :func:`co2_t`;
 - budget year y -> fiscal year ``first_fiscal_year + y - 1`` and its share of the budget

@@ -11,7 +11,7 @@ SCHEMA = "fleetrun.run/1"
 
 
 def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
-    from fleetrun.fleet.changes import scenario_totals_dict
+    from fleetrun.reports.changes import scenario_totals_dict
 
     inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
     inputs += [{"role": "drive cycle", "path": path, "sha256": sha}

@@ -1,7 +1,7 @@
 """Write a blank fleet workbook: the two sheets with headers, drop-downs and two example rows.
 
 ``write_template(path)`` is what ``fleetrun template -o new.xlsx`` runs. The columns, notes
-and drop-down choices come from :mod:`fleetrun.fleet.schema`, the same lists the reader checks.
+and drop-down choices come from :mod:`fleetrun.workbook.schema`, the same lists the reader checks.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from openpyxl.styles import Alignment, Font, PatternFill
 from openpyxl.utils import get_column_letter
 from openpyxl.worksheet.datavalidation import DataValidation
 
-from fleetrun.fleet.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
+from fleetrun.workbook.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 
 HEADER_FILL = PatternFill("solid", fgColor="1F4E78")

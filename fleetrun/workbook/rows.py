@@ -13,9 +13,9 @@ from collections.abc import Callable
 from functools import lru_cache
 
 from fleetrun.errors import InputError
-from fleetrun.fleet import cells
-from fleetrun.fleet.cells import CellProblem
-from fleetrun.fleet.schema import DUAL_CONFIGURATIONS, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
+from fleetrun.workbook import cells
+from fleetrun.workbook.cells import CellProblem
+from fleetrun.workbook.schema import DUAL_CONFIGURATIONS, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
 from fleetrun.vehicle import VehicleSpec
 
 MAX_GEARS = 20

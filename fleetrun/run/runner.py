@@ -3,7 +3,7 @@
 Every vehicle type is simulated once per distinct (drive cycle, ambient temperature) that the
 chosen scenarios use, in chunks of vehicles (the unit of work for both engines). The budget
 arithmetic (on-road fuel, mixes, budget years, taxes, calibration, fiscal years, ranges) is
-in :mod:`fleetrun.fleet.totals` and :mod:`fleetrun.fleet.budget` (also docs/report.md).
+in :mod:`fleetrun.budget.totals` and :mod:`fleetrun.budget.arithmetic` (also docs/report.md).
 
 ``diff_efficiency`` = differential output energy / input energy and ``drivetrain_efficiency``
 = wheel energy / drivetrain input energy, both summed over the mix's miles (energy-weighted).
@@ -12,16 +12,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 import pandas as pd
 
-from fleetrun.fleet.schema import DUTY_CLASSES
-from fleetrun.fleet.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
+from fleetrun.workbook.schema import DUTY_CLASSES
+from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
                                    aggregate_vehicles, fiscal_summary)
-from fleetrun.fleet.workbook import Fleet, Scenario
+from fleetrun.budget.result import RunResult
+from fleetrun.workbook.reader import Fleet, Scenario
 from fleetrun.vehicle import VehicleSpec
 
 __all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "RESULTS_COLUMNS", "CLASS_COLUMNS"]
@@ -49,35 +50,6 @@ class SimulationTask:
     cache_dir: str | None
     simulate: Callable | None = None   # None: fleetrun.simulation.simulate
     effects: tuple = ()                # --with: (effect id, params) pairs, plain data for any worker
-
-
-@dataclass
-class RunResult:
-    fleet: Fleet
-    scenarios: list[Scenario]
-    results: pd.DataFrame
-    classes: pd.DataFrame
-    fiscal: pd.DataFrame                       # fiscal_summary.csv
-    cycles: dict[str, dict]
-    maps: list[dict]
-    warnings: list[str]
-    timings_s: dict[str, float]
-    engine: dict
-    physics: str
-    mode: str
-    cycle_inputs: dict[str, str] = field(default_factory=dict)   # CSV path -> sha256
-    effects: list = field(default_factory=list)   # --with: [{"effect", "level", "parameters"}]
-    created_utc: str = field(default_factory=lambda: _now_utc())
-    distinct_vehicles: int = 0                 # physically distinct vehicles simulated
-    calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
-    error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
-    changes: dict | None = None                # changes.compare with the run already in the folder
-
-
-def _now_utc() -> str:
-    import datetime as dt
-
-    return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat()
 
 
 @lru_cache(maxsize=32)
@@ -121,10 +93,10 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     applied in every simulation (each cycle of a mix is driven from a cold start).
     ``simulate``: the simulation function (default ``fleetrun.simulation.simulate``; tests pass
     a stand-in). ``error_model``: the measured fuel-economy error behind the ranges
-    (:func:`fleetrun.fleet.uncertainty.read_error_model`; ``"default"`` reads models/, None: no ranges).
+    (:func:`fleetrun.budget.uncertainty.read_error_model`; ``"default"`` reads models/, None: no ranges).
     """
     from fleetrun.effects import as_effect_list
-    from fleetrun.fleet.engines import LocalEngine
+    from fleetrun.run.engines import LocalEngine
 
     started = time.perf_counter()
     effect_pairs = tuple((e.id, tuple(sorted(p.items()))) for e, p in as_effect_list(effects))
@@ -151,7 +123,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     warnings = list(fleet.warnings) + _map_grid_notes(fleet, mode) + _shortfall_warnings(vehicles, shortfalls)
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
-        from fleetrun.fleet.uncertainty import read_error_model
+        from fleetrun.budget.uncertainty import read_error_model
 
         error_model = read_error_model()
     if error_model is None:
@@ -395,7 +367,7 @@ def _shipped_cycle_file(name: str):
 def _cycle_info(names) -> dict[str, dict]:
     from pathlib import Path
 
-    from fleetrun.fleet.workbook import file_sha256
+    from fleetrun.workbook.reader import file_sha256
 
     info = {}
     for name in sorted(names):

@@ -21,9 +21,9 @@ from pathlib import Path
 from openpyxl.utils import column_index_from_string, get_column_letter
 
 from fleetrun.errors import InputError
-from fleetrun.fleet import cells, rows
-from fleetrun.fleet.cells import CellProblem
-from fleetrun.fleet.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
+from fleetrun.workbook import cells, rows
+from fleetrun.workbook.cells import CellProblem
+from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
                                    SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.vehicle import VehicleSpec
@@ -168,8 +168,8 @@ def read_fleet(path) -> Fleet:
     """Read, validate and return the fleet in ``path``; InputError lists every problem."""
     from python_calamine import CalamineError
 
-    from fleetrun.fleet.xlsx_read import XlsxBook
-    from fleetrun.fleet.xlsx_safety import HINT, check_xlsx, scan_sheets
+    from fleetrun.workbook.xlsx_read import XlsxBook
+    from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, scan_sheets
 
     path = Path(path)
     check_xlsx(path)

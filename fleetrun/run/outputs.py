@@ -9,7 +9,7 @@ from pathlib import Path
 
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
-from fleetrun.fleet.text_cells import FORMULA_START
+from fleetrun.workbook.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
                 "manifest.json")
@@ -17,7 +17,7 @@ OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv
 
 def write_csv(frame, path: Path) -> None:
     """``frame`` as CSV with a leading ``'`` on every text cell that starts like a formula
-    (:data:`fleetrun.fleet.text_cells.FORMULA_START`); numeric columns are written as numbers,
+    (:data:`fleetrun.workbook.text_cells.FORMULA_START`); numeric columns are written as numbers,
     unchanged."""
     safe = frame.copy(deep=False)
     for name in safe.columns:
@@ -47,12 +47,12 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
     """Write the six outputs of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
     the run already there, whose files are then kept in ``earlier-runs/``
-    (:func:`fleetrun.fleet.changes.keep_earlier_run`); None replaces it."""
-    from fleetrun.fleet.changes import keep_earlier_run
-    from fleetrun.fleet.manifest import write_manifest
-    from fleetrun.fleet.report_html import write_summary_html
-    from fleetrun.fleet.report_xlsx import write_report_xlsx
-    from fleetrun.fleet.workbook import file_sha256
+    (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
+    from fleetrun.reports.changes import keep_earlier_run
+    from fleetrun.reports.manifest import write_manifest
+    from fleetrun.reports.html import write_summary_html
+    from fleetrun.reports.xlsx import write_report_xlsx
+    from fleetrun.workbook.reader import file_sha256
     from fleetrun.output_folder import new_output_folder
 
     out_dir = Path(out_dir)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from fleetrun.fleet import budget
+from fleetrun.budget import arithmetic as budget
 
 SCALES = ((1e9, "billion"), (1e6, "million"), (1e3, "thousand"))
 

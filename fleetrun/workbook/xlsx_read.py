@@ -1,7 +1,7 @@
 """The cell values of a fleet workbook's sheets, read by python-calamine.
 
 python-calamine (Rust calamine) reads a 100,000-row sheet in about 2 s and does not expand XML
-entities. What it does not report, the pre-scan of :mod:`fleetrun.fleet.xlsx_safety` does in
+entities. What it does not report, the pre-scan of :mod:`fleetrun.workbook.xlsx_safety` does in
 the same safety pass: formulas whose result was never saved, hidden rows and columns. That
 pre-scan must run first: it refuses the cell references that would make any reader of a dense
 table allocate without bound.
@@ -14,7 +14,7 @@ from pathlib import Path
 from python_calamine import CalamineWorkbook, SheetTypeEnum, SheetVisibleEnum
 from xlsxwriter.utility import xl_col_to_name
 
-from fleetrun.fleet.xlsx_safety import SheetScan
+from fleetrun.workbook.xlsx_safety import SheetScan
 
 
 def _state(visible) -> str:
