@@ -12,7 +12,7 @@ from typing import Sequence
 import numpy as np
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
-from fleetrun.simulation import diffmodes
+from fleetrun.simulation import diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
                                       standstill_fuel_rate_g_per_s,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
@@ -171,7 +171,7 @@ def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
              physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None,
-             thermal: ThermalConstants | None = None) -> FleetCycleResult:
+             thermal: ThermalConstants | None = None, calibrate: bool = True) -> FleetCycleResult:
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
@@ -180,7 +180,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
     ``effects``: physics the thesis left out (a ``--with`` string, or what
     ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
-    cold-start constants (default ``models/thermal.toml``). See docs/simulation.md."""
+    cold-start constants (default ``models/thermal.toml``). ``calibrate``: apply the rows'
+    ``measured_ftp_mpg`` / ``label_combined_mpg`` (simulation/measured.py). See docs/simulation.md."""
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
@@ -248,7 +249,41 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         phase_results(result, plan, sums, va.density)
     if trace and V:
         result.trace = sums["trace"]
+    if calibrate and V:
+        _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
     return result
+
+
+_NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
+
+
+def _nominal_mpg(vehicles, cycle, mode, physics, cache_dir) -> np.ndarray:
+    """Simulated mpg of ``vehicles`` on ``cycle`` at EPA's nominal 25 C, uncalibrated (remembered)."""
+    keys = [(v.physics_key(), cycle, mode, physics) for v in vehicles]
+    todo = [i for i, key in enumerate(keys) if key not in _NOMINAL_MPG]
+    if todo:
+        mpg = simulate([vehicles[i] for i in todo], cycle, mode=mode, physics=physics, cache_dir=cache_dir,
+                       ambient_temp_C=measured.NOMINAL_AMBIENT_C, calibrate=False).mpg
+        _NOMINAL_MPG.update({keys[i]: m for i, m in zip(todo, mpg)})
+    return np.array([_NOMINAL_MPG[key] for key in keys], float)
+
+
+def _calibrate_on_measured(result, vehicles, cycle_name, ambient_temp_C, mode, physics, cache_dir) -> None:
+    """Scale the fuel of vehicles with a measured FTP or label figure (simulation/measured.py)."""
+    ftp, label = measured.measured_figures(vehicles)
+    rows = np.flatnonzero(np.isfinite(ftp) | np.isfinite(label))
+    if rows.size == 0:
+        return
+    sub = [vehicles[i] for i in rows]
+    sim_ftp = _nominal_mpg(sub, "FTP", mode, physics, cache_dir)
+    sim_hwfet = (_nominal_mpg(sub, "HWFET", mode, physics, cache_dir) if np.isnan(ftp[rows]).any()
+                 else np.full(rows.size, np.nan))
+    k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet)
+    at_nominal = abs(ambient_temp_C - measured.NOMINAL_AMBIENT_C) < 1e-9
+    exact = at_nominal & ((cycle_name == "FTP") | ((cycle_name == "HWFET") & np.isnan(ftp[rows])))
+    factor = np.ones(len(vehicles))
+    factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
+    measured.scale_result(result, factor)
 
 
 SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff_output_energy_J",

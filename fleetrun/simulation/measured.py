@@ -1,0 +1,68 @@
+"""One measured number per vehicle: the optional Vehicles columns ``measured_ftp_mpg`` (the
+vehicle's measured FTP composite, unadjusted) or ``label_combined_mpg`` (its EPA label
+combined figure) calibrate its efficiency (docs/simulation.md "One measured number").
+
+The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
+nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
+600.210-12, city 1/mpg = 0.003259 + 1.1805/mpg_FTP, highway 1/mpg = 0.001376 + 1.3466/mpg_HWFET,
+combined 55 % city, 45 % highway). On that test the fuel is multiplied by k exactly; on every
+other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
+one global constant fitted with manufacturers held out (validation/epa_technology.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.resources import model_file
+
+NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
+LABEL_CITY = (0.003259, 1.1805)      # 1/mpg_label = intercept + slope / mpg_test (40 CFR 600.210-12)
+LABEL_HIGHWAY = (0.001376, 1.3466)
+LABEL_CITY_SHARE = 0.55
+FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
+
+
+def transfer_share() -> float:
+    """The share (in log) of a vehicle's calibration carried to other cycles (models/technology.toml)."""
+    return float(model_file("technology.toml")["fitted"]["transfer_share"])
+
+
+def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
+    """(measured FTP, label combined) mpg per vehicle, NaN where blank."""
+    def column(name):
+        return np.array([np.nan if getattr(v, name, None) is None else float(getattr(v, name)) for v in vehicles])
+    return column("measured_ftp_mpg"), column("label_combined_mpg")
+
+
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
+    """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
+    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k."""
+    a = LABEL_CITY_SHARE * LABEL_CITY[0] + (1 - LABEL_CITY_SHARE) * LABEL_HIGHWAY[0]
+    b = LABEL_CITY_SHARE * LABEL_CITY[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * LABEL_HIGHWAY[1] / hwfet_mpg
+    return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
+
+
+def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg):
+    """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
+    from the label; NaN where neither figure is given."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
+        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg))
+
+
+def carried_scale(k, exact, share):
+    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere."""
+    k = np.asarray(k, float)
+    return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
+
+
+def scale_result(result, factor) -> None:
+    """Multiply a FleetCycleResult's fuel (totals, phases, trace fuel rate) by ``factor`` (V,)."""
+    result.fuel_g = result.fuel_g * factor
+    result.fuel_gal = result.fuel_gal * factor
+    result.mpg = result.mpg / factor
+    for phase in result.phases.values():
+        phase["fuel_g"], phase["fuel_gal"], phase["mpg"] = (phase["fuel_g"] * factor, phase["fuel_gal"] * factor,
+                                                            phase["mpg"] / factor)
+    if result.trace is not None and "fuel_rate_g_per_s" in result.trace:
+        result.trace["fuel_rate_g_per_s"] = result.trace["fuel_rate_g_per_s"] * factor[:, None]
