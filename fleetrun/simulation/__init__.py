@@ -180,8 +180,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
     ``effects``: physics the thesis left out (a ``--with`` string, or what
     ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
-    cold-start constants (default ``models/thermal.toml``). ``calibrate``: apply the rows'
-    ``measured_ftp_mpg`` / ``label_combined_mpg`` (simulation/measured.py). See docs/simulation.md."""
+    cold-start constants (default ``models/thermal.toml``). ``calibrate``: apply measured figures. See docs/simulation.md."""
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
@@ -249,9 +248,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         phase_results(result, plan, sums, va.density)
     if trace and V:
         result.trace = sums["trace"]
-    if calibrate and V:
-        _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
-    return result
+    return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir) if calibrate and V else result
 
 
 _NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
@@ -269,11 +266,12 @@ def _nominal_mpg(vehicles, cycle, mode, physics, cache_dir) -> np.ndarray:
 
 
 def _calibrate_on_measured(result, vehicles, cycle_name, ambient_temp_C, mode, physics, cache_dir) -> None:
-    """Scale the fuel of vehicles with a measured FTP or label figure (simulation/measured.py)."""
+    """Scale the fuel of vehicles with a measured FTP or label figure (simulation/measured.py);
+    returns ``result``."""
     ftp, label = measured.measured_figures(vehicles)
     rows = np.flatnonzero(np.isfinite(ftp) | np.isfinite(label))
     if rows.size == 0:
-        return
+        return result
     sub = [vehicles[i] for i in rows]
     sim_ftp = _nominal_mpg(sub, "FTP", mode, physics, cache_dir)
     sim_hwfet = (_nominal_mpg(sub, "HWFET", mode, physics, cache_dir) if np.isnan(ftp[rows]).any()
@@ -284,6 +282,7 @@ def _calibrate_on_measured(result, vehicles, cycle_name, ambient_temp_C, mode, p
     factor = np.ones(len(vehicles))
     factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
     measured.scale_result(result, factor)
+    return result
 
 
 SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff_output_energy_J",
