@@ -39,7 +39,10 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import epa_fuel_economy as efe  # noqa: E402
+from epa_alpha import alpha_table  # noqa: E402
 from epa_table import epa_fleet  # noqa: E402
+
+from fleetrun.epa.technology import match_configuration  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
@@ -163,6 +166,35 @@ def datasets(specs, table):
     return efe.build_dataset(bare, table), efe.build_dataset(specs, table)
 
 
+def omega_classes(specs) -> list[str]:
+    """Each vehicle's OMEGA class by the import's join ('' when it does not join)."""
+    return [match_configuration(v.manufacturer, v.engine_displacement_L, v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph,
+                                v.coastdown_C_lbf_per_mph2).cost_curve_class for v in specs]
+
+
+def alpha_errors(specs, table, index):
+    """ALPHA's errors (vehicles ``index`` x tests) as published, and with its mean log error per
+    test estimated without each manufacturer removed (its CO2-to-mpg conversion and test-fuel
+    differences are one constant per test)."""
+    a = alpha_table([specs[i] for i in index], omega_classes([specs[i] for i in index]))
+    raw = pd.DataFrame({t: a[t].to_numpy() / table[t].to_numpy()[index] - 1.0 for t in TESTS}, index=index)
+    mf = table.manufacturer.to_numpy()[index]
+    scaled = raw.copy()
+    for t in TESTS:
+        log = np.log1p(raw[t].to_numpy())
+        for g in np.unique(mf):
+            other = (mf != g) & np.isfinite(log)
+            scaled.loc[mf == g, t] = np.expm1(log[mf == g] - log[other].mean())
+    return raw, scaled
+
+
+def blend(err_a, err_b):
+    """Geometric mean of two predictions' mpg (equal weights, nothing fitted)."""
+    common = err_a.index.intersection(err_b.index)
+    return pd.DataFrame({t: np.expm1(0.5 * (np.log1p(err_a.loc[common, t]) + np.log1p(err_b.loc[common, t])))
+                         for t in TESTS}, index=common)
+
+
 def run(specs, table):
     joined = np.array([v.technology is not None for v in specs])
     rep = drive_mode_groups(specs)
@@ -186,6 +218,11 @@ def run(specs, table):
     r["full_transfer"] = one_number(r["pairs"], np.ones(len(r["pairs"])))
     r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=(STOP_COLUMN,))
     r.update(joined=np.flatnonzero(joined), unjoined=np.flatnonzero(~joined), paired_table=paired, single=single)
+    alpha_rows = r["pairs"].index.intersection(r["joined"])
+    r["alpha"], r["alpha_scaled"] = alpha_errors(specs, paired, alpha_rows.to_numpy())
+    r["blend"] = blend(r["pairs"], r["alpha_scaled"])
+    s_b, _ = fit_transfer_share(r["blend"], mf[r["blend"].index])
+    r["blend_one_number"] = one_number(r["blend"], s_b)
     return r
 
 
@@ -199,6 +236,13 @@ def report(r, table):
         for rows_name in ("joined", "unjoined", None):
             rows = None if rows_name is None else r[rows_name]
             lines.append(line(f"{name} [{rows_name or 'all'}]", r[key], rows))
+    for name, key in (("ALPHA surfaces as published", "alpha"), ("ALPHA, mean error removed held out", "alpha_scaled"),
+                      ("fleetrun + ALPHA geometric mean", "blend"), ("  + one measured FTP", "blend_one_number")):
+        lines.append(line(f"{name} [joined]", r[key]))
+    a, f = r["alpha_scaled"], r["pairs"].loc[r["alpha_scaled"].index]
+    lines.append("correlation of fleetrun and ALPHA errors (joined): " + ", ".join(
+        f"{t} {np.corrcoef(*[x[t].to_numpy()[np.isfinite(x[t]) & np.isfinite(y[t])] for x, y in ((a, f), (f, a))])[0, 1]:.2f}"
+        for t in TESTS))
     s = np.array(list(r["sigma_folds"].values()))
     lines.append(f"transfer share: all {r['sigma_all']:.3f}; folds {s.min():.3f}-{s.max():.3f}")
     stop = [f["gasoline"][-1] for f in r["folds"].values()]
