@@ -18,7 +18,7 @@ from fleetrun.errors import InputError
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import measured, simulate
 from fleetrun.simulation import technology as tech
-from fleetrun.simulation.core import idle_fuel_rate_g_per_s
+from fleetrun.simulation.core import idle_fuel_rate_g_per_s, trace_kinematics
 from fleetrun.simulation.params import vehicle_arrays
 from fleetrun.testing.vehicles import CAMRY
 
@@ -78,9 +78,9 @@ def test_mild_hybrid_returns_no_more_than_the_braking_energy_it_could_take():
     mh = dataclasses.replace(CAMRY, technology="mild_hybrid_48v")
     r0, r1 = simulate([CAMRY], "UDDS", trace=True), simulate([mh], "UDDS", trace=True)
     c = tech.technology_constants()
-    dt, wheel = r0.trace["_dt"][0], r0.trace["wheel_power_W"][0]
-    ceiling = c.round_trip_efficiency * (np.clip(-wheel, 0, c.motor_power_W["mild_hybrid_48v"]) * dt).sum()
-    work = lambda r: (np.maximum(r.trace["engine_power_W"][0], 0) * dt).sum()  # noqa: E731
+    dt, wheel = np.broadcast_to(trace_kinematics(r0.trace).dt, r0.trace.wheel_power_W.shape)[0], r0.trace.wheel_power_W[0]
+    ceiling = c.round_trip_efficiency * (np.clip(-wheel, 0, c.motor_power_48v_W) * dt).sum()
+    work = lambda r: (np.maximum(r.trace.engine_power_W[0], 0) * dt).sum()  # noqa: E731
     saved = work(r0) - work(r1)
     assert 0 < saved <= ceiling * (1 + 1e-9)
     assert saved <= c.max_assist_share * work(r0) * (1 + 1e-9)

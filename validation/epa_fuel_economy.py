@@ -45,9 +45,10 @@ from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
-from fleetrun.simulation.core import technology_fuel_inputs  # noqa: E402
+from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
+from fleetrun.simulation.technology import technology_constants  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 
 GAL_L = 3.785411784
@@ -63,14 +64,14 @@ THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enric
 def trace_terms(va, tr):
     """(V, N, 8) terms x dt over the fuelled steps of a trace (warm engine)."""
     col = lambda x: x[:, None]  # noqa: E731
-    n, T, Tmax = tr["engine_speed_rpm"], tr["engine_torque_Nm"], tr["engine_max_torque_Nm"]
-    cold = tr.get("cold_start_fuel_g_per_s", 0.0)
-    dt = tr["_dt"] * ((tr["fuel_rate_g_per_s"] - cold) > 0)
-    if "engine_off" in tr:    # technology classes: no fuel equation while the engine is off
-        dt = dt * ~tr["engine_off"]
-    inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * tr["_accel"] * tr["_v_avg"]
+    n, T, Tmax = tr.engine_speed_rpm, tr.engine_torque_Nm, tr.engine_max_torque_Nm
+    k = trace_kinematics(tr)
+    # technology classes: an engine that is off (start-stop stops, hybrids coasting) stands still
+    # (speed 0) and its fuel, if any, is the fitted stop power, not the fuel equation
+    dt = np.broadcast_to(k.dt, n.shape) * (((tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0) & (n > 0))
+    inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     Tf = np.minimum(T, Tmax)
-    pumping, gain = technology_fuel_inputs(va, Tf, n, Tmax, tr["_v_avg"] > 1e-6, col)
+    pumping, gain = technology_fuel_inputs(va, Tf, n, Tmax, k.v_avg > 1e-6, col)
     terms = fuel_power_terms_W(Tf, n, Tmax, col(va.displacement_L), col(va.stroke_m),
                                col(va.T_peak), col(va.throttled), inertial, pumping, gain)
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
@@ -83,14 +84,17 @@ def trace_extras(va, tr):
     """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
     time [s], the time the engine turns in fuel cut-off [s] (warm engine) and the standstill
-    time with the engine off under start-stop [s] (technology classes: its fuel power is fitted)."""
-    cold = tr.get("cold_start_fuel_g_per_s", 0.0)
-    fueled = (tr["fuel_rate_g_per_s"] - cold) > 0
-    dt, v = tr["_dt"], tr["_v_avg"]
-    driving = dt * (fueled & (tr["wheel_power_W"] > 0))
-    stop_off = dt * (tr["engine_off"] & (v <= 0.0)) if "engine_off" in tr else np.zeros(dt.shape)
+    time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
+    the engine stands still, outside a composed cycle's soak)."""
+    fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
+    k = trace_kinematics(tr)
+    dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
+    driving = dt * (fueled & (tr.wheel_power_W > 0))
+    named = tr.phase != ""
+    in_cycle = named if named.any() else True       # the FTP's soak has no phase name
+    stop_off = dt * ((tr.engine_speed_rpm <= 0) & (v <= 0.0) & in_cycle)
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr["engine_speed_rpm"] > 0)), stop_off]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off]
     return np.stack(out, axis=2)
 
 
@@ -104,12 +108,12 @@ def cycle_sums(specs, cycle):
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
-            phase = np.asarray(tr["phase"])
-            cold = tr["cold_start_fuel_g_per_s"] * tr["_dt"]
+            phase = np.asarray(tr.phase)
+            cold = tr.cold_start_fuel_g_per_s * trace_kinematics(tr).dt
             for k, name in enumerate(BAGS):
                 m = phase == name if phase.dtype.kind in "UO" else phase == k
-                parts.setdefault(name, []).append(((terms * m[..., None]).sum(axis=1), r.phases[name]["miles"],
-                                                   r.phases[name]["fuel_g"], (cold * m).sum(axis=1)))
+                parts.setdefault(name, []).append(((terms * m[..., None]).sum(axis=1), r.phases[name].miles,
+                                                   r.phases[name].fuel_g, (cold * m).sum(axis=1)))
         else:
             parts.setdefault("", []).append((terms.sum(axis=1), r.miles, r.fuel_g, np.zeros(va.n)))
     return {k: tuple(np.concatenate([p[i] for p in v]) for i in range(4)) for k, v in parts.items()}
@@ -340,7 +344,7 @@ def bag_ratio_grid(specs, table):
         ratios = []
         for a in range(0, len(chosen), CHUNK):
             ph = simulate(chosen[a:a + CHUNK], "FTP", mode=MODE, ambient_temp_C=AMBIENT_C, thermal=k).phases
-            per_mile = {b: ph[b]["fuel_g"] / ph[b]["miles"] for b in BAGS}
+            per_mile = {b: ph[b].fuel_g / ph[b].miles for b in BAGS}
             ratios.append(np.stack([per_mile["bag1"] / per_mile["bag3"], per_mile["bag2"] / per_mile["bag3"]], axis=1))
         grid[point] = np.concatenate(ratios)
     measured = np.stack([table["FTP:bag3"] / table["FTP:bag1"], table["FTP:bag3"] / table["FTP:bag2"]], axis=1)[keep]
@@ -550,17 +554,28 @@ def _summary_line(label, s):
         f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
 
 
+STOP = ("X_stop_off_time",)   # start-stop's stop power is fitted with the constants (models/technology.toml)
+
+
 def run(specs, table):
     """Dataset, held-out predictions, final fit and summaries."""
     d = build_dataset(specs, table)
     own = (design(d) * coefficients_of(d.attrs["constants"][d.vehicle])).sum(axis=1)
+    own = own + d.X_stop_off_time.to_numpy() * technology_constants().stop_fuel_power_W / (d.lhv.to_numpy() * 1e3)
     warm_sim = (d.sim_fuel_g - d.cold_g).to_numpy()
     gap = float(np.max(np.abs(own / warm_sim - 1.0)))
-    pred, folds = held_out(d, table)
-    final = fit(d)
+    pred, folds = held_out(d, table, extra=STOP)
+    final = fit(d, extra=STOP)
     return dict(d=d, gap=gap, pred=pred, folds=folds, final=final,
                 err=relative_errors(pred, table), err_sim=relative_errors(errors(d, d.sim_fuel_g.to_numpy()), table),
-                err_in=relative_errors(errors(d, predicted_fuel_g(d, final)), table))
+                err_in=relative_errors(errors(d, predicted_fuel_g(d, final, STOP)), table))
+
+
+def write_stop_power(final, path):
+    """The fitted start-stop stop power [W] into models/technology.toml [fitted]."""
+    text = Path(path).read_text()
+    Path(path).write_text(re.sub(r"stop_fuel_power_W = [0-9.eE+-]+", f"stop_fuel_power_W = {final['gasoline'][-1]:.1f}",
+                                 text))
 
 
 def main(argv=None):
@@ -604,6 +619,7 @@ def main(argv=None):
             print(line, flush=True)
     if args.write:
         write_calibration_toml(r["final"], r["folds"], ROOT / "models" / "engine_calibration.toml", len(specs))
+        write_stop_power(r["final"], ROOT / "models" / "technology.toml")
         write_error_toml(s, ROOT / "models" / "fuel_economy_error.toml")
     return r, table
 

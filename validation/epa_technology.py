@@ -19,7 +19,7 @@ do not; fleetrun/epa/technology.py):
    estimated without each manufacturer and removed from its predictions; random
    100-vehicle fleets.
 
-``--write``: models/technology.toml [fitted] (stop power, transfer share) and
+``--write``: models/technology.toml [fitted] transfer_share (the stop power: epa_fuel_economy.py --write) and
 models/fuel_economy_bias.toml.
 """
 from __future__ import annotations
@@ -258,19 +258,10 @@ def report(r, table):
 
 
 def write_models(r):
+    """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
+    and models/fuel_economy_bias.toml."""
     path = ROOT / "models" / "technology.toml"
-    text = path.read_text()
-    stop = r["final"]["gasoline"][-1]
-    text = re.sub(r"stop_fuel_power_W = [0-9.eE+-]+", f"stop_fuel_power_W = {stop:.1f}", text)
-    share = r["sigma_all"]
-    if "transfer_share" in text:
-        text = re.sub(r"transfer_share = [0-9.eE+-]+", f"transfer_share = {share:.3f}", text)
-    else:
-        text += (f"# Share (in log) of a vehicle's measured-FTP correction carried to other cycles, ambient and "
-                 f"scenarios\n# (validation/epa_technology.py, manufacturers held out: folds "
-                 f"{min(r['sigma_folds'].values()):.3f}-{max(r['sigma_folds'].values()):.3f}).\n"
-                 f"transfer_share = {share:.3f}\n")
-    path.write_text(text)
+    path.write_text(re.sub(r"transfer_share = [0-9.eE+-]+", f"transfer_share = {r['sigma_all']:.3f}", path.read_text()))
     b = r["bias_pairs"]
     f = np.array([v - 1.0 for v in b["fold_factors"].values()])
     (ROOT / "models" / "fuel_economy_bias.toml").write_text("\n".join([

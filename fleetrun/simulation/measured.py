@@ -11,6 +11,8 @@ one global constant fitted with manufacturers held out (validation/epa_technolog
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from fleetrun.resources import model_file
@@ -56,13 +58,11 @@ def carried_scale(k, exact, share):
     return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
 
 
-def scale_result(result, factor) -> None:
-    """Multiply a FleetCycleResult's fuel (totals, phases, trace fuel rate) by ``factor`` (V,)."""
-    result.fuel_g = result.fuel_g * factor
-    result.fuel_gal = result.fuel_gal * factor
-    result.mpg = result.mpg / factor
-    for phase in result.phases.values():
-        phase["fuel_g"], phase["fuel_gal"], phase["mpg"] = (phase["fuel_g"] * factor, phase["fuel_gal"] * factor,
-                                                            phase["mpg"] / factor)
-    if result.trace is not None and "fuel_rate_g_per_s" in result.trace:
-        result.trace["fuel_rate_g_per_s"] = result.trace["fuel_rate_g_per_s"] * factor[:, None]
+def scale_result(result, factor):
+    """A FleetCycleResult with its fuel (totals, phases, trace fuel rate) multiplied by ``factor`` (V,)."""
+    phases = {name: replace(p, fuel_g=p.fuel_g * factor, fuel_gal=p.fuel_gal * factor, mpg=p.mpg / factor)
+              for name, p in result.phases.items()}
+    trace = (None if result.trace is None else
+             replace(result.trace, fuel_rate_g_per_s=result.trace.fuel_rate_g_per_s * factor[:, None]))
+    return replace(result, fuel_g=result.fuel_g * factor, fuel_gal=result.fuel_gal * factor, mpg=result.mpg / factor,
+                   phases=phases, trace=trace)

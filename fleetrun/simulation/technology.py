@@ -46,11 +46,13 @@ def parse_technology(text) -> tuple[bool, ...]:
 class TechnologyConstants:
     inhibit_after_cold_start_s: float
     round_trip_efficiency: float
-    motor_power_W: dict
+    motor_power_48v_W: float
+    motor_power_p2_W: float
     max_assist_share: float
     pumping_retained: float
     compression_ratio_base: float
-    compression_ratio: dict
+    compression_ratio_atkinson: float
+    compression_ratio_miller: float
     gamma: float
     deac_max_load: float
     deac_min_rpm: float
@@ -66,8 +68,9 @@ def technology_constants() -> TechnologyConstants:
     h, a, d = m["hybrid"], m["atkinson"], m["cylinder_deactivation"]
     return TechnologyConstants(
         m["start_stop"]["inhibit_after_cold_start_s"], h["round_trip_efficiency"],
-        {k: 1e3 * v for k, v in h["motor_power_kW"].items()}, h["max_assist_share"], a["pumping_retained"],
-        a["compression_ratio_base"], dict(a["compression_ratio"]), a["gamma"], d["max_load"], d["min_rpm"],
+        1e3 * h["motor_power_kW"]["mild_hybrid_48v"], 1e3 * h["motor_power_kW"]["p2_hybrid"], h["max_assist_share"],
+        a["pumping_retained"], a["compression_ratio_base"], a["compression_ratio"]["atkinson"],
+        a["compression_ratio"]["miller"], a["gamma"], d["max_load"], d["min_rpm"],
         d["max_rpm"], m["turbo"]["na_bmep_kPa"], m["fitted"]["stop_fuel_power_W"])
 
 
