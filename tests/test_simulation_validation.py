@@ -116,7 +116,7 @@ def test_camry_tyre_radius_from_epa_n_over_v():
 
 def test_camry_hwfet_gap_is_steady_cruise(camry):
     """After the hot-UDDS calibration the HWFET gap sits in cruise (3-10 % low; +12.3 % with the
-    earlier generic engine), less in accelerations (within 5 % with issue 10's constants, +5.6 %
+    earlier generic engine), less in accelerations (within 5 % with issue 10's constants, +5.0 %
     with the refit of issue 22's technology classes: within 7 % and below the cruise gap)."""
     modes = camry_modes(camry)
     hw = modes["HWFET"]
