@@ -175,22 +175,43 @@ def _flag(va: VehicleArrays, name: str) -> np.ndarray:
     return va.technology[:, tech.TECHNOLOGIES.index(name)]
 
 
+def _rows_with(va: VehicleArrays, *names: str):
+    """Indices of the vehicles that have any of the technology classes ``names`` (a full slice
+    when all have: no copies)."""
+    rows = np.flatnonzero(np.logical_or.reduce([_flag(va, name) for name in names]))
+    return slice(None) if rows.size == va.n else rows
+
+
+def _any(rows) -> bool:
+    return isinstance(rows, slice) or rows.size > 0
+
+
+def _pick(va: VehicleArrays, a, rows):
+    """``a`` for the vehicles ``rows`` when it has one row per vehicle, else ``a`` (a shared row or scalar)."""
+    a = np.asarray(a)
+    return a[rows] if a.ndim and a.shape[0] == va.n else a
+
+
 def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
     """The throttle-pumping share and brake-work multiplier of each vehicle's technology
     classes (simulation/technology.py) for :func:`engine.fuel_power_terms_W`; (None, None)
-    when no vehicle has any."""
+    when no vehicle has any. Each class is evaluated on its own vehicles' rows only."""
     if not has_technology(va):
         return None, None
     c = tech.technology_constants()
     load = load_fraction(torque_Nm, max_torque_Nm)
     share = 1.0 - load
-    share = np.where(col(_flag(va, "turbo")), tech.boosted_pumping_share(torque_Nm, col(va.displacement_L),
-                                                                         c.na_bmep_kPa), share)
-    late_ivc = col(_flag(va, "atkinson") | _flag(va, "miller"))
-    share = np.where(late_ivc, tech.atkinson_pumping_share(share, c.pumping_retained), share)
-    share = np.where(col(_flag(va, "cylinder_deactivation")),
-                     tech.deactivated_pumping_share(share, load, np.asarray(speed_rpm, float), moving, c.deac_max_load,
-                                                    c.deac_min_rpm, c.deac_max_rpm), share)
+    rows = _rows_with(va, "turbo")
+    if _any(rows):
+        share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]), c.na_bmep_kPa)
+    rows = _rows_with(va, "atkinson", "miller")
+    if _any(rows):
+        share[rows] = tech.atkinson_pumping_share(share[rows], c.pumping_retained)
+    rows = _rows_with(va, "cylinder_deactivation")
+    if _any(rows):
+        share[rows] = tech.deactivated_pumping_share(share[rows], load[rows], _pick(va, speed_rpm, rows),
+                                                     _pick(va, moving, rows), c.deac_max_load, c.deac_min_rpm,
+                                                     c.deac_max_rpm)
     gain = np.ones(va.n)
     for name, ratio in (("atkinson", c.compression_ratio_atkinson), ("miller", c.compression_ratio_miller)):
         gain = np.where(_flag(va, name), tech.expansion_ratio_gain(ratio, c.compression_ratio_base, c.gamma), gain)
@@ -203,13 +224,17 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
     c = tech.technology_constants()
     hybrid = _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid")
     torque = engine_torque
-    if hybrid.any():
-        motor_W = np.where(_flag(va, "p2_hybrid"), c.motor_power_p2_W, c.motor_power_48v_W)
-        recovered = tech.recovered_braking_energy_J(np.broadcast_to(wheel_power, engine_torque.shape), k.dt,
-                                                    np.where(hybrid, motor_W, 0.0), c.round_trip_efficiency)
-        positive = (np.maximum(engine_torque, 0.0) * engine_rpm / RPM * k.dt).sum(axis=1)
+    rows = _rows_with(va, "mild_hybrid_48v", "p2_hybrid")
+    if _any(rows):
+        motor_W = np.where(_flag(va, "p2_hybrid")[rows], c.motor_power_p2_W, c.motor_power_48v_W)
+        dt = _pick(va, k.dt, rows)
+        recovered = tech.recovered_braking_energy_J(_pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows),
+                                                    dt, motor_W, c.round_trip_efficiency)
+        own = engine_torque[rows]
+        positive = (np.maximum(own, 0.0) * engine_rpm[rows] / RPM * dt).sum(axis=1)
         keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
-        torque = np.where(engine_torque > 0, engine_torque * _col(keep), engine_torque)
+        torque = engine_torque.copy()
+        torque[rows] = np.where(own > 0, own * keep[:, None], own)
     stop_off = _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
                                                                                  c.inhibit_after_cold_start_s)
     coast_off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
