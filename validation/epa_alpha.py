@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from fleetrun.cycles import FTP_HOT_WEIGHT, FTP_TRANSIENT_WEIGHT
+
 ROOT = Path(__file__).resolve().parents[1]
 RSE = ROOT / "inputs" / "epa" / "omega_alpha_rse_my2022.csv"
 G_CO2_PER_GAL = {"gasoline": 8887.0, "diesel": 10180.0}
@@ -57,7 +59,8 @@ def alpha_mpg(cost_curve_class, etw_lb, rated_hp, a, b, c, fuel) -> dict:
     values = {"ETW": etw_lb, "RLHP20": roadload_hp(a, b, c, 20.0) / etw_lb, "RLHP60": roadload_hp(a, b, c, 60.0) / etw_lb,
               "HP_ETW": rated_hp / etw_lb}
     co2 = {k.split(":")[0].removeprefix("cs_"): evaluate(v, values) for k, v in row.items()}
-    ftp = (0.43 * co2["ftp_1"] * UDDS_MI[0] + co2["ftp_2"] * UDDS_MI[1] + 0.57 * co2["ftp_3"] * UDDS_MI[0]) / sum(UDDS_MI)
+    ftp = (FTP_TRANSIENT_WEIGHT * co2["ftp_1"] * UDDS_MI[0] + co2["ftp_2"] * UDDS_MI[1]
+           + FTP_HOT_WEIGHT * co2["ftp_3"] * UDDS_MI[0]) / sum(UDDS_MI)
     us06 = (co2["us06_1"] * US06_MI[0] + co2["us06_2"] * US06_MI[1]) / sum(US06_MI)
     per_gal = G_CO2_PER_GAL[fuel]
     return {"FTP": per_gal / ftp, "HWFET": per_gal / co2["hwfet"], "US06": per_gal / us06}

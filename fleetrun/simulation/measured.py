@@ -5,7 +5,7 @@ combined figure) calibrate its efficiency (docs/simulation.md "One measured numb
 The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
 nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
 600.210-12, city 1/mpg = 0.003259 + 1.1805/mpg_FTP, highway 1/mpg = 0.001376 + 1.3466/mpg_HWFET,
-combined 55 % city, 45 % highway). On that test the fuel is multiplied by k exactly; on every
+combined 55 % city, 45 % highway; the formulas' constants are models/budget.toml's). On that test the fuel is multiplied by k exactly; on every
 other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
 one global constant fitted with manufacturers held out (validation/epa_technology.py).
 """
@@ -18,9 +18,7 @@ import numpy as np
 from fleetrun.resources import model_file
 
 NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
-LABEL_CITY = (0.003259, 1.1805)      # 1/mpg_label = intercept + slope / mpg_test (40 CFR 600.210-12)
-LABEL_HIGHWAY = (0.001376, 1.3466)
-LABEL_CITY_SHARE = 0.55
+LABEL_CITY_SHARE = 0.55   # the label's combined figure: 55 % city, 45 % highway (40 CFR 600.210-12(c))
 FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
 
 
@@ -36,11 +34,19 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     return column("measured_ftp_mpg"), column("label_combined_mpg")
 
 
+def label_formulas() -> tuple[tuple[float, float], tuple[float, float]]:
+    """(intercept [gal/mi], slope) of EPA's city and highway label formulas (their owner:
+    models/budget.toml [onroad.epa_label])."""
+    label = model_file("budget.toml")["onroad"]["epa_label"]
+    return tuple((label[kind]["intercept_gal_per_mile"], label[kind]["slope"]) for kind in ("city", "highway"))
+
+
 def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
     """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
     by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k."""
-    a = LABEL_CITY_SHARE * LABEL_CITY[0] + (1 - LABEL_CITY_SHARE) * LABEL_HIGHWAY[0]
-    b = LABEL_CITY_SHARE * LABEL_CITY[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * LABEL_HIGHWAY[1] / hwfet_mpg
+    city, highway = label_formulas()
+    a = LABEL_CITY_SHARE * city[0] + (1 - LABEL_CITY_SHARE) * highway[0]
+    b = LABEL_CITY_SHARE * city[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * highway[1] / hwfet_mpg
     return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
 
 
