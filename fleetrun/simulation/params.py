@@ -34,6 +34,7 @@ from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
 from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.units import RAD_S_PER_RPM
 from fleetrun.vehicle import VehicleSpec
 
 DUAL_CONFIGURATIONS = frozenset(dual_configuration_ids())  # models/configurations.toml
@@ -261,7 +262,7 @@ def _row(v: VehicleSpec) -> dict:
     n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
     trn = _with(trn, heavy_duty_shift_speeds(v, n_pk))   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
-               eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
+               eng["rated_power_factor"] * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
     eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng["idle_speed_rpm"], eng["peak_torque_speed_fraction"],
