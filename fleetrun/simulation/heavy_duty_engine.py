@@ -24,10 +24,10 @@ import numpy as np
 
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file
-from fleetrun.simulation.engine import (RPM_RAD_S, fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
+from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
                                         full_load_torque_Nm, stroke_m)
 from fleetrun.simulation.records import HeavyDutyFuelConstants, ReferenceEngine
-from fleetrun.units import LITERS_PER_GALLON
+from fleetrun.units import LITERS_PER_GALLON, RAD_S_PER_RPM
 
 ENGINES_FILE = "heavy_duty/engines.toml"
 HP_W = 745.699872                 # mechanical horsepower [W] (NIST SP 811)
@@ -70,7 +70,7 @@ def set_points(engine: ReferenceEngine) -> tuple[np.ndarray, np.ndarray, np.ndar
     """Speed [rpm], torque [N m] and weight of each SET mode (engines.toml) for ``engine``."""
     labels, loads, weights = _set_modes()
     n = np.linspace(engine.idle_speed_rpm, 1.1 * engine.rated_speed_rpm, 881)
-    speeds = set_speeds_rpm(n, _full_load(engine, n) * n * RPM_RAD_S)
+    speeds = set_speeds_rpm(n, _full_load(engine, n) * n * RAD_S_PER_RPM)
     speeds["idle"] = engine.idle_speed_rpm
     speed = np.array([speeds[label] for label in labels])
     return speed, _full_load(engine, speed) * loads, weights
@@ -99,7 +99,7 @@ def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngi
     (an engine on the dynamometer drives none)."""
     speed, torque, weight = set_points(engine)
     fuel = _engine_fuel_g_per_s(engine, constants, speed, torque)
-    work_hp_h = float(np.sum(weight * torque * speed * RPM_RAD_S)) / HP_W
+    work_hp_h = float(np.sum(weight * torque * speed * RAD_S_PER_RPM)) / HP_W
     return float(np.sum(weight * fuel)) * 3600.0 * co2_g_per_g_fuel() / work_hp_h
 
 
@@ -174,4 +174,4 @@ def bsfc_map_g_per_kWh(engine: ReferenceEngine, constants: HeavyDutyFuelConstant
     torque = _full_load(engine, n) * np.asarray(load_fraction, float)[None, :]
     fuel = _engine_fuel_g_per_s(engine, constants, n, torque)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return fuel * 3.6e6 / (torque * n * RPM_RAD_S)
+        return fuel * 3.6e6 / (torque * n * RAD_S_PER_RPM)
