@@ -14,7 +14,7 @@ import numpy as np
 
 from fleetrun.cycles import MPH_TO_MPS
 from fleetrun.simulation.road_load import LBF_N
-from fleetrun.units import STANDARD_GRAVITY_M_S2
+from fleetrun.units import STANDARD_GRAVITY_M_S2 as G_MPS2
 
 AIR_DENSITY_KG_M3 = 1.2   # the density make_example_fleet.py and the FHWA class defaults use
 
@@ -29,6 +29,6 @@ def gem_coastdown_lbf(mass_kg, crr, cda_m2, air_density_kg_m3=AIR_DENSITY_KG_M3)
     cda_m2 : drag area [m^2].
     air_density_kg_m3 : air density [kg/m^3].
     """
-    a = np.asarray(crr, float) * np.asarray(mass_kg, float) * STANDARD_GRAVITY_M_S2 / LBF_N
+    a = np.asarray(crr, float) * np.asarray(mass_kg, float) * G_MPS2 / LBF_N
     c = 0.5 * air_density_kg_m3 * np.asarray(cda_m2, float) * MPH_TO_MPS ** 2 / LBF_N
     return a, np.zeros_like(a), c
