@@ -57,7 +57,7 @@ class Outcome:
     quiet: bool          # noise/untestable: no finding
     unexplained: bool    # unexplained.significant
     drift: bool          # the sensor_drift check fired
-    energy_share: float
+    energy_share: float | None
     heldout_gain: float  # the generic description's held-out gain on what is left
     seconds: float
 
@@ -111,7 +111,7 @@ def run(seeds: int = 10, workdir=None, kinds=None, progress=False) -> list[Outco
         u = res["unexplained"]
         out.append(Outcome(kind, label, seed, named, params, heldout, truth <= found,
                            not res["findings"], bool(u["significant"]),
-                           bool(u.get("drift", {}).get("significant")), float(u["energy_share"]),
+                           bool(u.get("drift", {}).get("significant")), u["energy_share"],
                            float(u["heldout_gain"]), time.perf_counter() - t0))
         if progress:
             print(asdict(out[-1]), flush=True)
