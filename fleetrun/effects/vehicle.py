@@ -10,8 +10,8 @@ import numpy as np
 
 from fleetrun.effects.base import Effect, Parameter
 from fleetrun.physics.fuels import fuel_properties
+from fleetrun.units import STANDARD_GRAVITY_M_S2
 
-G_M_S2 = 9.80665
 
 
 def marginal_fuel_g_per_J(fuel: str, eta_indicated: float, drivetrain_efficiency: float = 1.0) -> float:
@@ -55,7 +55,7 @@ def grade_extra_fuel(vehicle_speed_mps, vehicle_mass_kg, marginal_g_per_J):
     here because the baseline already floors the total.
     """
     v = np.asarray(vehicle_speed_mps, dtype=float)
-    return vehicle_mass_kg * G_M_S2 * v / 100.0 * marginal_g_per_J
+    return vehicle_mass_kg * STANDARD_GRAVITY_M_S2 * v / 100.0 * marginal_g_per_J
 
 
 def aero_drag_extra_fuel(vehicle_speed_mps, marginal_g_per_J):

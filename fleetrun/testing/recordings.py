@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.effects import _as_effect_list, differential_extra_torque_Nm, overall_ratio
+from fleetrun.units import RPM_PER_RAD_S, STANDARD_GRAVITY_M_S2
 
-G_M_S2 = 9.80665
 
 
 @dataclass
@@ -238,7 +238,7 @@ def generate_differential_recording(
     if hidden_loss is not None:
         d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_torque_scale_Nm": rig.kim_torque_scale_Nm,
                                                  "dt_s": dt}), t.shape)
-    n_rpm = w_in * 60 / (2 * np.pi)
+    n_rpm = w_in * RPM_PER_RAD_S
     t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
     n = len(t)
     gain = 1.0 + (output_gain_drift(t) if output_gain_drift is not None else 0.0)
@@ -250,8 +250,8 @@ def generate_differential_recording(
         "diff_output_torque_Nm": gain * t_out + zero + _ar1(n, noise_rho, noise_out_Nm, rng),
     }
     if wheel_speeds:
-        meas["wheel_speed_left_rpm"] = w_left * 60 / (2 * np.pi)
-        meas["wheel_speed_right_rpm"] = w_right * 60 / (2 * np.pi)
+        meas["wheel_speed_left_rpm"] = w_left * RPM_PER_RAD_S
+        meas["wheel_speed_right_rpm"] = w_right * RPM_PER_RAD_S
     if ambient_column:
         meas["ambient_temp_C"] = np.full(n, ambient_temp_C)
     if vehicle_speed:
@@ -367,7 +367,7 @@ def _perturbed_oil_warmup(ch, p, dt):
 
 def _perturbed_bearing_drag(ch, p, dt):
     w = ch["input_speed_rad_s"]
-    n_rpm = np.abs(w) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
     return p["drag_1000rpm_Nm"] * (n_rpm / 1000.0) ** 0.6 * _step(w)
 
 
@@ -376,7 +376,7 @@ def _perturbed_mixed(ch, p, dt):
     from fleetrun.effects.differential import W_STOP_RAD_S, greenwood_tripp_F2
 
     w = ch["input_speed_rad_s"]
-    lam = (np.abs(w) * 60.0 / (2 * np.pi) / p["speed_ref_rpm"]) ** 0.6
+    lam = (np.abs(w) * RPM_PER_RAD_S / p["speed_ref_rpm"]) ** 0.6
     return (p["mu_b"] * np.abs(ch["input_torque_Nm"]) * greenwood_tripp_F2(lam) / 0.5
             * (np.abs(w) > W_STOP_RAD_S))
 
@@ -393,7 +393,7 @@ def _perturbed_churning(ch, p, dt):
     from fleetrun.effects.differential import ring_gear_churning_torque_Nm
 
     w = ch["input_speed_rad_s"]
-    n_rpm = np.abs(w) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
     return p["immersion_excess"] * ring_gear_churning_torque_Nm(w, ch["gear_ratio"]) * (n_rpm / 2000.0) ** 0.2
 
 
