@@ -10,9 +10,9 @@ import operator
 from dataclasses import dataclass, field, fields
 
 
-# VehicleSpec fields that do not change how a vehicle drives a cycle.
-BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
-                      "model_year")
+# VehicleSpec fields that do not change how a vehicle drives a cycle (model_year does: it
+# chooses a medium- or heavy-duty diesel's engine, fleetrun.simulation.heavy_duty_engine).
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model")
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,9 @@ class VehicleSpec:
     converter_lockup: str | None = None  # "yes" / "no"
     cylinders: int | None = None
     nv_ratio_rpm_per_mph: float | None = None   # EPA N/V: engine rpm per mph in top gear
+    technology: str | None = None        # comma list of fleetrun.simulation.technology names
+    measured_ftp_mpg: float | None = None  # measured FTP composite: calibrates the vehicle's efficiency
+    label_combined_mpg: float | None = None   # EPA label combined, used when no measured FTP
     extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):

@@ -18,7 +18,7 @@ docs/simulation.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from operator import itemgetter
 from typing import Sequence
@@ -30,7 +30,10 @@ from fleetrun.errors import FleetrunError, InputError
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
+from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
+from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
+from fleetrun.simulation.technology import TECHNOLOGIES, parse_technology
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.units import RAD_S_PER_RPM
 from fleetrun.vehicle import VehicleSpec
@@ -182,6 +185,7 @@ class VehicleArrays:
     fuel_cut_rpm: np.ndarray
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
     fuel: list                      # "gasoline" / "diesel" (vehicle-level effects price extra work by it)
+    technology: np.ndarray | None = None   # (V, len(TECHNOLOGIES)) bool (simulation/technology.py)
     power_table: np.ndarray | None = None   # filled by the simulation on first use
     idle_fuel_rate: np.ndarray | None = None   # [g/s] idem (simulation.core.idle_fuel_rate_g_per_s)
 
@@ -240,6 +244,11 @@ def _ROW_CACHE(key) -> dict:
     return _row(key[0])
 
 
+def _with(defaults: dict, record) -> dict:
+    """``defaults`` with the fields of ``record`` (a heavy-duty record) on top; None: unchanged."""
+    return defaults if record is None else {**defaults, **asdict(record)}
+
+
 def _row(v: VehicleSpec) -> dict:
     """One vehicle's checked parameters with defaults filled in."""
     _check(v)
@@ -252,10 +261,14 @@ def _row(v: VehicleSpec) -> dict:
     T_peak = float(v.peak_engine_torque_Nm)
     n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
     n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
+    n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
+    trn = _with(trn, heavy_duty_shift_speeds(v, n_pk))   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
                eng["rated_power_factor"] * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng["idle_speed_rpm"], eng["peak_torque_speed_fraction"],
+                                               eng["idle_torque_fraction"]))   # MD/HD diesels: models/heavy_duty/
     cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
@@ -289,7 +302,7 @@ def _row(v: VehicleSpec) -> dict:
         lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
         launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
-        n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
+        n_pk=n_pk,
         idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
         disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
         throttled=v.fuel == "gasoline",
@@ -302,7 +315,17 @@ def _row(v: VehicleSpec) -> dict:
         cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
         idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
         fuel=v.fuel,
+        technology=_technology(v),
     )
+
+
+def _technology(v: VehicleSpec) -> tuple[bool, ...]:
+    """The ``technology`` column as flags (simulation/technology.py); errors name the vehicle."""
+    try:
+        return parse_technology(column_value(v, "technology"))
+    except FleetrunError as exc:
+        raise InputError(f"vehicle '{v.vehicle_id}': {exc.message}", column="technology",
+                         value=column_value(v, "technology"), hint=exc.hint) from None
 
 
 _NUMBERS = ("mass", "rot", "radius", "fd", "low", "kim", "stall_TR", "stall_rpm", "lockup", "launch", "T_peak", "P",
@@ -341,6 +364,7 @@ def _gather(rows: list) -> VehicleArrays:
         fuel_constants=np.array([r["fuel_constants"] for r in rows], float).reshape(V, len(FUEL_CONSTANTS)),
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
+        technology=np.array([r["technology"] for r in rows], bool).reshape(V, len(TECHNOLOGIES)),
     )
 
 
