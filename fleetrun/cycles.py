@@ -10,6 +10,8 @@ their sources, unit conversions and checked durations/distances are in
 - ``UDDS``, ``HWFET``, ``US06``, ``WLTC`` (class 3b) from fastsim 2.1.5 (NREL, Apache-2.0);
 - ``NYCC``, ``HD-UDDS`` (EPA UDDSHDV) from the EPA schedules embedded in zahner_potentiostat
   1.1.2 (MIT), converted from mph.
+- ``ARB-TRANSIENT`` (GEM's transient cycle, CARB HHDDT transient mode) from NREL T3CO
+  (BSD-3-Clause); ``CRUISE-55``, ``CRUISE-65`` written by ``make_cruise.py``.
 
 A *composed* cycle (``inputs/cycles/<NAME>.toml``; ``FTP``) joins parts of shipped schedules
 into named phases with engine-off soaks between them (:class:`CyclePhase`); its fuel economy
