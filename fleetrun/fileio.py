@@ -42,6 +42,13 @@ def refuse_replacing_inputs(output: Path, inputs, option: str = "-o") -> None:
                              hint=f"Choose another output path ({option})")
 
 
+def refuse_outputs_replacing_inputs(folder: Path, names, inputs, option: str = "--out") -> None:
+    """:func:`refuse_replacing_inputs` for each file ``names`` a command writes into ``folder``
+    (e.g. ``diagnose-fleet --measured out/diagnosis.json --out out``)."""
+    for name in names:
+        refuse_replacing_inputs(Path(folder) / name, inputs, f"{option} {folder} (its {name})")
+
+
 def default_file_mode() -> int:
     """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
     umask = os.umask(0)

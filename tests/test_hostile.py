@@ -471,3 +471,236 @@ def test_quiet_says_what_it_silences_and_silences_it(tmp_path, fake_simulation):
     assert "stdout" in help_text.split("--quiet", 1)[1].split("\n  -", 1)[0]
     result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "o", "-q", "--no-cache")
     assert result.exit_code == 0 and result.stdout == "" and result.stderr == ""
+
+
+# === round two (issue 18) ======================================================================
+# --- data lost --------------------------------------------------------------------------------
+
+RUNNER = """
+import sys
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+cli.main(sys.argv[1:], prog_name="fleetrun", obj=fakes.injected())
+"""
+
+
+def _kept_fleets(out: Path) -> list[str]:
+    """The fleet workbook of every run the folder holds: its own and those in earlier-runs/."""
+    manifests = [out / "manifest.json", *sorted((out / "earlier-runs").glob("*/manifest.json"))]
+    return sorted(json.loads(m.read_text())["inputs"][0]["path"] for m in manifests if m.is_file())
+
+
+def _concurrent_runs(tmp_path: Path, n: int) -> None:
+    out = tmp_path / "out"
+    fleets = [write_fleet(tmp_path / f"fleet{i}.xlsx", [vehicle(f"CAR-{i}")], [scenario(f"s{i}")])
+              for i in range(n)]
+    env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{ROOT / 'tests'}", "OMP_NUM_THREADS": "1"}
+    runs = [subprocess.Popen([sys.executable, "-c", RUNNER, "run", str(f), "--out", str(out), "-q",
+                              "--no-cache"], env=env, stderr=subprocess.PIPE) for f in fleets]
+    codes = [(r.wait(timeout=600), r.stderr.read().decode()) for r in runs]
+    assert all(code == 0 for code, _ in codes), codes
+    assert _kept_fleets(out) == sorted(str(f) for f in fleets)
+    assert _outputs_consistent(out)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_two_concurrent_runs_into_one_folder_lose_nothing(tmp_path):
+    """Before: of two runs into one --out at the same time, both exit 0 and the outputs of one
+    were nowhere (6 of 12 in 6 rounds). Now the second waits for the first's lock."""
+    _concurrent_runs(tmp_path, 2)
+
+
+@pytest.mark.slow
+def test_eight_concurrent_runs_into_one_folder_lose_nothing(tmp_path):
+    _concurrent_runs(tmp_path, 8)
+
+
+def test_a_held_folder_lock_is_an_error_naming_the_holder(tmp_path, fake_simulation, monkeypatch):
+    """A run that cannot get the folder's lock in $FLEETRUN_LOCK_WAIT_S exits 1 naming the holder."""
+    import fcntl
+
+    out = tmp_path / "out"
+    lock = tmp_path / ".out.fleetrun-lock"
+    with open(lock, "w") as handle:
+        handle.write("pid 4242 since now")
+        handle.flush()
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        monkeypatch.setenv("FLEETRUN_LOCK_WAIT_S", "0.3")
+        result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+    assert result.exit_code == 1, result.output
+    line = first_line(result)
+    assert line.startswith(f"Error: {out}: another fleetrun run") and "pid 4242" in line
+    assert not out.exists()
+
+
+def _batch(tmp_path: Path, text: str) -> Path:
+    config = tmp_path / "batch.toml"
+    config.write_text(text)
+    return config
+
+
+@pytest.mark.parametrize("replace", [False, True])
+def test_batch_inputs_with_one_file_name_never_collide(tmp_path, fake_simulation, replace):
+    """Before: north/fleet.xlsx and south/fleet.xlsx both went to results/fleet/; north only
+    in earlier-runs/, with --replace gone."""
+    for name in ("north", "south"):
+        (tmp_path / name).mkdir()
+        write_fleet(tmp_path / name / "fleet.xlsx", [vehicle(f"{name.upper()}-1")], [scenario(name)])
+    config = _batch(tmp_path, 'inputs = ["north/fleet.xlsx", "south/fleet.xlsx"]\nout = "results"\n')
+    result = run_fake("--config", config, "-q", "--no-cache", *(["--replace"] if replace else []))
+    assert result.exit_code == 0, result.stderr
+    for name in ("north", "south"):
+        folder = tmp_path / "results" / f"{name}-fleet"
+        assert _kept_fleets(folder) == [str(tmp_path / name / "fleet.xlsx")]
+
+
+def test_files_another_program_writes_during_a_run_survive(tmp_path, fake_simulation, monkeypatch):
+    """Before: files written into --out while the run assembled its folder were deleted with
+    the old folder (4 of 412)."""
+    from fleetrun import output_folder
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "theirs-0.txt").write_text("0")
+    real = output_folder._carry_over
+
+    def meanwhile(old, new, replaced):
+        real(old, new, replaced)
+        for i in range(1, 50):       # the other program keeps writing
+            (old / f"theirs-{i}.txt").write_text(str(i))
+        (old / "theirs-0.txt").unlink()
+        (old / "theirs-0.txt").write_text("rewritten")
+
+    monkeypatch.setattr(output_folder, "_carry_over", meanwhile)
+    result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+    assert result.exit_code == 0, result.stderr
+    assert sorted(p.name for p in out.glob("theirs-*")) == sorted(f"theirs-{i}.txt" for i in range(50))
+    assert (out / "theirs-0.txt").read_text() == "rewritten"
+
+
+def test_log_naming_the_input_workbook_is_refused(tmp_path, fake_simulation):
+    """Before: `run fleet.xlsx --log fleet.xlsx` appended log lines to the input."""
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    before = fleet.read_bytes()
+    result = run_fake(fleet, "--log", fleet, "--out", tmp_path / "out", "--no-cache")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {fleet}: is an input") and "--log" in first_line(result)
+    assert fleet.read_bytes() == before and not (tmp_path / "out").exists()
+
+
+def test_config_log_naming_a_folder_is_exit_1(tmp_path, fake_simulation):
+    """Before: `log = "logs"` (a folder) in batch.toml: exit 4 (IsADirectoryError)."""
+    small_fleet(tmp_path / "fleet.xlsx")
+    (tmp_path / "logs").mkdir()
+    config = _batch(tmp_path, 'inputs = ["fleet.xlsx"]\nlog = "logs"\n')
+    result = run_fake("--config", config, "-q", "--no-cache")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {config}: key log: {tmp_path / 'logs'} is a folder")
+
+
+@pytest.mark.parametrize("command", ["diagnose-fleet", "diagnose"])
+def test_diagnosis_never_overwrites_its_input(tmp_path, command):
+    """Before: `diagnose-fleet --measured out/diagnosis.json --out out` overwrote the input."""
+    out = tmp_path / "out"
+    out.mkdir()
+    measured = out / "diagnosis.json"
+    measured.write_text("vehicle_id,test,mpg,manufacturer\nCAR-1,FTP,30,A\n")
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    args = ([command, fleet, "--measured", measured, "--out", out] if command == "diagnose-fleet"
+            else [command, measured, "--out", out])
+    result = invoke(*args)
+    assert result.exit_code == 1, result.output
+    line = first_line(result)
+    assert line.startswith(f"Error: {measured}: is an input") and "--out" in line
+    assert measured.read_text().startswith("vehicle_id")
+
+
+def test_out_dotdot_writes_the_parent_and_nothing_recursive(tmp_path, fake_simulation, monkeypatch):
+    """Before: `--out ..` from a subfolder put the staging folder inside the copied parent."""
+    sub = tmp_path / "parent" / "sub"
+    sub.mkdir(parents=True)
+    fleet = small_fleet(sub / "fleet.xlsx")
+    before = fleet.read_bytes()
+    monkeypatch.chdir(sub)
+    result = run_fake("fleet.xlsx", "--out", "..", "-q", "--no-cache")
+    assert result.exit_code == 0, result.stderr
+    parent = tmp_path / "parent"
+    assert OUTPUTS <= {p.name for p in parent.iterdir()}
+    assert sorted(p.name for p in sub.iterdir()) == ["fleet.xlsx"] and fleet.read_bytes() == before
+    assert [p.name for p in tmp_path.rglob(".*")] == []
+
+
+def test_read_only_out_is_refused_and_left_alone(tmp_path, fake_simulation, monkeypatch):
+    """Before: a read-only --out (non-root user) was replaced by a writable one. (As root
+    every folder is writable, so the test tells the check that it is not.)"""
+    from fleetrun import output_folder
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("mine")
+    if os.geteuid() == 0:
+        real = output_folder._writable
+        monkeypatch.setattr(output_folder, "_writable", lambda folder: folder != out and real(folder))
+    out.chmod(0o555)
+    try:
+        result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+        inode = out.stat().st_ino
+    finally:
+        out.chmod(0o755)
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {out}: the output folder is read-only")
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"] and inode == out.stat().st_ino
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root removes read-only folders anyway")
+def test_no_old_folders_pile_up_beside_out(tmp_path, fake_simulation):
+    """Before: an --out holding a read-only subfolder left one .out-old-* per run."""
+    out = tmp_path / "out"
+    (out / "frozen").mkdir(parents=True)
+    (out / "frozen" / "a.txt").write_text("a")
+    (out / "frozen").chmod(0o555)
+    fleet = small_fleet(tmp_path / "f.xlsx")
+    try:
+        for _ in range(3):
+            assert run_fake(fleet, "--out", out, "-q", "--no-cache").exit_code == 0
+        assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+        assert (out / "frozen" / "a.txt").read_text() == "a"
+    finally:
+        for folder in tmp_path.rglob("frozen"):
+            folder.chmod(0o755)
+
+
+def test_foreign_manifest_in_out_is_exit_1_and_kept(tmp_path, fake_simulation):
+    """Before: a manifest.json of another program in --out: exit 4 (or replaced)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "manifest.json").write_text('{"inputs": "not fleetrun", "totals": [1]}')
+    (out / "results.csv").write_text("theirs\n")
+    result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {out}: holds results.csv, manifest.json that fleetrun did not write")
+    assert (out / "results.csv").read_text() == "theirs\n"
+
+
+def test_batch_config_without_out_writes_beside_the_config(tmp_path, fake_simulation, monkeypatch):
+    """Before: results/ in the working folder, though docs/batch.md says paths are relative
+    to the config file."""
+    jobs = tmp_path / "jobs"
+    jobs.mkdir()
+    small_fleet(jobs / "fleet.xlsx")
+    config = _batch(jobs, 'inputs = ["fleet.xlsx"]\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    result = run_fake("--config", config, "-q", "--no-cache")
+    assert result.exit_code == 0, result.stderr
+    assert (jobs / "results" / "fleet" / "manifest.json").is_file() and list(elsewhere.iterdir()) == []
+
+
+def test_batch_config_values_are_option_defaults(tmp_path, fake_simulation):
+    """The config's keys are the options' defaults (click's default_map); the command line wins."""
+    small_fleet(tmp_path / "fleet.xlsx")
+    config = _batch(tmp_path, 'inputs = ["fleet.xlsx"]\nout = "r"\nscenarios = ["hot"]\n')
+    result = run_fake("--config", config, "-q", "--no-cache", "--scenario", "urban")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads((tmp_path / "r" / "fleet" / "manifest.json").read_text())["scenarios"] == ["urban"]

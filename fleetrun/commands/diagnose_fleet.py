@@ -25,6 +25,9 @@ def command(fleet, measured, out, seed):
     from fleetrun.diagnose.fleet import FleetSettings, diagnose_fleet
 
     out = out or f"diagnosis-{Path(fleet).stem}"
+    from fleetrun.fileio import refuse_outputs_replacing_inputs
+
+    refuse_outputs_replacing_inputs(out, ("diagnosis.json", "diagnosis.html"), [fleet, measured])
     result = diagnose_fleet(fleet, measured, out=out, settings=FleetSettings(seed=seed))
     click.echo(f"{result['vehicles']} vehicles, {result['manufacturers']} manufacturers, "
                f"{result['rows']} measured results")

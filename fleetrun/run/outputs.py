@@ -43,6 +43,32 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
                                  hint="Choose another output folder (--out)")
 
 
+def refuse_foreign_outputs(out_dir: Path) -> None:
+    """InputError if ``out_dir`` holds a file with an output's name that fleetrun did not write
+    (no fleetrun ``manifest.json`` beside it listing it): a run moves or deletes only its own
+    files."""
+    import json
+
+    from fleetrun.reports.manifest import SCHEMA
+
+    out_dir = Path(out_dir)
+    present = [name for name in OUTPUT_FILES if (out_dir / name).exists()]
+    if not present:
+        return
+    manifest = out_dir / "manifest.json"
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8")) if manifest.is_file() else None
+    except (OSError, ValueError):
+        data = None
+    ours = isinstance(data, dict) and str(data.get("schema", "")).split("/")[0] == SCHEMA.split("/")[0]
+    listed = set(data.get("outputs") or {}) | {"manifest.json"} if ours and isinstance(data.get("outputs"), dict) else set()
+    foreign = [name for name in present if name not in listed]
+    if foreign:
+        raise InputError(f"{out_dir}: holds {', '.join(foreign)} that fleetrun did not write "
+                         "(no fleetrun manifest.json lists them); a run would replace them",
+                         hint="Move them away, or choose another output folder (--out)")
+
+
 def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
     """Write the six outputs of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
