@@ -704,3 +704,97 @@ def test_batch_config_values_are_option_defaults(tmp_path, fake_simulation):
     result = run_fake("--config", config, "-q", "--no-cache", "--scenario", "urban")
     assert result.exit_code == 0, result.stderr
     assert json.loads((tmp_path / "r" / "fleet" / "manifest.json").read_text())["scenarios"] == ["urban"]
+
+
+# --- hostile files ----------------------------------------------------------------------------
+
+def _far_cell_workbook(tmp_path: Path, name: str, ref: bytes, upper=False, strict=False) -> Path:
+    """The template with cell B2 of Vehicles moved to ``ref``; ``upper``: the workbook's
+    relationship names the sheet /XL/worksheets/...; ``strict``: Strict OOXML namespaces."""
+    source = write_fleet(tmp_path / "ok.xlsx", [vehicle()], [scenario()])
+    target = tmp_path / name
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename.startswith("xl/worksheets/") and b'r="B2"' in data:
+                data = data.replace(b'r="B2"', b'r="' + ref + b'"', 1)
+            if upper and item.filename == "xl/_rels/workbook.xml.rels":
+                data = data.replace(b'Target="/xl/worksheets/', b'Target="/XL/worksheets/')
+            if strict and item.filename == "xl/workbook.xml":
+                data = (data.replace(b"http://schemas.openxmlformats.org/officeDocument/2006/relationships",
+                                     b"http://purl.oclc.org/ooxml/officeDocument/relationships")
+                        .replace(b"http://schemas.openxmlformats.org/spreadsheetml/2006/main",
+                                 b"http://purl.oclc.org/ooxml/spreadsheetml/main"))
+            zout.writestr(item, data)
+    return target
+
+
+@pytest.mark.parametrize("upper,strict", [(True, False), (False, True)])
+def test_prescan_reads_relationships_as_the_reader_does(tmp_path, upper, strict):
+    """Before: an upper-case target (/XL/worksheets/...) or Strict OOXML namespaces bypassed
+    the pre-scan; a 1-cell XFD1048576 workbook aborted the reader (exit 134, a Rust backtrace)."""
+    path = _far_cell_workbook(tmp_path, "far.xlsx", b"XFD1048576", upper=upper, strict=strict)
+    code, seconds, peak_mb, stderr = _measure(["validate", path])
+    assert code == 1, stderr[:500]
+    assert stderr.startswith(f"Error: {path}: sheet Vehicles spans 1,048,576 rows x 16,384 columns")
+    assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
+
+
+def test_a_stray_far_cell_within_the_cell_budget_is_located(tmp_path):
+    """Before (with the bypass): a workbook sized to allocate took 58 s and 8.1 GB. A used range
+    inside the budget that the cells do not fill is a stray cell, named."""
+    path = _far_cell_workbook(tmp_path, "stray.xlsx", b"B64000", upper=True)
+    code, seconds, peak_mb, stderr = _measure(["validate", path])
+    assert code == 1, stderr[:500]
+    assert stderr.startswith(f"Error: {path}: Vehicles!B64000: a cell far from the table")
+    assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
+
+
+def _cycle(tmp_path: Path, text: str, name: str = "mine.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _trace(n: int, time_scale: float = 1.0, speed_scale: float = 1.0, grade: float | None = None) -> str:
+    head = "time_s,speed_mps" + (",grade_pct" if grade is not None else "")
+    rows = [f"{i * time_scale:g},{speed_scale * 10 * (1 - abs(1 - i / (n / 2))):g}"
+            + (f",{grade:g}" if grade is not None else "") for i in range(n)]
+    return head + "\n" + "\n".join(rows) + "\n"
+
+
+CYCLE_CASES = [   # before: each accepted, numbers silently wrong
+    (_trace(60, speed_scale=1000), "row 3, column speed_mps: speed 333.333 m/s"),
+    (_trace(60, grade=5000), "row 2, column grade_pct: grade 5,000 %"),
+    (_trace(60, time_scale=1000), "row 3, column time_s: the usual time step is 1,000 s"),
+    ("time_s,speed_mps\n" + "".join(f"{i},0\n" for i in range(60)), "column speed_mps: every speed is 0"),
+]
+
+
+@pytest.mark.parametrize("text,message", CYCLE_CASES, ids=["speed_x1000", "grade_5000", "time_ms", "all_zero"])
+def test_implausible_cycles_refused_by_validate_and_run(tmp_path, text, message):
+    """Before: speeds x1000, a 5000 % grade, milliseconds in time_s accepted; an all-zero-speed
+    cycle passed validate and failed run with exit 4."""
+    cycle = _cycle(tmp_path, text)
+    assert invoke("cycles", cycle).exit_code == 1
+    assert message in first_line(invoke("cycles", cycle))
+    text = message.split(": ", 1)[1]
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle()], [scenario(cycle_mix="mine.csv:1")])
+    for args in (["validate", path], ["run", path, "--out", tmp_path / "out", "-q", "--no-cache"]):
+        result = invoke(*args)
+        assert result.exit_code == 1, result.output
+        assert first_line(result).startswith(f"Error: {path}: Scenarios!D2 cycle_mix:"), first_line(result)
+        assert text in first_line(result)
+
+
+def test_ten_million_row_cycle_refused_within_bounds(tmp_path):
+    """Before: a 10-million-row cycle CSV took 3.2 GB."""
+    path = tmp_path / "long.csv"
+    with open(path, "w") as handle:
+        handle.write("time_s,speed_mps\n")
+        handle.write("0,1\n" * 10_000_000)
+    code, seconds, peak_mb, stderr = _measure(["cycles", path])
+    assert code == 1, stderr[:500]
+    assert stderr.startswith(f"Error: {path}: row 500,002") or stderr.startswith(f"Error: {path}: row 500002"), stderr
+    assert "500,000 rows" in stderr
+    assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
