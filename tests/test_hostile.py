@@ -798,3 +798,48 @@ def test_ten_million_row_cycle_refused_within_bounds(tmp_path):
     assert stderr.startswith(f"Error: {path}: row 500,002") or stderr.startswith(f"Error: {path}: row 500002"), stderr
     assert "500,000 rows" in stderr
     assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
+
+
+ESCAPE_XML = b"_x001B_]0pwned_x0007__x001B_[2J"    # ESC ] 0 pwned BEL ESC [ 2 J, as OOXML escapes them
+
+
+def _with_escapes(source: Path, target: Path) -> Path:
+    """``source`` with every text ``ESC`` replaced by terminal escape sequences (openpyxl
+    refuses to write them; Excel stores them as _xHHHH_)."""
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            zout.writestr(item, zin.read(item.filename).replace(b"ESC", ESCAPE_XML))
+    return target
+
+
+def test_escape_sequences_in_cells_never_reach_the_terminal(tmp_path):
+    """Before: a cell holding ESC ] 0 ; ... (retitles a terminal) was echoed raw to stderr."""
+    import openpyxl
+
+    source = write_fleet(tmp_path / "plain.xlsx", [vehicle(vehicle_class="CarESC")],
+                         [scenario("baseESC"), scenario("badESC", cycle_mix="NOPEESC:1")])
+    book = openpyxl.load_workbook(source)
+    book["Vehicles"].cell(row=1, column=40, value="noteESC")     # a header fleetrun does not know
+    book.create_sheet("SheetESC")
+    book.save(source)
+    path = _with_escapes(source, tmp_path / "f.xlsx")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-m", "fleetrun", "validate", str(path)], env=env,
+                          capture_output=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.startswith(b"Error:") and b"\\x1b]0pwned\\x07" in done.stderr, done.stderr
+    assert b"\x1b" not in done.stderr and b"\x07" not in done.stderr and b"\x1b" not in done.stdout
+
+
+def test_ctrl_c_is_an_error_line_and_exit_1(tmp_path, fake_simulation, monkeypatch):
+    """Before: Ctrl-C printed "Aborted!" and no Error: line."""
+    from fleetrun.workbook import reader
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(reader, "read_fleet", interrupted)
+    result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "-q", "--no-cache")
+    assert result.exit_code == 1
+    assert first_line(result).startswith("Error: interrupted (Ctrl-C)") and "Aborted" not in result.stderr
+    assert not (tmp_path / "out").exists()
