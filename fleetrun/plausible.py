@@ -33,6 +33,10 @@ MAX_TORQUE_NM = 100_000.0
 # Hard budgets of what an input may ask for, enforced before anything is allocated
 MAX_CYCLE_ROWS = 500_000            # a 1 Hz cycle of 5.8 days; 10 Hz: 14 h
 MAX_CYCLE_BYTES = 64_000_000        # the CSV file itself
+MAX_MAP_POINTS = 1_000_000          # fleetrun map: torque fractions x speeds (the thesis: 5 x 5)
+# distinct ambient temperatures of one workbook's scenarios: each costs an efficiency map per
+# distinct axle, ~9 MB and 0.5 s each (measured: 40 temperatures, one axle: 490 MB, 24 s)
+MAX_AMBIENT_TEMPERATURES = 24
 
 
 def _first(mask: np.ndarray) -> int:

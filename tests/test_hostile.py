@@ -843,3 +843,40 @@ def test_ctrl_c_is_an_error_line_and_exit_1(tmp_path, fake_simulation, monkeypat
     assert result.exit_code == 1
     assert first_line(result).startswith("Error: interrupted (Ctrl-C)") and "Aborted" not in result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_four_hundred_temperatures_refused_within_bounds(tmp_path):
+    """Before: a 40 KB workbook with 400 scenarios at 400 temperatures peaked at 3.4 GB."""
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle()],
+                       [scenario(f"s{i}", ambient_temp_C=-40 + i * 0.25) for i in range(400)])
+    code, seconds, peak_mb, stderr = _measure(["run", path, "--out", tmp_path / "out", "-q", "--no-cache"])
+    assert code == 1, stderr[:500]
+    assert stderr.startswith(f"Error: {path}: Scenarios!C26 ambient_temp_C: -34 is distinct ambient temperature number 25")
+    assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
+
+
+def test_map_grid_budget_before_allocation():
+    """Before: `map` with 15,000 x 15,000 points from two 90 KB arguments took 10.3 GB."""
+    speeds = ",".join(str(i) for i in range(15_000))
+    fractions = ",".join(f"{i / 15_000:.5f}" for i in range(15_000))
+    code, seconds, peak_mb, stderr = _measure(["map", "LD_RWD", "--gear-ratio", "3.2", "--speeds-rpm", speeds,
+                                               "--torque-fractions", fractions])
+    assert code == 1, stderr[:500]
+    assert stderr.startswith("Error: --torque-fractions x --speeds-rpm grid points: 225,000,000")
+    assert seconds - _startup_s() < 2 and peak_mb < 500, (seconds, peak_mb)
+
+
+def test_map_gear_ratio_out_of_range_is_exit_1():
+    """Before: `map --gear-ratio 1e308` exit 4."""
+    result = invoke("map", "LD_RWD", "--gear-ratio", "1e308")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith("Error: --gear-ratio '1e308' must be at most 12")
+
+
+def test_boolean_chunk_size_refused(tmp_path):
+    """Before: `chunk_size = true` was taken as 1."""
+    small_fleet(tmp_path / "fleet.xlsx")
+    config = _batch(tmp_path, 'inputs = ["fleet.xlsx"]\nchunk_size = true\n')
+    result = invoke("run", "--config", config, "-q", "--no-cache")
+    assert result.exit_code == 1
+    assert first_line(result).startswith(f"Error: {config}: 'chunk_size' must be a positive whole number")

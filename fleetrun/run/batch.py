@@ -159,7 +159,7 @@ def read_config(path: Path) -> dict:
             exc.file = exc.file or path
             raise
     if "chunk_size" in data:
-        if not isinstance(data["chunk_size"], int) or data["chunk_size"] < 1:
+        if type(data["chunk_size"]) is not int or data["chunk_size"] < 1:   # true is no size
             raise InputError("'chunk_size' must be a positive whole number", file=path)
         config["chunk_size"] = data["chunk_size"]
     return config

@@ -441,6 +441,9 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
             continue
         fields.update(mixes)
         scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
+    rows.check_temperature_budget([(first_rows[s.scenario_id], s.ambient_temp_C) for s in scenarios],
+                                  lambda row, text: problems.error(text, sheet, row, col("ambient_temp_C"),
+                                                                   "ambient_temp_C"))
     return scenarios, first_rows
 
 

@@ -198,6 +198,21 @@ def _vehicle_plausible(p: dict, report: Report) -> None:
         report("annual_miles", "0 miles: this row adds nothing", warning=True)
 
 
+def check_temperature_budget(temperatures: list[tuple[int, float]], report_at) -> None:
+    """At most :data:`fleetrun.plausible.MAX_AMBIENT_TEMPERATURES` distinct ambient
+    temperatures (row, temperature) per workbook: ``report_at(row, text)`` at the first beyond."""
+    from fleetrun.plausible import MAX_AMBIENT_TEMPERATURES
+
+    seen: set[float] = set()
+    for row, temperature in temperatures:
+        seen.add(temperature)
+        if len(seen) > MAX_AMBIENT_TEMPERATURES:
+            report_at(row, f"{temperature:g} is distinct ambient temperature number {len(seen)}; a workbook "
+                      f"runs at most {MAX_AMBIENT_TEMPERATURES} (each costs an efficiency map per axle); "
+                      "round the temperatures, or split the scenarios over workbooks")
+            return
+
+
 def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:
     """The VehicleSpec of a checked row (``parsed`` keyed by Vehicles column)."""
     return VehicleSpec(**{c.name: parsed.get(c.name) for c in VEHICLE_COLUMNS}, extra=extra)
