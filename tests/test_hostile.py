@@ -880,3 +880,99 @@ def test_boolean_chunk_size_refused(tmp_path):
     result = invoke("run", "--config", config, "-q", "--no-cache")
     assert result.exit_code == 1
     assert first_line(result).startswith(f"Error: {config}: 'chunk_size' must be a positive whole number")
+
+
+# --- silently wrong numbers -------------------------------------------------------------------
+
+def _edit(path: Path, edit) -> Path:
+    import openpyxl
+
+    book = openpyxl.load_workbook(path)
+    edit(book)
+    book.save(path)
+    return path
+
+
+def _validate_first_line(path: Path) -> str:
+    result = invoke("validate", path)
+    assert result.exit_code == 1, result.output
+    return first_line(result)
+
+
+def test_percent_formatted_growth_is_the_percentage_shown(tmp_path, fake_simulation):
+    """Before: 1.2% in a percent-formatted cell was read as 0.012 % growth (revenue 5.2 % low
+    over ten years)."""
+    def percent(book):
+        cell = book["Scenarios"]["F2"]
+        cell.value, cell.number_format = 0.012, "0.0%"
+
+    typed = write_fleet(tmp_path / "typed.xlsx", [vehicle()], [scenario(vmt_growth_pct_per_year=1.2)])
+    shown = _edit(write_fleet(tmp_path / "shown.xlsx", [vehicle()], [scenario()]), percent)
+    from fleetrun.workbook import read_fleet
+
+    assert read_fleet(shown).scenarios[0].vmt_growth_pct_per_year == pytest.approx(1.2)
+    totals = []
+    for path in (typed, shown):
+        assert run_fake(path, "--out", tmp_path / path.stem, "-q", "--no-cache").exit_code == 0
+        totals.append(fakes.read_csv(tmp_path / path.stem / "fiscal_summary.csv")["state_tax_usd"].sum())
+    assert totals[1] == pytest.approx(totals[0], rel=1e-12)
+
+
+def test_decimal_commas_in_gear_ratios_refused(tmp_path):
+    """Before: 4,2;2,5;1,6;1,2 was read as eight gears."""
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle(transmission_gear_ratios="4,2;2,5;1,6;1,2")], [scenario()])
+    line = _validate_first_line(path)
+    assert line.startswith(f"Error: {path}: Vehicles!J2 transmission_gear_ratios: '4,2;2,5;1,6;1,2'")
+    assert "decimal commas" in line
+
+
+def test_zero_width_space_in_an_id_refused(tmp_path):
+    """Before: CAR-1 and CAR-1 with a zero-width space were two vehicle types."""
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("CAR-1"), vehicle("CAR-1\u200b")], [scenario()])
+    line = _validate_first_line(path)
+    assert line.startswith(f"Error: {path}: Vehicles!A3 vehicle_id: 'CAR-1\\u200b' holds an invisible character "
+                           "(ZERO WIDTH SPACE, U+200B)")
+
+
+def test_lookalike_letters_in_ids_headers_and_choices_named(tmp_path):
+    """Before: a header with a Cyrillic letter was "not a fleetrun column" plus "missing
+    vehicle_id"; an id in mixed scripts was a second vehicle."""
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("CAR-1"), vehicle("\u0421AR-1"), vehicle("B", fuel="gas\u043eline")],
+                       [scenario()])
+    _edit(path, lambda book: setattr(book["Scenarios"]["A1"], "value", "scenario_\u0456d"))
+    result = invoke("validate", path)
+    assert result.exit_code == 1
+    text = result.stderr
+    assert f"Error: {path}: Scenarios!A1: header 'scenario_\u0456d' looks like scenario_id" in first_line(result)
+    assert "CYRILLIC SMALL LETTER BYELORUSSIAN-UKRAINIAN I" in first_line(result)
+    assert "Vehicles!A3 vehicle_id: '\u0421AR-1' mixes Latin letters with look-alike letters" in text
+    assert "Vehicles!G4 fuel: 'gas\u043eline' looks like gasoline" in text
+
+
+def test_two_sheets_named_alike_refused(tmp_path):
+    """Before: sheets Vehicles and vehicles: one read, the other silently ignored."""
+    def second(book):
+        copy = book.copy_worksheet(book["Vehicles"])
+        copy.title = "vehicles"
+
+    source = _edit(write_fleet(tmp_path / "one.xlsx", [vehicle()], [scenario()]), second)
+    path = tmp_path / "f.xlsx"     # openpyxl (as Excel) refuses names differing in case only
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            zout.writestr(item, data.replace(b'name="vehicles1"', b'name="vehicles"'))
+    line = _validate_first_line(path)
+    assert line.startswith(f"Error: {path}: Vehicles: the workbook has 2 sheets named like it ('Vehicles', 'vehicles')")
+
+
+@pytest.mark.parametrize("cell,column,error", [("M2", "first_fiscal_year", "#REF!"),
+                                               ("M2", "first_fiscal_year", "#N/A"),
+                                               ("E2", "budget_years", "#DIV/0!"),
+                                               ("C2", "ambient_temp_C", "#N/A")])
+def test_excel_error_cells_named_as_errors(tmp_path, cell, column, error):
+    """Before: #REF!/#N/A in optional columns read as blank (fiscal years 1, 2 instead of 2027,
+    2028, no warning); #DIV/0! and #N/A in required columns reported as "empty"."""
+    path = _edit(write_fleet(tmp_path / "f.xlsx", [vehicle()], [scenario(first_fiscal_year=2027)]),
+                 lambda book: setattr(book["Scenarios"][cell], "value", error))
+    line = _validate_first_line(path)
+    assert line.startswith(f"Error: {path}: Scenarios!{cell} {column}: holds the Excel error '{error}'"), line

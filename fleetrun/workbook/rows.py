@@ -71,6 +71,8 @@ def _parse(column: Column, raw):
         return cells.parse_tire_size(raw)
     if column.name == "lubricant":
         return _lubricant(raw)
+    if column.name.endswith("_id"):
+        return cells.parse_id(raw)
     return cells.parse_text(raw)
 
 
@@ -130,6 +132,28 @@ def _canonical_configuration(raw) -> str:
         return canonical_configuration(text)
     except InputError as exc:
         raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
+
+
+def scanned_cell(column: Column, note: str, raw):
+    """What the pre-scan (:mod:`fleetrun.workbook.xlsx_safety`) noted of a cell the reader sees
+    as ``raw``: (the problem, None) for a formula without a saved result or an Excel error value
+    (``#REF!``, ``#N/A``, ``#DIV/0!``: the reader sees them as blank); (None, the value) else,
+    where a percent-formatted number in a percent column (``1.2%`` stored as 0.012) is taken as
+    the percentage it shows."""
+    from fleetrun.workbook.xlsx_safety import PERCENT
+
+    if note == PERCENT:
+        if column.name.endswith(PERCENT_SUFFIXES) and type(raw) in (int, float):
+            return None, raw * 100.0
+        return None, raw
+    if note.startswith("#"):
+        return (f"holds the Excel error {cells.show(note)} (a formula that fails, or a broken "
+                "reference); fix the formula or type the value"), None
+    return (f"formula {cells.show(note)} has no saved result; open and save the workbook in Excel or "
+            "LibreOffice (or type the value)"), None
+
+
+PERCENT_SUFFIXES = ("_pct", "_pct_per_year")   # columns in percent: a 1.2 % cell means 1.2
 
 
 def parse_fields(columns, raw_of: Callable[[Column], object], report: Report) -> tuple[dict, bool]:

@@ -157,7 +157,10 @@ class SheetScan:
     """What the pre-scan of one sheet found besides its extent (the reader reports neither)."""
     hidden_rows: list[int] = field(default_factory=list)
     hidden_columns: list[int] = field(default_factory=list)
-    uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)   # (row, col) -> "=..."
+    # (row, col) -> "=..." a formula without a saved result, "#N/A" (any "#...") an Excel error
+    # value (the reader sees both as blank), PERCENT a number shown as a percentage
+    uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)
+    percent_styles: frozenset = frozenset()      # style indices whose number format shows %
 
 
 _HIDDEN_ROW = re.compile(rb'<(?:\w+:)?row\b[^>]*?\br="([0-9]+)"[^>]*?\bhidden="(?:1|true)"')
@@ -168,6 +171,56 @@ _MIN_MAX = re.compile(rb'\b(min|max)="([0-9]+)"')
 _UNCACHED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*>\s*'
                        rb'<(?:\w+:)?f\b[^>]*?(?:/>|>([^<]*)</(?:\w+:)?f>)\s*'
                        rb'(?:<(?:\w+:)?v\s*/>|<(?:\w+:)?v>\s*</(?:\w+:)?v>)?\s*</(?:\w+:)?c>')
+
+
+PERCENT = "%"
+# a cell holding an Excel error value: <c r="F2" t="e"><f>1/0</f><v>#DIV/0!</v></c>
+_ERROR_CELL = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*?\bt="e"[^>]*>'
+                         rb'(?:(?!</(?:\w+:)?c>).)*?<(?:\w+:)?v>([^<]*)</(?:\w+:)?v>', re.S)
+_ERROR_CELL_REVERSED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\bt="e"[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*>'
+                                  rb'(?:(?!</(?:\w+:)?c>).)*?<(?:\w+:)?v>([^<]*)</(?:\w+:)?v>', re.S)
+_STYLED_CELL = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*?\bs="([0-9]+)"')
+_STYLED_CELL_REVERSED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\bs="([0-9]+)"[^>]*?\br="([A-Za-z]+)([0-9]+)"')
+
+
+def _cell_notes(text: bytes, scan: SheetScan) -> None:
+    """Excel error values and percent-formatted cells (searched only where the text mentions
+    an error type or a percent style)."""
+    if b't="e"' in text:
+        for pattern in (_ERROR_CELL, _ERROR_CELL_REVERSED):
+            for letters, row, value in pattern.findall(text):
+                key = (int(row), column_number(letters.decode("ascii")))
+                scan.uncached_formulas[key] = value.decode("utf-8", "replace").strip() or "#VALUE!"
+    if scan.percent_styles and b' s="' in text:
+        for letters, row, style in _STYLED_CELL.findall(text):
+            if int(style) in scan.percent_styles:
+                scan.uncached_formulas.setdefault((int(row), column_number(letters.decode("ascii"))), PERCENT)
+        for style, letters, row in _STYLED_CELL_REVERSED.findall(text):
+            if int(style) in scan.percent_styles:
+                scan.uncached_formulas.setdefault((int(row), column_number(letters.decode("ascii"))), PERCENT)
+
+
+BUILTIN_PERCENT_FORMATS = {9, 10}        # 0% and 0.00% (ECMA-376 Part 1, 18.8.30)
+
+
+def percent_styles(archive: zipfile.ZipFile) -> frozenset:
+    """Indices of the cell formats (styles.xml cellXfs) that show a number as a percentage."""
+    from defusedxml.ElementTree import fromstring
+
+    member = _member(archive, "/xl/styles.xml")
+    if member is None:
+        return frozenset()
+    root = fromstring(archive.read(member))
+    custom = {int(f.get("numFmtId", -1)) for f in root.iter() if _local(f.tag) == "numFmt"
+              and "%" in (f.get("formatCode") or "").replace('"%"', "").replace("\\%", "")}
+    found = set()
+    for holder in root.iter():
+        if _local(holder.tag) == "cellXfs":
+            for index, xf in enumerate(x for x in holder if _local(x.tag) == "xf"):
+                number_format = int(xf.get("numFmtId", 0) or 0)
+                if number_format in BUILTIN_PERCENT_FORMATS or number_format in custom:
+                    found.add(index)
+    return frozenset(found)
 
 
 def _notes(text: bytes, scan: SheetScan) -> None:
@@ -251,9 +304,10 @@ def scan_sheets(path: Path, names) -> dict[str, SheetScan]:
     try:
         with zipfile.ZipFile(path) as archive:
             parts = sheet_parts(archive)
+            styles = percent_styles(archive)
             for name, part in parts.items():
                 if name.casefold() in wanted and part:
-                    scans[name] = _scan_part(archive, part, name, path)
+                    scans[name] = _scan_part(archive, part, name, path, styles)
             if any(part is None for part in parts.values()) or not parts:
                 for part in _worksheet_members(archive):
                     if part not in parts.values():
@@ -265,9 +319,10 @@ def scan_sheets(path: Path, names) -> dict[str, SheetScan]:
     return scans
 
 
-def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> SheetScan:
+def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path,
+               styles: frozenset = frozenset()) -> SheetScan:
     max_row = max_col = rows = unreferenced = total_cells = 0
-    scan = SheetScan()
+    scan = SheetScan(percent_styles=styles)
     carry = b""
     with archive.open(part) as stream:
         while True:
@@ -285,6 +340,7 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> S
             total_cells += cells
             unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
             _notes(text, scan)
+            _cell_notes(text, scan)
             if not block:
                 break
     # cells without a reference take the next column: bound their reach by their number
