@@ -976,3 +976,88 @@ def test_excel_error_cells_named_as_errors(tmp_path, cell, column, error):
                  lambda book: setattr(book["Scenarios"][cell], "value", error))
     line = _validate_first_line(path)
     assert line.startswith(f"Error: {path}: Scenarios!{cell} {column}: holds the Excel error '{error}'"), line
+
+
+def test_import_epa_never_writes_what_its_validate_refuses(tmp_path):
+    """Before: import-epa wrote a workbook its own validate refused (axle 0, negative weight,
+    B -500), and a make beginning @SUM( reached measured.csv un-neutralised."""
+    from test_epa_import import epa_row, write_list
+
+    rows = [epa_row(), epa_row(**{"Test Vehicle ID": "AX0", "Axle Ratio": 0}),
+            epa_row(**{"Test Vehicle ID": "NEGW", "Equivalent Test Weight (lbs.)": -3625}),
+            epa_row(**{"Test Vehicle ID": "B500", "Target Coef B (lbf/mph)": -500}),
+            epa_row(**{"Test Vehicle ID": "FORM", "Represented Test Veh Make": "@SUM(1+1)",
+                       "Vehicle Manufacturer Name": "=HYPERLINK(\"http://x\")"})]
+    listed = write_list(tmp_path / "list.csv", rows)
+    fleet, measured = tmp_path / "fleet.xlsx", tmp_path / "measured.csv"
+    result = invoke("import-epa", listed, "-o", fleet, "--measured-out", measured)
+    assert result.exit_code == 0, result.output
+    checked = invoke("validate", fleet)
+    assert checked.exit_code == 0, checked.stderr
+    from fleetrun.workbook import read_fleet
+
+    assert {v.vehicle_id.split("_")[0] for v in read_fleet(fleet).vehicles} == {"18-AV3A", "FORM"}
+    with open(measured, newline="", encoding="utf-8") as handle:
+        cells = [cell for row in list(csv.reader(handle))[1:] for cell in row]
+    assert "'@SUM(1+1)" in cells and any(cell.lower() == "'=hyperlink(\"http://x\")" for cell in cells), cells
+    assert not any(cell[:1] in ("=", "+", "@") for cell in cells)
+
+
+# --- diagnose inputs --------------------------------------------------------------------------
+
+def test_diagnose_time_in_milliseconds_refused(tmp_path):
+    """Before: a recording with time_s in milliseconds was accepted."""
+    path = _rig_recording(tmp_path, GOOD_SIDECAR)
+    lines = path.read_text().splitlines()
+    body = [",".join([f"{float(line.split(',')[0]) * 1000:g}", *line.split(",")[1:]]) for line in lines[1:]]
+    path.write_text("\n".join([lines[0], *body]) + "\n")
+    result = invoke("diagnose", path, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {path}: row 3, column time_s: the usual time step is 500 s")
+
+
+def test_diagnose_torque_times_1e300_is_exit_1(tmp_path):
+    """Before: input torque x 1e300 exit 4."""
+    path = _rig_recording(tmp_path, GOOD_SIDECAR)
+    lines = path.read_text().splitlines()
+    body = [",".join([line.split(",")[0], f"{float(line.split(',')[1]) * 1e300:g}", *line.split(",")[2:]])
+            for line in lines[1:]]
+    path.write_text("\n".join([lines[0], *body]) + "\n")
+    result = invoke("diagnose", path, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {path}: row 2, column diff_input_torque_Nm: torque 1e+302 N m")
+
+
+def _measured(path: Path, rows: list[str]) -> Path:
+    path.write_text("vehicle_id,test,mpg,manufacturer\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_measured_conflicting_duplicates_refused(tmp_path):
+    """Before: 200 conflicting duplicate rows in a measured CSV: the last won, silently."""
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    rows = [f"CAR-1,FTP,{30 + i % 7},acme" for i in range(200)]
+    measured = _measured(tmp_path / "measured.csv", rows)
+    result = invoke("diagnose-fleet", fleet, "--measured", measured, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {measured}: row 3, column mpg: CAR-1 FTP again, with mpg 31")
+
+
+def test_measured_mpg_off_by_units_refused(tmp_path):
+    """L/100 km or a placeholder under mpg: outside any vehicle's fuel economy."""
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    measured = _measured(tmp_path / "measured.csv", ["CAR-1,FTP,30,acme", "CAR-2,FTP,9999,zeta"])
+    result = invoke("diagnose-fleet", fleet, "--measured", measured, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {measured}: row 3, column mpg: 9,999 mpg is outside 3 to 200 mpg")
+
+
+def test_one_manufacturer_fleet_refused_not_nan(tmp_path):
+    """Before: a one-manufacturer fleet wrote NaN into diagnosis.json and "nan" into the HTML."""
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    measured = _measured(tmp_path / "measured.csv", ["CAR-1,FTP,30,acme", "CAR-2,FTP,28,acme"])
+    result = invoke("diagnose-fleet", fleet, "--measured", measured, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {measured}: column manufacturer: every measured result is of one "
+                                         "manufacturer (acme)")
+    assert not (tmp_path / "d").exists()

@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fleetrun import plausible
 from fleetrun.diagnose.select import _solve_bounded
 from fleetrun.errors import InputError
 
@@ -100,6 +101,7 @@ def read_measured(path, known_ids) -> dict:
                          hint="Columns: vehicle_id, test, mpg (and manufacturer)")
     known = set(known_ids)
     out = {}
+    first_row: dict = {}
     for i, row in enumerate(df.itertuples(index=False), start=2):
         vid, test, raw = str(row.vehicle_id).strip(), str(row.test).strip(), str(row.mpg).strip()
         if test not in TESTS:
@@ -116,7 +118,14 @@ def read_measured(path, known_ids) -> dict:
         if not np.isfinite(mpg) or mpg <= 0:
             raise InputError(f"mpg must be a positive number, got '{raw}'", file=path, row=i,
                              column="mpg", value=raw)
-        out[(vid, test)] = (mpg, str(getattr(row, "manufacturer", "") or "").strip().lower())
+        plausible.check_mpg([mpg], file=path, column="mpg", rows=[i])
+        maker = str(getattr(row, "manufacturer", "") or "").strip().lower()
+        if (vid, test) in out and out[(vid, test)][:2] != (mpg, maker):
+            raise InputError(f"{vid} {test} again, with mpg {raw} (row {first_row[(vid, test)]}: "
+                             f"{out[(vid, test)][0]:g}); which one is measured is ambiguous", file=path, row=i,
+                             column="mpg", value=raw, hint="Keep one row per vehicle and test (or their mean)")
+        first_row.setdefault((vid, test), i)
+        out[(vid, test)] = (mpg, maker)
     if not out:
         raise InputError("no measured results", file=path)
     return out
@@ -478,7 +487,6 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
     used = sorted({index[vid] for vid, _ in measured})
     sub = [vehicles[i] for i in used]
     pos = {i: k for k, i in enumerate(used)}
-    sim = simulate_fleet(sub, ambient_temp_C=ambient_temp_C)
     rows = sorted(measured, key=lambda key: (index[key[0]], TESTS.index(key[1])))
     rows_v = np.array([pos[index[vid]] for vid, _ in rows])
     rows_t = np.array([t for _, t in rows], dtype=object)
@@ -489,6 +497,12 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
         vid = rows[int(np.flatnonzero(makers == "")[0])][0]
         raise InputError(f"no manufacturer for vehicle '{vid}'", file=measured_path, column="manufacturer",
                          hint="Give a manufacturer column (errors are held out by manufacturer)")
+    if len(set(makers)) < 2:
+        raise InputError(f"every measured result is of one manufacturer ({makers[0]}); diagnose-fleet "
+                         "judges each effect on manufacturers it was not fitted to, so it needs two or more",
+                         file=measured_path, column="manufacturer",
+                         hint="Add the results of other manufacturers (import-epa without --make)")
+    sim = simulate_fleet(sub, ambient_temp_C=ambient_temp_C)
 
     def residual(model):
         # measured fuel per mile over simulated = simulated mpg / measured mpg

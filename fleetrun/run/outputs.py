@@ -9,7 +9,7 @@ from pathlib import Path
 
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
-from fleetrun.workbook.text_cells import FORMULA_START
+from fleetrun.workbook.text_cells import neutralised
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
                 "manifest.json")
@@ -17,17 +17,9 @@ OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv
 
 def write_csv(frame, path: Path) -> None:
     """``frame`` as CSV with a leading ``'`` on every text cell that starts like a formula
-    (:data:`fleetrun.workbook.text_cells.FORMULA_START`); numeric columns are written as numbers,
+    (:func:`fleetrun.workbook.text_cells.neutralised`); numeric columns are written as numbers,
     unchanged."""
-    safe = frame.copy(deep=False)
-    for name in safe.columns:
-        column = safe[name]
-        if column.dtype.kind == "O" or str(column.dtype) in ("string", "str"):
-            texts = column.astype("string")
-            risky = texts.str.startswith(FORMULA_START).fillna(False).to_numpy(dtype=bool)
-            if risky.any():
-                safe[name] = column.where(~risky, "'" + texts)
-    safe.to_csv(path, index=False)
+    neutralised(frame).to_csv(path, index=False)
 
 
 def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> None:
