@@ -1061,3 +1061,50 @@ def test_one_manufacturer_fleet_refused_not_nan(tmp_path):
     assert first_line(result).startswith(f"Error: {measured}: column manufacturer: every measured result is of one "
                                          "manufacturer (acme)")
     assert not (tmp_path / "d").exists()
+
+
+# --- Dask -------------------------------------------------------------------------------------
+
+def _dask_run(tmp_path, scheduler, monkeypatch):
+    monkeypatch.setenv("FLEETRUN_DASK_TIMEOUT_S", "2")
+    started = time.perf_counter()
+    result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "-q", "--no-cache",
+                      "--engine", "dask", "--scheduler", scheduler)
+    return result, time.perf_counter() - started
+
+
+@pytest.mark.parametrize("address", ["garbage!!", "tcp://localhost:notaport", "tcp://:8786"])
+def test_dask_garbage_scheduler_is_exit_1_at_once(tmp_path, fake_simulation, monkeypatch, address):
+    """Before: --scheduler garbage: exit 4 with a traceback after 20 s."""
+    pytest.importorskip("distributed")
+    result, seconds = _dask_run(tmp_path, address, monkeypatch)
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: '{address}' is not a Dask scheduler address") and seconds < 10
+
+
+def test_dask_silent_port_is_exit_1_within_the_timeout(tmp_path, fake_simulation, monkeypatch):
+    """Before: a port where something else (not a Dask scheduler) listens: a hang of 600 s."""
+    pytest.importorskip("distributed")
+    import socket
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(5)
+    try:
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        result, seconds = _dask_run(tmp_path, address, monkeypatch)
+    finally:
+        server.close()
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: cannot reach the Dask scheduler at '{address}' within 2 s")
+    assert seconds < 30, seconds
+
+
+def test_dask_scheduler_without_workers_is_exit_1_within_the_timeout(tmp_path, fake_simulation, monkeypatch):
+    """Before: a scheduler with no workers: a hang of 150 s."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        result, seconds = _dask_run(tmp_path, cluster.scheduler_address, monkeypatch)
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: the Dask scheduler at '{cluster.scheduler_address}' has no workers")
+    assert seconds < 30, seconds
