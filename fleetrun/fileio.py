@@ -8,6 +8,7 @@ file and keeps the previous good one. Imports nothing of fleetrun but :mod:`flee
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 import time
@@ -76,12 +77,22 @@ def atomic_file(path: Path):
                          hint="Choose an output path in a folder you can write to") from None
     os.close(handle)
     try:
-        yield Path(temporary)
-        os.chmod(temporary, default_file_mode())
-        os.replace(temporary, path)
+        try:
+            yield Path(temporary)
+            os.chmod(temporary, default_file_mode())
+            os.replace(temporary, path)
+        except OSError as exc:   # disk full, quota, a file system that refuses: the user's to fix
+            raise InputError(f"{path}: cannot write it ({exc.strerror or exc}); the previous file, if "
+                             "any, is unchanged", hint=_write_hint(exc)) from None
     finally:
         if os.path.exists(temporary):
             os.unlink(temporary)
+
+
+def _write_hint(exc: OSError) -> str:
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return "Free some space or choose an output path on another disk"
+    return "Choose an output path in a folder you can write to"
 
 
 def write_text_atomic(path: Path, text: str) -> None:

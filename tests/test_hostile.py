@@ -1108,3 +1108,18 @@ def test_dask_scheduler_without_workers_is_exit_1_within_the_timeout(tmp_path, f
     assert result.exit_code == 1, result.output
     assert first_line(result).startswith(f"Error: the Dask scheduler at '{cluster.scheduler_address}' has no workers")
     assert seconds < 30, seconds
+
+
+def test_disk_full_writing_a_file_is_exit_1(tmp_path, monkeypatch):
+    """Before: disk full while writing `map -o FILE`: exit 4 (a traceback)."""
+    import pathlib
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(self))
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+    target = tmp_path / "map.csv"
+    result = invoke("map", "LD_RWD", "--gear-ratio", "3.2", "-o", target)
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {target}: cannot write it (No space left on device)")
+    assert list(tmp_path.iterdir()) == []
