@@ -13,6 +13,8 @@ The limits are physical, not statistical; each says where it comes from:
   is not in seconds (drive cycles and recordings are sampled at 1 Hz or faster; a millisecond
   clock gives steps of 100 or 1000); a few hand-typed points may lie further apart;
 - fuel economy: 3 to 200 mpg (a loaded heavy truck to a hybrid's city label; 40 CFR 600);
+  measured over simulated fuel economy a median 1/1.8 to 1.8 for a whole file (the simulation
+  is within about 25 % of EPA's results on average; km/L under ``mpg`` is 2.35 times too low);
 - torque: 100,000 N m at the differential (a Class 8 axle carries about 30,000 N m).
 """
 from __future__ import annotations
@@ -29,6 +31,7 @@ MAX_MEDIAN_STEP_S = 60.0
 MIN_SAMPLES_FOR_STEP_CHECK = 20
 MPG_RANGE = (3.0, 200.0)
 MAX_TORQUE_NM = 100_000.0
+MAX_MEDIAN_MPG_FACTOR = 1.8
 
 # Hard budgets of what an input may ask for, enforced before anything is allocated
 MAX_CYCLE_ROWS = 500_000            # a 1 Hz cycle of 5.8 days; 10 Hz: 14 h
@@ -97,6 +100,16 @@ def check_mpg(mpg, *, file, column, rows=None) -> None:
         raise InputError(f"{values[i]:,.6g} mpg is outside {low:g} to {high:g} mpg", file=file,
                          row=_row(rows, i), column=column,
                          hint="Give miles per US gallon (km/L x 2.352 = mpg; 235.2 / (L/100 km) = mpg)")
+
+
+def check_mpg_scale(measured_over_simulated, *, file, column) -> None:
+    """InputError when a file's fuel economies are as a whole a unit off the simulation's (the
+    median ratio beyond MAX_MEDIAN_MPG_FACTOR either way: km/L, L/100 km under ``mpg``)."""
+    ratio = float(np.median(np.asarray(measured_over_simulated, dtype=float)))
+    if not 1 / MAX_MEDIAN_MPG_FACTOR <= ratio <= MAX_MEDIAN_MPG_FACTOR:
+        raise InputError(f"the measured fuel economies are a median {ratio:.3g} times the simulated ones; "
+                         "not miles per US gallon?", file=file, column=column,
+                         hint="Give mpg (km/L x 2.352 = mpg; 235.2 / (L/100 km) = mpg)")
 
 
 def check_budget(what: str, count: int, limit: int, *, file=None, hint: str = "") -> None:

@@ -1123,3 +1123,17 @@ def test_disk_full_writing_a_file_is_exit_1(tmp_path, monkeypatch):
     assert result.exit_code == 1, result.output
     assert first_line(result).startswith(f"Error: {target}: cannot write it (No space left on device)")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_measured_km_per_litre_under_mpg_refused(tmp_path):
+    """Before: a measured file in km/L under `mpg` was accepted (the fitted fuel scale absorbed
+    the factor 2.35)."""
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    rows = [f"{vid},{test},{mpg / 2.352:.2f},{maker}" for vid, maker, base in
+            (("CAR-1", "acme", 30), ("CAR-2", "zeta", 27), ("PICKUP-1", "acme", 20))
+            for test, mpg in (("FTP", base), ("HWFET", base * 1.4), ("US06", base * 0.9))]
+    measured = _measured(tmp_path / "measured.csv", rows)
+    result = invoke("diagnose-fleet", fleet, "--measured", measured, "--out", tmp_path / "d")
+    assert result.exit_code == 1, result.output
+    assert first_line(result).startswith(f"Error: {measured}: column mpg: the measured fuel economies are a median")
+    assert "not miles per US gallon" in first_line(result)

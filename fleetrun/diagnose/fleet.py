@@ -510,6 +510,7 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
         sim_mpg = np.array([sim[model][t]["mi"][v] / sim[model][t]["gal"][v] for v, t in zip(rows_v, rows_t)])
         return np.log(sim_mpg / mpg)
 
+    plausible.check_mpg_scale(np.exp(-residual("warm")), file=measured_path, column="mpg")
     cols, untestable = candidate_columns(sim, rows_v, rows_t, sub)
     return FleetProblem([v.vehicle_id for v in sub], rows_v, rows_t, makers, residual("warm"),
                         residual("full"), cols, untestable, vehicle_properties(sub))
