@@ -80,17 +80,18 @@ def render_json(meta: dict, torque_fractions, speeds_rpm, eta) -> str:
 
 
 def _check_map_request(ratios: dict, torque_fractions, speeds_rpm) -> None:
-    """The ratios within the fleet workbook's ranges (one owner: its columns) and the grid
-    within fleetrun.plausible.MAX_MAP_POINTS, before any work."""
+    """The gear ratio within the fleet workbook's range (one owner: its column; a ratio <= 0
+    is the model's own error) and the grid within fleetrun.plausible.MAX_MAP_POINTS, before
+    any work."""
     from fleetrun.plausible import MAX_MAP_POINTS, check_budget
     from fleetrun.workbook.cells import CellProblem
     from fleetrun.workbook.rows import check_range
     from fleetrun.workbook.schema import VEHICLE_COLUMNS, columns_by_name
 
     columns = columns_by_name(VEHICLE_COLUMNS)
-    for option, column in (("--gear-ratio", "final_drive_ratio"), ("--low-gear-ratio", "low_gear_ratio")):
+    for option, column in (("--gear-ratio", "final_drive_ratio"),):
         value, text = ratios[option]
-        if value is not None:
+        if value is not None and value > 0:
             try:
                 check_range(columns[column], value, str(text))
             except CellProblem as problem:
