@@ -4,11 +4,17 @@ Each command lives in ``fleetrun/commands/<name>.py`` and exposes ``command``. L
 (:class:`fleetrun.errors.FleetrunError`) and the file system refusing a path the user gave
 become one ``Error: ...`` line and exit code 1. Anything else is an internal error (a bug):
 its traceback goes to a log file (:func:`fleetrun.fileio.write_error_log`) that the one
-``Error:`` line names, exit code 4 (as ``fleetrun run``, docs/batch.md).
+``Error:`` line names, exit code 4 (as ``fleetrun run``, docs/batch.md). Ctrl-C is an
+``Error:`` line and exit code 1 (the outputs are as they were).
+
+Whatever a command prints passes through :class:`Printable`: control characters and escape
+sequences from a workbook cell or a file name (``ESC ] 0 ; ...`` retitles a terminal, others
+recolour it or move the cursor) are shown as ``\x1b`` and never reach a terminal raw.
 """
 from __future__ import annotations
 
 import importlib
+import re
 import sys
 import traceback
 from pathlib import Path
@@ -53,8 +59,20 @@ class FleetrunGroup(click.Group):
         return super().parse_args(ctx, args)
 
     def invoke(self, ctx):
+        streams = sys.stdout, sys.stderr
+        sys.stdout, sys.stderr = Printable(sys.stdout), Printable(sys.stderr)
+        try:
+            return self._invoke(ctx)
+        finally:
+            sys.stdout, sys.stderr = streams
+
+    def _invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except KeyboardInterrupt:
+            click.echo("Error: interrupted (Ctrl-C); nothing more was written and the output folder "
+                       "is as it was", err=True)
+            ctx.exit(1)
         except FleetrunError as exc:
             click.echo(f"Error: {exc}", err=True)
             ctx.exit(1)
@@ -71,6 +89,31 @@ class FleetrunGroup(click.Group):
             ctx.exit(1)
         except Exception:  # a bug: its traceback in a log file, one Error line naming it
             _internal_error(ctx)
+
+
+# C0 and C1 control characters but tab, newline and carriage return (the progress bar's), DEL,
+# and the bidirectional overrides (which reorder what a terminal shows)
+_UNPRINTABLE = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text: str) -> str:
+    """``text`` with every control character shown as an escape (``\\x1b``)."""
+    return _UNPRINTABLE.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 256
+                            else f"\\u{ord(m.group()):04x}", text)
+
+
+class Printable:
+    """A text stream that writes :func:`printable` text to ``stream`` (everything else is
+    ``stream``'s: encoding, isatty, flush, ...)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        return self._stream.write(printable(text) if isinstance(text, str) else text)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _names_user_path(exc: OSError, argv) -> bool:

@@ -37,8 +37,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from fleetrun import plausible
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
 from fleetrun.resources import inputs_dir
+from fleetrun.plausible import MAX_CYCLE_BYTES, MAX_CYCLE_ROWS
 from fleetrun.units import METERS_PER_MILE
 
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
@@ -415,7 +417,31 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
                          file=path, row=int(rows[i]), column=speed_col,
                          value=_cell_text(df[speed_col].iloc[i]),
                          hint="Speeds must be >= 0; replace reversing or sensor noise by 0")
+    _check_plausible(path, t, v, g, rows, speed_col)
     return DriveCycle(name=name or path.stem, time_s=t, speed_mps=v, grade_pct=g)
+
+
+def _check_plausible(path: Path, t, v, g, rows, speed_col: str) -> None:
+    """Units off by 1000 and a cycle that never moves (which ``run`` could not drive) are
+    errors here, so ``validate`` refuses them too (limits: :mod:`fleetrun.plausible`)."""
+    plausible.check_speed(v, file=path, column=speed_col, rows=rows)
+    plausible.check_grade(g, file=path, column=GRADE_COLUMN, rows=rows)
+    plausible.check_time_steps(t, file=path, column=TIME_COLUMN, rows=rows)
+    if not np.any(v > 0):
+        raise InputError(f"every speed is 0: the cycle never moves, so it has no miles to give fuel "
+                         "per mile for", file=path, column=speed_col,
+                         hint="Give a cycle that drives (or leave it out of the cycle mix)")
+
+
+def _check_size(path: Path) -> None:
+    if not path.is_file():
+        raise InputError("is not a regular file (a device, pipe or socket)", file=path,
+                         hint="Give the path of a .csv file")
+    size = path.stat().st_size
+    if size > MAX_CYCLE_BYTES:
+        raise InputError(f"is {size / 1e6:,.0f} MB; fleetrun reads drive cycles up to "
+                         f"{MAX_CYCLE_BYTES / 1e6:,.0f} MB", file=path,
+                         hint="Resample the cycle to 1 Hz or split it")
 
 
 def _read_csv_cells(path: Path):
@@ -431,6 +457,7 @@ def _read_csv_cells(path: Path):
         raise InputError(f"not a CSV file (extension '{path.suffix}')", file=path,
                          hint="Save the drive cycle as .csv with a header row "
                               "time_s,speed_mps[,grade_pct]")
+    _check_size(path)
     with open(path, "rb") as fh:
         head = fh.read(8192)
     if b"\x00" in head:
@@ -441,10 +468,10 @@ def _read_csv_cells(path: Path):
         # UTF-8 (with or without BOM); Excel's default "CSV" on Windows is cp1252
         try:
             df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
-                             encoding="utf-8-sig")
+                             encoding="utf-8-sig", nrows=MAX_CYCLE_ROWS + 1)
         except UnicodeDecodeError:
             df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False,
-                             encoding="cp1252")
+                             encoding="cp1252", nrows=MAX_CYCLE_ROWS + 1)
     except UnicodeDecodeError:
         raise InputError("not a text CSV file (cannot decode as UTF-8 or Windows-1252)",
                          file=path, hint="Save the drive cycle as a UTF-8 CSV") from None
@@ -456,6 +483,10 @@ def _read_csv_cells(path: Path):
         raise InputError(f"not a readable CSV ({str(exc).strip()})", file=path,
                          hint="Check that every row has the same number of comma-separated "
                               "fields as the header") from None
+    if len(df) > MAX_CYCLE_ROWS:
+        raise InputError(f"has more than {MAX_CYCLE_ROWS:,} rows; fleetrun reads drive cycles up to "
+                         f"{MAX_CYCLE_ROWS:,} rows", file=path, row=MAX_CYCLE_ROWS + 2,
+                         hint="Resample the cycle to 1 Hz or split it")
     df.columns = [str(c).strip() for c in df.columns]
     return df
 

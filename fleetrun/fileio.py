@@ -8,6 +8,7 @@ file and keeps the previous good one. Imports nothing of fleetrun but :mod:`flee
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 import time
@@ -47,6 +48,13 @@ def refuse_replacing_inputs(output: Path, inputs, option: str = "-o") -> None:
                              hint=f"Choose another output path ({option})")
 
 
+def refuse_outputs_replacing_inputs(folder: Path, names, inputs, option: str = "--out") -> None:
+    """:func:`refuse_replacing_inputs` for each file ``names`` a command writes into ``folder``
+    (e.g. ``diagnose-fleet --measured out/diagnosis.json --out out``)."""
+    for name in names:
+        refuse_replacing_inputs(Path(folder) / name, inputs, f"{option} {folder} (its {name})")
+
+
 def default_file_mode() -> int:
     """The mode a new file gets (0o666 less the umask): temporary files start as 0o600."""
     umask = os.umask(0)
@@ -69,12 +77,22 @@ def atomic_file(path: Path):
                          hint="Choose an output path in a folder you can write to") from None
     os.close(handle)
     try:
-        yield Path(temporary)
-        os.chmod(temporary, default_file_mode())
-        os.replace(temporary, path)
+        try:
+            yield Path(temporary)
+            os.chmod(temporary, default_file_mode())
+            os.replace(temporary, path)
+        except OSError as exc:   # disk full, quota, a file system that refuses: the user's to fix
+            raise InputError(f"{path}: cannot write it ({exc.strerror or exc}); the previous file, if "
+                             "any, is unchanged", hint=_write_hint(exc)) from None
     finally:
         if os.path.exists(temporary):
             os.unlink(temporary)
+
+
+def _write_hint(exc: OSError) -> str:
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return "Free some space or choose an output path on another disk"
+    return "Choose an output path in a folder you can write to"
 
 
 def write_text_atomic(path: Path, text: str) -> None:

@@ -21,7 +21,17 @@ folder removes stale staging folders and puts a stranded old folder back first
 
 Failures (a file of the old folder open in another program, which on Windows locks it; no
 permission; disk full) raise :class:`~fleetrun.errors.InputError` naming the path, with the
-previous folder unchanged.
+previous folder unchanged. A read-only output folder is refused, not replaced.
+
+Concurrency: one lock per output folder (:func:`folder_lock`, a lock file
+``.out.fleetrun-lock`` beside ``out`` holding the owner's pid, removed on release). A second
+run into the same folder waits for the first (up to ``$FLEETRUN_LOCK_WAIT_S``, default 600 s)
+and then exits 1 naming the holder; so two runs never both read the same earlier run and
+overwrite each other.
+
+Only fleetrun's own files are moved or deleted: whatever another program writes into ``out``
+while the run assembles its staging folder (before the swap) is moved into the new folder
+after it, never removed with the old one.
 """
 from __future__ import annotations
 
@@ -30,6 +40,7 @@ import errno
 import os
 import secrets
 import shutil
+import sys
 import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -39,6 +50,8 @@ from fleetrun.errors import InputError
 STAGING = "staging"
 OLD = "old"
 STALE_AFTER_S = 24 * 3600     # where a process cannot be asked whether it runs (Windows)
+LOCK_WAIT_S = 600.0           # default wait for another run's lock ($FLEETRUN_LOCK_WAIT_S)
+_HELD: dict[str, int] = {}    # locks this process holds (resolved folder -> depth)
 
 
 def _sibling(target: Path, kind: str) -> Path:
@@ -83,7 +96,7 @@ def clean_leftovers(target: Path) -> list[Path]:
         if kind == OLD and not target.exists():
             os.rename(entry, target)
         else:
-            shutil.rmtree(entry, ignore_errors=True)
+            _remove_tree(entry)
         handled.append(entry)
     return handled
 
@@ -131,12 +144,124 @@ def _error(target: Path, doing: str, exc: OSError) -> InputError:
 
 
 def _resolve_target(target: Path) -> Path:
-    target = Path(target)
-    if target.is_symlink():
+    """``target`` as an absolute path without ``..`` or links (``--out ..`` must name the parent
+    folder, so that the staging folder is its sibling and never inside it)."""
+    target = Path(os.path.abspath(Path(target).expanduser()))
+    if target.is_symlink() or target.exists():
         target = target.resolve()
+    if target.parent == target:
+        raise InputError(f"{target}: the root of a file system cannot be an output folder",
+                         hint="Choose an output folder inside it")
     if target.exists() and not target.is_dir():
         raise InputError(f"{target}: exists and is not a folder", hint="Choose another output folder")
+    if target.is_dir() and not _writable(target):
+        raise InputError(f"{target}: the output folder is read-only; it is left as it is",
+                         hint="Make it writable, or choose another output folder (--out)")
     return target
+
+
+def _writable(folder: Path) -> bool:
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
+def _remove_tree(path: Path) -> None:
+    """Remove a folder of fleetrun's, read-only entries too (so no ``.out-old-*`` piles up)."""
+    def retry(function, name, _exc):
+        try:
+            os.chmod(os.path.dirname(name) or ".", 0o700)
+            os.chmod(name, 0o700)
+            function(name)
+        except OSError:
+            pass
+
+    if sys.version_info >= (3, 12):
+        shutil.rmtree(path, onexc=retry)
+    else:  # pragma: no cover
+        shutil.rmtree(path, onerror=retry)
+
+
+def _lock_path(target: Path) -> Path:
+    return target.parent / f".{target.name}.fleetrun-lock"
+
+
+def _try_lock(handle) -> bool:
+    try:
+        if os.name == "nt":  # pragma: no cover - Windows
+            import msvcrt
+
+            msvcrt.locking(handle.fileno(), msvcrt.LK_NBLCK, 1)
+        else:
+            import fcntl
+
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
+
+
+def _holder(lock: Path) -> str:
+    try:
+        text = lock.read_text(encoding="utf-8", errors="replace").strip()
+    except OSError:
+        text = ""
+    return text[:200] or "another process"
+
+
+def _acquire(lock: Path, target: Path, wait_s: float):
+    """An open, locked handle of ``lock`` (the same file as the path names now); waits for
+    another holder up to ``wait_s`` seconds, then InputError naming the holder."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        handle = open(lock, "a+", encoding="utf-8")
+        if _try_lock(handle):
+            try:
+                same = os.path.samestat(os.fstat(handle.fileno()), os.stat(lock))
+            except OSError:
+                same = False
+            if same:    # not a file the previous holder unlinked while we waited
+                return handle
+        handle.close()
+        if time.monotonic() >= deadline:
+            raise InputError(f"{target}: another fleetrun run "
+                             f"is writing into this output folder ({_holder(lock)}; lock file {lock})",
+                             hint="Wait for it to finish, or choose another output folder (--out)")
+        time.sleep(0.05)
+
+
+@contextlib.contextmanager
+def folder_lock(target: Path, wait_s: float | None = None) -> Iterator[Path]:
+    """Hold the lock of output folder ``target`` (re-entrant within this process); see the
+    module doc. Yields the resolved target."""
+    target = _resolve_target(target)
+    key = str(target)
+    if key in _HELD:
+        _HELD[key] += 1
+        try:
+            yield target
+        finally:
+            _HELD[key] -= 1
+        return
+    if wait_s is None:
+        wait_s = float(os.environ.get("FLEETRUN_LOCK_WAIT_S", LOCK_WAIT_S))
+    lock = _lock_path(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle = _acquire(lock, target, wait_s)
+    except OSError as exc:
+        raise InputError(f"{target}: cannot write here ({exc.strerror or exc})",
+                         hint="Choose an output folder you can write to") from None
+    try:
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"pid {os.getpid()} since {time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())}\n")
+        handle.flush()
+        _HELD[key] = 1
+        yield target
+    finally:
+        _HELD.pop(key, None)
+        with contextlib.suppress(OSError):
+            os.unlink(lock)      # before unlocking: a waiter then sees a new file and retries
+        handle.close()
 
 
 def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
@@ -166,7 +291,27 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
             os.rename(old, target)
         raise _error(target, "cannot replace the output folder", exc) from None
     if had_old:
-        shutil.rmtree(old, ignore_errors=True)   # a locked leftover: the next run removes it
+        _rescue(old, target, set(replaces))
+        _remove_tree(old)   # a locked leftover: the next run removes it
+
+
+def _rescue(old: Path, new: Path, replaced: set[str]) -> None:
+    """Move into ``new`` what appeared in ``old`` after the carry-over (another program writing
+    into the folder during the run): only fleetrun's replaced outputs and the links it made
+    remain in ``old`` to be removed."""
+    for entry in list(old.iterdir()):
+        if entry.name in replaced:
+            continue
+        twin = new / entry.name
+        try:
+            if not os.path.lexists(twin):
+                os.rename(entry, twin)
+            elif entry.is_dir() and not entry.is_symlink() and twin.is_dir():
+                _rescue(entry, twin, set())
+            elif not (entry.is_dir() or twin.is_dir()) and not os.path.samefile(entry, twin):
+                os.replace(entry, twin)
+        except OSError:
+            continue
 
 
 @contextlib.contextmanager
@@ -175,9 +320,14 @@ def new_output_folder(target: Path, replaces: Iterable[str] = ()) -> Iterator[Pa
     exception, it becomes ``target`` in one step (:func:`swap_in`). On an exception the
     staging folder is removed and ``target`` is untouched. Leftovers of killed runs beside
     ``target`` are cleaned first (:func:`clean_leftovers`)."""
-    target = _resolve_target(target)
+    with folder_lock(target) as target:
+        with _staged(target, replaces) as staging:
+            yield staging
+
+
+@contextlib.contextmanager
+def _staged(target: Path, replaces: Iterable[str]) -> Iterator[Path]:
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
         clean_leftovers(target)
         staging = _sibling(target, STAGING)
         staging.mkdir()
@@ -192,4 +342,5 @@ def new_output_folder(target: Path, replaces: Iterable[str] = ()) -> Iterator[Pa
             raise _error(target, "cannot write the outputs", exc) from None
         swap_in(staging, target, replaces)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        if staging.exists():
+            _remove_tree(staging)

@@ -8,6 +8,11 @@ file when it fails, no inf or NaN in any output, and never "validate passes and 
 - ``test_seeded_mutation_fuzz`` (``-m slow``): 1,000 workbooks, each the small example fleet
   with 1-4 cells mutated by a seeded generator (numbers scaled by 1e-12..1e12, signs flipped,
   text, blanks, dates, booleans, formulas, huge strings).
+- ``test_seeded_csv_fuzz`` (default suite, issue 18): 300 drive-cycle CSVs, diagnose recordings
+  and measured fuel-economy files each, mutated line by line (a column scaled by 10^-3..10^6,
+  signs, blanks, text, control characters, duplicated, dropped or swapped rows, a renamed
+  header): the reader gives a value within the plausible ranges (fleetrun.plausible) or an
+  InputError naming the file, never another exception.
 
 Both run `validate` and `run` in-process (click's CliRunner), on the real simulation over a
 30-second drive cycle (`short.csv`) in `direct` mode, so one case takes a fraction of a second.
@@ -19,6 +24,7 @@ import json
 import random
 from pathlib import Path
 
+import numpy as np
 import openpyxl
 import pytest
 from click.testing import CliRunner
@@ -188,3 +194,132 @@ def test_seeded_mutation_fuzz(tmp_path):
         outcomes[codes] = outcomes.get(codes, 0) + 1
     assert sum(outcomes.values()) == 1000
     assert outcomes.get((0, 0), 0) >= 50 and outcomes.get((1, 1), 0) >= 300, outcomes
+
+
+# --- cycles, recordings and measured files (issue 18) ------------------------------------------
+
+def _cycle_text() -> str:
+    return "time_s,speed_mps,grade_pct\n" + "".join(
+        f"{t},{min(t, 60 - t, 20) * 1.1:.2f},{(t % 7) - 3}\n" for t in range(61))
+
+
+def _recording_text() -> str:
+    import math
+
+    return "time_s,diff_input_torque_Nm,diff_input_speed_rpm,diff_output_torque_Nm\n" + "".join(
+        f"{t / 2:g},{100 + 10 * math.sin(t / 2):.4f},{1500 + t:.1f},{350 + 30 * math.sin(t / 2):.4f}\n"
+        for t in range(120))
+
+
+def _measured_text() -> str:
+    rows = [f"CAR-{i},{test},{20 + 3 * i + j},{'acme' if i % 2 else 'zeta'}"
+            for i in range(1, 4) for j, test in enumerate(("FTP", "HWFET", "US06"))]
+    return "vehicle_id,test,mpg,manufacturer\n" + "\n".join(rows) + "\n"
+
+
+def _mutate_csv(rng: random.Random, text: str) -> str:
+    """1-3 line-level hostile edits of a CSV's text."""
+    lines = text.splitlines()
+    for _ in range(rng.randint(1, 3)):
+        if not lines:
+            break
+        kind = rng.randrange(9)
+        row = rng.randrange(1, len(lines)) if len(lines) > 1 else 0
+        cells = lines[row].split(",")
+        col = rng.randrange(len(cells))
+        if kind == 0:        # a unit off: one column of every row scaled
+            factor = 10.0 ** rng.choice([-3, 3, 6])
+            lines = [lines[0]] + [",".join(f"{float(c) * factor:g}" if i == col and _number(c) == _number(c) else c
+                                          for i, c in enumerate(line.split(","))) for line in lines[1:]]
+            continue
+        if kind == 1:
+            cells[col] = rng.choice(["", " ", "abc", "1e308", "-1e308", "inf", "nan", "#N/A", "=1+1",
+                                     "\x1b]0;x\x07", "1,5", "x" * 500])
+        elif kind == 2:
+            cells[col] = "-" + cells[col]
+        elif kind == 3:
+            lines.insert(row, lines[row])                     # a duplicated row
+            continue
+        elif kind == 4 and len(lines) > 3:
+            del lines[row]
+            continue
+        elif kind == 5 and len(lines) > 3:
+            other = rng.randrange(1, len(lines))
+            lines[row], lines[other] = lines[other], lines[row]
+            continue
+        elif kind == 6:
+            header = lines[0].split(",")
+            header[rng.randrange(len(header))] = rng.choice(["time_ms", "speed_kph", "mpg ", "Vehicle_ID", "x"])
+            lines[0] = ",".join(header)
+            continue
+        elif kind == 7:
+            lines = lines[: rng.randint(0, len(lines))]
+            continue
+        else:
+            cells.append(rng.choice(["", "1", "extra"]))
+        lines[row] = ",".join(cells)
+    return "\n".join(lines) + ("\n" if lines else "")
+
+
+def _check_cycle(path: Path) -> None:
+    from fleetrun import plausible
+    from fleetrun.cycles import load_cycle
+
+    cycle = load_cycle(path)
+    assert np.all(np.isfinite(cycle.speed_mps)) and np.all(np.isfinite(cycle.time_s))
+    assert cycle.speed_mps.max() <= plausible.MAX_SPEED_MPS and cycle.distance_m > 0
+    assert np.abs(cycle.grade_pct).max() <= plausible.MAX_GRADE_PCT
+
+
+def _check_recording(path: Path) -> None:
+    from fleetrun import plausible
+    from fleetrun.diagnose.recording import load_recording
+
+    recording = load_recording(path)
+    frame = recording.data
+    values = frame.to_numpy(dtype=float)
+    assert np.all(np.isfinite(values))
+    assert np.abs(frame["diff_input_torque_Nm"].to_numpy()).max() <= plausible.MAX_TORQUE_NM
+
+
+def _check_measured(path: Path) -> None:
+    from fleetrun import plausible
+    from fleetrun.diagnose.fleet import read_measured
+
+    measured = read_measured(path, [f"CAR-{i}" for i in range(1, 4)])
+    mpg = np.array([value[0] for value in measured.values()])
+    assert np.all((mpg >= plausible.MPG_RANGE[0]) & (mpg <= plausible.MPG_RANGE[1]))
+
+
+SIDECAR = (b'configuration = "LD_RWD"\ngear_ratio = 3.73\npeak_engine_torque_Nm = 400\n'
+           b"torque_converter_ratio = 3.0\nmax_transmission_gear_ratio = 4.0\n")
+CSV_KINDS = {"cycle": (_cycle_text, _check_cycle), "recording": (_recording_text, _check_recording),
+             "measured": (_measured_text, _check_measured)}
+
+
+@pytest.mark.parametrize("kind", sorted(CSV_KINDS))
+def test_seeded_csv_fuzz(tmp_path, kind):
+    """300 mutated files of each kind (seed 18): a plausible value or a located InputError."""
+    from fleetrun.errors import InputError
+
+    make, check = CSV_KINDS[kind]
+    path = tmp_path / f"{kind}.csv"
+    (tmp_path / f"{kind}.toml").write_bytes(SIDECAR)
+    path.write_text(make())
+    check(path)                                              # the unmutated file passes
+    rng = random.Random(18)
+    outcomes = {"ok": 0, "refused": 0}
+    for case in range(300):
+        text = _mutate_csv(rng, make())
+        path.write_text(text)
+        try:
+            check(path)
+            outcomes["ok"] += 1
+        except InputError as exc:
+            assert str(path) in str(exc) or str(path.with_suffix(".toml")) in str(exc), (case, str(exc)[:300])
+            outcomes["refused"] += 1
+        except AssertionError as failure:
+            raise AssertionError(f"case {case}: {text[:400]!r}: {failure}") from None
+        except Exception as exc:
+            raise AssertionError(f"case {case}: {type(exc).__name__}: {exc}\n{text[:400]!r}") from None
+    assert outcomes["ok"] >= 20 and outcomes["refused"] >= 100, outcomes

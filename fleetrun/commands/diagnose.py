@@ -39,6 +39,9 @@ def command(recording, meta, calibrate_on, out, physics, n_shifts, seed, residua
     """Compare a recording with the model; name, fit and test the physics it leaves out."""
 
     out = out or f"diagnosis-{Path(recording).stem}"
+    from fleetrun.fileio import refuse_outputs_replacing_inputs
+
+    refuse_outputs_replacing_inputs(out, ("diagnosis.json", "diagnosis.html"), [recording, meta, calibrate_on])
     result = diagnose(recording, meta=meta, calibrate_on=calibrate_on, out=out, physics=physics,
                       settings=Settings(n_shifts=n_shifts, seed=seed), residual=residual)
     b = result["baseline"]

@@ -25,6 +25,9 @@ def command(fleet, measured, out, seed):
     """Simulate every vehicle, locate the mismatch across tests and vehicle properties, and fit
     candidate effects with one set of global parameters, judged on held-out manufacturers."""
     out = out or f"diagnosis-{Path(fleet).stem}"
+    from fleetrun.fileio import refuse_outputs_replacing_inputs
+
+    refuse_outputs_replacing_inputs(out, ("diagnosis.json", "diagnosis.html"), [fleet, measured])
     result = diagnose_fleet(fleet, measured, out=out, settings=FleetSettings(seed=seed))
     click.echo(f"{result['vehicles']} vehicles, {result['manufacturers']} manufacturers, "
                f"{result['rows']} measured results")

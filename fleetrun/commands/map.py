@@ -79,6 +79,27 @@ def render_json(meta: dict, torque_fractions, speeds_rpm, eta) -> str:
     return json.dumps(doc, indent=1) + "\n"
 
 
+def _check_map_request(ratios: dict, torque_fractions, speeds_rpm) -> None:
+    """The gear ratio within the fleet workbook's range (one owner: its column; a ratio <= 0
+    is the model's own error) and the grid within fleetrun.plausible.MAX_MAP_POINTS, before
+    any work."""
+    from fleetrun.plausible import MAX_MAP_POINTS, check_budget
+    from fleetrun.workbook.cells import CellProblem
+    from fleetrun.workbook.rows import check_range
+    from fleetrun.workbook.schema import VEHICLE_COLUMNS, columns_by_name
+
+    columns = columns_by_name(VEHICLE_COLUMNS)
+    for option, column in (("--gear-ratio", "final_drive_ratio"),):
+        value, text = ratios[option]
+        if value is not None and value > 0:
+            try:
+                check_range(columns[column], value, str(text))
+            except CellProblem as problem:
+                raise InputError(f"{option} {problem}") from None
+    check_budget("--torque-fractions x --speeds-rpm grid points", len(torque_fractions) * len(speeds_rpm),
+                 MAX_MAP_POINTS, hint="Give fewer torque fractions or speeds")
+
+
 @click.command("map")
 @click.argument("configuration")
 @click.option("--gear-ratio", "gear_ratio", required=True, metavar="G", help="Differential (final drive) gear ratio.")
@@ -107,6 +128,7 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
     tfs = parse_number_list(torque_fractions, "--torque-fractions")
     speeds = parse_number_list(speeds_rpm, "--speeds-rpm")
     PHYSICS.get(physics)  # an unknown name fails here, before any work
+    _check_map_request({"--gear-ratio": (g, gear_ratio), "--low-gear-ratio": (low, low_gear_ratio)}, tfs, speeds)
     effects = None
     if with_effects:
         effects = parse_with(with_effects)

@@ -16,10 +16,33 @@ from pathlib import Path
 import click
 
 from fleetrun.effects import parse_with
-from fleetrun.errors import unknown_name_error
+from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.fileio import refuse_replacing_inputs
 from fleetrun.run import batch
+from fleetrun.run.batch import read_config
 from fleetrun.run.engines import ENGINES
 from fleetrun.simulation.diffmodes import default_cache_dir
+
+CONFIG_KEY = "fleetrun.run.config"
+# batch.toml keys that are defaults of an option of the same meaning (click's default_map):
+# an option given on the command line overrides the file
+OPTION_OF_KEY = {"out": "out", "scenarios": "scenarios", "engine": "engine", "scheduler": "scheduler",
+                 "physics": "physics", "mode": "mode", "cache_dir": "cache_dir", "log": "log_file"}
+
+
+def _load_config(ctx, config):
+    """--config (read first): its keys become the options' defaults (``ctx.default_map``)."""
+    if config is None:
+        return None
+    try:
+        settings = read_config(config)
+    except InputError as exc:   # raised after the usage checks (WORKBOOK and --config: exit 2)
+        ctx.meta[CONFIG_KEY] = exc
+        return config
+    ctx.default_map = {**(ctx.default_map or {}),
+                       **{option: settings[key] for key, option in OPTION_OF_KEY.items() if key in settings}}
+    ctx.meta[CONFIG_KEY] = settings
+    return config
 
 
 @click.command("run")
@@ -31,7 +54,8 @@ from fleetrun.simulation.diffmodes import default_cache_dir
 @click.option("--engine", type=click.Choice(ENGINES), default=None, help="Where to simulate [local].")
 @click.option("--scheduler", metavar="ADDRESS", default=None,
               help="Dask scheduler address (with --engine dask); none: a local cluster.")
-@click.option("--config", "config", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--config", "config", type=click.Path(dir_okay=False, path_type=Path), is_eager=True,
+              callback=lambda ctx, _param, value: _load_config(ctx, value),
               help="Batch config (TOML): inputs, scenarios, out, engine, ... (docs/batch.md).")
 @click.option("--physics", default=None, help="Physics baseline [thesis].")
 @click.option("--mode", type=click.Choice(["auto", "direct", "map2d", "map3d"]), default=None,
@@ -53,35 +77,35 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
 
-    settings: dict = {}
-    if config is not None:
-        if workbook is not None:
-            raise click.UsageError("give either WORKBOOK or --config, not both")
-        settings = batch.read_config(config)
-    elif workbook is None:
+    settings = ctx.meta.get(CONFIG_KEY, {})   # what the defaults (ctx.default_map) do not carry
+    if config is not None and workbook is not None:
+        raise click.UsageError("give either WORKBOOK or --config, not both")
+    if config is None and workbook is None:
         raise click.UsageError("give a fleet WORKBOOK (or --config batch.toml)")
+    if isinstance(settings, Exception):
+        raise settings
     # a misspelt effect fails here, before any fleet is read
     effects = parse_with(with_effects) if with_effects is not None else settings.get("with", [])
     inputs = settings.get("inputs") or [workbook]
     batch_mode = config is not None
-    out = out or settings.get("out") or (Path("results") if batch_mode else Path(f"run-{Path(workbook).stem}"))
-    engine = engine or settings.get("engine", "local")
+    out = out or Path(f"run-{Path(workbook).stem}")
+    engine = engine or "local"
     if engine not in ENGINES:
         raise unknown_name_error("engine", engine, ENGINES, hint=f"Fix 'engine' in {config}.")
-    scheduler = scheduler or settings.get("scheduler")
     if scheduler and engine != "dask":
         raise click.UsageError("--scheduler needs --engine dask")
     if no_cache:
         cache = None
     else:
-        cache = cache_dir or settings.get("cache_dir") or default_cache_dir()
-    if log_file is None:
-        log_file = settings.get("log") or (Path(out) / "fleetrun-run.log" if batch_mode else None)
+        cache = cache_dir or default_cache_dir()
+    if log_file is None and batch_mode:
+        log_file = Path(out) / "fleetrun-run.log"
+    if log_file is not None:
+        refuse_replacing_inputs(log_file, [*inputs, config], "--log")
     plan = batch.RunPlan(inputs=list(inputs), out=Path(out), per_input_dirs=batch_mode,
-                         scenarios=list(scenarios) or settings.get("scenarios", []), engine=engine,
-                         scheduler=scheduler, physics=physics or settings.get("physics", "thesis"),
-                         mode=mode or settings.get("mode", "auto"), effects=effects, cache_dir=cache,
-                         log=log_file, chunk_size=settings.get("chunk_size"))
+                         scenarios=list(scenarios), engine=engine, scheduler=scheduler,
+                         physics=physics or "thesis", mode=mode or "auto", effects=effects,
+                         cache_dir=cache, log=log_file, chunk_size=settings.get("chunk_size"))
     plan.replace = replace
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from fleetrun import __version__
+from fleetrun import __version__, plausible
 from fleetrun.cycles import DriveCycle, FTP_TRANSIENT_WEIGHT, ftp_bag1_end_s, ftp_weighted_per_mile, load_cycle
 from fleetrun.diagnose.fleet_report import render_fleet_html
 from fleetrun.diagnose.integrals import BAG_BOUNDARIES_S
@@ -108,6 +108,7 @@ def read_measured(path, known_ids) -> dict:
                          hint="Columns: vehicle_id, test, mpg (and manufacturer)")
     known = set(known_ids)
     out = {}
+    first_row: dict = {}
     for i, row in enumerate(df.itertuples(index=False), start=2):
         vid, test, raw = str(row.vehicle_id).strip(), str(row.test).strip(), str(row.mpg).strip()
         if test not in TESTS:
@@ -124,7 +125,14 @@ def read_measured(path, known_ids) -> dict:
         if not np.isfinite(mpg) or mpg <= 0:
             raise InputError(f"mpg must be a positive number, got '{raw}'", file=path, row=i,
                              column="mpg", value=raw)
-        out[(vid, test)] = (mpg, str(getattr(row, "manufacturer", "") or "").strip().lower())
+        plausible.check_mpg([mpg], file=path, column="mpg", rows=[i])
+        maker = str(getattr(row, "manufacturer", "") or "").strip().lower()
+        if (vid, test) in out and out[(vid, test)][:2] != (mpg, maker):
+            raise InputError(f"{vid} {test} again, with mpg {raw} (row {first_row[(vid, test)]}: "
+                             f"{out[(vid, test)][0]:g}); which one is measured is ambiguous", file=path, row=i,
+                             column="mpg", value=raw, hint="Keep one row per vehicle and test (or their mean)")
+        first_row.setdefault((vid, test), i)
+        out[(vid, test)] = (mpg, maker)
     if not out:
         raise InputError("no measured results", file=path)
     return out
@@ -476,7 +484,6 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
     used = sorted({index[vid] for vid, _ in measured})
     sub = [vehicles[i] for i in used]
     pos = {i: k for k, i in enumerate(used)}
-    sim = simulate_fleet(sub, ambient_temp_C=ambient_temp_C)
     rows = sorted(measured, key=lambda key: (index[key[0]], TESTS.index(key[1])))
     rows_v = np.array([pos[index[vid]] for vid, _ in rows])
     rows_t = np.array([t for _, t in rows], dtype=object)
@@ -487,12 +494,19 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
         vid = rows[int(np.flatnonzero(makers == "")[0])][0]
         raise InputError(f"no manufacturer for vehicle '{vid}'", file=measured_path, column="manufacturer",
                          hint="Give a manufacturer column (errors are held out by manufacturer)")
+    if len(set(makers)) < 2:
+        raise InputError(f"every measured result is of one manufacturer ({makers[0]}); diagnose-fleet "
+                         "judges each effect on manufacturers it was not fitted to, so it needs two or more",
+                         file=measured_path, column="manufacturer",
+                         hint="Add the results of other manufacturers (import-epa without --make)")
+    sim = simulate_fleet(sub, ambient_temp_C=ambient_temp_C)
 
     def residual(model):
         # measured fuel per mile over simulated = simulated mpg / measured mpg
         sim_mpg = np.array([sim[model][t]["mi"][v] / sim[model][t]["gal"][v] for v, t in zip(rows_v, rows_t)])
         return np.log(sim_mpg / mpg)
 
+    plausible.check_mpg_scale(np.exp(-residual("warm")), file=measured_path, column="mpg")
     cols, untestable = candidate_columns(sim, rows_v, rows_t, sub)
     return FleetProblem([v.vehicle_id for v in sub], rows_v, rows_t, makers, residual("warm"),
                         residual("full"), cols, untestable, vehicle_properties(sub))

@@ -17,6 +17,7 @@ import pandas as pd
 
 from fleetrun.cycles import SPEED_COLUMNS
 from fleetrun.differential import canonical_configuration
+from fleetrun import plausible
 from fleetrun.errors import InputError
 from fleetrun.physics.fuels import fuel_table
 from fleetrun.workbook.cells import CellProblem
@@ -171,12 +172,15 @@ def _check_numbers(path: Path, df: pd.DataFrame, columns) -> None:
         if not np.isfinite(vals.to_numpy()).all():
             i = int(np.flatnonzero(~np.isfinite(vals.to_numpy()))[0])
             raise InputError(f"infinite value '{raw.iloc[i]}'", file=path, row=i + 2, column=col)
+        if col.endswith("torque_Nm"):
+            plausible.check_torque(vals.to_numpy(), file=path, column=col)   # units off by far
         df[col] = vals.astype(float)
 
 
 def _check_time(path: Path, t: np.ndarray) -> float:
     if len(t) < 20:
         raise InputError(f"only {len(t)} samples; diagnose needs at least 20", file=path)
+    plausible.check_time_steps(t, file=path, column="time_s")     # milliseconds?
     d = np.diff(t)
     if (d <= 0).any():
         i = int(np.flatnonzero(d <= 0)[0]) + 1

@@ -84,10 +84,33 @@ def import_rows(table: pd.DataFrame, model_years=(), makes=()) -> ImportResult:
                                     facts["coef_B_lbf_per_mph"], facts["coef_C_lbf_per_mph2"])
         row["technology"] = (match.technology or "none") if match.omega_vehicle else None
         derived.append({"vehicle_id": vehicle_id, "column": "technology", "value": match.technology, "rule": match.note})
+        refused = refused_by_validate(row)
+        if refused:
+            result.excluded.append({**ident, "rule": "validate", "reason": refused})
+            continue
         result.vehicles.append(row)
         result.derived += derived
         result.measured += [{"vehicle_id": vehicle_id, **m, **{k: ident[k] for k in ID_FIELDS}} for m in measured]
     return result
+
+
+def refused_by_validate(row: dict) -> str | None:
+    """What ``fleetrun validate`` would refuse in the Vehicles row ``row`` (its cell, row and
+    simulation checks), or None: import-epa never writes a row its own validate refuses."""
+    from fleetrun.simulation.params import refused_vehicles
+    from fleetrun.workbook import rows as sheet_rows
+    from fleetrun.workbook.schema import VEHICLE_COLUMNS
+
+    problems: list[str] = []
+
+    def report(name, text, warning=False):
+        if not warning:
+            problems.append(f"{name}: {text}")
+
+    parsed, ok = sheet_rows.parse_fields(VEHICLE_COLUMNS, lambda column: row.get(column.name), report)
+    if sheet_rows.check_vehicle(parsed, report) and ok:
+        problems += [exc.message for _, exc in refused_vehicles([sheet_rows.vehicle_spec(parsed, {})])]
+    return "; ".join(problems) or None
 
 
 def _plain(value):

@@ -18,6 +18,7 @@ from fleetrun.cycles import shipped_cycles
 from fleetrun.epa import rules
 from fleetrun.epa.derive import ImportResult
 from fleetrun.fileio import atomic_file
+from fleetrun.workbook.text_cells import neutralised
 from fleetrun.workbook.schema import SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET
 
 MEASURED_COLUMNS = ("vehicle_id", "test", "mpg", "manufacturer", "make", "model", "model_year", "n_tests",
@@ -41,7 +42,7 @@ def default_scenario() -> dict:
 def write_measured_csv(result: ImportResult, path) -> Path:
     """The measured results (MEASURED_COLUMNS) as CSV, atomically."""
     path = Path(path)
-    frame = pd.DataFrame(result.measured, columns=list(MEASURED_COLUMNS))
+    frame = neutralised(pd.DataFrame(result.measured, columns=list(MEASURED_COLUMNS)))
     with atomic_file(path) as tmp:
         frame.to_csv(tmp, index=False)
     return path

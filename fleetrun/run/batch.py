@@ -30,7 +30,8 @@ from fleetrun.fileio import write_error_log
 from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
 from fleetrun.run.engines import make_engine
-from fleetrun.run.outputs import refuse_overwriting_inputs, write_run_outputs
+from fleetrun.output_folder import folder_lock
+from fleetrun.run.outputs import refuse_foreign_outputs, refuse_overwriting_inputs, write_run_outputs
 from fleetrun.run.runner import CHUNK_SIZE, run_fleet
 from fleetrun.workbook.reader import read_fleet
 
@@ -62,7 +63,43 @@ class RunPlan:
     error_model: object = "default"       # measured fuel-economy error (run_fleet's error_model)
 
     def out_dir(self, fleet_path: Path) -> Path:
-        return self.out / fleet_path.stem if self.per_input_dirs else self.out
+        if not self.per_input_dirs:
+            return self.out
+        return self.out / output_names(self.inputs).get(Path(fleet_path), Path(fleet_path).stem)
+
+
+def output_names(inputs) -> dict[Path, str]:
+    """A distinct output folder name per input of a batch: the workbook's name without its
+    extension, or, where two inputs share it (``north/fleet.xlsx``, ``south/fleet.xlsx``), that
+    name prefixed with as many parent folders as tell them apart (``north-fleet``,
+    ``south-fleet``), else with its extension (``fleet-xlsm``), else numbered. Compared without
+    case, as file systems on Windows and macOS do."""
+    paths = [Path(p) for p in dict.fromkeys(inputs)]
+    names = {p: p.stem for p in paths}
+    for group in _clashes(names):
+        names.update(_tell_apart(group))
+    for group in _clashes(names):      # a new name met an existing one: number them
+        names.update({p: f"{names[p]}-{i}" for i, p in enumerate(group, start=1)})
+    return names
+
+
+def _tell_apart(group: list[Path]) -> dict[Path, str]:
+    parents = {p: Path(os.path.abspath(p)).parent.parts[1:] for p in group}
+    for depth in range(1, max(len(v) for v in parents.values()) + 1):
+        names = {p: "-".join([*parents[p][-depth:], p.stem]) for p in group}
+        if len({n.casefold() for n in names.values()}) == len(group):
+            return names
+    names = {p: p.name.replace(".", "-") for p in group}
+    if len({n.casefold() for n in names.values()}) == len(group):
+        return names
+    return {p: f"{p.stem}-{i}" for i, p in enumerate(group, start=1)}
+
+
+def _clashes(names: dict[Path, str]) -> list[list[Path]]:
+    seen: dict[str, list[Path]] = {}
+    for path, name in names.items():
+        seen.setdefault(name.casefold(), []).append(path)
+    return [group for group in seen.values() if len(group) > 1]
 
 
 def read_config(path: Path) -> dict:
@@ -107,6 +144,10 @@ def read_config(path: Path) -> dict:
                 raise InputError(f"'{key}' must be a path (a string)", file=path)
             value = Path(data[key]).expanduser()
             config[key] = value if value.is_absolute() else base / value
+            if config[key].is_dir() == (key == "log") and config[key].exists():
+                raise InputError(f"{config[key]} is {'a folder' if key == 'log' else 'a file'}",
+                                 file=path, column=key, hint=f"Give a {'file' if key == 'log' else 'folder'} path")
+    config.setdefault("out", base / "results")   # relative to this file, as every path in it
     for key in ("engine", "scheduler", "physics", "mode"):
         if key in data:
             if not isinstance(data[key], str):
@@ -126,7 +167,7 @@ def read_config(path: Path) -> dict:
             exc.file = exc.file or path
             raise
     if "chunk_size" in data:
-        if not isinstance(data["chunk_size"], int) or data["chunk_size"] < 1:
+        if type(data["chunk_size"]) is not int or data["chunk_size"] < 1:   # true is no size
             raise InputError("'chunk_size' must be a positive whole number", file=path)
         config["chunk_size"] = data["chunk_size"]
     return config
@@ -171,8 +212,7 @@ def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
     formatter = logging.Formatter("%(asctime)s %(levelname)s %(message)s", "%Y-%m-%dT%H:%M:%S")
     formatter.converter = time.gmtime
     if log_file is not None:
-        log_file.parent.mkdir(parents=True, exist_ok=True)
-        handler = logging.FileHandler(log_file, encoding="utf-8")
+        handler = _log_handler(Path(log_file))
         handler.setFormatter(formatter)
         handlers.append(handler)
     if not quiet and not sys.stderr.isatty():
@@ -187,6 +227,19 @@ def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:
     log.setLevel(logging.INFO)
     log.propagate = False
     return handlers
+
+
+def _log_handler(log_file: Path) -> logging.Handler:
+    """A handler appending to ``log_file``, or InputError naming it (a folder, no permission,
+    disk full): the user's to fix, exit 1."""
+    if log_file.is_dir():
+        raise InputError(f"{log_file}: --log names a folder", hint="Give a file name for the log (--log)")
+    try:
+        log_file.parent.mkdir(parents=True, exist_ok=True)
+        return logging.FileHandler(log_file, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{log_file}: cannot write the log ({exc.strerror or exc})",
+                         hint="Choose a log file in a folder you can write to (--log)") from None
 
 
 def teardown_logging(handlers) -> None:
@@ -214,8 +267,10 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
                        error_model=plan.error_model)
     result = replace(result, timings_s={"read": read_s, **result.timings_s})
     written_at = time.perf_counter()
-    result, earlier = _what_changed(result, out_dir, fleet_path)
-    outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
+    with folder_lock(out_dir):   # one run at a time compares with and replaces the folder
+        refuse_foreign_outputs(out_dir)
+        result, earlier = _what_changed(result, out_dir, fleet_path)
+        outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
     if earlier is not None and not plan.replace:
         log.info("%s: the earlier run is kept in %s", fleet_path.name, out_dir / "earlier-runs")
     log.info("%s: wrote %s (read %.1f s, simulate %.1f s, write %.1f s)", fleet_path.name, out_dir,

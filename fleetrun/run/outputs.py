@@ -5,6 +5,7 @@ assembled in a staging folder and swapped in as one step (:mod:`fleetrun.output_
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from fleetrun.errors import InputError
@@ -12,10 +13,10 @@ from fleetrun.fileio import is_same_file
 from fleetrun.output_folder import new_output_folder
 from fleetrun.reports.changes import keep_earlier_run
 from fleetrun.reports.html import write_summary_html
-from fleetrun.reports.manifest import write_manifest
+from fleetrun.reports.manifest import SCHEMA, write_manifest
 from fleetrun.reports.xlsx import write_report_xlsx
 from fleetrun.workbook.reader import file_sha256
-from fleetrun.workbook.text_cells import FORMULA_START
+from fleetrun.workbook.text_cells import neutralised
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
                 "manifest.json")
@@ -25,17 +26,9 @@ REGISTRATION_FILES = ("registrations.csv", "turnover.csv")
 
 def write_csv(frame, path: Path) -> None:
     """``frame`` as CSV with a leading ``'`` on every text cell that starts like a formula
-    (:data:`fleetrun.workbook.text_cells.FORMULA_START`); numeric columns are written as numbers,
+    (:func:`fleetrun.workbook.text_cells.neutralised`); numeric columns are written as numbers,
     unchanged."""
-    safe = frame.copy(deep=False)
-    for name in safe.columns:
-        column = safe[name]
-        if column.dtype.kind == "O" or str(column.dtype) in ("string", "str"):
-            texts = column.astype("string")
-            risky = texts.str.startswith(FORMULA_START).fillna(False).to_numpy(dtype=bool)
-            if risky.any():
-                safe[name] = column.where(~risky, "'" + texts)
-    safe.to_csv(path, index=False)
+    neutralised(frame).to_csv(path, index=False)
 
 
 def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> None:
@@ -49,6 +42,30 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
                 raise InputError(f"{source}: is an input of this run, and --out {out_dir} would "
                                  f"replace it with the run's {name}",
                                  hint="Choose another output folder (--out)")
+
+
+def refuse_foreign_outputs(out_dir: Path) -> None:
+    """InputError if ``out_dir`` holds a file with an output's name that fleetrun did not write
+    (no fleetrun ``manifest.json`` beside it listing it): a run moves or deletes only its own
+    files."""
+
+
+    out_dir = Path(out_dir)
+    present = [name for name in OUTPUT_FILES if (out_dir / name).exists()]
+    if not present:
+        return
+    manifest = out_dir / "manifest.json"
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8")) if manifest.is_file() else None
+    except (OSError, ValueError):
+        data = None
+    ours = isinstance(data, dict) and str(data.get("schema", "")).split("/")[0] == SCHEMA.split("/")[0]
+    listed = set(data.get("outputs") or {}) | {"manifest.json"} if ours and isinstance(data.get("outputs"), dict) else set()
+    foreign = [name for name in present if name not in listed]
+    if foreign:
+        raise InputError(f"{out_dir}: holds {', '.join(foreign)} that fleetrun did not write "
+                         "(no fleetrun manifest.json lists them); a run would replace them",
+                         hint="Move them away, or choose another output folder (--out)")
 
 
 def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:

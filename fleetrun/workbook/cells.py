@@ -8,6 +8,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import re
+import unicodedata
 
 from fleetrun.errors import InputError
 from fleetrun.simulation.tyre import tire_diameter_m
@@ -33,6 +34,50 @@ def is_blank(value) -> bool:
     return value is None or (isinstance(value, str) and not value.strip())
 
 
+# Characters a cell shows as nothing: zero-width space/joiners, word joiner, BOM, soft hyphen,
+# Mongolian vowel separator, bidirectional marks; and control characters but tab and newlines.
+_INVISIBLE = re.compile("[\u200b-\u200f\u2060-\u2064\u202a-\u202e\u2066-\u2069\ufeff\u00ad\u180e"
+                        "\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]")
+# Letters of other scripts that look like Latin ones (Unicode TR 39 confusables, the common ones)
+_LOOKALIKES = str.maketrans(dict(zip(
+    "\u0430\u0435\u043e\u0440\u0441\u0443\u0445\u0456\u0458\u0455\u0501\u04cf"
+    "\u0410\u0412\u0415\u041a\u041c\u041d\u041e\u0420\u0421\u0422\u0425\u0423\u0406\u0408\u0405"
+    "\u03bf\u03bd\u0391\u0392\u0395\u0396\u0397\u0399\u039a\u039c\u039d\u039f\u03a1\u03a4\u03a5\u03a7",
+    "aeopcyxijsdl" "ABEKMHOPCTXYIJS" "ovABEZHIKMNOPTYX")))
+
+
+def skeleton(text: str) -> str:
+    """``text`` as it looks: compatibility forms folded (NFKC) and look-alike letters of other
+    scripts replaced by the Latin letters they imitate."""
+    return unicodedata.normalize("NFKC", text).translate(_LOOKALIKES)
+
+
+def lookalike_letters(text: str) -> list[str]:
+    """The letters of ``text`` that only look Latin, described (``'і' (CYRILLIC SMALL ...)``)."""
+    return [f"{ch!r} ({unicodedata.name(ch, 'U+%04X' % ord(ch))}, U+{ord(ch):04X})" for ch in dict.fromkeys(text)
+            if ord(ch) > 127 and ch.translate(_LOOKALIKES) != ch]
+
+
+def _check_visible(text: str, value) -> None:
+    found = _INVISIBLE.search(text)
+    if found:
+        ch = found.group()
+        name = unicodedata.name(ch, "a control character")
+        raise CellProblem(f"{show(value)} holds an invisible character ({name}, U+{ord(ch):04X}) at "
+                          f"position {found.start() + 1}; retype the cell")
+
+
+def parse_id(value) -> str:
+    """An id: text without invisible characters that does not mix Latin letters with
+    look-alikes of other scripts (``CAR-1`` and ``САR-1`` would be two vehicles)."""
+    text = parse_text(value)
+    odd = lookalike_letters(text)
+    if odd and any("a" <= ch.lower() <= "z" for ch in text):
+        raise CellProblem(f"{show(value)} mixes Latin letters with look-alike letters of another script: "
+                          f"{', '.join(odd)}; retype the id in one script")
+    return text
+
+
 def parse_text(value) -> str:
     if isinstance(value, bool):
         raise CellProblem(f"{show(value)} is not text")
@@ -40,7 +85,9 @@ def parse_text(value) -> str:
         return str(int(value))  # an id typed as 101 arrives as 101.0 from some writers
     if isinstance(value, (_dt.datetime, _dt.date, _dt.time)):
         raise CellProblem(f"{show(value)} is a date, not text (format the column as Text)")
-    return str(value).strip()
+    text = str(value).strip()
+    _check_visible(text, value)
+    return text
 
 
 def parse_number(value) -> float:
@@ -75,6 +122,9 @@ def parse_choice(value, choices) -> str:
     for candidate in (text.lower(), key):
         if candidate in lower:
             return lower[candidate]
+    if skeleton(key) in lower:
+        raise CellProblem(f"{show(value)} looks like {lower[skeleton(key)]} but has look-alike letters of "
+                          f"another script: {', '.join(lookalike_letters(text))}; retype it")
     raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
 
 
@@ -102,6 +152,10 @@ def parse_ratios(value) -> tuple[float, ...]:
         parts = [value]
     else:
         text = parse_text(value)
+        if ";" in text and re.search(r"[0-9],[0-9]", text):
+            raise CellProblem(f"{show(value)} separates with ';' and has commas inside numbers: decimal "
+                              "commas? write the ratios with decimal points, separated by commas "
+                              "(4.2,2.5,1.6,1.2)")
         parts = [p for p in _RATIO_SPLIT.split(text) if p]
     if not parts:
         raise CellProblem(f"{show(value)} has no gear ratios")

@@ -187,6 +187,11 @@ def read_fleet(path) -> Fleet:
                                                  allow_empty=True)
             has_registrations = bool(registration_table and registration_table.rows)
             for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
+                alike = [t for t in sheets if cells.skeleton(t).strip().casefold() == name.casefold()]
+                if len(alike) > 1:
+                    problems.error(f"the workbook has {len(alike)} sheets named like it ("
+                                   f"{', '.join(repr(t) for t in alike)}); which to read is ambiguous: "
+                                   "delete or rename the others", name)
                 if name == VEHICLES_SHEET and name not in sheets and has_registrations:
                     continue   # a fleet from registrations only
                 if name not in sheets:
@@ -261,11 +266,18 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
     known = {c.name.lower(): c.name for c in schema}
     columns: dict[str, int] = {}
     extra: dict[str, int] = {}
+    mistyped: set[str] = set()      # headers spelt with look-alike letters (reported as such)
     for index, value in enumerate(header, start=1):
         if cells.is_blank(value):
             continue
         text = str(value).strip()
         name = known.get(text.lower())
+        if name is None and known.get(cells.skeleton(text).lower()):
+            mistyped.add(known[cells.skeleton(text).lower()])
+            problems.error(f"header {cells.show(text)} looks like {known[cells.skeleton(text).lower()]} but has "
+                           f"look-alike letters: {', '.join(cells.lookalike_letters(text))}; retype it",
+                           sheet, 1, index)
+            continue
         if name is None:
             if text in extra:
                 problems.error(f"column '{text}' appears twice (also column "
@@ -280,7 +292,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
                            f"{get_column_letter(columns[name])}); delete one", sheet, 1, index)
             continue
         columns[name] = index
-    missing = [c.name for c in schema if c.required and c.name not in columns]
+    missing = [c.name for c in schema if c.required and c.name not in columns and c.name not in mistyped]
     if missing:
         problems.error(f"missing required column(s) {', '.join(missing)}; add them to the header row",
                        sheet, 1, name=None)
@@ -319,13 +331,13 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
     for column, index in table.present:
-        if uncached and (row_number, index) in uncached:
-            problems.error(f"formula {cells.show(uncached[(row_number, index)])} has no saved result; open "
-                           "and save the workbook in Excel or LibreOffice (or type the value)", table.sheet,
-                           row_number, index, column.name)
-            ok = False
-            continue
         raw = values[index - 1] if index <= width else None
+        if uncached and (row_number, index) in uncached:
+            problem, raw = rows.scanned_cell(column, uncached[(row_number, index)], raw)
+            if problem:
+                problems.error(problem, table.sheet, row_number, index, column.name)
+                ok = False
+                continue
         if raw is None or (type(raw) is str and not raw.strip()):
             if column.required:
                 blanks.append((column, index))
@@ -451,6 +463,9 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
             continue
         fields.update(mixes)
         scenarios.append(Scenario(**fields, extra=parsed["_extra"]))
+    rows.check_temperature_budget([(first_rows.get(s.scenario_id), s.ambient_temp_C) for s in scenarios],
+                                  lambda row, text: problems.error(text, sheet, row, col("ambient_temp_C"),
+                                                                   "ambient_temp_C"))
     return scenarios, first_rows
 
 

@@ -78,6 +78,8 @@ def _parse(column: Column, raw):
         return cells.parse_tire_size(raw)
     if column.name == "lubricant":
         return _lubricant(raw)
+    if column.name.endswith("_id"):
+        return cells.parse_id(raw)
     return cells.parse_text(raw)
 
 
@@ -131,6 +133,28 @@ def _canonical_configuration(raw) -> str:
         return canonical_configuration(text)
     except InputError as exc:
         raise CellProblem(f"{cells.show(raw)} is not a configuration ({exc.message})") from None
+
+
+def scanned_cell(column: Column, note: str, raw):
+    """What the pre-scan (:mod:`fleetrun.workbook.xlsx_safety`) noted of a cell the reader sees
+    as ``raw``: (the problem, None) for a formula without a saved result or an Excel error value
+    (``#REF!``, ``#N/A``, ``#DIV/0!``: the reader sees them as blank); (None, the value) else,
+    where a percent-formatted number in a percent column (``1.2%`` stored as 0.012) is taken as
+    the percentage it shows."""
+    from fleetrun.workbook.xlsx_safety import PERCENT
+
+    if note == PERCENT:
+        if column.name.endswith(PERCENT_SUFFIXES) and type(raw) in (int, float):
+            return None, raw * 100.0
+        return None, raw
+    if note.startswith("#"):
+        return (f"holds the Excel error {cells.show(note)} (a formula that fails, or a broken "
+                "reference); fix the formula or type the value"), None
+    return (f"formula {cells.show(note)} has no saved result; open and save the workbook in Excel or "
+            "LibreOffice (or type the value)"), None
+
+
+PERCENT_SUFFIXES = ("_pct", "_pct_per_year")   # columns in percent: a 1.2 % cell means 1.2
 
 
 def parse_fields(columns, raw_of: Callable[[Column], object], report: Report) -> tuple[dict, bool]:
@@ -197,6 +221,21 @@ def _vehicle_plausible(p: dict, report: Report) -> None:
         report("count", "0 vehicles: this row adds nothing", warning=True)
     if miles == 0:
         report("annual_miles", "0 miles: this row adds nothing", warning=True)
+
+
+def check_temperature_budget(temperatures: list[tuple[int, float]], report_at) -> None:
+    """At most :data:`fleetrun.plausible.MAX_AMBIENT_TEMPERATURES` distinct ambient
+    temperatures (row, temperature) per workbook: ``report_at(row, text)`` at the first beyond."""
+    from fleetrun.plausible import MAX_AMBIENT_TEMPERATURES
+
+    seen: set[float] = set()
+    for row, temperature in temperatures:
+        seen.add(temperature)
+        if len(seen) > MAX_AMBIENT_TEMPERATURES:
+            report_at(row, f"{temperature:g} is distinct ambient temperature number {len(seen)}; a workbook "
+                      f"runs at most {MAX_AMBIENT_TEMPERATURES} (each costs an efficiency map per axle); "
+                      "round the temperatures, or split the scenarios over workbooks")
+            return
 
 
 def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:

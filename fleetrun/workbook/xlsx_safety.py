@@ -10,6 +10,7 @@ builds a dense table allocates rows x columns of the *used range*, so one cell r
 """
 from __future__ import annotations
 
+import posixpath
 import re
 import zipfile
 from dataclasses import dataclass, field
@@ -24,7 +25,9 @@ MAX_FILE_BYTES = 500_000_000            # the workbook file itself (a 100,000-ro
 MAX_TOTAL_UNCOMPRESSED = 1_000_000_000   # 1 GB: a 100,000-row fleet is ~0.1 GB of XML
 EXCEL_MAX_ROWS = 1_048_576               # Excel's own sheet limits (ECMA-376; Excel specifications)
 EXCEL_MAX_COLUMNS = 16_384               # XFD
-MAX_SHEET_CELLS = 12_000_000             # rows x columns of a sheet's used range
+MAX_SHEET_CELLS = 10_000_000             # rows x columns of a sheet's used range (~45 B each read)
+SPARSE_FLOOR_CELLS = 1_000_000           # a used range beyond this must be filled ...
+MIN_FILL = 1 / 16                        # ... at least this much: else a stray far cell
 MAX_TAG_BYTES = 64_000_000               # one XML tag or cell text
 SCAN_CHUNK_BYTES = 1 << 22
 MAX_MEMBERS = 10_000
@@ -157,7 +160,10 @@ class SheetScan:
     """What the pre-scan of one sheet found besides its extent (the reader reports neither)."""
     hidden_rows: list[int] = field(default_factory=list)
     hidden_columns: list[int] = field(default_factory=list)
-    uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)   # (row, col) -> "=..."
+    # (row, col) -> "=..." a formula without a saved result, "#N/A" (any "#...") an Excel error
+    # value (the reader sees both as blank), PERCENT a number shown as a percentage
+    uncached_formulas: dict[tuple[int, int], str] = field(default_factory=dict)
+    percent_styles: frozenset = frozenset()      # style indices whose number format shows %
 
 
 _HIDDEN_ROW = re.compile(rb'<(?:\w+:)?row\b[^>]*?\br="([0-9]+)"[^>]*?\bhidden="(?:1|true)"')
@@ -168,6 +174,54 @@ _MIN_MAX = re.compile(rb'\b(min|max)="([0-9]+)"')
 _UNCACHED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*>\s*'
                        rb'<(?:\w+:)?f\b[^>]*?(?:/>|>([^<]*)</(?:\w+:)?f>)\s*'
                        rb'(?:<(?:\w+:)?v\s*/>|<(?:\w+:)?v>\s*</(?:\w+:)?v>)?\s*</(?:\w+:)?c>')
+
+
+PERCENT = "%"
+# a cell holding an Excel error value: <c r="F2" t="e"><f>1/0</f><v>#DIV/0!</v></c>
+_ERROR_CELL = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*?\bt="e"[^>]*>'
+                         rb'(?:(?!</(?:\w+:)?c>).)*?<(?:\w+:)?v>([^<]*)</(?:\w+:)?v>', re.S)
+_ERROR_CELL_REVERSED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\bt="e"[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*>'
+                                  rb'(?:(?!</(?:\w+:)?c>).)*?<(?:\w+:)?v>([^<]*)</(?:\w+:)?v>', re.S)
+_STYLED_CELL = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]+)([0-9]+)"[^>]*?\bs="([0-9]+)"')
+_STYLED_CELL_REVERSED = re.compile(rb'<(?:\w+:)?c\b[^>]*?\bs="([0-9]+)"[^>]*?\br="([A-Za-z]+)([0-9]+)"')
+
+
+def _cell_notes(text: bytes, scan: SheetScan) -> None:
+    """Excel error values and percent-formatted cells (searched only where the text mentions
+    an error type or a percent style)."""
+    if b't="e"' in text:
+        for pattern in (_ERROR_CELL, _ERROR_CELL_REVERSED):
+            for letters, row, value in pattern.findall(text):
+                key = (int(row), column_number(letters.decode("ascii")))
+                scan.uncached_formulas[key] = value.decode("utf-8", "replace").strip() or "#VALUE!"
+    if scan.percent_styles and b' s="' in text:
+        for letters, row, style in _STYLED_CELL.findall(text):
+            if int(style) in scan.percent_styles:
+                scan.uncached_formulas.setdefault((int(row), column_number(letters.decode("ascii"))), PERCENT)
+        for style, letters, row in _STYLED_CELL_REVERSED.findall(text):
+            if int(style) in scan.percent_styles:
+                scan.uncached_formulas.setdefault((int(row), column_number(letters.decode("ascii"))), PERCENT)
+
+
+BUILTIN_PERCENT_FORMATS = {9, 10}        # 0% and 0.00% (ECMA-376 Part 1, 18.8.30)
+
+
+def percent_styles(archive: zipfile.ZipFile) -> frozenset:
+    """Indices of the cell formats (styles.xml cellXfs) that show a number as a percentage."""
+    member = _member(archive, "/xl/styles.xml")
+    if member is None:
+        return frozenset()
+    root = fromstring(archive.read(member))
+    custom = {int(f.get("numFmtId", -1)) for f in root.iter() if _local(f.tag) == "numFmt"
+              and "%" in (f.get("formatCode") or "").replace('"%"', "").replace("\\%", "")}
+    found = set()
+    for holder in root.iter():
+        if _local(holder.tag) == "cellXfs":
+            for index, xf in enumerate(x for x in holder if _local(x.tag) == "xf"):
+                number_format = int(xf.get("numFmtId", 0) or 0)
+                if number_format in BUILTIN_PERCENT_FORMATS or number_format in custom:
+                    found.add(index)
+    return frozenset(found)
 
 
 def _notes(text: bytes, scan: SheetScan) -> None:
@@ -195,36 +249,66 @@ def column_number(letters: str) -> int:
     return index
 
 
-def sheet_parts(archive: zipfile.ZipFile) -> dict[str, str]:
-    """Sheet name -> worksheet part, from xl/workbook.xml and its relationships (defusedxml)."""
-    main = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
-    rel_ns = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
-    book = fromstring(archive.read("xl/workbook.xml"))
+def _local(tag: str) -> str:
+    """An XML name without its namespace: transitional and Strict OOXML (ISO 29500 Strict,
+    ``http://purl.oclc.org/ooxml/...``) name the same elements in different namespaces."""
+    return tag.rsplit("}", 1)[-1]
+
+
+def _member(archive: zipfile.ZipFile, target: str) -> str | None:
+    """The zip member a relationship target names, found as a reader finds it: absolute
+    (``/xl/...``) or relative to ``xl/``, backslashes as slashes, letter case ignored."""
+    target = target.replace("\\", "/")
+    path = target.lstrip("/") if target.startswith("/") else "xl/" + target
+    path = posixpath.normpath(path).lstrip("/").casefold()
+    for name in archive.namelist():
+        if name.replace("\\", "/").casefold() == path:
+            return name
+    return None
+
+
+def sheet_parts(archive: zipfile.ZipFile) -> dict[str, str | None]:
+    """Sheet name -> worksheet part (None where no part can be found), from xl/workbook.xml and
+    its relationships (defusedxml), namespaces and letter case as a reader takes them."""
+    book = fromstring(archive.read(_member(archive, "/xl/workbook.xml") or "xl/workbook.xml"))
     targets = {}
-    if "xl/_rels/workbook.xml.rels" in archive.namelist():
-        for rel in fromstring(archive.read("xl/_rels/workbook.xml.rels")):
-            target = rel.get("Target", "")
-            targets[rel.get("Id")] = target.lstrip("/") if target.startswith("/") else "xl/" + target
+    rels = _member(archive, "/xl/_rels/workbook.xml.rels")
+    if rels:
+        for rel in fromstring(archive.read(rels)).iter():
+            if _local(rel.tag) == "Relationship":
+                targets[rel.get("Id")] = _member(archive, rel.get("Target", ""))
     parts = {}
-    for sheet in book.iter(main + "sheet"):
-        part = targets.get(sheet.get(rel_ns + "id"))
-        if part:
-            parts[sheet.get("name", "")] = part
+    for sheet in book.iter():
+        if _local(sheet.tag) != "sheet":
+            continue
+        rel_id = next((v for k, v in sheet.attrib.items() if _local(k) == "id"), None)
+        parts[sheet.get("name", "")] = targets.get(rel_id)
     return parts
+
+
+def _worksheet_members(archive: zipfile.ZipFile) -> list[str]:
+    return [n for n in archive.namelist() if n.casefold().startswith("xl/worksheets/")
+            and n.casefold().endswith(".xml")]
 
 
 def scan_sheets(path: Path, names) -> dict[str, SheetScan]:
     """InputError unless each named sheet's cell references lie within Excel's limits and its
     used range spans at most MAX_SHEET_CELLS cells; what else the scan found, by sheet name.
-    Streams the sheet XML in chunks."""
+    Sheets are matched by name without letter case; where a sheet's part cannot be told, every
+    worksheet part is scanned (fail closed). Streams the sheet XML in chunks."""
     scans: dict[str, SheetScan] = {}
+    wanted = {str(n).casefold() for n in names}
     try:
         with zipfile.ZipFile(path) as archive:
             parts = sheet_parts(archive)
-            for name in names:
-                part = parts.get(name)
-                if part and part in archive.namelist():
-                    scans[name] = _scan_part(archive, part, name, path)
+            styles = percent_styles(archive)
+            for name, part in parts.items():
+                if name.casefold() in wanted and part:
+                    scans[name] = _scan_part(archive, part, name, path, styles)
+            if any(part is None for part in parts.values()) or not parts:
+                for part in _worksheet_members(archive):
+                    if part not in parts.values():
+                        _scan_part(archive, part, part, path)
     except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise
@@ -232,9 +316,10 @@ def scan_sheets(path: Path, names) -> dict[str, SheetScan]:
     return scans
 
 
-def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> SheetScan:
-    max_row = max_col = rows = unreferenced = 0
-    scan = SheetScan()
+def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path,
+               styles: frozenset = frozenset()) -> SheetScan:
+    max_row = max_col = rows = unreferenced = total_cells = 0
+    scan = SheetScan(percent_styles=styles)
     carry = b""
     with archive.open(part) as stream:
         while True:
@@ -249,19 +334,48 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> S
             max_row = max(max_row, _deepest(text, path, sheet))
             cells, found_rows = _count_tags(text)
             rows += found_rows
+            total_cells += cells
             unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
             _notes(text, scan)
+            _cell_notes(text, scan)
             if not block:
                 break
     # cells without a reference take the next column: bound their reach by their number
     width = max(max_col, unreferenced)
     height = max(max_row, rows)
+    if SPARSE_FLOOR_CELLS < width * height <= MAX_SHEET_CELLS and total_cells < MIN_FILL * width * height:
+        raise InputError(f"{sheet}!{_farthest(archive, part)}: a cell far from the table, which the "
+                         f"sheet's {total_cells:,} cells do not fill", file=path,
+                         hint="Delete the stray cells far from the table (Ctrl+End in Excel shows the last one)")
     if width * height > MAX_SHEET_CELLS:
-        raise InputError(f"sheet {sheet} spans {height:,} rows x {width:,} columns; fleetrun reads at most "
-                         f"{MAX_SHEET_CELLS:,} cells per sheet", file=path,
+        raise InputError(f"sheet {sheet} spans {height:,} rows x {width:,} columns (its last row {max_row:,}, "
+                         f"its last column {max_col:,}); fleetrun reads at most {MAX_SHEET_CELLS:,} cells per sheet",
+                         file=path,
                          hint="Delete stray cells far from the table, or split the fleet into smaller "
                               "workbooks (fleetrun run --config batch.toml runs them together)")
     return scan
+
+
+_REFERENCE = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]{1,3})([0-9]{1,7})"')
+
+
+def _farthest(archive: zipfile.ZipFile, part: str) -> str:
+    """The reference of the cell farthest down (then right) in a sheet part: a second pass,
+    only to name it in an error."""
+    best = (0, 0, "")
+    carry = b""
+    with archive.open(part) as stream:
+        while True:
+            block = stream.read(SCAN_CHUNK_BYTES)
+            data = carry + block
+            cut = len(data) if not block else data.rfind(b">") + 1
+            for letters, digits in _REFERENCE.findall(data[:cut]):
+                key = (int(digits), column_number(letters.decode("ascii")))
+                if key > best[:2]:
+                    best = (*key, (letters + digits).decode("ascii"))
+            carry = data[cut:][-MAX_TAG_BYTES:]
+            if not block:
+                return best[2] or "?"
 
 
 def _beyond(path: Path, sheet: str, ref: str, limit: str) -> None:
