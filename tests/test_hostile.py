@@ -833,12 +833,12 @@ def test_escape_sequences_in_cells_never_reach_the_terminal(tmp_path):
 
 def test_ctrl_c_is_an_error_line_and_exit_1(tmp_path, fake_simulation, monkeypatch):
     """Before: Ctrl-C printed "Aborted!" and no Error: line."""
-    from fleetrun.workbook import reader
+    from fleetrun.run import batch
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(reader, "read_fleet", interrupted)
+    monkeypatch.setattr(batch, "read_fleet", interrupted)   # where the run looks it up
     result = run_fake(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "-q", "--no-cache")
     assert result.exit_code == 1
     assert first_line(result).startswith("Error: interrupted (Ctrl-C)") and "Aborted" not in result.stderr
