@@ -11,8 +11,8 @@ from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
 from fleetrun.workbook.text_cells import FORMULA_START
 
-OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
-                "manifest.json")
+OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv",
+                "fiscal_summary.csv", "manifest.json")   # manifest.json last: it lists the others' sha256
 
 
 def write_csv(frame, path: Path) -> None:
@@ -30,6 +30,13 @@ def write_csv(frame, path: Path) -> None:
     safe.to_csv(path, index=False)
 
 
+def write_parquet(frame, path: Path) -> None:
+    """``frame`` (results.csv's table) as an Apache Parquet file, same columns and values:
+    the per-vehicle detail at any size, for pandas, Arrow, DuckDB, Power BI (docs/report.md).
+    Text is stored as typed (no formula prefix: nothing evaluates a Parquet cell)."""
+    frame.to_parquet(path, engine="pyarrow", index=False, compression="zstd")
+
+
 def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> None:
     """InputError if writing ``outputs`` into ``out_dir`` would replace one of ``inputs``."""
     out_dir = Path(out_dir)
@@ -44,7 +51,7 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
 
 
 def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
-    """Write the six outputs of a run into ``out_dir``, all or nothing: the folder changes as
+    """Write the seven outputs of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
     the run already there, whose files are then kept in ``earlier-runs/``
     (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
@@ -61,6 +68,7 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
         if earlier is not None:
             keep_earlier_run(out_dir, staging, earlier, OUTPUT_FILES)
         write_csv(result.results, staging / "results.csv")
+        write_parquet(result.results, staging / "results.parquet")
         write_csv(result.classes, staging / "class_summary.csv")
         write_csv(result.fiscal, staging / "fiscal_summary.csv")
         write_report_xlsx(result, staging / "report.xlsx")
