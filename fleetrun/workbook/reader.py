@@ -12,6 +12,7 @@ Refused: merged cells in the data, formulas whose result was never saved, duplic
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import zipfile
 from dataclasses import dataclass, field
@@ -227,6 +228,7 @@ class _Table:
     rows: list[tuple[int, tuple]]        # (Excel row number, values)
     uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
     present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
+    plan: list | None = None             # _plan's per-column fast-path bounds, made once
 
 
 def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
@@ -275,6 +277,8 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
                        sheet, 1, name=None)
     body: list[tuple[int, tuple]] = []
     headed = set(columns.values()) | set(extra.values())
+    widest = max((len(r) for _, r in values.rows), default=0)
+    unheaded = [i for i in range(1, widest + 1) if i not in headed]   # looked at in each row
     unheaded_warned: set[int] = set()
     uncached_rows = {r for r, _ in values.uncached_formulas}
     for row_number, row_values in values.rows:
@@ -282,8 +286,11 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
             continue
         if all(cells.is_blank(v) for v in row_values) and row_number not in uncached_rows:
             continue  # blank rows (between blocks, or formatted-but-empty at the end)
-        for index, value in enumerate(row_values, start=1):
-            if index not in headed and not cells.is_blank(value) and index not in unheaded_warned:
+        width = len(row_values)
+        for index in unheaded:
+            if index > width:
+                break
+            if index not in unheaded_warned and not cells.is_blank(row_values[index - 1]):
                 unheaded_warned.add(index)
                 problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
                               "ignored", sheet, row_number, index)
@@ -303,11 +310,11 @@ def _cell(values: tuple, index: int | None):
 def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> tuple[dict, bool]:
     """The row's schema columns as typed values (None when blank or bad), and whether all
     cells were good (row-level checks still run on the good ones)."""
-    parsed = {c.name: None for c in schema}
+    parsed = dict.fromkeys(_names(schema))
     ok = True
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
-    for column, index in table.present:
+    for column, index, low, high in _plan(table):
         if uncached and (row_number, index) in uncached:
             problems.error(f"formula {cells.show(uncached[(row_number, index)])} has no saved result; open "
                            "and save the workbook in Excel or LibreOffice (or type the value)", table.sheet,
@@ -315,6 +322,9 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             ok = False
             continue
         raw = values[index - 1] if index <= width else None
+        if type(raw) is float and low <= raw <= high:   # a number within its range: rows.parse_value's fast path
+            parsed[column.name] = raw
+            continue
         if raw is None or (type(raw) is str and not raw.strip()):
             if column.required:
                 blanks.append((column, index))
@@ -333,6 +343,20 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
     parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
     return parsed, ok and not blanks
+
+
+@lru_cache(maxsize=8)
+def _names(schema) -> tuple[str, ...]:
+    return tuple(c.name for c in schema)
+
+
+def _plan(table: _Table) -> list[tuple[Column, int, float, float]]:
+    """Per schema column present: (column, index, low, high), the range a float cell may take
+    without further parsing (rows.parse_value's own fast path); an empty range for the others."""
+    if table.plan is None:
+        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)))
+                      for c, i in table.present]
+    return table.plan
 
 
 def _text_or_blank(raw) -> str:
