@@ -3,16 +3,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.diagnose.report import _png, data_uri
+from fleetrun.diagnose.report import NO_FIGURES, _png, data_uri
+from fleetrun.errors import MissingExtraError
+from fleetrun.plots import pyplot
 
 
 def fleet_figures(result: dict) -> dict[str, bytes]:
     """Mean error per test (baseline, after the findings, full model) and the unexplained
-    error against the strongest vehicle property."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    error against the strongest vehicle property; none without matplotlib (NO_FIGURES)."""
+    try:
+        plt = pyplot("diagnosis.html's figures")
+    except MissingExtraError:
+        return {}
 
     tests = list(result["baseline"]["tests"])
     x = np.arange(len(tests))
@@ -69,4 +71,5 @@ def render_fleet_html(prob, result: dict) -> str:
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     figs = {k: data_uri(v) for k, v in fleet_figures(result).items()}
-    return env.get_template("fleet.html.j2").render(r=result, figs=figs, summary=summary_words(result))
+    return env.get_template("fleet.html.j2").render(r=result, figs=figs, no_figures=NO_FIGURES,
+                                                          summary=summary_words(result))
