@@ -19,15 +19,21 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from openpyxl.utils import column_index_from_string, get_column_letter
+from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.errors import InputError
 from fleetrun.workbook import cells, rows
 from fleetrun.workbook.cells import CellProblem
+from fleetrun.workbook.xlsx_safety import column_number
 from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
                                    SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.vehicle import VehicleSpec
+
+def get_column_letter(index: int) -> str:
+    """A 1-based column index as its letters (1 = A)."""
+    return xl_col_to_name(index - 1)
+
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
 MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 (0.99) are normalised (with a warning)
@@ -239,7 +245,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
     for ref in values.merged:
         first = ref.split(":")[0]
         match = re.match(r"([A-Z]+)([0-9]+)", first)
-        key = (sheet, int(match.group(2)), column_index_from_string(match.group(1))) if match else (sheet, 0, 0)
+        key = (sheet, int(match.group(2)), column_number(match.group(1))) if match else (sheet, 0, 0)
         problems.errors.append((key, f"{sheet}!{ref}: merged cells; unmerge them and give every "
                                      "row its own values"))
     if values.hidden_rows:
