@@ -113,8 +113,8 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
 
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
-    Illinois false position on f(x) = eta(x) x - out, bracketed by [out, hi]: eta <= 1 makes
-    f(out) <= 0; hi grows geometrically until f(hi) >= 0.
+    f(x) = eta(x) x - out is bracketed by [out, hi]: eta <= 1 makes f(out) <= 0; hi grows
+    geometrically until f(hi) >= 0; scipy.optimize.elementwise.find_root finds each root.
     """
     # zero output is met by any input up to the no-load loss; aim just above 0 so the
     # answer is that loss (continuous with small outputs, and what the maps give at 0)
@@ -144,31 +144,16 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     else:
         raise FleetrunError("the differential model delivers no output torque at any input torque here",
                             hint="Check the gear ratio and speed range of the vehicle")
-    x = lo.copy()
-    done = np.abs(f_lo) <= tol
-    x[done] = lo[done]
-    side = np.zeros(out.size, np.int8)
-    active = np.flatnonzero(~done)
-    for _ in range(max_iter):
-        if active.size == 0:
-            break
-        a, b, fa, fb = lo[active], hi[active], f_lo[active], f_hi[active]
-        denom = fb - fa
-        xm = np.where(denom > 0, (a * fb - b * fa) / np.where(denom > 0, denom, 1.0), 0.5 * (a + b))
-        xm = np.clip(xm, a, b)
-        fm = f(xm, active)
-        x[active] = xm
-        conv = (np.abs(fm) <= tol) | ((b - a) <= tol)
-        right = fm > 0  # root in [a, xm]
-        s = side[active]
-        # Illinois: halve the retained end's value when the same end is kept twice
-        new_hi, new_lo = np.where(right, xm, b), np.where(right, a, xm)
-        new_fhi = np.where(right, fm, np.where(s == -1, fb * 0.5, fb))
-        new_flo = np.where(right, np.where(s == 1, fa * 0.5, fa), fm)
-        side[active] = np.where(right, 1, -1)
-        lo[active], hi[active], f_lo[active], f_hi[active] = new_lo, new_hi, new_flo, new_fhi
-        active = active[~conv]
-    return x
+    # the root inside each bracket: scipy's elementwise bracketing solver (Chandrupatla), to
+    # ``tol`` in the torque fraction and in the output mismatch; imported here (direct mode only)
+    from scipy.optimize.elementwise import find_root
+
+    def g(x, idx):
+        return f(x, idx.astype(np.intp))
+
+    found = find_root(g, (lo, hi), args=(all_idx.astype(float),), maxiter=max_iter,
+                      tolerances={"xatol": tol, "xrtol": 0.0, "fatol": tol, "frtol": 0.0})
+    return np.asarray(found.x, dtype=float)
 
 
 # --------------------------------------------------------------------------- maps
