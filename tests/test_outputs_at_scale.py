@@ -36,6 +36,7 @@ def test_within_the_limit_the_workbook_holds_every_row(tmp_path):
 
 def test_over_the_limit_the_workbook_says_where_the_rows_are(tmp_path, monkeypatch):
     monkeypatch.setattr(xlsx, "DETAIL_ROWS", 3)
+    monkeypatch.setattr(xlsx, "INPUT_ROWS", 3)
     out = fakes.run_small_fleet_with_fake(tmp_path)
     csv = _parquet_equals_csv(out)            # no row lost: all 12 in both files
     assert len(csv) == 12 and set(csv.scenario_id) == {"baseline", "hot", "urban"}

@@ -4,7 +4,8 @@ Sheets: Summary, Assumptions, ByClass, ByVehicle, Scenario comparison, Fiscal ye
 Efficiency maps, Inputs, RunInfo, What changed. Native Excel charts, number formats, frozen
 headers, a page setup on every sheet. Written with XlsxWriter in its ``constant_memory``
 mode: each sheet is streamed row by row to a temporary file. The workbook stays a document a
-person opens: per-vehicle tables beyond :data:`DETAIL_ROWS` rows are not copied in (the sheet
+person opens: per-vehicle tables beyond :data:`DETAIL_ROWS` rows (the Vehicles echoed in Inputs:
+:data:`INPUT_ROWS`) are not copied in (the sheet
 says so and where they are: results.csv, results.parquet), and no sheet is ever cut at Excel's
 row limit without an error.
 
@@ -61,6 +62,9 @@ WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "stri
 #: 20,000 rows is a ~5 MB workbook that opens in seconds. Beyond it the sheet says where the
 #: rows are: results.csv and results.parquet hold every row at any size (docs/report.md).
 DETAIL_ROWS = 20_000
+#: Vehicles rows the Inputs sheet echoes as read: a copy of the fleet workbook (whose sha256 the
+#: workbook records), so a smaller bound; beyond it the sheet names the file instead.
+INPUT_ROWS = 2_000
 #: Excel's rows per sheet; a sheet that would pass it is an error, never a silent cut.
 EXCEL_MAX_ROWS = 1_048_576
 ZIP64_CELLS = 20_000_000   # above this many cells a sheet's XML may pass 4 GB: zip64 archive
@@ -172,13 +176,16 @@ def _table(sheet: Sheet, frame: pd.DataFrame, styled: bool = True, widths: bool 
     sheet.rows([frame[n].tolist() for n in frame.columns], [FORMATS.get(n) if styled else None for n in names])
 
 
-def write_report_xlsx(result: RunResult, path: Path, detail_rows: int | None = None) -> None:
-    """The workbook of ``result``. Per-vehicle tables (ByVehicle, the Vehicles in Inputs) are
-    copied in up to ``detail_rows`` rows each (default :data:`DETAIL_ROWS`); beyond that the
-    sheet says where the rows are instead (results.csv / results.parquet, the fleet workbook)."""
+def write_report_xlsx(result: RunResult, path: Path, detail_rows: int | None = None,
+                      input_rows: int | None = None) -> None:
+    """The workbook of ``result``. ByVehicle copies results.csv up to ``detail_rows`` rows
+    (default :data:`DETAIL_ROWS`), Inputs the Vehicles rows as read up to ``input_rows``
+    (:data:`INPUT_ROWS`); beyond that the sheet says where the rows are instead
+    (results.csv / results.parquet, the fleet workbook)."""
     detail_rows = DETAIL_ROWS if detail_rows is None else detail_rows
+    input_rows = INPUT_ROWS if input_rows is None else input_rows
     cells = (min(len(result.results), detail_rows) * len(result.results.columns)
-             + min(len(result.fleet.vehicles), detail_rows) * (len(VEHICLE_COLUMNS) + 5))
+             + min(len(result.fleet.vehicles), input_rows) * (len(VEHICLE_COLUMNS) + 5))
     book = Book(path, cells)
     totals = scenario_totals(result.classes)
     _summary(book, result, totals)
@@ -188,7 +195,7 @@ def write_report_xlsx(result: RunResult, path: Path, detail_rows: int | None = N
     _comparison(book, result)
     _fiscal(book, result)
     _maps(book, result)
-    _inputs(book, result, detail_rows)
+    _inputs(book, result, input_rows)
     _run_info(book, result)
     _what_changed(book, result)
     book.close()
@@ -486,7 +493,7 @@ def _map_chart(sheet: Sheet, m: EfficiencyMap, header_row: int, n_rows: int, n_s
     return chart
 
 
-def _inputs(book: Book, result: RunResult, detail_rows: int):
+def _inputs(book: Book, result: RunResult, input_rows: int):
     sheet = Sheet(book, "Inputs")
     page_setup(sheet, title_row=None)
     fleet = result.fleet
@@ -508,8 +515,8 @@ def _inputs(book: Book, result: RunResult, detail_rows: int):
     sheet.append([])
     sheet.append(["Vehicles (as read)"], "bold")
     sheet.append(vehicle_names, "header")
-    if len(fleet.vehicles) > detail_rows:
-        sheet.append([f"{len(fleet.vehicles):,} Vehicles rows: more than the {detail_rows:,} this workbook "
+    if len(fleet.vehicles) > input_rows:
+        sheet.append([f"{len(fleet.vehicles):,} Vehicles rows: more than the {input_rows:,} this workbook "
                       f"copies; they are in the fleet workbook {fleet.path.name} (sha256 {fleet.sha256})."], "bold")
         return
     columns = [[getattr(v, c.name) for v in fleet.vehicles] for c in VEHICLE_COLUMNS]
