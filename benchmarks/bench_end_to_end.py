@@ -2,7 +2,10 @@
 (process start, imports, reading, simulating, aggregating, all seven outputs), one core.
 
     pip install fastsim==3.1.0
-    python benchmarks/bench_end_to_end.py [--rows 7600] [--repeat 3] [--fastsim-runs 30]
+    python benchmarks/bench_end_to_end.py [--rows 7600] [--repeat 3] [--fastsim-runs 30] [--trees DIR...]
+
+``--trees`` times the fleetrun of other source trees too (e.g. an older commit exported with
+``git archive``), round by round beside this one.
 
 - The fleet: ``fleetrun import-epa inputs/epa/22-tstcar.csv`` (1,103 vehicle configurations of the
   EPA 2022 Test Car List), its rows repeated to ``--rows`` rows, each with its own test weight
@@ -71,11 +74,12 @@ def make_fleet(rows: int, folder: Path, env: dict, seed: int = 1) -> Path:
     return path
 
 
-def fleetrun_seconds(fleet: Path, out: Path, env: dict) -> float:
+def fleetrun_seconds(fleet: Path, out: Path, env: dict, tree: Path = ROOT) -> float:
     shutil.rmtree(out, ignore_errors=True)
+    env = {**env, "PYTHONPATH": str(tree)}
     started = time.perf_counter()
     done = subprocess.run(pinned([sys.executable, "-m", "fleetrun", "run", str(fleet), "--out", str(out), "-q"]),
-                          cwd=ROOT, env=env, capture_output=True, text=True)
+                          cwd=tree, env=env, capture_output=True, text=True)
     elapsed = time.perf_counter() - started
     if done.returncode != 0:
         raise SystemExit(f"fleetrun run failed ({done.returncode}):\n{done.stderr}")
@@ -112,20 +116,25 @@ def main(argv=None):
     p.add_argument("--rows", type=int, default=7600)
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--fastsim-runs", type=int, default=30)
+    p.add_argument("--trees", type=Path, nargs="*", default=[], help="other fleetrun source trees to time alike")
     args = p.parse_args(argv)
     folder = Path(tempfile.mkdtemp(prefix="fleetrun-e2e-"))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
            "FLEETRUN_CACHE_DIR": str(folder / "cache"), "PYTHONPATH": str(ROOT)}
     try:
         fleet = make_fleet(args.rows, folder, env)
-        fleetrun_seconds(fleet, folder / "out", env)          # builds the maps (cold cache)
+        trees = [ROOT, *args.trees]
+        for tree in trees:
+            fleetrun_seconds(fleet, folder / "out", env, tree)    # builds the maps (cold cache)
         print(f"load average at start {os.getloadavg()[0]:.2f}; {args.rows} rows, UDDS, one CPU", flush=True)
         for k in range(args.repeat):
             version, fs_rate = fastsim_rate(args.fastsim_runs, env)
-            seconds = fleetrun_seconds(fleet, folder / "out", env)
-            rate = args.rows / seconds
-            print(f"  round {k + 1}: fleetrun run {seconds:.2f} s = {rate:,.0f} vehicle-UDDS/s; FASTSim {version} "
-                  f"{fs_rate:,.1f} /s; ratio {rate / fs_rate:.1f}x; load {os.getloadavg()[0]:.2f}", flush=True)
+            for tree in trees:
+                seconds = fleetrun_seconds(fleet, folder / "out", env, tree)
+                rate = args.rows / seconds
+                print(f"  round {k + 1}, {tree}: fleetrun run {seconds:.2f} s = {rate:,.0f} vehicle-UDDS/s; FASTSim "
+                      f"{version} {fs_rate:,.1f} /s; ratio {rate / fs_rate:.1f}x; load {os.getloadavg()[0]:.2f}",
+                      flush=True)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
