@@ -235,6 +235,7 @@ class _Table:
     uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
     present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
     plan: list | None = None             # _plan's per-column fast-path bounds, made once
+    texts: dict = field(default_factory=dict)   # column index -> {text: parsed value or CellProblem}
 
 
 def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
@@ -335,11 +336,12 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             if column.required:
                 blanks.append((column, index))
             continue
-        try:
-            parsed[column.name] = rows.parse_value(column, raw)
-        except CellProblem as problem:
-            problems.error(str(problem), table.sheet, row_number, index, column.name)
+        value = _parsed_value(table, column, index, raw)
+        if isinstance(value, CellProblem):
+            problems.error(str(value), table.sheet, row_number, index, column.name)
             ok = False
+        else:
+            parsed[column.name] = value
     if len(blanks) >= ROW_MOSTLY_EMPTY:
         # A half-filled row: one line for the row, not one per cell.
         listed = ", ".join(f"{c.name} ({get_column_letter(i)})" for c, i in blanks)
@@ -363,6 +365,32 @@ def _plan(table: _Table) -> list[tuple[Column, int, float, float]]:
         table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)))
                       for c, i in table.present]
     return table.plan
+
+
+TEXT_CACHE_SIZE = 4096   # distinct texts remembered per column (choices, ratios and tyres repeat)
+
+
+def _parsed_value(table: _Table, column: Column, index: int, raw):
+    """rows.parse_value of a non-blank cell, or the CellProblem it raised. A text cell's result
+    is remembered per column of this table: a fleet repeats its choices, ratios and tyres."""
+    if type(raw) is not str:
+        try:
+            return rows.parse_value(column, raw)
+        except CellProblem as problem:
+            return problem
+    known = table.texts.setdefault(index, {})
+    value = known.get(raw, _UNSEEN)
+    if value is _UNSEEN:
+        try:
+            value = rows.parse_value(column, raw)
+        except CellProblem as problem:
+            value = problem
+        if len(known) < TEXT_CACHE_SIZE:
+            known[raw] = value
+    return value
+
+
+_UNSEEN = object()
 
 
 def _text_or_blank(raw) -> str:
