@@ -117,6 +117,8 @@ class RunResult:
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
     error_model: ErrorModel | None = None      # the measured error behind the ranges (None: none)
     changes: RunChanges | None = None          # vs the run already in the folder
+    registrations: pd.DataFrame | None = None  # registration rows: vehicle chosen, matched on, assumed
+    turnover: pd.DataFrame | None = None       # year-on-year gallons change: VMT vs gallons per mile
 
 
 def _now_utc() -> str:

@@ -42,7 +42,9 @@ RESULTS_COLUMNS = ["scenario_id", "vehicle_id", "vehicle_class", "configuration"
                    "wheel_energy_J", "duty_class",
                    # budget: cycle (dynamometer) and uncalibrated fuel, the range, CO2
                    "fuel_gal_cycle_total", "fuel_gal_uncalibrated_total", "fuel_gal_low_total",
-                   "fuel_gal_high_total", "kwh_total", "ev_fee_usd"]
+                   "fuel_gal_high_total", "kwh_total", "ev_fee_usd",
+                   # registrations (docs/registrations.md): empty where a row has none
+                   "model_year"]
 CLASS_COLUMNS = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
                  "diff_efficiency", "state_tax_usd", "federal_tax_usd",
                  "drivetrain_efficiency", "vehicle_types", "fuel_gal_low_total", "fuel_gal_high_total",
@@ -76,9 +78,11 @@ def _cycle_kind(cycle: str) -> str:
 
 
 def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
-                 error_model=None) -> dict[str, np.ndarray]:
+                 error_model=None, fuel_factor: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, the range's
-    gallons per mile, on-road kWh per mile (electric rows) and the energies per mile."""
+    gallons per mile, on-road kWh per mile (electric rows) and the energies per mile.
+    ``fuel_factor``: each row's cycle fuel per mile relative to its simulated vehicle (a
+    registration cohort's model year, docs/registrations.md); None: 1."""
     n = len(duty_of)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
@@ -92,6 +96,8 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
             sim = per_condition[(cycle, s.ambient_temp_C)]
             miles = sim["miles"][rows]
             cycle_gpm = sim["fuel_gal"][rows] / miles
+            if fuel_factor is not None:
+                cycle_gpm = cycle_gpm * fuel_factor[rows]
             kind = _cycle_kind(cycle)
             low, high = error_model.relative_range(cycle, kind) if error_model else (math.nan, math.nan)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
@@ -105,10 +111,11 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
     return per_mile
 
 
-def calibration(s, fuel: np.ndarray, gallons: np.ndarray) -> tuple[dict[str, float], list[dict]]:
+def calibration(s, fuel: np.ndarray, gallons: np.ndarray, first_share=None) -> tuple[dict[str, float], list[dict]]:
     """Scale per fuel (1 unless calibrated) and one row per fuel with observed gallons:
-    the first fiscal year's modelled gallons, the observed ones and their ratio."""
-    share = budget.year_shares(s)[0]
+    the first fiscal year's modelled gallons, the observed ones and their ratio.
+    ``first_share``: each row's first-year share of its miles (None: the scenario's)."""
+    share = budget.year_shares(s)[0] if first_share is None else first_share
     first_year = budget.fiscal_years(s)[0]
     scales: dict[str, float] = {}
     rows = []
@@ -116,7 +123,8 @@ def calibration(s, fuel: np.ndarray, gallons: np.ndarray) -> tuple[dict[str, flo
         observed = s.observed_base_gallons(name)
         if observed is None:
             continue
-        model = math.fsum(gallons[fuel == name]) * share
+        model = math.fsum((gallons * share)[fuel == name]) if first_share is not None else \
+            math.fsum(gallons[fuel == name]) * share
         ratio = model / observed
         scale = observed / model if (s.calibrate_to_observed and model > 0) else 1.0
         scales[name] = scale
@@ -141,16 +149,23 @@ def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy
         }
 
 
-def scenario_frame(s, vehicles, per_condition: dict, error_model=None) -> tuple[pd.DataFrame, list[dict]]:
-    """One row per vehicle for scenario ``s`` and its calibration rows."""
+def scenario_frame(s, vehicles, per_condition: dict, error_model=None, years=None) -> tuple[pd.DataFrame, list[dict]]:
+    """One row per vehicle for scenario ``s`` and its calibration rows. ``years``: per-row
+    miles by budget year and fuel factors (registration turnover, :func:`row_years`); None:
+    ``count x annual_miles x (1 + g)^(y - 1)`` for every row."""
     count = np.array([v.count for v in vehicles], dtype=float)
     annual = np.array([v.annual_miles for v in vehicles], dtype=float)
     fuel = np.array([v.fuel for v in vehicles], dtype=object)
     duty_of = np.array([v.duty_class for v in vehicles], dtype=object)
-    per_mile = mix_per_mile(s, duty_of, fuel, per_condition, error_model)
-    miles_total = count * annual * s.mile_factor()
+    year_miles, factor = (None, None) if years is None else (years.year_miles(s), years.fuel_factor(s))
+    per_mile = mix_per_mile(s, duty_of, fuel, per_condition, error_model, factor)
+    miles_total = count * annual * s.mile_factor() if year_miles is None else year_miles.sum(axis=1)
     raw = miles_total * per_mile["fuel_gal"]
-    scales, calibration_rows = calibration(s, fuel, raw)
+    first_share = None
+    if year_miles is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            first_share = np.where(miles_total > 0, year_miles[:, 0] / miles_total, 0.0)
+    scales, calibration_rows = calibration(s, fuel, raw, first_share)
     scale = np.array([scales.get(f, 1.0) for f in fuel])
     gallons = raw * scale
     calibrated = scale != 1.0
@@ -169,18 +184,20 @@ def scenario_frame(s, vehicles, per_condition: dict, error_model=None) -> tuple[
         "fuel_gal_uncalibrated_total": raw, "fuel_gal_low_total": low, "fuel_gal_high_total": high,
         "kwh_total": miles_total * per_mile["kwh"],
         "ev_fee_usd": np.where(fuel == ELECTRIC, count * s.ev_fee_usd_per_vehicle_year * s.budget_years, 0.0),
+        "model_year": pd.array([v.model_year for v in vehicles], dtype="Int64"),
     })
     frame.loc[fuel == ELECTRIC, "mpg"] = np.nan   # no gallons: kwh_total instead
     return frame, calibration_rows
 
 
 def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: dict,
-                       error_model=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                       error_model=None, years=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget
-    years), and the calibration table (one row per scenario x fuel with observed gallons)."""
+    years), and the calibration table (one row per scenario x fuel with observed gallons).
+    ``years``: see :func:`scenario_frame`."""
     frames, rows = [], []
     for s in scenarios:
-        frame, calibration_rows = scenario_frame(s, vehicles, per_condition, error_model)
+        frame, calibration_rows = scenario_frame(s, vehicles, per_condition, error_model, years)
         frames.append(frame)
         rows += calibration_rows
     calibration_table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
@@ -253,8 +270,9 @@ def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=SCENARIO_TOTAL_COLUMNS)
 
 
-def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame) -> list[dict]:
-    """The fiscal-year rows of one scenario x fuel x class: shares of the group's totals."""
+def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, row_shares=None) -> list[dict]:
+    """The fiscal-year rows of one scenario x fuel x class: shares of the group's totals
+    (``row_shares``: each row's own shares of its miles by year, registration turnover)."""
     years = budget.fiscal_years(s)
     shares = budget.year_shares(s)
     rows = [{"scenario_id": s.scenario_id, "fiscal_year": year, "fuel": fuel, "vehicle_class": vehicle_class}
@@ -263,7 +281,13 @@ def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame) -> list
         total = _fsum(group[source]) if source in group else 0.0
         # fees are per vehicle-year (even over the years); everything else follows the miles
         weights = np.full(len(years), 1.0 / len(years)) if column == "ev_fee_usd" else shares
-        parts = budget.exact_parts(total * weights, total) if math.isfinite(total) else [math.nan] * len(years)
+        if row_shares is not None and column != "ev_fee_usd" and source in group and math.isfinite(total):
+            mine = row_shares[group.index.to_numpy()][:, :len(years)]
+            parts = budget.exact_parts(group[source].to_numpy(dtype=float) @ mine, total)
+        elif math.isfinite(total):
+            parts = budget.exact_parts(total * weights, total)
+        else:
+            parts = [math.nan] * len(years)
         for row, value in zip(rows, parts):
             row[column] = value
     for row in rows:
@@ -271,13 +295,30 @@ def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame) -> list
     return rows
 
 
-def fiscal_summary(results: pd.DataFrame, scenarios: Sequence) -> pd.DataFrame:
-    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv)."""
+def row_year_shares(results: pd.DataFrame, scenarios: Sequence, vehicles, years) -> np.ndarray | None:
+    """Per results row, its miles' shares by budget year (registration turnover), aligned
+    with ``results``' index; None without ``years``."""
+    if years is None:
+        return None
+    width = max(s.budget_years for s in scenarios)
+    out = np.zeros((len(results), width))
+    for k, s in enumerate(scenarios):
+        year_miles = years.year_miles(s)
+        total = year_miles.sum(axis=1, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shares = np.where(total > 0, year_miles / total, budget.year_shares(s)[None, :])
+        out[k * len(vehicles):(k + 1) * len(vehicles), :s.budget_years] = shares
+    return out
+
+
+def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, row_shares=None) -> pd.DataFrame:
+    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv).
+    ``row_shares``: :func:`row_year_shares` (None: every row follows the scenario's years)."""
     rows = []
     by_id = {s.scenario_id: s for s in scenarios}
     for (scenario_id, fuel, vehicle_class), group in results.groupby(
             ["scenario_id", "fuel", "vehicle_class"], sort=False):
-        rows += _fiscal_group(by_id[scenario_id], fuel, vehicle_class, group)
+        rows += _fiscal_group(by_id[scenario_id], fuel, vehicle_class, group, row_shares)
     frame = pd.DataFrame(rows, columns=FISCAL_COLUMNS)
     order = {s.scenario_id: i for i, s in enumerate(scenarios)}
     frame["_order"] = frame["scenario_id"].map(order)
@@ -294,3 +335,31 @@ def yearly_totals(fiscal: pd.DataFrame) -> pd.DataFrame:
         rows.append({"scenario_id": scenario_id, "fiscal_year": int(year),
                      **{c: _fsum(group[c]) for c in columns}})
     return pd.DataFrame(rows, columns=["scenario_id", "fiscal_year"] + columns)
+
+
+CHANGE_COLUMNS = ["scenario_id", "fiscal_year", "miles", "fuel_gal", "gal_per_mile", "mpg", "change_gal",
+                  "change_from_vmt_gal", "change_from_gal_per_mile_gal"]
+
+
+def change_decomposition(fiscal: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario and fiscal year, the fleet's fuel-burning miles, gallons and gallons per
+    mile, and the change in gallons from the year before split exactly into VMT
+    (change in miles x last year's gallons per mile) and gallons per mile (this year's miles x
+    the change in gallons per mile: turnover, the fleet's mix of model years)."""
+    burning = fiscal[fiscal["fuel"] != ELECTRIC]
+    rows = []
+    for scenario_id, group in burning.groupby("scenario_id", sort=False):
+        previous = None
+        for year, part in group.groupby("fiscal_year", sort=True):
+            miles, gallons = math.fsum(part["miles"]), math.fsum(part["fuel_gal"])
+            gpm = gallons / miles if miles > 0 else math.nan
+            row = {"scenario_id": scenario_id, "fiscal_year": int(year), "miles": miles, "fuel_gal": gallons,
+                   "gal_per_mile": gpm, "mpg": 1.0 / gpm if gpm else math.nan,
+                   "change_gal": math.nan, "change_from_vmt_gal": math.nan, "change_from_gal_per_mile_gal": math.nan}
+            if previous is not None:
+                row["change_gal"] = gallons - previous["fuel_gal"]
+                row["change_from_vmt_gal"] = (miles - previous["miles"]) * previous["gal_per_mile"]
+                row["change_from_gal_per_mile_gal"] = miles * (gpm - previous["gal_per_mile"])
+            rows.append(row)
+            previous = row
+    return pd.DataFrame(rows, columns=CHANGE_COLUMNS)

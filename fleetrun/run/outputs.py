@@ -20,7 +20,8 @@ from fleetrun.workbook.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv",
                 "fiscal_summary.csv", "manifest.json")   # manifest.json last: it lists the others' sha256
-
+# written when the fleet has Registrations (docs/registrations.md); an older run's are replaced
+REGISTRATION_FILES = ("registrations.csv", "turnover.csv")
 
 CSV_CHUNK_ROWS = 50_000    # rows formatted at a time: bounds the memory of the text
 _NEEDS_QUOTES = re.compile(r'[,"\r\n]')
@@ -57,9 +58,9 @@ def write_csv(frame, path: Path) -> None:
 def _column_kind(column) -> str | None:
     """How :func:`_column_texts` formats ``column`` ("float", "int", "text"); None: not handled."""
     kind = column.dtype.kind
-    if kind == "f" and column.dtype == np.float64:
+    if isinstance(column.dtype, np.dtype) and column.dtype == np.float64:
         return "float"
-    if kind in "iu":
+    if isinstance(column.dtype, np.dtype) and kind in "iu":   # not pandas' nullable Int64 (<NA>)
         return "int"
     if kind == "O" or str(column.dtype) in ("string", "str"):
         return "text"
@@ -130,13 +131,16 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
 
     out_dir = Path(out_dir)
     refuse_overwriting_inputs(out_dir, [result.fleet.path, *result.cycle_inputs])
-    with new_output_folder(out_dir, replaces=OUTPUT_FILES) as staging:
+    with new_output_folder(out_dir, replaces=OUTPUT_FILES + REGISTRATION_FILES) as staging:
         if earlier is not None:
             keep_earlier_run(out_dir, staging, earlier, OUTPUT_FILES)
         write_csv(result.results, staging / "results.csv")
         write_parquet(result.results, staging / "results.parquet")
         write_csv(result.classes, staging / "class_summary.csv")
         write_csv(result.fiscal, staging / "fiscal_summary.csv")
+        if result.registrations is not None:
+            write_csv(result.registrations, staging / "registrations.csv")
+            write_csv(result.turnover, staging / "turnover.csv")
         write_report_xlsx(result, staging / "report.xlsx")
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}

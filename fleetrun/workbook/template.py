@@ -10,18 +10,31 @@ from pathlib import Path
 import xlsxwriter
 from xlsxwriter.utility import xl_col_to_name
 
-from fleetrun.workbook.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
-                                   VEHICLES_SHEET, Column)
+from fleetrun.workbook.schema import (REGISTRATION_COLUMNS, REGISTRATIONS_SHEET, SCENARIO_COLUMNS,
+                                   SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET, Column)
 
 #: Cell formats (XlsxWriter properties): required headers dark, optional ones lighter.
 HEADER = {"bold": True, "font_color": "#FFFFFF", "bg_color": "#1F4E78", "pattern": 1, "align": "center"}
 OPTIONAL_HEADER = {**HEADER, "bg_color": "#5B7FA6"}
 VALIDATED_ROWS = 5000     # drop-downs cover this many data rows
+TITLE_CHARS = 32          # Excel's longest validation error title (XlsxWriter skips a longer rule)
 
 INSTRUCTIONS = [
     ("fleetrun fleet workbook", None),
     ("", None),
-    ("Vehicles: one row per vehicle type; header in row 1 (do not rename the headers).", None),
+    ("START HERE (a revenue office): the Registrations sheet, then Scenarios; docs/registrations.md.", None),
+    ("Registrations: one row per count you have: vehicle_class (automobile, light_truck, single_unit_truck,", None),
+    ("   combination_truck, bus, motorcycle, or truck = FHWA MV-1's all trucks) and count are enough.", None),
+    ("   Optional: model_year, fuel, make and model (a DMV extract), vehicle_id (a Vehicles row).", None),
+    ("   A DMV extract as CSV:  fleetrun import-registrations EXTRACT.csv -o fleet.xlsx", None),
+    ("   fleetrun picks a vehicle for every row (listed in registrations.csv and the report's", None),
+    ("   Registrations sheet) and ages the fleet over the budget years (scrappage, new model years).", None),
+    ("Scenarios for registrations: cycle_mix = default; base_year_vmt_million = the state's VMT", None),
+    ("   of the first fiscal year in millions (FHWA VM-2); first_fiscal_year = the year the counts describe.", None),
+    ("   Delete the Vehicles sheet's example rows (or the sheet) when you have no engineering data.", None),
+    ("", None),
+    ("Vehicles (engineering data, optional beside Registrations): one row per vehicle type;", None),
+    ("   header in row 1 (do not rename the headers).", None),
     ("Dark headers are required; lighter headers are optional (leave the cell empty).", None),
     ("configuration, duty_class, fuel and transmission have drop-down lists.", None),
     ("transmission_gear_ratios: comma list, first gear first, e.g. 4.62,3.04,2.06,1.66,1.26,1.00", None),
@@ -59,21 +72,24 @@ def write_template(path: Path) -> None:
         formats = {"required": workbook.add_format(HEADER), "optional": workbook.add_format(OPTIONAL_HEADER),
                    "text": workbook.add_format({"num_format": "@"}), "bold": workbook.add_format({"bold": True}),
                    "title": workbook.add_format({"bold": True, "font_size": 14})}
-        vehicles = workbook.add_worksheet(VEHICLES_SHEET)
-        _fill_sheet(vehicles, VEHICLE_COLUMNS, formats)
+        registrations = workbook.add_worksheet(REGISTRATIONS_SHEET)
+        _fill_sheet(registrations, REGISTRATION_COLUMNS, formats, examples=False)
+        _fill_sheet(workbook.add_worksheet(VEHICLES_SHEET), VEHICLE_COLUMNS, formats)
         _fill_sheet(workbook.add_worksheet(SCENARIOS_SHEET), SCENARIO_COLUMNS, formats)
         _fill_instructions(instructions, formats)
-        vehicles.activate()
+        registrations.activate()   # the second sheet, after the Instructions
         workbook.close()
 
 
-def _fill_sheet(ws, columns: tuple[Column, ...], formats: dict) -> None:
+def _fill_sheet(ws, columns: tuple[Column, ...], formats: dict, examples: bool = True) -> None:
+    """Headers, notes, drop-downs and (``examples``) the two example rows. The Registrations
+    sheet has no example rows: a row there has no id a warning could point at, so it would count."""
     for index, column in enumerate(columns):
         ws.write_string(0, index, column.name, formats["required" if column.required else "optional"])
         ws.write_comment(0, index, ("required: " if column.required else "optional: ") + column.note,
                          {"author": "fleetrun"})
         ws.set_column(index, index, max(12, len(column.name) + 2))
-        for row, example in enumerate(column.example, start=1):
+        for row, example in enumerate(column.example if examples else (), start=1):
             if column.kind in ("text", "ratios", "cycle_mix", "choice"):
                 ws.write_string(row, index, str(example), formats["text"])  # keep "3.5,2.1" and ids as text
             else:
@@ -83,7 +99,7 @@ def _fill_sheet(ws, columns: tuple[Column, ...], formats: dict) -> None:
         if column.choices:
             ws.data_validation(1, index, VALIDATED_ROWS, index, {
                 "validate": "list", "source": list(column.choices), "ignore_blank": not column.required,
-                "error_title": column.name, "error_message": f"Choose one of: {', '.join(column.choices)}"})
+                "error_title": column.name[:TITLE_CHARS], "error_message": f"Choose one of: {', '.join(column.choices)}"})
     ws.freeze_panes(1, 1)
 
 
@@ -102,7 +118,7 @@ def _number_rule(ws, column: Column, index: int) -> None:
         rule, words = {"criteria": "between", "minimum": -1e300, "maximum": 1e300}, ""
     noun = "a whole number" if kind == "integer" else "a number"
     ws.data_validation(1, index, VALIDATED_ROWS, index, {
-        "validate": kind, **rule, "ignore_blank": not column.required, "error_title": column.name,
+        "validate": kind, **rule, "ignore_blank": not column.required, "error_title": column.name[:TITLE_CHARS],
         "error_message": f"{column.name}: {noun} {words}".strip()})
 
 
@@ -115,7 +131,8 @@ def _fill_instructions(ws, formats: dict) -> None:
     ws.write_string(row, 0, INSTRUCTIONS[-1][0], formats["bold"])
     ws.write_string(row, 3, "range (outside: refused)", formats["bold"])
     ws.write_string(row, 4, "usual (outside: warning)", formats["bold"])
-    for sheet, columns in ((VEHICLES_SHEET, VEHICLE_COLUMNS), (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
+    for sheet, columns in ((REGISTRATIONS_SHEET, REGISTRATION_COLUMNS), (VEHICLES_SHEET, VEHICLE_COLUMNS),
+                           (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
         for column in columns:
             row += 1
             choices = f" ({', '.join(column.choices)})" if column.choices else ""
