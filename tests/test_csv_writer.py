@@ -41,3 +41,11 @@ def test_other_column_kinds_go_through_pandas(tmp_path):
     outputs.write_csv(frame, tmp_path / "a.csv")
     frame.to_csv(tmp_path / "b.csv", index=False)
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+def test_nullable_integers_written_as_pandas_writes_them(tmp_path):
+    frame = pd.DataFrame({"model_year": pd.array([2019, None, 2024], dtype="Int64"), "x": [1.0, math.nan, 3.25],
+                          "label": ["a", None, "b"]})
+    outputs.write_csv(frame, tmp_path / "a.csv")
+    frame.to_csv(tmp_path / "b.csv", index=False)
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()

@@ -60,8 +60,10 @@ def _column_kind(column) -> str | None:
     kind = column.dtype.kind
     if isinstance(column.dtype, np.dtype) and column.dtype == np.float64:
         return "float"
-    if isinstance(column.dtype, np.dtype) and kind in "iu":   # not pandas' nullable Int64 (<NA>)
+    if isinstance(column.dtype, np.dtype) and kind in "iu":
         return "int"
+    if isinstance(column.dtype, pd.api.extensions.ExtensionDtype) and kind in "iu":
+        return "nullable int"             # pandas' Int64: <NA> is written empty
     if kind == "O" or str(column.dtype) in ("string", "str"):
         return "text"
     return None
@@ -78,6 +80,8 @@ def _column_texts(column) -> list[str]:
         return texts
     if kind == "int":
         return list(map(str, column.to_numpy().tolist()))
+    if kind == "nullable int":
+        return ["" if value is pd.NA else str(value) for value in column.astype(object).tolist()]
     return [_text_field(value) for value in column.astype(object).tolist()]
 
 
