@@ -151,9 +151,16 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     def g(x, idx):
         return f(x, idx.astype(np.intp))
 
-    found = find_root(g, (lo, hi), args=(all_idx.astype(float),), maxiter=max_iter,
-                      tolerances={"xatol": tol, "xrtol": 0.0, "fatol": tol, "frtol": 0.0})
-    return np.asarray(found.x, dtype=float)
+    # find_root wants a strict sign change. An end that already meets the output is the
+    # answer; where the model gives eta > 1 at ``out`` (f(lo) > 0: no sign change in the
+    # bracket) the answer is ``lo``, as the earlier false-position iteration converged to
+    x = np.where(f_lo >= -tol, lo, hi)
+    todo = np.flatnonzero((f_lo < -tol) & (f_hi > tol))
+    if todo.size:
+        found = find_root(g, (lo[todo], hi[todo]), args=(todo.astype(float),), maxiter=max_iter,
+                          tolerances={"xatol": tol, "xrtol": 0.0, "fatol": tol, "frtol": 0.0})
+        x[todo] = found.x
+    return x
 
 
 # --------------------------------------------------------------------------- maps
