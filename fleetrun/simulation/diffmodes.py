@@ -9,7 +9,7 @@ simulation knows the *output* (wheel) torque, so every mode inverts it: find T_i
 L = T_in - T_out / G_tot.
 
 - ``direct`` (Sec. 6.1): the model is called at every step inside a bracketed
-  Illinois (false-position) root search, to 1e-10 of the Kim scale.
+  root search (scipy.optimize.elementwise.find_root), to 1e-10 of the Kim scale.
 - ``map2d`` (Sec. 6.2): per vehicle, the model is evaluated once on an input-torque x speed
   grid at the vehicle's own gear ratio(s); each speed column is inverted (input torque as a
   function of output torque) and the steps interpolate bilinearly in that inverse map.
