@@ -17,6 +17,7 @@ import click
 
 from fleetrun import __version__
 from fleetrun.errors import FleetrunError
+from fleetrun.fileio import write_error_log
 
 EXIT_INTERNAL = 4
 
@@ -85,8 +86,6 @@ def _names_user_path(exc: OSError, argv) -> bool:
 
 
 def _internal_error(ctx):
-    from fleetrun.fileio import write_error_log
-
     kind, exc, _ = sys.exc_info()
     log_file = write_error_log(traceback.format_exc())
     click.echo(f"Error: internal error ({kind.__name__}: {exc}); the traceback is in {log_file}; "

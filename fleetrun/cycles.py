@@ -10,6 +10,8 @@ their sources, unit conversions and checked durations/distances are in
 - ``UDDS``, ``HWFET``, ``US06``, ``WLTC`` (class 3b) from fastsim 2.1.5 (NREL, Apache-2.0);
 - ``NYCC``, ``HD-UDDS`` (EPA UDDSHDV) from the EPA schedules embedded in zahner_potentiostat
   1.1.2 (MIT), converted from mph.
+- ``ARB-TRANSIENT`` (GEM's transient cycle, CARB HHDDT transient mode) from NREL T3CO
+  (BSD-3-Clause); ``CRUISE-55``, ``CRUISE-65`` written by ``make_cruise.py``.
 
 A *composed* cycle (``inputs/cycles/<NAME>.toml``; ``FTP``) joins parts of shipped schedules
 into named phases with engine-off soaks between them (:class:`CyclePhase`); its fuel economy
@@ -19,7 +21,7 @@ for the FTP).
 A user cycle is a CSV with ``time_s`` and exactly one speed column (``vehicle_speed_kph``,
 ``vehicle_speed_mph``, ``vehicle_speed_mps``, ``speed_mps``, ``speed_kph`` or ``speed_mph``) and
 an optional ``grade_pct``; other columns are ignored, so a vehicle-level recording
-(CONTRACT.md, "Recordings") loads as its own drive cycle. Time steps may be uneven
+(docs/interface.md, "Recordings") loads as its own drive cycle. Time steps may be uneven
 (:func:`resample` puts a cycle on an even grid). Errors are :class:`fleetrun.errors.InputError`
 with the file, the row as a spreadsheet shows it (header = row 1), the column and the value.
 """
@@ -27,19 +29,22 @@ from __future__ import annotations
 
 import math
 import os
+import tomllib
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.resources import inputs_dir
 from fleetrun.units import METERS_PER_MILE
 
 MPH_TO_MPS = 0.44704       # 1 mph in m/s, exact
 KPH_TO_MPS = 1.0 / 3.6     # 1 km/h in m/s, exact
 
-# The first cycles `shipped_cycles()` lists, in this order (CONTRACT.md); others follow by name.
+# The first cycles `shipped_cycles()` lists, in this order (docs/interface.md); others follow by name.
 PRIMARY_CYCLES = ("UDDS", "HWFET", "US06", "NYCC", "HD-UDDS")
 
 # Accepted speed columns -> factor to m/s.
@@ -162,8 +167,6 @@ class DriveCycle:
 # ----------------------------------------------------------------------------- shipped cycles
 
 def _cycles_dir() -> Path:
-    from fleetrun.resources import inputs_dir
-
     return inputs_dir() / "cycles"
 
 
@@ -208,6 +211,20 @@ def load_cycle(name_or_path) -> DriveCycle:
     A :class:`pathlib.Path`, or a string that contains a path separator or has a file
     extension, is read as a file; any other string is looked up among :func:`shipped_cycles`
     (and, failing that, read as a file if one of that name exists).
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike, a shipped name (``fleetrun cycles``) or a CSV file with
+        ``time_s`` [s], one speed column (m/s, km/h or mph by its name) and optional
+        ``grade_pct`` [%]
+
+    Returns
+    -------
+    :class:`DriveCycle` (speeds in m/s)
+
+    >>> udds = load_cycle("udds")
+    >>> udds.name, udds.duration_s, round(udds.miles, 2)
+    ('UDDS', 1369.0, 7.45)
     """
     if isinstance(name_or_path, DriveCycle):
         return name_or_path
@@ -259,6 +276,18 @@ def ftp_weighted_per_mile(bag1, bag2, bag3, miles1, miles2, miles3):
     city fuel economy from these weighted grams per mile (carbon balance), so the weighting
     applies to fuel per mile, not to mpg: composite mpg = 1 / (weighted gallons per mile).
     Works element-wise on arrays (one value per vehicle).
+
+    Parameters
+    ----------
+    bag1, bag2, bag3 : float or array, the bags' amounts (fuel [g] or [gal])
+    miles1, miles2, miles3 : float or array, the bags' distances [mi]
+
+    Returns
+    -------
+    amount per mile (the unit of the bags per mi)
+
+    >>> round(ftp_weighted_per_mile(100.0, 150.0, 90.0, 3.6, 3.9, 3.6), 4)
+    32.5733
     """
     return (FTP_TRANSIENT_WEIGHT * (bag1 + bag2) / (miles1 + miles2)
             + FTP_HOT_WEIGHT * (bag3 + bag2) / (miles3 + miles2))
@@ -297,8 +326,6 @@ def composite_per_mile(rule: str, amounts: dict, miles: dict):
 def read_composed_cycle(path, name: str | None = None) -> DriveCycle:
     """A composed cycle from its TOML (``inputs/cycles/FTP.toml`` documents the keys): the
     phases' parts of shipped schedules joined on one time axis, soaks as engine-off gaps."""
-    import tomllib
-
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -394,8 +421,6 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
 def _read_csv_cells(path: Path):
     """The CSV's cells as text (pandas DataFrame, stripped column names); InputError for a
     missing file, a folder, another extension, binary content, an undecodable or ragged file."""
-    import pandas as pd
-
     if not path.exists():
         raise InputError("drive-cycle file not found", file=path,
                          hint="Check the path, or run `fleetrun cycles` for the shipped names")
@@ -511,6 +536,18 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0) -> DriveCycle:
 
     The grid ends at the last grid point not after the cycle's end (to within 1e-9 s), so a
     final stretch shorter than ``dt_s`` is dropped; speed and grade are interpolated linearly.
+
+    Parameters
+    ----------
+    cycle : :class:`DriveCycle`
+    dt_s : float, the grid step [s]
+
+    Returns
+    -------
+    :class:`DriveCycle` on the even grid, with the same phases and composite rule
+
+    >>> resample(load_cycle("UDDS"), 0.5).time_s[:3].tolist()
+    [0.0, 0.5, 1.0]
     """
     dt_s = float(dt_s)
     if not math.isfinite(dt_s) or dt_s <= 0:

@@ -5,6 +5,8 @@ into one ``Error: ...`` line on stderr and exit code 1, never a traceback.
 """
 from __future__ import annotations
 
+import difflib
+
 
 class FleetrunError(Exception):
     """A user-facing error that says where the problem is and what to do.
@@ -67,8 +69,6 @@ class MissingExtraError(FleetrunError):
 
 def closest_names(name: str, valid, n: int = 1) -> list[str]:
     """The valid names closest to ``name`` (case-insensitive), best first."""
-    import difflib
-
     valid = list(valid)
     lower = {v.lower(): v for v in valid}
     hits = difflib.get_close_matches(name.lower(), list(lower), n=n, cutoff=0.4)

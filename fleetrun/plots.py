@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from fleetrun.errors import InputError, MissingExtraError
+from fleetrun.fileio import atomic_file
 
 PLOT_FORMATS = (".png", ".svg")
 
@@ -68,8 +69,6 @@ def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
 
 def save_figure(fig, path) -> None:
     """Save ``fig`` atomically as PNG or SVG (by the file's suffix)."""
-    from fleetrun.fileio import atomic_file
-
     path = Path(path)
     if path.suffix.lower() not in PLOT_FORMATS:
         raise InputError(f"{path}: plot file must end in .png or .svg, got '{path.suffix or '(none)'}'",

@@ -1,4 +1,4 @@
-"""A vehicle type as the fleet workbook describes it (CONTRACT.md, sheet ``Vehicles``).
+"""A vehicle type as the fleet workbook describes it (docs/interface.md, sheet ``Vehicles``).
 
 This dataclass is the hand-over between the workbook reader (``fleetrun.workbook``), the
 drive-cycle simulation (``fleetrun.simulation``) and the diagnosis at vehicle level.
@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import operator
 from dataclasses import dataclass, field, fields
+
+from fleetrun.differential import kim_torque_scale_Nm
 
 
 # VehicleSpec fields that do not change how a vehicle drives a cycle (model_year does: it
@@ -59,8 +61,6 @@ class VehicleSpec:
 
     def __post_init__(self):
         if self.kim_torque_scale_Nm is None and self.transmission_gear_ratios:
-            from fleetrun.differential import kim_torque_scale_Nm
-
             object.__setattr__(self, "kim_torque_scale_Nm", float(kim_torque_scale_Nm(
                 self.peak_engine_torque_Nm, self.converter_ratio, max(self.transmission_gear_ratios))))
         elif self.kim_torque_scale_Nm is not None:

@@ -71,3 +71,33 @@ def test_recording_errors_name_file_row_column_and_key(tmp_path):
     assert result.exit_code == 1
     assert "r.toml: key configuration: unknown configuration 'LD_XYZ'" in result.output
     assert not (tmp_path / "d").exists()
+
+
+# ----------------------------------------------------------------------------- concealed physics
+@pytest.fixture(scope="module")
+def concealed(tmp_path_factory):
+    from validation.diagnose_concealed import run as run_concealed
+
+    return run_concealed(tmp_path_factory.mktemp("concealed"))
+
+
+@pytest.mark.slow
+def test_concealed_effects_in_the_real_camry_recording(concealed):
+    """Issue 16: physics concealed in the real cold-start UDDS (computed with the simulation,
+    2-5 % of its fuel), diagnosed against the real hot-start UDDS. The clean recording says
+    only what it already said (the real cold start); a concealed effect that is named is sized
+    within 25 % (over what the same effect fits on the clean pair) and never displaces the
+    warm-up. Measured (docs/diagnose-realdata.md): 3 of 6 cases named, sized and with the phase
+    error at least halved; the switching accessory load and the smaller grade are not named
+    (the pair's real 2-5 % run-to-run difference is described as well by a grade, a drag or an
+    accessory load). The test holds that floor so that it cannot silently get worse."""
+    clean, cases = concealed
+    assert [f["effect"] for f in clean["findings"]] == ["warmup"]
+    assert clean["unexplained"]["significant"] is False
+    for c in cases:
+        assert "warmup" in c.findings, c
+        if c.named:
+            assert c.size_ok, c
+    assert sum(c.named and c.size_ok and c.phases_ok for c in cases) >= 3
+    assert any(c.named for c in cases if c.effect == "road_grade")
+    assert all(c.named for c in cases if c.effect == "aero_drag")

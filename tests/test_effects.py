@@ -6,13 +6,13 @@ from fleetrun.effects import EFFECTS, efficiency_with_effects, parse_with
 from fleetrun.effects import differential as d
 from fleetrun.errors import InputError
 
-CONTRACT_IDS = {"bearing_preload", "cornering", "inertia", "oil_warmup", "bearing_drag",
+DOCUMENTED_IDS = {"bearing_preload", "cornering", "inertia", "oil_warmup", "bearing_drag",
                 "mixed_lubrication", "warmup", "road_grade", "accessory_load"}
 
 
 def test_registry_has_contract_ids_and_fixed_parameters():
-    assert CONTRACT_IDS <= set(EFFECTS)
-    # CONTRACT.md fixes these names
+    assert DOCUMENTED_IDS <= set(EFFECTS)
+    # docs/interface.md fixes these names
     assert [p.name for p in EFFECTS["bearing_preload"].parameters] == ["drag_torque_Nm"]
     assert [p.name for p in EFFECTS["cornering"].parameters] == ["k_c"]
     assert [p.name for p in EFFECTS["inertia"].parameters] == ["J_kg_m2"]
@@ -41,7 +41,7 @@ def test_parse_with_defaults_overrides_and_errors():
 
 
 def test_cornering_power_balance():
-    # CONTRACT: P_loss = k_c * T_c * |w_L - w_R|, T_c = G * T_in; dT_in * w_in must equal P_loss
+    # docs/interface.md: P_loss = k_c * T_c * |w_L - w_R|, T_c = G * T_in; dT_in * w_in must equal P_loss
     t_in, w_in, dw, g = 300.0, 200.0, 3.0, 3.55
     dt = 0.2 * d.cornering_extra_torque_Nm(t_in, w_in, dw, g)
     assert dt * w_in == pytest.approx(0.2 * g * t_in * dw)

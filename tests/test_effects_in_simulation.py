@@ -150,7 +150,7 @@ def test_each_step_meets_efficiency_with_effects(vehicle_spec):
 @pytest.mark.parametrize("cycle", ["UDDS", "US06"])
 def test_maps_with_effects_agree_with_direct_within_0p2_percent(cycle, tmp_path):
     """The maps hold the thesis chain only and the effects act per step on top, in every mode:
-    cycle fuel within 0.2 % of direct (the requirement of the modes, CONTRACT.md)."""
+    cycle fuel within 0.2 % of direct (the requirement of the modes, docs/interface.md)."""
     vehicles = read_fleet(FLEET).vehicles + ALL
     cyc = load_cycle(cycle)
     effects = ALL_DIFFERENTIAL + ",warmup,accessory_load:power_kW=0.5"

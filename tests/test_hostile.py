@@ -3,7 +3,7 @@
 Every test here failed on the code before the fixes (noted per test) and must keep passing:
 data loss, silently wrong numbers, internal errors and hangs for input mistakes, denial of
 service, formula injection, half-old/half-new output folders, diagnose's sidecar and header
-handling, and the form of error messages (CONTRACT.md: the first stderr line starts with
+handling, and the form of error messages (docs/interface.md: the first stderr line starts with
 ``Error:`` and names file, sheet, row, column and value).
 """
 from __future__ import annotations
@@ -362,14 +362,14 @@ def test_killed_between_moves_never_mixes_runs(tmp_path):
 
 def test_disk_full_is_an_input_error_naming_the_output(tmp_path, fake_simulation, monkeypatch):
     """Before: disk full -> exit 4 naming the input file."""
-    from fleetrun.reports import html as report_html
+    from fleetrun.run import outputs
 
     fleet = small_fleet(tmp_path / "fleet.xlsx")
 
     def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(report_html, "write_summary_html", full)
+    monkeypatch.setattr(outputs, "write_summary_html", full)
     result = run_fake(fleet, "--out", tmp_path / "out", "-q", "--no-cache")
     assert result.exit_code == 1, result.stderr
     line = first_line(result)

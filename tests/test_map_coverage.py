@@ -3,7 +3,7 @@
 A final drive ratio beyond the cached map3d gear-ratio grid (LD 2-6, HD 2.5-8) gets maps
 built at its own ratio; the run notes those vehicles. The workbook refuses ratios beyond
 the range the differential model's gear-ratio scaling covers (1.2-12), so `validate` catches
-what `run` would refuse. CONTRACT: the modes agree within 0.2 % on cycle fuel.
+what `run` would refuse. docs/interface.md: the modes agree within 0.2 % on cycle fuel.
 """
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ def test_validate_names_the_cell_the_simulation_would_refuse(low_axle_fleet):
     for command in ("validate", "run"):
         result = CliRunner().invoke(cli, [command, str(low_axle_fleet)])
         assert result.exit_code == 1 and "Traceback" not in result.stderr
-        # CONTRACT.md: the first line names the file, sheet, cell and value (issue 9)
+        # docs/interface.md: the first line names the file, sheet, cell and value (issue 9)
         assert result.stderr.startswith(f"Error: {low_axle_fleet}: Vehicles!{letter}2 gear_efficiency:")
         line = next(t for t in result.stderr.splitlines() if "gear_efficiency" in t)
         assert f"Vehicles!{letter}2 gear_efficiency:" in line and "'abc'" in line

@@ -20,10 +20,10 @@ from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fle
 
 OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv", "fiscal_summary.csv",
            "manifest.json"}
-RESULTS_CONTRACT = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
+RESULTS_DOCUMENTED = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
                     "miles_total", "fuel_gal_total", "mpg", "diff_efficiency", "drivetrain_efficiency",
                     "state_tax_usd", "federal_tax_usd"]
-CLASS_CONTRACT = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
+CLASS_DOCUMENTED = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
                   "diff_efficiency", "state_tax_usd", "federal_tax_usd"]
 
 
@@ -48,8 +48,8 @@ def test_run_writes_six_outputs(fleet_path, tmp_path):
     assert {p.name for p in out.iterdir()} == OUTPUTS
     results = read_csv(out / "results.csv", keep_default_na=False)
     classes = read_csv(out / "class_summary.csv", keep_default_na=False)
-    assert list(results.columns[:13]) == RESULTS_CONTRACT
-    assert list(classes.columns[:9]) == CLASS_CONTRACT
+    assert list(results.columns[:13]) == RESULTS_DOCUMENTED
+    assert list(classes.columns[:9]) == CLASS_DOCUMENTED
     assert len(results) == 3 * 4 and len(classes) == 3 * 3
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["fleetrun_version"] and manifest["physics"] == "thesis"

@@ -1,4 +1,4 @@
-"""``fleetrun simulate`` (CONTRACT.md): JSON line, trace CSV, and errors without tracebacks."""
+"""``fleetrun simulate`` (docs/interface.md): JSON line, trace CSV, and errors without tracebacks."""
 from __future__ import annotations
 
 import json

@@ -20,7 +20,7 @@ from fleetrun.simulation.transmission import (converter_speed_ratio, converter_u
 from fleetrun.simulation.tyre import rolling_radius_m, tire_diameter_m
 from fleetrun.testing.vehicles import ALL, CAMRY, CIVIC, F150, HD_DUAL
 
-CONTRACT_TRACE = ("time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm",
+DOCUMENTED_TRACE = ("time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm",
                   "diff_input_speed_rpm", "diff_efficiency", "gear", "engine_speed_rpm",
                   "engine_torque_Nm", "fuel_rate_g_per_s")
 
@@ -135,8 +135,8 @@ def udds_traces():
 
 def test_trace_has_contract_columns(udds_traces):
     frame = udds_traces.trace_frame(0)
-    assert list(frame.columns[:len(CONTRACT_TRACE)]) == list(CONTRACT_TRACE)
-    assert set(CONTRACT_TRACE) <= set(TRACE_COLUMNS)
+    assert list(frame.columns[:len(DOCUMENTED_TRACE)]) == list(DOCUMENTED_TRACE)
+    assert set(DOCUMENTED_TRACE) <= set(TRACE_COLUMNS)
     assert len(frame) == load_cycle("UDDS").time_s.size
 
 

@@ -3,7 +3,9 @@ Colorado 2014 from its FHWA MV-1 counts and VM-2 miles only, uncalibrated, again
 highway gasoline (the issue's 5 % target, met there as the page reports); calibrated on 2014,
 2016 gasoline from 2016's VMT (VM-3M) closer to MF-21 than gallons proportional to VMT; the
 light-duty fleet's mpg change inside the published range (FHWA VM-1 all vehicles 1990-2002 to
-EPA Trends new vehicles 2004-2022)."""
+EPA Trends new vehicles 2004-2022). Arkansas 2014: special fuels within the issue's 10 % of
+MF-27, the one special-fuels hit the page reports (heavy classes on EPA GEM's duty-cycle
+weightings, models/turnover.toml [cycle_mix_default])."""
 from __future__ import annotations
 
 import sys
@@ -20,8 +22,8 @@ def test_colorado_2014_from_registrations_only():
     sys.path.insert(0, str(ROOT / "validation"))
     import state_fuel
 
-    table = state_fuel.main(["--states", "Colorado"])
-    row = table.iloc[0]
+    table = state_fuel.main(["--states", "Colorado,Arkansas"]).set_index("state")
+    row = table.loc["Colorado"]
     data = pd.read_csv(state_fuel.DATA)
     observed = data[(data.state == "Colorado") & (data.year == 2014)].iloc[0]
     assert row.gasoline_observed_Mgal == pytest.approx(observed.highway_gasoline_kgal / 1e3)
@@ -29,3 +31,7 @@ def test_colorado_2014_from_registrations_only():
     assert abs(row.gasoline_forecast_error_pct) < abs(row.gasoline_naive_error_pct)
     low, high = state_fuel.PUBLISHED_MPG_CHANGE_PCT
     assert low <= row.ld_mpg_change_pct_per_year <= high
+    arkansas = table.loc["Arkansas"]
+    assert arkansas.diesel_observed_Mgal == pytest.approx(
+        data[(data.state == "Arkansas") & (data.year == 2014)].iloc[0].special_fuels_kgal / 1e3)
+    assert abs(arkansas.diesel_error_pct) <= 100 * state_fuel.DIESEL_TOLERANCE

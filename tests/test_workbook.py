@@ -119,7 +119,7 @@ def test_cli_validate_one_error_message_first_line_counts(tmp_path):
     assert result.stderr.startswith("Error: ")
     assert result.stderr.count("Error:") == 1
     first, *lines = result.stderr.strip().splitlines()
-    # CONTRACT.md: the first line names the file, sheet, cell and value; the others follow
+    # docs/interface.md: the first line names the file, sheet, cell and value; the others follow
     assert first == f"Error: {path}: Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number"
     assert lines == ["  Vehicles!E3 count: -1 must be at least 0 (the range of count is 0 to "
                      "100,000,000; check the units)",

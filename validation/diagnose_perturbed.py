@@ -34,7 +34,8 @@ from fleetrun.testing.recordings import (OUT_OF_CATALOGUE, PERTURBED_PARAMETER_R
 SINGLE_EFFECTS = list(PERTURBED_PARAMETER_RANGES)
 #: Pairs are drawn from the six effects of issue 5 (as in tests/test_diagnose.py).
 PAIR_EFFECTS = SINGLE_EFFECTS[:6]
-UNTESTABLE = (("cornering", {"wheel_speeds": False}), ("oil_warmup", {"ambient_column": False}))
+UNTESTABLE = (("cornering", "no wheel speeds", {"wheel_speeds": False}),
+              ("oil_warmup", "no ambient temperature", {"ambient_column": False}))
 OUT_CAUSES = list(OUT_OF_CATALOGUE) + ["gain_drift"]
 #: Held-out error at the noise floor: within this factor of what no function of the channels
 #: explains (the unexplained block's noise_rmse).
@@ -57,7 +58,7 @@ class Outcome:
     quiet: bool          # noise/untestable: no finding
     unexplained: bool    # unexplained.significant
     drift: bool          # the sensor_drift check fired
-    energy_share: float
+    energy_share: float | None
     heldout_gain: float  # the generic description's held-out gain on what is left
     seconds: float
 
@@ -82,9 +83,9 @@ def _cases(seeds: int):
         yield "pair", "+".join(pair), 100 + seed, lambda p=pair, s=seed: perturbed_case(p, 100 + s)
     for seed in range(seeds):
         yield "noise", "noise only", 200 + seed, lambda s=seed: perturbed_case([], 200 + s)
-    for i, (eid, kw) in enumerate(UNTESTABLE):
+    for eid, missing, kw in UNTESTABLE:
         for seed in range(max(1, seeds // 2)):
-            yield ("untestable", f"{eid} (no {next(iter(kw))[:-1].replace('_', ' ')})", 300 + seed,
+            yield ("untestable", f"{eid} ({missing})", 300 + seed,
                    lambda e=eid, k=kw, s=seed: perturbed_case([e], 300 + s, **k))
     for cause in OUT_CAUSES:
         for seed in range(seeds):
@@ -111,7 +112,7 @@ def run(seeds: int = 10, workdir=None, kinds=None, progress=False) -> list[Outco
         u = res["unexplained"]
         out.append(Outcome(kind, label, seed, named, params, heldout, truth <= found,
                            not res["findings"], bool(u["significant"]),
-                           bool(u.get("drift", {}).get("significant")), float(u["energy_share"]),
+                           bool(u.get("drift", {}).get("significant")), u["energy_share"],
                            float(u["heldout_gain"]), time.perf_counter() - t0))
         if progress:
             print(asdict(out[-1]), flush=True)

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file
 
 CITY, HIGHWAY = "city", "highway"
@@ -121,8 +122,6 @@ def tax_rates(scenario, fuels) -> tuple[np.ndarray, np.ndarray]:
 
 def co2_g_per_gal(fuel: str) -> float:
     """Tailpipe CO2 per gallon burned (EPA-420-F-11-041, in models/fuels.toml); 0 for electric."""
-    from fleetrun.physics.fuels import fuel_properties
-
     return 0.0 if fuel == "electric" else fuel_properties(fuel).co2_g_per_gal
 
 

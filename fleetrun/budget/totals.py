@@ -29,8 +29,9 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.budget import arithmetic as budget
-from fleetrun.workbook.schema import DUTY_CLASSES
+from fleetrun.cycles import load_cycle
 from fleetrun.units import METERS_PER_MILE
+from fleetrun.workbook.schema import DUTY_CLASSES
 
 ENERGY_FIELDS = ("diff_input_energy_J", "diff_output_energy_J", "drivetrain_input_energy_J",
                  "wheel_energy_J")
@@ -65,8 +66,6 @@ CALIBRATION_COLUMNS = ["scenario_id", "fuel", "fiscal_year", "model_gallons", "o
 @lru_cache(maxsize=64)
 def cycle_mean_speed_kph(cycle: str) -> float:
     """A drive cycle's distance / duration, stops included [km/h]."""
-    from fleetrun.cycles import load_cycle
-
     trace = load_cycle(cycle)
     hours = float(trace.time_s[-1] - trace.time_s[0]) / 3600.0
     return float(trace.miles) * METERS_PER_MILE / 1000.0 / hours

@@ -1,4 +1,4 @@
-"""``fleetrun diagnose``: find the physics a recording shows and the model leaves out (CONTRACT.md).
+"""``fleetrun diagnose``: find the physics a recording shows and the model leaves out (docs/interface.md).
 
     fleetrun diagnose RECORDING [--meta FILE] [--calibrate-on REFERENCE] [--out DIR]
                       [--residual auto|simulation|same-trace]
@@ -11,6 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+
+from fleetrun.diagnose import diagnose
+from fleetrun.diagnose.engine import Settings
 
 
 @click.command("diagnose")
@@ -34,8 +37,6 @@ import click
                    "recording).")
 def command(recording, meta, calibrate_on, out, physics, n_shifts, seed, residual):
     """Compare a recording with the model; name, fit and test the physics it leaves out."""
-    from fleetrun.diagnose import diagnose
-    from fleetrun.diagnose.engine import Settings
 
     out = out or f"diagnosis-{Path(recording).stem}"
     result = diagnose(recording, meta=meta, calibrate_on=calibrate_on, out=out, physics=physics,
@@ -47,8 +48,10 @@ def command(recording, meta, calibrate_on, out, physics, n_shifts, seed, residua
     u = result["unexplained"]
     if u["significant"]:
         click.echo(f"unexplained: RMSE {u['rmse']:.4g} left against {u['noise_rmse']:.4g} that no "
-                   f"function of the channels explains ({100 * u['energy_share']:.0f} % of the "
-                   "mismatch's structured energy); the cause is not in the catalogue"
+                   f"function of the channels explains"
+                   + (f" ({100 * u['energy_share']:.0f} % of the mismatch's structured energy)"
+                      if u.get("energy_share") is not None else "")
+                   + "; the cause is not in the catalogue"
                    + ("; the sensor_drift check fires" if u.get("drift", {}).get("significant") else ""))
     for f in result["findings"]:
         ps = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())

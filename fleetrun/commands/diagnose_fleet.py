@@ -1,4 +1,4 @@
-"""``fleetrun diagnose-fleet``: find physics hidden in a whole fleet's test results (CONTRACT.md).
+"""``fleetrun diagnose-fleet``: find physics hidden in a whole fleet's test results (docs/interface.md).
 
     fleetrun diagnose-fleet FLEET.xlsx --measured MEASURED.csv [--out DIR]
 
@@ -11,6 +11,8 @@ from pathlib import Path
 
 import click
 
+from fleetrun.diagnose.fleet import FleetSettings, diagnose_fleet
+
 
 @click.command("diagnose-fleet")
 @click.argument("fleet", type=click.Path(dir_okay=False))
@@ -22,8 +24,6 @@ import click
 def command(fleet, measured, out, seed):
     """Simulate every vehicle, locate the mismatch across tests and vehicle properties, and fit
     candidate effects with one set of global parameters, judged on held-out manufacturers."""
-    from fleetrun.diagnose.fleet import FleetSettings, diagnose_fleet
-
     out = out or f"diagnosis-{Path(fleet).stem}"
     result = diagnose_fleet(fleet, measured, out=out, settings=FleetSettings(seed=seed))
     click.echo(f"{result['vehicles']} vehicles, {result['manufacturers']} manufacturers, "

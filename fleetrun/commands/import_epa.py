@@ -5,7 +5,11 @@ from pathlib import Path
 
 import click
 
+from fleetrun.epa import import_test_car_list
+from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
 from fleetrun.errors import InputError
+from fleetrun.fileio import refuse_replacing_inputs
+from fleetrun.workbook.reader import file_sha256
 
 
 @click.command("import-epa")
@@ -21,10 +25,6 @@ from fleetrun.errors import InputError
 def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, makes):
     """Write a fleet workbook from an EPA Test Car List CSV: one Vehicles row per test vehicle
     and configuration, with Measured, Derived and Excluded sheets (docs/epa-import.md)."""
-    from fleetrun.epa import import_test_car_list
-    from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
-    from fleetrun.fileio import refuse_replacing_inputs
-    from fleetrun.workbook.reader import file_sha256
 
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")

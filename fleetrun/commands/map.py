@@ -7,7 +7,11 @@ import json
 import click
 import numpy as np
 
+from fleetrun.differential import canonical_configuration, efficiency, reference_capacity_Nm
+from fleetrun.effects import efficiency_with_effects, parse_with
 from fleetrun.errors import InputError
+from fleetrun.fileio import write_text_atomic
+from fleetrun.registry import PHYSICS
 
 DEFAULT_TORQUE_FRACTIONS = "0,0.25,0.5,0.75,1"     # thesis Table 6.1
 DEFAULT_SPEEDS_RPM = "0,1000,2000,3000,4000"        # thesis Table 6.2
@@ -47,14 +51,10 @@ def parse_number(text: str, option: str) -> float:
 def compute_map(configuration, gear_ratio, torque_fractions, speeds_rpm, *, low_gear_ratio=None,
                 axle_gear="high", physics="thesis", effects=None):
     """Efficiency on the grid torque fractions (outer) x speeds (inner); shape (n_tf, n_speed)."""
-    from fleetrun.differential import efficiency, reference_capacity_Nm
-
     tf = np.asarray(torque_fractions, dtype=float)[:, None]
     n = np.asarray(speeds_rpm, dtype=float)[None, :]
     kwargs = dict(low_gear_ratio=low_gear_ratio, axle_gear=axle_gear, physics=physics)
     if effects:
-        from fleetrun.effects import efficiency_with_effects
-
         return np.asarray(efficiency_with_effects(configuration, tf, n, gear_ratio, effects,
                                                   kim_torque_scale_Nm=reference_capacity_Nm(configuration), **kwargs))
     return np.asarray(efficiency(configuration, tf, n, gear_ratio, **kwargs))
@@ -100,8 +100,6 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
             with_effects, fmt, output, plot):
     """Efficiency map of CONFIGURATION (LD_FWD, LD_RWD, LD_4WD, LD_AWD, HD_RWD, HD_DUAL,
     HD_TANDEM, HD_TANDEM_DUAL, HD_TAG, HD_TAG_DUAL) over torque fractions x speeds."""
-    from fleetrun.differential import canonical_configuration
-    from fleetrun.registry import PHYSICS
 
     config = canonical_configuration(configuration)
     g = parse_number(gear_ratio, "--gear-ratio")
@@ -111,8 +109,6 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
     PHYSICS.get(physics)  # an unknown name fails here, before any work
     effects = None
     if with_effects:
-        from fleetrun.effects import parse_with
-
         effects = parse_with(with_effects)
         vehicle_level = [e.id for e, _ in effects if e.level != "differential"]
         if vehicle_level:
@@ -128,13 +124,11 @@ def command(configuration, gear_ratio, low_gear_ratio, axle_gear, torque_fractio
                 "physics": physics, "with": [e.id for e, _ in effects] if effects else []}
         text = render_json(meta, tfs, speeds, eta)
     if plot:
-        from fleetrun.plots import efficiency_map_figure, save_figure
+        from fleetrun.plots import efficiency_map_figure, save_figure   # matplotlib: only for --plot
 
         title = f"{config}, gear ratio {g:g}" + (f", low {low:g} ({axle_gear})" if low is not None else "")
         save_figure(efficiency_map_figure(tfs, speeds, eta, f"{title}, physics {physics}"), plot)
     if output:
-        from fleetrun.fileio import write_text_atomic
-
         write_text_atomic(output, text)
     else:
         click.echo(text, nl=False)

@@ -15,7 +15,11 @@ from pathlib import Path
 
 import click
 
+from fleetrun.effects import parse_with
+from fleetrun.errors import unknown_name_error
+from fleetrun.run import batch
 from fleetrun.run.engines import ENGINES
+from fleetrun.simulation.diffmodes import default_cache_dir
 
 
 @click.command("run")
@@ -49,8 +53,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, results.parquet, class_summary.csv, fiscal_summary.csv and
     manifest.json."""
-    from fleetrun.effects import parse_with
-    from fleetrun.run import batch
 
     settings: dict = {}
     if config is not None:
@@ -66,8 +68,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     out = out or settings.get("out") or (Path("results") if batch_mode else Path(f"run-{Path(workbook).stem}"))
     engine = engine or settings.get("engine", "local")
     if engine not in ENGINES:
-        from fleetrun.errors import unknown_name_error
-
         raise unknown_name_error("engine", engine, ENGINES, hint=f"Fix 'engine' in {config}.")
     scheduler = scheduler or settings.get("scheduler")
     if scheduler and engine != "dask":
@@ -75,8 +75,6 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     if no_cache:
         cache = None
     else:
-        from fleetrun.simulation.diffmodes import default_cache_dir
-
         cache = cache_dir or settings.get("cache_dir") or default_cache_dir()
     if log_file is None:
         log_file = settings.get("log") or (Path(out) / "fleetrun-run.log" if batch_mode else None)

@@ -1,4 +1,4 @@
-"""``fleetrun simulate``: one vehicle over one drive cycle (CONTRACT.md).
+"""``fleetrun simulate``: one vehicle over one drive cycle (docs/interface.md).
 
     fleetrun simulate FLEET.xlsx --vehicle ID --cycle NAME [--scenario ID]
                      [--mode direct|map2d|map3d] [--with EFFECT[,EFFECT...]] [-o trace.csv]
@@ -14,12 +14,16 @@ from pathlib import Path
 
 import click
 
+from fleetrun.cycles import load_cycle
+from fleetrun.effects import parse_with
 from fleetrun.errors import InputError
+from fleetrun.fileio import atomic_file, refuse_replacing_inputs
+from fleetrun.simulation import simulate
+from fleetrun.workbook.reader import read_fleet
+from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
 
 def _write_atomic(frame, path: Path) -> None:
-    from fleetrun.fileio import atomic_file
-
     with atomic_file(path) as tmp:
         frame.to_csv(tmp, index=False, float_format="%.6g", lineterminator="\n")
 
@@ -42,13 +46,9 @@ def _write_atomic(frame, path: Path) -> None:
 def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode, physics, ambient_temp_C,
             with_effects, output):
     """Simulate one vehicle over a drive cycle; print a JSON summary line."""
-    from fleetrun.cycles import load_cycle
-    from fleetrun.effects import parse_with
-    from fleetrun.simulation import simulate
 
     effects = parse_with(with_effects)  # a misspelt effect fails here, before any work
     if output:
-        from fleetrun.fileio import refuse_replacing_inputs
         refuse_replacing_inputs(Path(output), [fleet_file, vehicle_file, cycle_name], "-o")
 
     ambient = 20.0
@@ -57,14 +57,12 @@ def command(fleet_file, vehicle_id, vehicle_file, cycle_name, scenario_id, mode,
             raise click.UsageError("give FLEET.xlsx or --vehicle-file, not both")
         if scenario_id:
             raise click.UsageError("--scenario needs FLEET.xlsx")
-        from fleetrun.workbook.vehicle_file import read_vehicle_toml
         vehicle = read_vehicle_toml(vehicle_file)
     else:
         if not fleet_file:
             raise click.UsageError("give FLEET.xlsx (with --vehicle ID) or --vehicle-file VEHICLE.toml")
         if not vehicle_id:
             raise click.UsageError("--vehicle ID is required with FLEET.xlsx")
-        from fleetrun.workbook.reader import read_fleet
         fleet = read_fleet(fleet_file)
         try:
             vehicle = fleet.vehicle(vehicle_id)

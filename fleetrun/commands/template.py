@@ -6,6 +6,7 @@ from pathlib import Path
 import click
 
 from fleetrun.errors import InputError
+from fleetrun.workbook.template import write_template
 
 
 @click.command("template")
@@ -15,8 +16,6 @@ from fleetrun.errors import InputError
 def command(output: Path, force: bool):
     """Write a fleet workbook template: Vehicles and Scenarios sheets with headers,
     drop-down lists, two example rows each, and an Instructions sheet."""
-    from fleetrun.workbook.template import write_template
-
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx.")
     if output.exists() and not force:

@@ -5,14 +5,15 @@ from pathlib import Path
 
 import click
 
+from fleetrun.errors import InputError
+from fleetrun.workbook import read_fleet
+
 
 @click.command("validate")
 @click.argument("workbook", type=click.Path(path_type=Path))
 @click.option("--strict", is_flag=True, help="Treat warnings as errors (exit 1).")
 def command(workbook: Path, strict: bool):
     """Check FLEET.xlsx: every problem at once (exit 1), warnings for implausible values."""
-    from fleetrun.errors import InputError
-    from fleetrun.workbook import read_fleet
 
     fleet = read_fleet(workbook)   # on errors, stderr holds just the one Error: message
     for warning in fleet.warnings:

@@ -18,11 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
+from fleetrun import __version__
+from fleetrun.diagnose import differential as differential_level
+from fleetrun.diagnose import vehicle as vehicle_level
 from fleetrun.diagnose.engine import Problem, Settings, fitted_on, select
 from fleetrun.diagnose.integrals import integrals, phases
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.recording import load_recording
+from fleetrun.diagnose.report import render_html
 from fleetrun.errors import InputError
 from fleetrun.fileio import prepare_output_folder, write_text_atomic
 
@@ -32,8 +36,7 @@ SCHEMA = "fleetrun.diagnosis/1"
 def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="auto") -> Problem:
     rec = load_recording(recording, meta)
     if rec.level == "differential":
-        from fleetrun.diagnose.differential import build_problem
-
+        build_problem = differential_level.build_problem
         if calibrate_on:
             # the differential baseline has no free constants; the reference is still checked
             ref = load_recording(calibrate_on)
@@ -45,8 +48,7 @@ def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="a
             prob.notes.append("--calibrate-on: the differential-level baseline has no free "
                               "constants to calibrate; the reference was read and not used")
     else:
-        from fleetrun.diagnose.vehicle import build_problem
-
+        build_problem = vehicle_level.build_problem
         ref = load_recording(calibrate_on) if calibrate_on else None
         if ref is not None and ref.level != "vehicle":
             raise InputError("--calibrate-on must be a vehicle-level recording", file=calibrate_on)
@@ -86,7 +88,6 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
                               problem.baseline + fitted, phase_list, segs)
     chosen = sel.as_json()
     chosen["unexplained"]["integral_share"] = integral_share(integral_list)
-    from fleetrun import __version__
 
     result = {
         "schema": SCHEMA,
@@ -163,8 +164,6 @@ def diagnosis(recording, meta=None, calibrate_on=None, *, physics="thesis",
 
 def write_outputs(d: Diagnosis, out) -> None:
     """``out/diagnosis.json`` and ``out/diagnosis.html``, rendered before anything is written."""
-    from fleetrun.diagnose.report import render_html
-
     out = Path(out)
     html = render_html(d.problem, d.result, d.fitted)
     text = json.dumps(d.result, indent=2)

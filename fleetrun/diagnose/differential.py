@@ -22,8 +22,9 @@ import numpy as np
 from fleetrun.diagnose.engine import Problem
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate
-from fleetrun.differential import kim_torque_scale_Nm
+from fleetrun.differential import configuration_lubricant, efficiency, kim_torque_scale_Nm
 from fleetrun.effects import effects_for_level, overall_ratio
+from fleetrun.effects.differential import oil_temperature_C
 from fleetrun.units import RAD_S_PER_RPM
 
 #: Pinion speed [rpm] below which the rig/vehicle counts as standing still.
@@ -40,7 +41,7 @@ def sidecar_kim_torque_scale_Nm(meta: dict) -> float:
 
 def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
     """dw/dt by a Savitzky-Golay derivative over ~1 s (speed sensors are noisy at 10 Hz)."""
-    from scipy.signal import savgol_filter
+    from scipy.signal import savgol_filter  # scipy: slow to import, only this routine needs it
 
     win = max(5, int(round(0.3 / dt_s)) | 1)
     if win >= len(w_rad_s):
@@ -53,9 +54,7 @@ def fit_oil_time_constant(time_s, oil_temp_C, ambient_temp_C) -> float:
 
     ``fleetrun.effects.differential.oil_temperature_C`` (thesis Sec. 3.1.2 rise), least squares in tau.
     """
-    from scipy.optimize import minimize_scalar
-
-    from fleetrun.effects.differential import oil_temperature_C
+    from scipy.optimize import minimize_scalar  # scipy: slow to import, only this routine needs it
 
     def sse(log_tau):
         e = oil_temp_C - oil_temperature_C(time_s, ambient_temp_C, float(np.exp(log_tau)))
@@ -67,8 +66,6 @@ def fit_oil_time_constant(time_s, oil_temp_C, ambient_temp_C) -> float:
 
 def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
     """Model output torque and marginal efficiency for measured input torque and speed."""
-    from fleetrun.differential import efficiency
-
     kim = sidecar_kim_torque_scale_Nm(meta)
     cfg = meta["configuration"]
     kw = {"physics": physics}
@@ -195,8 +192,6 @@ def _driver_channels(df, ch, n_rpm, t_in, t0) -> dict:
 
 
 def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
-    from fleetrun.differential import configuration_lubricant
-
     df, meta = rec.data, rec.meta
     t = df["time_s"].to_numpy()
     t0 = t - t[0]

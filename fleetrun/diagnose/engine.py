@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fleetrun.diagnose.openworld import review, unexplained
+from fleetrun.diagnose.openworld import drift_columns, review, unexplained
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
 from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
                                       refine_shape, shift_null)
@@ -432,9 +432,8 @@ def _drift_status(left) -> dict:
                            "start_s": round(d.start_s, 3), "end_s": round(d.end_s, 3)}}
 
 
-def select(problem: Problem, settings: Settings | None = None) -> Selection:
-    """Run the selection: physics first, then what it leaves, then the drift check."""
-    st = settings or Settings()
+def _search(problem: Problem, st: Settings) -> tuple[_Search, list, np.ndarray, Unexplained, list]:
+    """Forward selection, rival check and the open-world step on ``problem``."""
     n = len(problem.residual)
     duration = float(problem.time_s[-1] - problem.time_s[0])
     per_fold = max(st.blocks_per_fold, int(round(duration / (st.folds * st.block_s))))
@@ -450,6 +449,35 @@ def select(problem: Problem, settings: Settings | None = None) -> Selection:
     if s.accepted and not s.stopped_untestable:
         _rival_check(s)
     findings, fitted, left, descriptions = _open_world(s)
+    return s, findings, fitted, left, descriptions
+
+
+def _with_drift(problem: Problem) -> Problem:
+    """``problem`` with the drift check's gain and offset as free calibration terms."""
+    gain_cols, offset_cols = drift_columns(problem)
+    free = [(c, -np.inf, np.inf) for c in gain_cols + offset_cols]
+    return replace(problem, initial_terms=list(problem.initial_terms) + free, coarse=None)
+
+
+def select(problem: Problem, settings: Settings | None = None) -> Selection:
+    """Run the selection: physics first, then what it leaves, then the drift check.
+
+    When the drift check fires, the physics is selected once more with the drift's gain and
+    offset as free calibration terms (a drifting sensor biases every effect fitted through
+    it); the drift stays reported as unexplained (docs/diagnose.md, section 6).
+    """
+    st = settings or Settings()
+    s, findings, fitted, left, descriptions = _search(problem, st)
+    baseline_heldout = s.baseline_heldout
+    if left.drift is not None and left.drift.significant:
+        # findings and statuses from the drift-corrected pass; what is left (with the drift
+        # in it) and the baseline's held-out error from the first
+        s, findings, fitted, _, descriptions = _search(_with_drift(problem), st)
+        # the findings (and the baseline's own calibration) in target units, without the drift
+        k = len(problem.initial_terms)
+        for (col, _, _), c in zip(s.problem.initial_terms[k:], s.initial_coefficients[k:]):
+            fitted = fitted - c * col
+        s.initial_coefficients = s.initial_coefficients[:k]
     # each candidate's gain over the baseline alone (round 1), next to its gain in the final
     # round (over the model with the accepted effects): both tell the story
     if s.rounds:
@@ -459,5 +487,5 @@ def select(problem: Problem, settings: Settings | None = None) -> Selection:
     order = [c.id for c in problem.candidates] + list(problem.untestable)
     candidates = [s.statuses[cid] for cid in order if cid in s.statuses] + [_drift_status(left)]
     return Selection(tuple(findings), candidates, s.ambiguities, descriptions, left,
-                     s.significant or bool(s.ambiguities), s.first_threshold, s.rounds, fitted,
-                     s.baseline_heldout, tuple(s.accepted), tuple(s.initial_coefficients))
+                     s.significant or bool(s.ambiguities) or left.significant, s.first_threshold,
+                     s.rounds, fitted, baseline_heldout, tuple(s.accepted), tuple(s.initial_coefficients))

@@ -37,13 +37,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
-from fleetrun.cycles import FTP_TRANSIENT_WEIGHT, ftp_bag1_end_s
+from fleetrun import __version__
+from fleetrun.cycles import DriveCycle, FTP_TRANSIENT_WEIGHT, ftp_bag1_end_s, ftp_weighted_per_mile, load_cycle
+from fleetrun.diagnose.fleet_report import render_fleet_html
+from fleetrun.diagnose.integrals import BAG_BOUNDARIES_S
 from fleetrun.diagnose.select import _solve_bounded
+from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 from fleetrun.errors import InputError
+from fleetrun.fileio import prepare_output_folder, write_text_atomic
+from fleetrun.simulation import simulate
+from fleetrun.simulation.params import willans_slope
+from fleetrun.workbook.reader import read_fleet
 
 SCHEMA = "fleetrun.fleet-diagnosis/1"
-#: Tests the measured-results CSV may hold (CONTRACT.md, diagnose-fleet).
+#: Tests the measured-results CSV may hold (docs/interface.md, diagnose-fleet).
 TESTS = ("FTP:bag1", "FTP:bag2", "FTP:bag3", "FTP", "HWFET", "US06")
 BAGS = ("FTP:bag1", "FTP:bag2", "FTP:bag3")
 #: Vehicle properties the unexplained residual is tested against.
@@ -81,12 +90,10 @@ class FleetProblem:
 
 # ----------------------------------------------------------------------------- inputs
 def read_measured(path, known_ids) -> dict:
-    """MEASURED.csv (CONTRACT.md): ``{(vehicle_id, test): (mpg, manufacturer or "")}``.
+    """MEASURED.csv (docs/interface.md): ``{(vehicle_id, test): (mpg, manufacturer or "")}``.
 
     Errors name the file, the row as a spreadsheet shows it, the column and the value.
     """
-    import pandas as pd
-
     path = Path(path)
     if not path.is_file():
         raise InputError("measured-results file not found", file=path,
@@ -142,8 +149,6 @@ def vehicle_properties(vehicles) -> dict:
 # ----------------------------------------------------------------------------- simulation
 def _udds_bag_cycles():
     """UDDS bag 1 (0-505 s) and bag 2 (505-1369 s) as plain cycles: driven with a warm engine."""
-    from fleetrun.cycles import DriveCycle, load_cycle
-    from fleetrun.diagnose.integrals import BAG_BOUNDARIES_S
 
     u = load_cycle("UDDS")
     t, v = np.asarray(u.time_s, float), np.asarray(u.speed_mps, float)
@@ -163,8 +168,6 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
     "full": {...}}``, and the engine-on seconds per mile ``"s_per_mi": {test: (V,)}``. The FTP
     composite by EPA's bag weighting (its seconds per mile: a constant load weighs the same
     in both halves, (bag 1 + bag 2) / their miles)."""
-    from fleetrun.cycles import ftp_weighted_per_mile, load_cycle
-    from fleetrun.simulation import simulate
 
     def run(cycle):
         return simulate(vehicles, cycle, mode="map3d", ambient_temp_C=ambient_temp_C)
@@ -203,8 +206,6 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
 #: Fraction of each test's time spent cruising (|a| < 0.15 m/s^2 above 8 m/s): where a
 #: cylinder-deactivation engine runs on half its cylinders. Computed from the schedules.
 def cruise_share(test: str) -> float:
-    from fleetrun.cycles import load_cycle
-
     name = "UDDS" if test.startswith("FTP") else test
     c = load_cycle(name)
     t, v = np.asarray(c.time_s, float), np.asarray(c.speed_mps, float)
@@ -231,8 +232,6 @@ def _bag1_share_column(warm, rows_v, rows_t) -> np.ndarray:
 
 def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
     """Each candidate's effect on ``r`` per unit of its global parameter, per row."""
-    from fleetrun.effects.vehicle import marginal_fuel_g_per_J
-    from fleetrun.simulation.params import willans_slope
 
     def gpm(model, v, t):
         return sim[model][t]["g"][v] / sim[model][t]["mi"][v]
@@ -355,7 +354,7 @@ def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, l
     it lowers the MAE by more than ``min_gain`` and its improvement holds across
     manufacturers (paired one-sided t beyond the ``quantile`` of Student's t). Accepted ids
     and candidate statuses."""
-    from scipy.stats import t as student_t
+    from scipy.stats import t as student_t  # scipy: slow to import, only this routine needs it
 
     folds = manufacturer_folds(prob.manufacturer, settings.folds)
     makers = len(np.unique(prob.manufacturer))
@@ -469,8 +468,6 @@ def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) ->
 # ----------------------------------------------------------------------------- the diagnosis
 def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> FleetProblem:
     """Read the workbook and the measured results, simulate, and set up the residuals."""
-    from fleetrun.workbook.reader import read_fleet
-
     fleet = read_fleet(fleet_path)
     vehicles = fleet.vehicles
     ids = [v.vehicle_id for v in vehicles]
@@ -524,7 +521,7 @@ def _finding(prob, effect, coef, before, after, settings) -> dict:
 
 
 def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> dict:
-    """The fleet diagnosis as the JSON of CONTRACT.md (``fleetrun.fleet-diagnosis/1``)."""
+    """The fleet diagnosis as the JSON of docs/interface.md (``fleetrun.fleet-diagnosis/1``)."""
     st = settings or FleetSettings()
     folds = manufacturer_folds(prob.manufacturer, st.folds)
     r = prob.residual
@@ -571,8 +568,6 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
 def diagnose_fleet(fleet_path, measured_path, out=None, *, settings: FleetSettings | None = None,
                    write=True) -> dict:
     """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``."""
-    from fleetrun import __version__
-    from fleetrun.fileio import prepare_output_folder, write_text_atomic
 
     t0 = time.perf_counter()
     prob = build_fleet_problem(fleet_path, measured_path)
@@ -580,8 +575,6 @@ def diagnose_fleet(fleet_path, measured_path, out=None, *, settings: FleetSettin
     result["version"] = __version__
     result["timing_s"] = round(time.perf_counter() - t0, 3)
     if write:
-        from fleetrun.diagnose.fleet_report import render_fleet_html
-
         out = Path(out) if out else Path(f"diagnosis-{Path(fleet_path).stem}")
         html = render_fleet_html(prob, result)
         prepare_output_folder(out, out)

@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import numpy as np
+from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from fleetrun.diagnose.report import NO_FIGURES, _png, data_uri
 from fleetrun.errors import MissingExtraError
 from fleetrun.plots import pyplot
+from fleetrun.resources import templates_dir
 
 
 def fleet_figures(result: dict) -> dict[str, bytes]:
@@ -64,10 +66,6 @@ def summary_words(result: dict) -> str:
 
 
 def render_fleet_html(prob, result: dict) -> str:
-    from jinja2 import Environment, FileSystemLoader, select_autoescape
-
-    from fleetrun.resources import templates_dir
-
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     figs = {k: data_uri(v) for k, v in fleet_figures(result).items()}

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.cycles import ftp_bag1_end_s
+from fleetrun.cycles import ftp_bag1_end_s, load_cycle
 
 #: A standstill or engine-off stretch longer than this [s] separates two phases (a soak).
 GAP_S = 60.0
@@ -85,8 +85,6 @@ def driving_stretches(time_s, moving) -> tuple[list, list]:
 
 
 def _epa_cycles():
-    from fleetrun.cycles import load_cycle
-
     return [load_cycle(name) for name in BAG_BOUNDARIES_S]
 
 

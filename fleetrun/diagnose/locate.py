@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.diagnose.select import _circ_corr
+
 
 def smooth(x: np.ndarray, window: int) -> np.ndarray:
     """Centred moving average (window in samples, at least 1)."""
@@ -91,8 +93,6 @@ def _eta2_shifted(r: np.ndarray, bins: np.ndarray, nb: int, shifts: np.ndarray) 
     The bin sums of the shifted residual are circular cross-correlations of each bin's
     indicator with ``r``; the mean and the total variance do not change with the shift.
     """
-    from fleetrun.diagnose.select import _circ_corr
-
     n = len(r)
     cnt = np.bincount(bins, minlength=nb)
     mean = r.mean()

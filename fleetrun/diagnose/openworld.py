@@ -249,15 +249,16 @@ def unexplained(problem, residual, fitted, accepted, settings, *, rng, folds) ->
     if structured > 0.01 * noise2:
         energy_share = min(max(float(np.mean(remainder ** 2)) - noise2, 0.0) / structured, 1.0)
         form_share = max(float(np.mean(remainder ** 2) - np.mean(beyond_form ** 2)), 0.0) / structured
-    else:     # no structured mismatch to begin with: nothing of it is left
-        energy_share = form_share = 0.0
+    else:     # no structured mismatch to begin with: no share to report
+        energy_share = form_share = None
     significant = significant or drift.significant
     rate = n / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, _ = find_drivers(ch, remainder, rng=rng, smooth_window=max(1, int(rate)),
                           null_residual=remainder)
     segs = find_segments(problem.time_s, remainder) if significant else []
     return Unexplained(significant, float(np.sqrt(np.mean(remainder ** 2))), float(np.sqrt(noise2)),
-                       gain, energy_share, min(form_share, 1.0), segs, drv, drift)
+                       gain, energy_share, None if form_share is None else min(form_share, 1.0),
+                       segs, drv, drift)
 
 
 def _at_bound(cand, effect, params: dict) -> list[str]:

@@ -1,4 +1,4 @@
-"""Reading and checking recordings for ``fleetrun diagnose`` (CONTRACT.md, "Recordings").
+"""Reading and checking recordings for ``fleetrun diagnose`` (docs/interface.md, "Recordings").
 
 A recording is a CSV (units in the column names) plus a TOML sidecar with the same stem (or
 ``--meta FILE``). Every problem is an :class:`fleetrun.errors.InputError` naming the file,
@@ -16,8 +16,12 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.cycles import SPEED_COLUMNS
+from fleetrun.differential import canonical_configuration
 from fleetrun.errors import InputError
 from fleetrun.physics.fuels import fuel_table
+from fleetrun.workbook.cells import CellProblem
+from fleetrun.workbook.rows import parse_value
+from fleetrun.workbook.schema import SIDECAR_COLUMNS
 
 DIFF_REQUIRED = ("time_s", "diff_input_torque_Nm", "diff_input_speed_rpm")
 DIFF_OPTIONAL = ("diff_output_torque_Nm", "axle_torque_left_Nm", "axle_torque_right_Nm",
@@ -86,9 +90,6 @@ def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path
 def check_sidecar_numbers(sidecar: dict, meta_path: Path) -> None:
     """Every differential-level sidecar value within the range its Vehicles/Scenarios column
     has (fleetrun.workbook.schema.SIDECAR_COLUMNS); InputError naming the file and key."""
-    from fleetrun.workbook.cells import CellProblem
-    from fleetrun.workbook.rows import parse_value
-    from fleetrun.workbook.schema import SIDECAR_COLUMNS
 
     for column in SIDECAR_COLUMNS:
         value = sidecar.get(column.name)
@@ -112,7 +113,7 @@ def _check_header(path: Path) -> None:
     if len(head) > MAX_HEADER_CHARS and not head.endswith(b"\n"):
         raise InputError(f"the header line is longer than {MAX_HEADER_CHARS:,} characters "
                          f"(it starts {head[:60].decode('utf-8', 'replace')!r}...)", file=path,
-                         hint="A recording's header names its columns (CONTRACT.md, Recordings)")
+                         hint="A recording's header names its columns (docs/interface.md, Recordings)")
 
 
 def _shown(columns, limit: int = 20) -> str:
@@ -129,7 +130,7 @@ def _check_units(path: Path, columns) -> None:
                 raise InputError(f"column '{col}' has units fleetrun does not read",
                                  file=path, column=col,
                                  hint=f"Convert it to {what} and name the column '{expected}' "
-                                      "(CONTRACT.md, Recordings)")
+                                      "(docs/interface.md, Recordings)")
 
 
 def _level(path: Path, columns) -> str:
@@ -232,8 +233,6 @@ def _differential_columns(path, columns, sidecar, meta_path, notes) -> list[str]
             raise InputError(f"sidecar key {k} must be a positive number, got {v!r}",
                              file=meta_path, column=k, value=v)
     try:
-        from fleetrun.differential import canonical_configuration
-
         sidecar["configuration"] = canonical_configuration(str(sidecar["configuration"]))
     except InputError as exc:
         exc.file, exc.column = meta_path, "configuration"

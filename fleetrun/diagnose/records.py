@@ -15,6 +15,10 @@ from fleetrun.diagnose.select import Candidate
 from fleetrun.fileio import JsonDocument
 
 
+def _round(x: float | None, digits: int = 5) -> float | None:
+    return None if x is None else round(float(x), digits)
+
+
 @dataclass(frozen=True)
 class Accepted:
     """An effect accepted into the model during the search.
@@ -99,8 +103,8 @@ class Unexplained:
     rmse: float
     noise_rmse: float
     heldout_gain: float
-    energy_share: float
-    form_share: float
+    energy_share: float | None
+    form_share: float | None
     segments: list
     drivers: list
     drift: Drift | None = None
@@ -109,8 +113,8 @@ class Unexplained:
     def as_json(self) -> JsonDocument:
         out = {"significant": self.significant, "rmse": round(self.rmse, 6),
                "noise_rmse": round(self.noise_rmse, 6), "heldout_gain": round(self.heldout_gain, 5),
-               "energy_share": round(self.energy_share, 5), "form_share": round(self.form_share, 5),
-               "integral_share": None if self.integral_share is None else round(self.integral_share, 5),
+               "energy_share": _round(self.energy_share), "form_share": _round(self.form_share),
+               "integral_share": _round(self.integral_share),
                "segments": list(self.segments), "drivers": list(self.drivers)}
         if self.drift is not None:
             out["drift"] = self.drift.as_json()

@@ -5,9 +5,11 @@ import base64
 import io
 
 import numpy as np
+from jinja2 import Environment, FileSystemLoader, select_autoescape
 
 from fleetrun.diagnose.locate import binned_profile, smooth
 from fleetrun.effects import EFFECTS
+from fleetrun.resources import templates_dir
 from fleetrun.errors import MissingExtraError
 from fleetrun.plots import pyplot
 
@@ -212,10 +214,6 @@ def _summary(result: dict) -> str:
 
 
 def render_html(problem, result: dict, fitted: np.ndarray) -> str:
-    from jinja2 import Environment, FileSystemLoader, select_autoescape
-
-    from fleetrun.resources import templates_dir
-
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     tpl = env.get_template("diagnosis.html.j2")

@@ -17,13 +17,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.cycles import DriveCycle
 from fleetrun.diagnose.engine import Problem, windowed
+from fleetrun.diagnose.integrals import MATCH_RMS_MPS, STILL_MPS, align, driving_stretches
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate, full_fit
 from fleetrun.effects import effects_for_level
 from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 from fleetrun.errors import InputError
+from fleetrun.simulation import simulate
 from fleetrun.simulation.params import willans_slope
+from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
 ENGINE_OFF_MIN_S = 5.0
 #: Share of the engine-on samples a reference of the same trace must cover for the
@@ -54,8 +58,6 @@ def engine_on(time_s, speed_mps, fuel_g_per_s, dt_s) -> np.ndarray:
 
 
 def _vehicle(rec: Recording):
-    from fleetrun.workbook.vehicle_file import read_vehicle_toml
-
     if rec.meta_path is None:
         raise InputError("a vehicle-level recording needs a sidecar with one Vehicles row", file=rec.path)
     return read_vehicle_toml(rec.meta_path)
@@ -63,8 +65,6 @@ def _vehicle(rec: Recording):
 
 def simulated(rec: Recording, physics="thesis"):
     """Simulated fuel rate [g/s] and the trace for ``rec``'s speed (and grade) trace."""
-    from fleetrun.cycles import DriveCycle
-    from fleetrun.simulation import simulate
 
     df = rec.data
     spec = _vehicle(rec)
@@ -110,8 +110,6 @@ def same_trace(rec: Recording, ref: Recording) -> tuple[np.ndarray, np.ndarray]:
     :data:`fleetrun.diagnose.integrals.MATCH_RMS_MPS` and whose overlap covers 80 % of the
     stretch is used.
     """
-    from fleetrun.diagnose.integrals import MATCH_RMS_MPS, STILL_MPS, align, driving_stretches
-
     t, v = rec.data["time_s"].to_numpy(), rec.data["vehicle_speed_mps"].to_numpy()
     rt, rv = ref.data["time_s"].to_numpy(), ref.data["vehicle_speed_mps"].to_numpy()
     ry = ref.data["fuel_rate_g_per_s"].to_numpy()

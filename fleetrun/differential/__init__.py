@@ -25,7 +25,21 @@ def kim_torque_scale_Nm(peak_engine_torque_Nm, torque_converter_ratio, max_trans
     """Kim's torque scale (thesis Sec. 5.2.1.A): the largest torque the transmission can hand
     to the differential, peak engine torque x converter ratio (3.0 automatic, 1.0 manual) x
     the largest (first) gear ratio. Input torque / this scale is the torque fraction that the
-    model maps back onto its reference differential's capacity."""
+    model maps back onto its reference differential's capacity.
+
+    Parameters
+    ----------
+    peak_engine_torque_Nm : float or array [N m]
+    torque_converter_ratio : float or array, stall torque ratio [-] (3.0 automatic, 1.0 manual)
+    max_transmission_gear_ratio : float or array, first-gear ratio [-]
+
+    Returns
+    -------
+    Kim torque scale [N m]
+
+    >>> float(kim_torque_scale_Nm(250.0, 3.0, 4.7))
+    3525.0
+    """
     return (np.asarray(peak_engine_torque_Nm, dtype=float) * torque_converter_ratio
             * max_transmission_gear_ratio)
 
@@ -68,16 +82,33 @@ def _show(values):
 
 def efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
                axle_gear="high", physics="thesis", oil_temp_C=None, kim_torque_scale_Nm=None):
-    """Differential efficiency of ``configuration`` (CONTRACT.md ids).
+    """Differential efficiency of ``configuration`` (ids: docs/interface.md).
 
-    ``torque_fraction``: input torque / Kim torque scale (thesis Sec. 5.2.1.A).
-    ``speed_rpm``: differential input speed. ``gear_ratio`` and ``low_gear_ratio``: final-drive
-    and two-speed low ratios (scalars or arrays). ``oil_temp_C``: lubricant temperature (None:
-    the baseline's own, 70 C for thesis). ``kim_torque_scale_Nm``: the vehicle's Kim scale,
-    for baselines that need absolute torque (vecto-generic; None: the reference
-    differential's capacity); the thesis model maps fractions onto its reference differential
-    and ignores it. Returns an array of the broadcast shape; 0 where a stage's losses exceed
-    its input.
+    The thesis model (Ch. 5, Appendix B) or another registered baseline: output power / input
+    power at a steady operating point.
+
+    Parameters
+    ----------
+    configuration : str, a configuration id (``LD_RWD``, ``HD_DUAL``, ...; any case, - or _)
+    torque_fraction : float or array, input torque / Kim torque scale [-] (thesis Sec. 5.2.1.A)
+    speed_rpm : float or array, differential input (transmission output) speed [rpm]
+    gear_ratio : float or array, final-drive ratio [-]
+    low_gear_ratio : float or array or None, two-speed axle low ratio [-] (dual configurations)
+    axle_gear : ``"high"`` or ``"low"``, the two-speed axle's engaged range
+    physics : str, the baseline (``thesis``: Appendix B as printed; ``vecto-generic``)
+    oil_temp_C : float or None, lubricant temperature [C] (None: the baseline's own, 70 C for
+        thesis)
+    kim_torque_scale_Nm : float or None, the vehicle's Kim scale [N m], for baselines that need
+        absolute torque (vecto-generic; None: the reference differential's capacity); the
+        thesis model maps fractions onto its reference differential and ignores it
+
+    Returns
+    -------
+    efficiency [-], an array of the broadcast shape; 0 where a stage's losses exceed its input
+    (thesis B.6).
+
+    >>> round(float(efficiency("LD_RWD", 0.5, 2000.0, 3.55)), 4)
+    0.9816
     """
     config = check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio,
                           None if low_gear_ratio is None else np.min(low_gear_ratio), axle_gear)

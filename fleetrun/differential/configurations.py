@@ -12,6 +12,7 @@ import numpy as np
 from fleetrun.differential.chain import evaluate_stage_chain
 from fleetrun.differential.models import configuration_table, reference_model
 from fleetrun.errors import InputError, unknown_name_error
+from fleetrun.physics.two_speed_box import auxiliary_box
 
 AXLE_GEARS = ("low", "high")
 
@@ -32,7 +33,7 @@ def canonical_configuration(name: str) -> str:
     table = configuration_table()
     if key not in table:
         raise unknown_name_error("configuration", str(name), table,
-                                 hint="Configuration ids are listed in CONTRACT.md and `fleetrun map --help`")
+                                 hint="Configuration ids are listed in docs/interface.md and `fleetrun map --help`")
     return key
 
 
@@ -76,8 +77,6 @@ def evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, *, low_gear_r
             eta = np.full(np.broadcast(tf, rpm).shape, model.efficiency)
             tf = np.asarray(tf, dtype=float) * model.efficiency
         elif model.kind == "two_speed_box":
-            from fleetrun.physics.two_speed_box import auxiliary_box
-
             eta, tf, rpm = auxiliary_box(tf, rpm, low_gear_ratio, axle_gear)
         else:
             raise InputError(f"{model.path.name}: unknown model kind '{model.kind}'; "

@@ -14,9 +14,10 @@ from typing import Mapping
 
 import numpy as np
 
+from fleetrun.differential import canonical_configuration, configuration_lubricant, efficiency
 from fleetrun.effects.base import Effect, Parameter
 from fleetrun.effects.differential import DIFFERENTIAL_EFFECTS
-from fleetrun.effects.vehicle import VEHICLE_EFFECTS
+from fleetrun.effects.vehicle import VEHICLE_EFFECTS, marginal_fuel_g_per_J
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.registry import EFFECTS
 from fleetrun.units import RAD_S_PER_RPM
@@ -135,8 +136,6 @@ def differential_extra_torque_Nm(effects, channels: Mapping) -> np.ndarray:
 
 def _default_lubricant(configuration: str) -> str:
     """The lubricant of the configuration's driving axle (ATF in a transaxle, else gear oil)."""
-    from fleetrun.differential import canonical_configuration, configuration_lubricant
-
     return configuration_lubricant(canonical_configuration(configuration))
 
 
@@ -159,8 +158,6 @@ def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_rati
     vehicle's Kim scale, turning fractions into the effects' absolute torque (and passed on to
     baselines in absolute torque).
     """
-    from fleetrun.differential import efficiency
-
     model_kwargs["kim_torque_scale_Nm"] = kim_torque_scale_Nm
     tf = np.asarray(torque_fraction, dtype=float)
     n = np.asarray(speed_rpm, dtype=float)
@@ -191,8 +188,6 @@ def vehicle_extra_fuel_g_per_s(effects, *, time_s, vehicle_speed_mps, vehicle_ma
     off. Extra work costs fuel at the engine's Willans-line slope ``eta_indicated`` (see
     :func:`fleetrun.effects.vehicle.marginal_fuel_g_per_J`).
     """
-    from fleetrun.effects.vehicle import marginal_fuel_g_per_J
-
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(vehicle_speed_mps, dtype=float)
     if wheel_power_W is not None:

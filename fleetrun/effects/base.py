@@ -47,7 +47,11 @@ class Effect:
 
     ``basis(channels, **shape)`` returns the effect per unit of the linear parameter (N m of
     extra input torque per unit at differential level, g/s of extra fuel per unit at vehicle
-    level). ``channels`` is a mapping of numpy arrays (see :mod:`fleetrun.effects.channels`).
+    level). ``channels`` maps channel names to numpy arrays: ``input_torque_Nm``, ``input_speed_rad_s``,
+    ``input_accel_rad_s2``, ``wheel_speed_difference_rad_s``, ``time_s``, ``ambient_temp_C``,
+    ``gear_ratio``, ``lubricant`` and the extra ones an effect lists in ``channels`` (built from a
+    recording by :mod:`fleetrun.diagnose.differential`, at steady state by
+    :func:`fleetrun.effects.steady_channels`).
     """
 
     id: str

@@ -16,8 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.differential.chain import resolved_stages
+from fleetrun.differential.models import reference_model
 from fleetrun.effects.base import Effect, Parameter
-from fleetrun.physics.lubricant import OPERATING_RISE_K, operating_temperature_C
+from fleetrun.physics import gear_mesh
+from fleetrun.physics.lubricant import (OPERATING_RISE_K, THESIS_OPERATING_TEMP_C, operating_temperature_C,
+                                        walther_viscosity_m2_s)
+from fleetrun.physics.windage import bevel_gear_windage_torque_Nm
 from fleetrun.units import RPM_PER_RAD_S
 
 #: Speed [rad/s] below which the pinion counts as stopped: Coulomb drags are regularised with
@@ -54,7 +59,7 @@ def cornering_extra_torque_Nm(input_torque_Nm, input_speed_rad_s, wheel_speed_di
 
     Seed 003 (Antoni 2014), Eqs 9, 13-17: the spider/side-gear friction power grows with the
     carrier torque and the wheel-speed difference, ``P_loss = k_c T_c |w_L - w_R|`` with
-    ``T_c = G T_in`` (CONTRACT.md). Referred to the pinion: ``dT_in = P_loss / w_in``.
+    ``T_c = G T_in`` (docs/interface.md). Referred to the pinion: ``dT_in = P_loss / w_in``.
     Zero when the pinion is (nearly) stopped, where the power balance is undefined.
     """
     w_in = np.asarray(input_speed_rad_s, dtype=float)
@@ -90,7 +95,7 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
     """Sump temperature after a cold start: ``T_op - (T_op - T_amb) exp(-t / tau)``.
 
     First-order warm-up towards the thesis operating temperature ``T_op = T_amb + 50 K``
-    (thesis Sec. 3.1.2; CONTRACT.md oil_warmup).
+    (thesis Sec. 3.1.2; docs/interface.md oil_warmup).
     """
     t = np.maximum(np.asarray(time_s, dtype=float), 0.0)
     t_amb = np.asarray(ambient_temp_C, dtype=float)
@@ -99,8 +104,6 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
 
 def viscosity_m2_s(temp_C, lubricant):
     """Kinematic viscosity from Walther's equation (thesis Eqs 5.13-5.14, code B.7)."""
-    from fleetrun.physics.lubricant import walther_viscosity_m2_s
-
     return walther_viscosity_m2_s(temp_C, lubricant)
 
 
@@ -187,9 +190,6 @@ REFERENCE_AXLE_MODEL = "gm_1500_rear_axle"
 
 def _reference_stage(component: str, label_has: str = ""):
     """Parameters of a stage of the reference axle at its ratio and the thesis oil temperature."""
-    from fleetrun.differential.chain import resolved_stages
-    from fleetrun.differential.models import reference_model
-    from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C
 
     model = reference_model(REFERENCE_AXLE_MODEL)
     ratio = float(model.resolve(1.0, THESIS_OPERATING_TEMP_C)["G"])
@@ -207,8 +207,6 @@ def hypoid_mesh_loss_share(input_speed_rad_s):
     friction coefficient ``f = 0.8 / (v + 100)^0.5`` (Fig. 12.8 fit), efficiency after
     Dudley Eq. 12.36; geometry of the thesis's reference hypoid (GM 1500 rear axle).
     """
-    from fleetrun.physics import gear_mesh
-
     p = _reference_stage("hypoid_mesh")
     n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S
     v = gear_mesh.hypoid_sliding_speed_fpm(n_rpm, p["outer_pitch_radius_gap_in"],
@@ -246,8 +244,6 @@ def ring_gear_churning_torque_Nm(input_speed_rad_s, gear_ratio):
     "dipped" axle runs at X ~ 0.2 (the fill plug's height); "halfway" is 0.5 and "totally"
     1.0. Grows as the square of the speed. Reference ring gear: the GM 1500 rear axle's.
     """
-    from fleetrun.physics.windage import bevel_gear_windage_torque_Nm
-
     p = _reference_stage("bevel_gear_windage", "ring")
     g = np.asarray(gear_ratio, dtype=float)
     n_ring = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S / g

@@ -1,6 +1,6 @@
 """The measured fuel economy of one vehicle configuration from its test rows.
 
-Tests (CONTRACT): ``FTP`` (the composite, `RND_ADJ_FE` of an FTP-75 row), ``FTP:bag1..3``
+Tests (docs/interface.md): ``FTP`` (the composite, `RND_ADJ_FE` of an FTP-75 row), ``FTP:bag1..3``
 (`FE Bag 1..3` of the FTP rows), ``HWFET`` (`HWFE`) and ``US06``. Only rows on the vehicle's
 own fuel count, and values at or above ``[measured] max_valid_mpg`` (placeholders such as
 10000) or not above 0 are ignored, and so are analytically derived values (`Analytically

@@ -60,7 +60,7 @@ def read_test_car_list(path) -> pd.DataFrame:
     """The list in ``path`` with fleetrun column names (REQUIRED_COLUMNS, OPTIONAL_COLUMNS),
     numbers as floats (unreadable cells NaN), text stripped, plus ``csv_row`` (the file's line
     number of the row) and ``vehicle_id`` = ``<Test Vehicle ID>_c<Test Veh Configuration #>``
-    (CONTRACT). Raises :class:`InputError` naming the file for an empty file, a file that is
+    (docs/interface.md). Raises :class:`InputError` naming the file for an empty file, a file that is
     not CSV text, or missing columns."""
     path = Path(path)
     table = _read_csv(path)

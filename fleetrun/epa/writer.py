@@ -1,5 +1,5 @@
 """Write an imported EPA list as a fleet workbook (the format `fleetrun run` reads) and the
-measured results as the CSV `fleetrun diagnose-fleet` reads (CONTRACT).
+measured results as the CSV `fleetrun diagnose-fleet` reads (docs/interface.md).
 
 Workbook sheets: ``Vehicles`` and ``Scenarios`` (the fleet), ``Measured`` (one row per
 vehicle and test), ``Derived`` (per vehicle, each value not copied from the list and the

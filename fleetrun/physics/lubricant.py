@@ -30,7 +30,20 @@ WALTHER_OFFSET_CST = 0.8
 
 
 def operating_temperature_C(ambient_temp_C, rise_K=OPERATING_RISE_K):
-    """Lubricant operating temperature: ambient plus the steady rise (thesis Sec. 3.1.2)."""
+    """Lubricant operating temperature: ambient plus the steady rise (thesis Sec. 3.1.2).
+
+    Parameters
+    ----------
+    ambient_temp_C : float or array, ambient temperature [C]
+    rise_K : float, steady rise over ambient [K] (50 K, thesis Sec. 3.1.2)
+
+    Returns
+    -------
+    operating temperature [C]
+
+    >>> float(operating_temperature_C(20.0))
+    70.0
+    """
     return np.asarray(ambient_temp_C, dtype=float) + rise_K
 
 
@@ -39,6 +52,18 @@ def walther_coefficients(nu1_cSt, temp1_K, nu2_cSt, temp2_K):
 
     ``log10(log10(nu + 0.8)) = A + B log10(T)`` with nu in cSt and T in K. B.7 solves the
     2x2 system with MATLAB's backslash; ``numpy.linalg.solve`` is the same LU solve.
+
+    Parameters
+    ----------
+    nu1_cSt, nu2_cSt : float, kinematic viscosities at the two points [cSt = mm^2/s]
+    temp1_K, temp2_K : float, their temperatures [K]
+
+    Returns
+    -------
+    (A, B) : Walther's coefficients [-]
+
+    >>> [round(x, 4) for x in walther_coefficients(150.0, 313.15, 15.0, 373.15)]
+    [8.8433, -3.4078]
     """
     lhs = np.array([[1.0, np.log10(temp1_K)], [1.0, np.log10(temp2_K)]])
     rhs = np.array([np.log10(np.log10(nu1_cSt + WALTHER_OFFSET_CST)),
@@ -51,6 +76,19 @@ def walther_kinematic_viscosity_m2_s(temp_K, A, B):
     """Kinematic viscosity from Walther's equation solved for nu (thesis Eq. 5.14).
 
     ``nu = 10**(10**(A + B log10 T)) - 0.8`` in cSt, returned in m^2/s.
+
+    Parameters
+    ----------
+    temp_K : float or array, lubricant temperature [K]
+    A, B : float, Walther's coefficients (:func:`walther_coefficients`)
+
+    Returns
+    -------
+    kinematic viscosity [m^2/s]
+
+    >>> a, b = walther_coefficients(150.0, 313.15, 15.0, 373.15)
+    >>> round(float(walther_kinematic_viscosity_m2_s(343.15, a, b)) * 1e6, 2)   # cSt at 70 C
+    38.55
     """
     temp_K = np.asarray(temp_K, dtype=float)
     nu_cSt = 10 ** (10 ** (A + B * np.log10(temp_K))) - WALTHER_OFFSET_CST
@@ -61,6 +99,19 @@ def sutherland_air_viscosity_Pa_s(temp_K, b=1.458e-6, s_K=110.4):
     """Dynamic viscosity of air, Sutherland's law (thesis Eqs 5.15-5.17, U.S. Std. Atm. 1976).
 
     ``mu = b T^(1/2) / (1 + s/T)`` with b = 1.458e-6 kg/(m s K^1/2) and s = 110.4 K.
+
+    Parameters
+    ----------
+    temp_K : float or array, air temperature [K]
+    b : float, Sutherland's constant [kg/(m s K^1/2)]
+    s_K : float, Sutherland's temperature [K]
+
+    Returns
+    -------
+    dynamic viscosity [Pa s]
+
+    >>> round(float(sutherland_air_viscosity_Pa_s(343.15)) * 1e6, 3)
+    20.434
     """
     temp_K = np.asarray(temp_K, dtype=float)
     return b * temp_K ** 0.5 / (1 + s_K / temp_K)
@@ -70,6 +121,19 @@ def oil_density_kg_m3(temp_K, density_std_kg_m3, cte_per_K=7e-4):
     """Lubricant density with linear thermal expansion (thesis Eqs 5.18-5.19, B.7).
 
     ``rho = rho_std / (1 + cte (T - 288.2))``.
+
+    Parameters
+    ----------
+    temp_K : float or array, lubricant temperature [K]
+    density_std_kg_m3 : float, density at 288.2 K [kg/m^3]
+    cte_per_K : float, volumetric thermal-expansion coefficient [1/K]
+
+    Returns
+    -------
+    density [kg/m^3]
+
+    >>> round(float(oil_density_kg_m3(343.15, 880.0)), 1)
+    847.4
     """
     temp_K = np.asarray(temp_K, dtype=float)
     return density_std_kg_m3 * (1 + cte_per_K * (temp_K - DENSITY_REFERENCE_K)) ** -1

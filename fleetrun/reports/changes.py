@@ -8,8 +8,10 @@ are kept in ``earlier-runs/<its creation time>/`` of the new folder unless ``--r
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -101,10 +103,6 @@ def earlier_run_name(earlier: dict) -> str:
 def keep_earlier_run(out_dir: Path, staging: Path, earlier: dict, files) -> Path:
     """Copy the earlier run's ``files`` into ``staging/earlier-runs/<its time>/`` and carry over
     the runs it kept itself, so the new folder holds every earlier run; the kept folder."""
-    import shutil
-
-    import hashlib
-
     out_dir, staging = Path(out_dir), Path(staging)
     digest = hashlib.sha256((out_dir / "manifest.json").read_bytes()).hexdigest()[:8]
     kept = staging / EARLIER_DIR / f"{earlier_run_name(earlier)}-{digest}"

@@ -7,13 +7,12 @@ from dataclasses import asdict
 from pathlib import Path
 
 from fleetrun import __version__
+from fleetrun.reports.changes import scenario_totals_dict
 
 SCHEMA = "fleetrun.run/1"
 
 
 def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
-    from fleetrun.reports.changes import scenario_totals_dict
-
     inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
     inputs += [{"role": "drive cycle", "path": path, "sha256": sha}
                for path, sha in sorted(result.cycle_inputs.items())]

@@ -27,11 +27,13 @@ import pandas as pd
 import xlsxwriter
 from xlsxwriter.utility import xl_col_to_name
 
-from fleetrun.reports.charts import efficiency_scale
 from fleetrun.budget.result import EfficiencyMap, RunResult
+from fleetrun.budget.totals import scenario_totals, yearly_totals
+from fleetrun.reports import text as report_text
+from fleetrun.reports.charts import efficiency_scale
+from fleetrun.reports.manifest import manifest_dict, physics_label
 from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from fleetrun.workbook.text_cells import looks_like_formula
-from fleetrun.budget.totals import scenario_totals, yearly_totals
 
 #: Cell styles by name (XlsxWriter format properties); any other style name is a number format.
 STYLES = {
@@ -291,8 +293,6 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
 def _summary_words(sheet: Sheet, result: RunResult) -> int:
     """The headline of each scenario (rounded to its range; state and federal apart) and
     where the ranges come from; the last row written."""
-    from fleetrun.reports import text as report_text
-
     ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
     heads = ["Headline (rounded to its range)"] + [None] * 12
@@ -318,8 +318,6 @@ ASSUMPTION_WIDTH = 48   # characters per scenario column of the Assumptions shee
 
 def _assumptions(book: Book, result: RunResult):
     """One column per scenario, one row per assumption (report_text.assumptions)."""
-    from fleetrun.reports import text as report_text
-
     sheet = Sheet(book, "Assumptions")
     page_setup(sheet)
     sheet.ws.set_column(0, 0, 30)
@@ -555,8 +553,6 @@ def _inputs(book: Book, result: RunResult, input_rows: int):
 
 
 def _run_info(book: Book, result: RunResult):
-    from fleetrun.reports.manifest import manifest_dict, physics_label
-
     sheet = Sheet(book, "RunInfo")
     page_setup(sheet, landscape=False, title_row=None)
     sheet.ws.set_column("A:A", 30)

@@ -26,8 +26,15 @@ from pathlib import Path
 import click
 
 from fleetrun.budget.result import RunResult
+from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError
 from fleetrun.fileio import write_error_log
+from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
+from fleetrun.reports.manifest import manifest_dict
+from fleetrun.run.engines import make_engine
+from fleetrun.run.outputs import refuse_overwriting_inputs, write_run_outputs
+from fleetrun.run.runner import CHUNK_SIZE, run_fleet
+from fleetrun.workbook.reader import read_fleet
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
@@ -114,7 +121,6 @@ def read_config(path: Path) -> dict:
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise InputError("'with' must be a string or a list of strings of effects, e.g. "
                              "'bearing_preload:drag_torque_Nm=3,warmup'", file=path)
-        from fleetrun.effects import parse_with
 
         try:
             config["with"] = [pair for item in value for pair in parse_with(item)]
@@ -193,9 +199,6 @@ def teardown_logging(handlers) -> None:
 
 def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
     """Read, simulate and write one fleet; raises on failure (nothing written then)."""
-    from fleetrun.run.outputs import refuse_overwriting_inputs, write_run_outputs
-    from fleetrun.run.runner import CHUNK_SIZE, run_fleet
-    from fleetrun.workbook.reader import read_fleet
 
     started = time.perf_counter()
     fleet = read_fleet(fleet_path)
@@ -226,8 +229,6 @@ def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[R
     """Compare with the run already in ``out_dir`` (inputs' sha256, totals by scenario): the
     result with the comparison on ``changes`` (logged), and the earlier manifest (None: no
     earlier run)."""
-    from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
-    from fleetrun.reports.manifest import manifest_dict
 
     earlier = read_earlier(out_dir)
     if earlier is None:
@@ -241,8 +242,6 @@ def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[R
 
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:
     """Run every fleet in the plan; return (exit code, error lines, what was written)."""
-    from fleetrun.run.engines import make_engine
-
     errors: list[str] = []
     internal = False
     written: list[dict] = []

@@ -6,10 +6,13 @@ a bounded number of tasks is in flight, so memory stays bounded however large th
 """
 from __future__ import annotations
 
+import os
+import socket
 from collections.abc import Callable, Iterable, Iterator
+from urllib.parse import urlparse
 
 from fleetrun.budget.result import EngineInfo
-from fleetrun.errors import InputError
+from fleetrun.errors import InputError, unknown_name_error
 
 ENGINES = ("local", "dask")
 
@@ -38,7 +41,7 @@ class DaskEngine:
     MAX_IN_FLIGHT_PER_WORKER = 4
 
     def __init__(self, scheduler: str | None = None, n_workers: int | None = None):
-        try:
+        try:   # optional (the dask extra): imported only when --engine dask is asked for
             from distributed import Client, LocalCluster
         except ImportError:
             raise InputError("--engine dask needs Dask", hint='Install it: pip install "fleetrun[dask]" '
@@ -50,8 +53,6 @@ class DaskEngine:
                 _check_reachable(scheduler)
                 self.client = Client(scheduler, timeout="10s", set_as_default=False)
             else:
-                import os
-
                 workers = n_workers or max(1, min(4, (os.cpu_count() or 2)))
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, dashboard_address=None,
@@ -64,7 +65,7 @@ class DaskEngine:
                                   "scheduler is running.") from None
 
     def run(self, function: Callable, tasks: Iterable) -> Iterator[tuple[int, object]]:
-        from distributed import as_completed
+        from distributed import as_completed   # optional (the dask extra), as in __init__
 
         workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         limit = workers * self.MAX_IN_FLIGHT_PER_WORKER
@@ -107,8 +108,6 @@ class DaskEngine:
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
     """Fail fast with OSError when nothing listens at a tcp address (distributed would retry
     until its timeout)."""
-    import socket
-    from urllib.parse import urlparse
 
     parts = urlparse(address if "://" in address else f"tcp://{address}")
     if parts.scheme not in ("tcp", "tls") or not parts.hostname or not parts.port:
@@ -124,6 +123,5 @@ def make_engine(name: str, scheduler: str | None = None):
         return LocalEngine()
     if name == "dask":
         return DaskEngine(scheduler)
-    from fleetrun.errors import unknown_name_error
 
     raise unknown_name_error("engine", name, ENGINES)

@@ -16,6 +16,12 @@ import pandas as pd
 
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
+from fleetrun.output_folder import new_output_folder
+from fleetrun.reports.changes import keep_earlier_run
+from fleetrun.reports.html import write_summary_html
+from fleetrun.reports.manifest import write_manifest
+from fleetrun.reports.xlsx import write_report_xlsx
+from fleetrun.workbook.reader import file_sha256
 from fleetrun.workbook.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv",
@@ -126,12 +132,6 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
     the run already there, whose files are then kept in ``earlier-runs/``
     (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
-    from fleetrun.reports.changes import keep_earlier_run
-    from fleetrun.reports.manifest import write_manifest
-    from fleetrun.reports.html import write_summary_html
-    from fleetrun.reports.xlsx import write_report_xlsx
-    from fleetrun.workbook.reader import file_sha256
-    from fleetrun.output_folder import new_output_folder
 
     out_dir = Path(out_dir)
     refuse_overwriting_inputs(out_dir, [result.fleet.path, *result.cycle_inputs])

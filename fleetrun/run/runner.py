@@ -13,18 +13,30 @@ from __future__ import annotations
 import re
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from fleetrun.workbook.schema import DUTY_CLASSES
+from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
                                    aggregate_vehicles, change_decomposition, fiscal_summary, row_year_shares)
-from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
-from fleetrun.workbook.reader import Fleet, Scenario
+from fleetrun.budget.uncertainty import read_error_model
+from fleetrun.cycles import load_cycle
+from fleetrun.differential import efficiency
+from fleetrun.effects import as_effect_list, efficiency_with_effects
+from fleetrun.errors import DomainError
+from fleetrun.resources import inputs_dir
+from fleetrun.run.engines import LocalEngine
+from fleetrun.simulation import DEFAULT_MODE
+from fleetrun.simulation import simulate as simulate_vehicles
+from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
+from fleetrun.simulation.electric import simulate_electric
 from fleetrun.vehicle import VehicleSpec
+from fleetrun.workbook.reader import Fleet, Scenario, file_sha256
+from fleetrun.workbook.schema import DUTY_CLASSES
 
 __all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "RESULTS_COLUMNS", "CLASS_COLUMNS"]
 
@@ -55,16 +67,12 @@ class SimulationTask:
 
 @lru_cache(maxsize=32)
 def _cycle(name: str):
-    from fleetrun.cycles import load_cycle
-
     return load_cycle(name)
 
 
 def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
     """Run one chunk over its cycles: cycle -> per-vehicle sums (only these travel back)."""
-    simulate = task.simulate
-    if simulate is None:
-        from fleetrun.simulation import simulate
+    simulate = task.simulate or simulate_vehicles
     kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
     if task.cache_dir:
         kwargs["cache_dir"] = task.cache_dir
@@ -96,8 +104,6 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     a stand-in). ``error_model``: the measured fuel-economy error behind the ranges
     (:func:`fleetrun.budget.uncertainty.read_error_model`; ``"default"`` reads models/, None: no ranges).
     """
-    from fleetrun.effects import as_effect_list
-    from fleetrun.run.engines import LocalEngine
 
     started = time.perf_counter()
     effect_pairs = tuple((e.id, tuple(sorted(p.items()))) for e, p in as_effect_list(effects))
@@ -128,8 +134,6 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         + _map_grid_notes(fleet, mode) + shortfall_lines
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
-        from fleetrun.budget.uncertainty import read_error_model
-
         error_model = read_error_model()
     if error_model is None:
         warnings.append("totals carry no range: no measured fuel-economy error "
@@ -169,8 +173,6 @@ def registration_vehicles(fleet: Fleet, scenarios) -> tuple[list, object, object
 def refuse_non_finite(fleet: Fleet, tasks, positions, per_condition) -> None:
     """DomainError naming the Vehicles row of the first simulated vehicle whose cycle sums are
     not finite numbers (or whose miles are not positive): no inf or NaN reaches an output."""
-    from fleetrun.errors import DomainError
-
     for index, task in enumerate(tasks):
         for cycle, members in task.cycles:
             arrays = per_condition[(cycle, task.ambient_temp_C)]
@@ -204,8 +206,6 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
                chunk_size: int) -> tuple[list[SimulationTask], list[np.ndarray]]:
     """Chunks of vehicles per temperature, each with the cycles its members drive there, and
     each chunk's positions among ``distinct``. ``template`` carries the shared settings."""
-    from dataclasses import replace
-
     conditions = list(needed)
     duties = np.array([v.duty_class for v in distinct], dtype=object)
     duties[[v.fuel == ELECTRIC for v in distinct]] = None   # electric_sums drives those
@@ -255,8 +255,6 @@ def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
     (:func:`fleetrun.simulation.electric.simulate_electric`): kWh from the wall, no fuel, no
     differential energies (the thesis model is not run for them), the battery energy spent on
     traction as drivetrain input. Ambient temperature does not change them (not modelled)."""
-    from fleetrun.simulation.electric import simulate_electric
-
     duties = np.array([v.duty_class if v.fuel == ELECTRIC else None for v in distinct], dtype=object)
     for (cycle, ambient), duty_set in needed.items():
         rows = np.flatnonzero(np.isin(duties, sorted(duty_set)))
@@ -309,8 +307,6 @@ def _phrase_order(item):
 def _map_grid_notes(fleet: Fleet, mode: str) -> list[str]:
     """One note listing the vehicles whose final drive ratio lies beyond the cached map3d
     gear-ratio grid: map3d builds their maps at their own ratio (as map2d)."""
-    from fleetrun.simulation import DEFAULT_MODE
-    from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
 
     if (DEFAULT_MODE if mode == "auto" else mode) != "map3d":
         return []
@@ -377,18 +373,12 @@ def _shortfall_line(vehicle, i: int, behind_by_condition: dict) -> str:
 
 
 def _cycle_label(cycle: str) -> str:
-    from pathlib import Path
-
     return Path(cycle).name if cycle.lower().endswith(".csv") else cycle
 
 
 def _shipped_cycle_file(name: str):
     """The CSV (or a composed cycle's TOML) a shipped cycle is read from (its sha256 goes in
     the manifest)."""
-    from pathlib import Path
-
-    from fleetrun.resources import inputs_dir
-
     for suffix in (".csv", ".toml"):
         candidate = Path(inputs_dir()) / "cycles" / f"{name}{suffix}"
         if candidate.is_file():
@@ -397,10 +387,6 @@ def _shipped_cycle_file(name: str):
 
 
 def _cycle_info(names) -> dict[str, CycleInfo]:
-    from pathlib import Path
-
-    from fleetrun.workbook.reader import file_sha256
-
     info = {}
     for name in sorted(names):
         cycle = _cycle(name)
@@ -421,8 +407,6 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
     """For each configuration in the fleet: efficiency over torque fraction x speed at the
     fleet's median gear ratio and Kim scale (and median low ratio for two-speed axles, high
     gear), with the steady-state part of the differential-level ``effects``."""
-    from fleetrun.differential import efficiency
-    from fleetrun.effects import as_effect_list, efficiency_with_effects
 
     differential_effects = [(e, p) for e, p in as_effect_list(effects) if e.level == "differential"]
     maps = []

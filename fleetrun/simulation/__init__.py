@@ -111,12 +111,34 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
-    ``mode``: ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, see
-    DEFAULT_MODE). ``ambient_temp_C`` sets the lubricant temperature (ambient + 50 K, thesis
-    Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
-    ``effects``: physics the thesis left out (a ``--with`` string, or what
-    ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
-    cold-start constants (default ``models/thermal.toml``). ``calibrate``: apply measured figures. See docs/simulation.md."""
+    Parameters
+    ----------
+    vehicles : sequence of :class:`fleetrun.vehicle.VehicleSpec`, simulated together (arrays over
+        vehicles x steps)
+    cycle : a :class:`fleetrun.cycles.DriveCycle` (time [s], speed [m/s], grade [%]), a shipped
+        cycle name or a CSV path
+    mode : ``direct``, ``map2d``, ``map3d`` (thesis Ch. 6) or ``auto`` (= map3d, DEFAULT_MODE)
+    ambient_temp_C : float, ambient temperature [C]: the lubricant's (ambient + 50 K, thesis
+        Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start
+    physics : str, the differential baseline (``thesis``, ``vecto-generic``)
+    effects : physics the thesis left out (a ``--with`` string, or what
+        ``fleetrun.effects.parse_with`` returns), per step on top of any mode
+    trace : bool, also return the per-step trace (:class:`fleetrun.simulation.records.Trace`)
+    cache_dir : folder of the map3d cache (None: ``diffmodes.default_cache_dir``)
+    thermal : the cold-start constants (None: ``models/thermal.toml``)
+    calibrate : bool, apply the vehicles' measured figures (``measured_ftp_mpg``,
+        ``label_combined_mpg``; docs/simulation.md)
+
+    Returns
+    -------
+    :class:`fleetrun.simulation.records.FleetCycleResult`: per-vehicle miles, fuel [g, gal], mpg,
+    energies [J], shortfall; per phase for a composed cycle. See docs/simulation.md.
+
+    >>> from fleetrun.testing.vehicles import CAMRY
+    >>> r = simulate([CAMRY], "UDDS")
+    >>> round(float(r.miles[0]), 2), 20 < float(r.mpg[0]) < 45
+    (7.45, True)
+    """
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
@@ -146,23 +168,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                                     v_target, grade, trace, effects, plan))
         return _concatenate(parts)
 
-    everyone = np.arange(V)
-    sums = run(everyone, None) if V else None  # first every vehicle drives the trace itself
-    # vehicles that cannot follow: re-drive them (all together) at full effort, with a
-    # smaller margin on the estimated maximum effort each round, until the backward pass
-    # finds every step feasible
-    force_tables = None
-    for margin in REDRIVE_MARGINS:
-        if not V:
-            break
-        behind = np.flatnonzero(sums.behind)
-        if behind.size == 0:
-            break
-        if force_tables is None:  # the drivetrain's maximum effort, once per simulate
-            force_tables = np.zeros((V, REDRIVE_SPEED_GRID.size))
-            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
-        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved), behind)
+    sums = None
+    if V:  # first every vehicle drives the trace itself, then those that cannot follow it
+        sums = _redrive_until_feasible(run(np.arange(V), None), va, t, v_target, grade, run)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -174,7 +182,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         **totals, duration_s=float(t[-1] - t[0]), effects=describe_effects(effects),
         trace=sums.trace if trace and V else None, phases=phases, composite=composite,
     )
-    return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir) if calibrate and V else result
+    if not (calibrate and V):
+        return result
+    return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
 
 
 _NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
@@ -209,6 +219,23 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     factor = np.ones(len(vehicles))
     factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
     return measured.scale_result(result, factor)
+
+
+def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> BlockSums:
+    """Vehicles that cannot follow the trace are re-driven (all together) at full effort, with
+    a smaller margin on the estimated maximum effort each round, until the backward pass finds
+    every step feasible; ``run(rows, speed)`` simulates the vehicles ``rows`` at ``speed``."""
+    force_tables = None
+    for margin in REDRIVE_MARGINS:
+        behind = np.flatnonzero(sums.behind)
+        if behind.size == 0:
+            break
+        if force_tables is None:  # the drivetrain's maximum effort, once per simulate
+            force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
+            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
+        sums = _redriven(sums, run(behind, achieved), behind)
+    return sums
 
 
 def _concatenate(parts: list[BlockSums]) -> BlockSums:

@@ -42,8 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from fleetrun import __version__
+from fleetrun.differential import efficiency
 from fleetrun.errors import FleetrunError
 from fleetrun.fileio import atomic_file
+from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C, operating_temperature_C
 
 MODES = ("direct", "map2d", "map3d")
 ZERO_OUTPUT = 1e-8  # output torque fraction that stands for "zero" in the direct inversion
@@ -61,8 +63,6 @@ GEAR_GRID = {"LD": np.round(np.arange(2.0, 6.0001, 0.1), 6), "HD": np.round(np.a
 def lubricant_temp_C(ambient_temp_C) -> float:
     """Operating lubricant temperature (physics.lubricant.operating_temperature_C, thesis Sec.
     3.1.2 and 7.1.1); None: the thesis code's fixed 70 C."""
-    from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C, operating_temperature_C
-
     return THESIS_OPERATING_TEMP_C if ambient_temp_C is None else float(operating_temperature_C(ambient_temp_C))
 
 
@@ -97,8 +97,6 @@ def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_
     ``axle_low`` is a bool (one range); ``kim_torque_scale_Nm`` is the vehicle's Kim scale, which
     baselines in absolute torque (vecto-generic) need.
     """
-    from fleetrun.differential import efficiency
-
     # thesis Sec. 3.1.2: the lubricant runs 50 K above ambient (20 C ambient -> the 70 C that
     # physics="thesis" assumes); None leaves the baseline its own temperature
     oil = None if ambient_temp_C is None else lubricant_temp_C(ambient_temp_C)

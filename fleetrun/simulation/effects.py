@@ -26,8 +26,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from fleetrun import effects as effect_catalog
+from fleetrun.differential import canonical_configuration, configuration_lubricant
+from fleetrun.effects import as_effect_list
 from fleetrun.effects.base import AppliedEffect
 from fleetrun.errors import DomainError
+from fleetrun.simulation.params import willans_slope
 from fleetrun.units import RAD_S_PER_RPM
 
 FIXED_POINT_TOL = 1e-10   # of the Kim scale: the direct inversion's tolerance
@@ -50,7 +54,6 @@ def cycle_effects(effects) -> CycleEffects:
         return CycleEffects()
     if isinstance(effects, CycleEffects):
         return effects
-    from fleetrun.effects import as_effect_list
 
     pairs = as_effect_list(effects)
     return CycleEffects(differential=tuple(p for p in pairs if p[0].level == "differential"),
@@ -59,8 +62,6 @@ def cycle_effects(effects) -> CycleEffects:
 
 def describe_effects(effects) -> list[AppliedEffect]:
     """The record of ``effects``: each one's id, level and parameters."""
-    from fleetrun.effects import as_effect_list
-
     if isinstance(effects, CycleEffects):
         effects = effects.differential + effects.vehicle
     return [AppliedEffect(e.id, e.level, {k: float(v) for k, v in params.items()})
@@ -76,8 +77,6 @@ def step_time_since_start_s(time_s) -> np.ndarray:
 
 @lru_cache(maxsize=None)
 def _lubricant(configuration: str) -> str:
-    from fleetrun.differential import canonical_configuration, configuration_lubricant
-
     return configuration_lubricant(canonical_configuration(configuration))
 
 
@@ -90,8 +89,7 @@ def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_inp
     belongs to ``configurations[v]``, whose lubricant the oil effects use. Solves
     ``T_in = T_base + dT(T_in)`` by fixed-point iteration to 1e-10 of the Kim scale.
     """
-    from fleetrun.effects import differential_extra_torque_Nm as extra
-
+    extra = effect_catalog.differential_extra_torque_Nm
     base = np.asarray(base_input_torque_Nm, float)
     shape = base.shape
     out = np.zeros(shape)
@@ -135,8 +133,7 @@ def vehicle_extra_fuel_g_per_s(effects: CycleEffects, va, time_since_start_s, ve
     """Extra fuel rate [g/s] of the vehicle-level effects, (V, N); row v is vehicle v of the
     arrays ``va`` (params.VehicleArrays): its fuel, test weight and Willans slope
     ``eta_indicated``, the one the fuel equation uses, so extra work costs what it costs there."""
-    from fleetrun.effects import vehicle_extra_fuel_g_per_s as extra
-    from fleetrun.simulation.params import willans_slope
+    extra = effect_catalog.vehicle_extra_fuel_g_per_s
 
     fuels, masses_kg, willans = va.fuel, va.mass_kg, willans_slope(va)
     speed = np.asarray(vehicle_speed_mps, float)

@@ -74,7 +74,7 @@ def transmission_defaults(gearbox_type: str) -> dict:
 
 
 def gearbox_type(v: VehicleSpec) -> str:
-    """The optional ``gearbox_type`` column, else the CONTRACT ``transmission`` (automatic/manual)."""
+    """The optional ``gearbox_type`` column, else the documented ``transmission`` (docs/interface.md) (automatic/manual)."""
     value = column_value(v, "gearbox_type")
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return v.transmission

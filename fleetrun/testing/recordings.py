@@ -10,14 +10,26 @@ effect must also recover its parameters.
 """
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from fleetrun.cycles import DriveCycle, load_cycle
+from fleetrun.differential import efficiency, kim_torque_scale_Nm
 from fleetrun.effects import _as_effect_list, differential_extra_torque_Nm, overall_ratio
+from fleetrun.effects.differential import (W_STOP_RAD_S, cornering_extra_torque_Nm, greenwood_tripp_F2,
+                                           mesh_friction_torque_Nm, oil_temperature_C, ring_gear_churning_torque_Nm,
+                                           warmup_viscosity_excess)
+from fleetrun.effects.vehicle import marginal_fuel_g_per_J
+from fleetrun.physics.lubricant import OPERATING_RISE_K
+from fleetrun.resources import inputs_dir
+from fleetrun.simulation import simulate
+from fleetrun.simulation.params import willans_slope
 from fleetrun.units import RPM_PER_RAD_S, STANDARD_GRAVITY_M_S2
+from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
 
 
@@ -40,8 +52,6 @@ class RigSpec:
 
     @property
     def kim_torque_scale_Nm(self) -> float:
-        from fleetrun.differential import kim_torque_scale_Nm
-
         return float(kim_torque_scale_Nm(self.peak_engine_torque_Nm, self.torque_converter_ratio,
                                          self.max_transmission_gear_ratio))
 
@@ -124,7 +134,7 @@ def drive_profile(duration_s: float, rate_hz: float, rng: np.random.Generator, *
 
 def _ar1(n: int, rho: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
     """AR(1) noise with marginal standard deviation ``sigma`` (e_t = rho e_{t-1} + ...)."""
-    from scipy.signal import lfilter
+    from scipy.signal import lfilter  # scipy: slow to import, only this routine needs it
 
     z = rng.normal(0.0, sigma * np.sqrt(1 - rho ** 2), n)
     z[0] = rng.normal(0.0, sigma)  # stationary start: the first samples are as noisy as the rest
@@ -178,8 +188,6 @@ def _rig_channels(prof: Profile, rig: RigSpec, dt: float, ambient_temp_C: float,
 
 def _output_torque(rig: RigSpec, t_in, d_t, n_rpm, moving):
     """Half-shaft torque sum through the thesis chain with the extra pinion loss ``d_t``."""
-    from fleetrun.differential import efficiency
-
     g = rig.ratio
     t_eff = t_in - d_t
     kw = {}
@@ -204,7 +212,7 @@ def generate_differential_recording(
         oil_tau_s: float | None = None, noise_oil_C: float = 0.3,
         hidden_loss=None, forms: str = "catalogue", output_gain_drift=None,
         output_offset_drift=None) -> Recording:
-    """A differential-level recording (CONTRACT.md) with ``effects`` hidden in the output torque.
+    """A differential-level recording (docs/interface.md) with ``effects`` hidden in the output torque.
 
     ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
     coefficient ``noise_rho`` per sample on output torque, input torque and speed; offsets are
@@ -259,7 +267,6 @@ def generate_differential_recording(
     if oil_temp_column:
         # the sump warms up whether or not its viscosity costs torque; with oil_warmup hidden,
         # its own tau_s (the hidden loss and the thermometer tell the same story)
-        from fleetrun.effects.differential import oil_temperature_C
 
         tau = oil_tau_s or next((p["tau_s"] for e, p in effect_list if e.id == "oil_warmup"), 600.0)
         meas["oil_temp_C"] = oil_temperature_C(t, ambient_temp_C, tau) + _ar1(n, noise_rho, noise_oil_C, rng)
@@ -326,7 +333,7 @@ def _step(w):
 
 def _lag(x, tau_s: float, dt: float):
     """First-order lag of ``x`` with time constant ``tau_s`` (exact discretisation)."""
-    from scipy.signal import lfilter
+    from scipy.signal import lfilter  # scipy: slow to import, only this routine needs it
 
     a = 1.0 - np.exp(-dt / tau_s)
     return lfilter([a], [1.0, a - 1.0], x, zi=[(1 - a) * x[0]])[0]
@@ -338,7 +345,6 @@ def _perturbed_preload(ch, p, dt):
 
 def _perturbed_cornering(ch, p, dt):
     # the spider gears follow the wheel-speed difference through the tyres' compliance
-    from fleetrun.effects.differential import cornering_extra_torque_Nm
 
     dw = _lag(ch["wheel_speed_difference_rad_s"], 0.3, dt)
     return p["k_c"] * cornering_extra_torque_Nm(ch["input_torque_Nm"], ch["input_speed_rad_s"],
@@ -355,8 +361,6 @@ def _perturbed_inertia(ch, p, dt):
 
 def _perturbed_oil_warmup(ch, p, dt):
     # the mesh film warms with its own, faster time constant for 15 % of the rise
-    from fleetrun.effects.differential import warmup_viscosity_excess
-    from fleetrun.physics.lubricant import OPERATING_RISE_K
 
     t, tau = np.maximum(ch["time_s"], 0.0), p["tau_s"]
     cold = 0.85 * np.exp(-t / tau) + 0.15 * np.exp(-t / (0.2 * tau))
@@ -373,7 +377,6 @@ def _perturbed_bearing_drag(ch, p, dt):
 
 def _perturbed_mixed(ch, p, dt):
     # film thickness ~ U^0.6 instead of seed 004's 0.68
-    from fleetrun.effects.differential import W_STOP_RAD_S, greenwood_tripp_F2
 
     w = ch["input_speed_rad_s"]
     lam = (np.abs(w) * RPM_PER_RAD_S / p["speed_ref_rpm"]) ** 0.6
@@ -383,14 +386,12 @@ def _perturbed_mixed(ch, p, dt):
 
 def _perturbed_mesh_friction(ch, p, dt):
     # the hypoid's sliding speed 15 % above the reference geometry's
-    from fleetrun.effects.differential import mesh_friction_torque_Nm
 
     return p["friction_excess"] * mesh_friction_torque_Nm(ch["input_torque_Nm"], 1.15 * ch["input_speed_rad_s"])
 
 
 def _perturbed_churning(ch, p, dt):
     # windage growing as speed^2.2 (normalised at 2000 rpm) instead of speed^2
-    from fleetrun.effects.differential import ring_gear_churning_torque_Nm
 
     w = ch["input_speed_rad_s"]
     n_rpm = np.abs(w) * RPM_PER_RAD_S
@@ -448,7 +449,7 @@ def heat_soak_loss(share: float, tau_s: float):
     torque-proportional loss scaled by the first-order lag (``tau_s``) of the input power,
     normalised to its largest value: a loss with a memory of the load history."""
     def loss(ch):
-        from scipy.signal import lfilter
+        from scipy.signal import lfilter  # scipy: slow to import, only this routine needs it
 
         p = np.maximum(ch["input_torque_Nm"] * ch["input_speed_rad_s"], 0.0)
         a = ch["dt_s"] / tau_s
@@ -512,20 +513,12 @@ def generate_vehicle_recording(effects=(), *, vehicle_toml=None, cycles=("UDDS",
                                fuel_scale: float = 0.85, idle_offset_g_per_s: float = 0.05,
                                noise_g_per_s: float = 0.05, noise_rho: float = 0.8,
                                name: str = "vehicle") -> Recording:
-    """A vehicle-level recording (CONTRACT.md): the simulation on ``cycles`` back to back, its
+    """A vehicle-level recording (docs/interface.md): the simulation on ``cycles`` back to back, its
     fuel rate scaled and offset (the engine the simulation does not know exactly), hidden
     vehicle-level ``effects`` added, AR(1) noise on the fuel meter.
 
     ``vehicle_toml`` is a sidecar with one Vehicles row (default: the Argonne Camry).
     """
-    import tomllib
-
-    from fleetrun.cycles import DriveCycle, load_cycle
-    from fleetrun.effects.vehicle import marginal_fuel_g_per_J
-    from fleetrun.resources import inputs_dir
-    from fleetrun.simulation import simulate
-    from fleetrun.simulation.params import willans_slope
-    from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
     vehicle_toml = vehicle_toml or inputs_dir() / "dyno" / "camry2018_udds_hot.toml"
     spec = read_vehicle_toml(vehicle_toml)

@@ -9,6 +9,9 @@ import datetime as _dt
 import math
 import re
 
+from fleetrun.errors import InputError
+from fleetrun.simulation.tyre import tire_diameter_m
+
 
 class CellProblem(ValueError):
     """The cell's value cannot be used; ``str()`` says why, quoting the value."""
@@ -143,8 +146,6 @@ def parse_cycle_mix(value) -> dict[str, float]:
 
 
 def parse_tire_size(value) -> str:
-    from fleetrun.errors import InputError
-    from fleetrun.simulation.tyre import tire_diameter_m  # the simulation's own parser decides
 
     text = parse_text(value)
     try:

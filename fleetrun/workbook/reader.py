@@ -1,4 +1,4 @@
-"""Read and validate the fleet workbook (CONTRACT.md, "Fleet workbook").
+"""Read and validate the fleet workbook (docs/interface.md, "Fleet workbook").
 
 ``read_fleet(path)`` checks everything before any simulation and reports every problem at
 once: one :class:`~fleetrun.errors.InputError` whose message is the count of problems followed
@@ -19,16 +19,21 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+from python_calamine import CalamineError
 from xlsxwriter.utility import xl_col_to_name
 
-from fleetrun.errors import InputError
+from fleetrun.cycles import load_cycle, shipped_cycles
+from fleetrun.errors import InputError, closest_names, unknown_name_error
+from fleetrun.simulation.params import refused_vehicles
+from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells, rows
 from fleetrun.workbook.cells import CellProblem
-from fleetrun.workbook.xlsx_safety import column_number
 from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO, REGISTRATION_COLUMNS,
                                    REGISTRATIONS_SHEET, SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
-from fleetrun.vehicle import VehicleSpec
+from fleetrun.workbook.xlsx_read import XlsxBook
+from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, column_number, scan_sheets
+
 
 def get_column_letter(index: int) -> str:
     """A 1-based column index as its letters (1 = A)."""
@@ -116,7 +121,6 @@ class Fleet:
         for v in self.vehicles:
             if v.vehicle_id == vehicle_id:
                 return v
-        from fleetrun.errors import unknown_name_error
         error = unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
         error.file = self.path
         raise error
@@ -125,7 +129,6 @@ class Fleet:
         for s in self.scenarios:
             if s.scenario_id == scenario_id:
                 return s
-        from fleetrun.errors import unknown_name_error
         error = unknown_name_error("scenario_id", scenario_id, [s.scenario_id for s in self.scenarios],
                                    hint="Scenario ids are in the Scenarios sheet")
         error.file = self.path
@@ -177,10 +180,6 @@ def file_sha256(path: Path) -> str:
 
 def read_fleet(path) -> Fleet:
     """Read, validate and return the fleet in ``path``; InputError lists every problem."""
-    from python_calamine import CalamineError
-
-    from fleetrun.workbook.xlsx_read import XlsxBook
-    from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, scan_sheets
 
     path = Path(path)
     check_xlsx(path)
@@ -224,7 +223,7 @@ def read_fleet(path) -> Fleet:
     if problems.errors:
         errors = problems.sorted_errors()
         noun, pronoun = ("problem", "it") if len(errors) == 1 else ("problems", "them")
-        # CONTRACT.md: the first line names file, sheet, cell and value; the others follow
+        # docs/interface.md: the first line names file, sheet, cell and value; the others follow
         tail = (f"{len(errors)} {noun} in the fleet workbook; fix {pronoun} and check again with "
                 f"`fleetrun validate {path.name}`")
         error = InputError("\n".join([f"{path}: {errors[0]}"] + ["  " + e for e in errors[1:]] + [tail]))
@@ -464,8 +463,6 @@ def _simulation_checks(table: _Table, vehicles: list[VehicleSpec], first_rows: d
     """What the simulation would refuse in rows that passed the cell checks
     (:func:`fleetrun.simulation.params.refused_vehicles`), as problems at the row and column:
     `validate` catches what `run` would refuse."""
-    from fleetrun.simulation.params import refused_vehicles
-
     for i, exc in refused_vehicles(vehicles):
         column = exc.column if isinstance(exc.column, str) else None
         index = (table.columns.get(column) or table.extra_columns.get(column)) if column else None
@@ -553,8 +550,6 @@ def _check_cycle_mix(mix, known, workbook_dir: Path, table: _Table, row: int, pr
         elif known is not None:
             match = {k.upper(): k for k in known}.get(name.upper())
             if match is None:
-                from fleetrun.errors import closest_names
-
                 near = closest_names(name, known)
                 guess = f" (did you mean {near[0]}?)" if near else ""
                 problems.error(f"unknown drive cycle '{name}'{guess}; shipped: {', '.join(known)}, "
@@ -586,8 +581,6 @@ def _cycle_file_problem(path: Path) -> str | None:
 
 @lru_cache(maxsize=256)
 def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
-    from fleetrun.cycles import load_cycle
-
     try:
         load_cycle(Path(path))
     except InputError as exc:
@@ -597,8 +590,6 @@ def _cycle_problem(path: str, mtime_ns: int, size: int) -> str | None:
 
 def _shipped_cycle_names() -> list[str]:
     """Names of the shipped drive cycles."""
-    from fleetrun.cycles import shipped_cycles
-
     found = shipped_cycles()
     if isinstance(found, dict):
         found = list(found)

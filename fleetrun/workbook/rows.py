@@ -12,11 +12,13 @@ import math
 from collections.abc import Callable
 from functools import lru_cache
 
-from fleetrun.errors import InputError
+from fleetrun.differential import canonical_configuration
+from fleetrun.errors import InputError, closest_names
+from fleetrun.physics.lubricant import lubricant_names
+from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells
 from fleetrun.workbook.cells import CellProblem
 from fleetrun.workbook.schema import DUAL_CONFIGURATIONS, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
-from fleetrun.vehicle import VehicleSpec
 
 MAX_GEARS = 20
 
@@ -80,13 +82,9 @@ def _parse(column: Column, raw):
 
 
 def _lubricant(raw) -> str:
-    from fleetrun.physics.lubricant import lubricant_names
-
     text = cells.parse_text(raw)
     known = lubricant_names()
     if text.upper() not in known:
-        from fleetrun.errors import closest_names
-
         near = closest_names(text, known)
         guess = f" (did you mean {near[0]}?)" if near else ""
         raise CellProblem(f"{cells.show(raw)} is not a lubricant fleetrun knows{guess}; known: "
@@ -128,8 +126,6 @@ def _out_of_range(column: Column, number: float) -> str | None:
 
 
 def _canonical_configuration(raw) -> str:
-    from fleetrun.differential import canonical_configuration
-
     text = cells.parse_text(raw)
     try:
         return canonical_configuration(text)

@@ -1,11 +1,11 @@
-"""The fleet workbook's sheets and columns (CONTRACT.md, "Fleet workbook").
+"""The fleet workbook's sheets and columns (docs/interface.md, "Fleet workbook").
 
 One list of :class:`Column` per sheet is shared by the reader (what to check), the template
 writer (headers, drop-downs, notes) and the docs, so the three cannot drift apart.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from fleetrun.differential import configuration_ids, dual_configuration_ids
 
@@ -132,7 +132,7 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
            minimum=3, maximum=200),
 )
 
-# cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty
+# cycle_mix_MD / cycle_mix_HD go beyond docs/interface.md: heavy trucks cannot follow light-duty
 # cycles such as US06, so a scenario may give them their own mix.
 SCENARIO_COLUMNS: tuple[Column, ...] = (
     Column("scenario_id", "text", True, "unique id of this scenario",
@@ -160,7 +160,7 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=("HD-UDDS:0.5,UDDS:0.2,HWFET:0.3", "HD-UDDS:0.5,UDDS:0.2,HWFET:0.3")),
     Column("cycle_mix_HD", "cycle_mix", False, "HD vehicles' cycle mix (empty: cycle_mix)",
            example=("HD-UDDS:0.6,HWFET:0.4", "HD-UDDS:0.6,HWFET:0.4")),
-    # Budget columns (CONTRACT.md, optional): fiscal years, on-road fuel, calibration, EV fee.
+    # Budget columns (docs/interface.md, optional): fiscal years, on-road fuel, calibration, EV fee.
     Column("first_fiscal_year", "integer", False, "fiscal year of budget year 1, e.g. 2027 "
            "(empty: years numbered 1, 2, ...)", minimum=1900, maximum=2200, example=(2027, 2027),
            plausible=(1990, 2100)),
@@ -202,12 +202,10 @@ REGISTRATION_COLUMNS: tuple[Column, ...] = (
 
 
 def _renamed(columns, name: str, new_name: str, note: str) -> Column:
-    from dataclasses import replace
-
     return replace(next(c for c in columns if c.name == name), name=new_name, note=note, required=False)
 
 
-# Keys of a differential-level diagnose sidecar (CONTRACT.md, Recordings) with the ranges of
+# Keys of a differential-level diagnose sidecar (docs/interface.md, Recordings) with the ranges of
 # the Vehicles and Scenarios columns they mean.
 SIDECAR_COLUMNS: tuple[Column, ...] = (
     _renamed(VEHICLE_COLUMNS, "final_drive_ratio", "gear_ratio", "differential gear ratio"),

@@ -8,8 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import xlsxwriter
-from xlsxwriter.utility import xl_col_to_name
 
+from fleetrun.fileio import atomic_file
 from fleetrun.workbook.schema import (REGISTRATION_COLUMNS, REGISTRATIONS_SHEET, SCENARIO_COLUMNS,
                                    SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET, Column)
 
@@ -63,8 +63,6 @@ INSTRUCTIONS = [
 def write_template(path: Path) -> None:
     """Write the template workbook to ``path`` (atomically), with XlsxWriter: the one Excel
     writer of fleetrun (report.xlsx and import-epa's workbook too)."""
-    from fleetrun.fileio import atomic_file
-
     with atomic_file(Path(path)) as temporary:
         workbook = xlsxwriter.Workbook(str(temporary), {"strings_to_numbers": False, "strings_to_formulas": False,
                                                         "strings_to_urls": False})

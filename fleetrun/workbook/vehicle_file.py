@@ -39,7 +39,7 @@ def vehicle_from_mapping(data: dict, path: Path) -> VehicleSpec:
         if warning:
             return
         raise InputError(text, file=path, column=name, value=data.get(name),
-                         hint="The keys are the Vehicles columns of CONTRACT.md")
+                         hint="The keys are the Vehicles columns of docs/interface.md")
 
     parsed, _ = rows.parse_fields(VEHICLE_COLUMNS, lambda column: data.get(column.name), report)
     rows.check_vehicle(parsed, report)

@@ -18,6 +18,8 @@ from pathlib import Path
 
 from fleetrun.errors import InputError
 
+from defusedxml.ElementTree import fromstring
+
 MAX_FILE_BYTES = 500_000_000            # the workbook file itself (a 100,000-row fleet: ~10 MB)
 MAX_TOTAL_UNCOMPRESSED = 1_000_000_000   # 1 GB: a 100,000-row fleet is ~0.1 GB of XML
 EXCEL_MAX_ROWS = 1_048_576               # Excel's own sheet limits (ECMA-376; Excel specifications)
@@ -195,8 +197,6 @@ def column_number(letters: str) -> int:
 
 def sheet_parts(archive: zipfile.ZipFile) -> dict[str, str]:
     """Sheet name -> worksheet part, from xl/workbook.xml and its relationships (defusedxml)."""
-    from defusedxml.ElementTree import fromstring
-
     main = "{http://schemas.openxmlformats.org/spreadsheetml/2006/main}"
     rel_ns = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}"
     book = fromstring(archive.read("xl/workbook.xml"))

@@ -6,7 +6,7 @@ Run once from the repository root (numpy/pandas only; no network):
 
 Reads the four original files ``inputs/dyno/6181101x Test Data.txt`` (copied unchanged from
 fastsim 2.1.5, see PROVENANCE.md) and writes, for each test, the vehicle-level recording of
-CONTRACT.md ("Recordings for fleetrun diagnose")
+docs/interface.md ("Recordings for fleetrun diagnose")
 
     camry2018_<test>.csv   time_s, vehicle_speed_mph, fuel_rate_cc_per_s
 
@@ -79,7 +79,7 @@ def epa_row() -> dict:
 
 
 def sidecar(test: str, r: dict) -> dict:
-    """One Vehicles row (CONTRACT.md, 'Fleet workbook') for this car."""
+    """One Vehicles row (docs/interface.md, 'Fleet workbook') for this car."""
     return {
         "vehicle_id": f"camry2018_{test}",
         "vehicle_class": "midsize sedan",
