@@ -63,6 +63,10 @@ class DomainError(FleetrunError):
     """The input is well-formed but outside what the models can do."""
 
 
+class MissingExtraError(FleetrunError):
+    """An optional part of fleetrun (an extra of pyproject.toml) is not installed."""
+
+
 def closest_names(name: str, valid, n: int = 1) -> list[str]:
     """The valid names closest to ``name`` (case-insensitive), best first."""
     valid = list(valid)

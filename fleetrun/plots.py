@@ -1,23 +1,40 @@
-"""Figures: efficiency maps drawn like the thesis Figs 6.1-6.6 (matplotlib, no display)."""
+"""Figures: efficiency maps drawn like the thesis Figs 6.1-6.6 (matplotlib, no display).
+
+matplotlib is an optional extra (``pip install "fleetrun[plots]"``): only figures need it
+(``fleetrun map --plot``, the PNGs of diagnosis.html). :func:`pyplot` imports it or says how to
+install it; nothing else in fleetrun imports matplotlib.
+"""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from fleetrun.errors import InputError
+from fleetrun.errors import InputError, MissingExtraError
 from fleetrun.fileio import atomic_file
 
 PLOT_FORMATS = (".png", ".svg")
 
 
+def pyplot(purpose: str):
+    """``matplotlib.pyplot`` with the Agg backend (files, no display); MissingExtraError naming
+    ``purpose`` and the extra to install when matplotlib is absent."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise MissingExtraError(f"{purpose} needs matplotlib, which is not installed",
+                                hint='Install the plots extra: pip install "fleetrun[plots]" '
+                                     '(or pip install matplotlib)') from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def efficiency_map_figure(torque_fractions, speeds_rpm, eta, title: str):
     """A two-panel figure: the efficiency surface as filled contours over (speed, torque
     fraction), and efficiency against speed at each torque fraction (thesis Figs 6.1-6.6)."""
-    import matplotlib  # matplotlib: slow to import, only figures need it
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
+    plt = pyplot("--plot (an efficiency-map figure)")
 
     tf = np.asarray(torque_fractions, dtype=float)
     n = np.asarray(speeds_rpm, dtype=float)
@@ -56,7 +73,7 @@ def save_figure(fig, path) -> None:
     if path.suffix.lower() not in PLOT_FORMATS:
         raise InputError(f"{path}: plot file must end in .png or .svg, got '{path.suffix or '(none)'}'",
                          hint="Name the plot e.g. map.png or map.svg")
-    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
+    plt = pyplot("--plot (an efficiency-map figure)")
 
     with atomic_file(path) as tmp:
         fig.savefig(tmp, format=path.suffix[1:].lower(), dpi=120)

@@ -168,11 +168,16 @@ def heavy_rows() -> list[dict]:
 def build(output: Path) -> Path:
     from fleetrun.fileio import atomic_file
     from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
-    from fleetrun.workbook.template import build_template
+    import tempfile
+
+    from fleetrun.workbook.template import write_template
 
     epa = pd.read_csv(EPA_CSV, encoding="utf-8-sig", low_memory=False)
     vehicles = light_duty_rows(epa) + heavy_rows()
-    wb = build_template()
+    with tempfile.TemporaryDirectory() as folder:   # the template (XlsxWriter), filled in with openpyxl
+        template = Path(folder) / "template.xlsx"
+        write_template(template)
+        wb = openpyxl.load_workbook(template)
     for sheet, columns, rows in (
             ("Vehicles", VEHICLE_COLUMNS, vehicles),
             ("Scenarios", SCENARIO_COLUMNS, [

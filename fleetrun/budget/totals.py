@@ -218,8 +218,8 @@ def _ratio(numerator: float, denominator: float) -> float:
 
 def _fsum(values) -> float:
     """fsum that stays NaN when any value is NaN (a range that was not measured)."""
-    values = list(values)
-    return math.nan if any(math.isnan(v) for v in values) else math.fsum(values)
+    values = np.asarray(values, dtype=float)
+    return math.nan if np.isnan(values).any() else math.fsum(values.tolist())
 
 
 def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:

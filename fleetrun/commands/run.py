@@ -4,8 +4,8 @@
                  [--with EFFECT[,EFFECT...]]
     fleetrun run --config batch.toml
 
-Writes report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and
-manifest.json into DIR, all or nothing; an earlier run there is kept in DIR/earlier-runs/
+Writes report.xlsx, summary.html, results.csv, results.parquet, class_summary.csv,
+fiscal_summary.csv and manifest.json into DIR, all or nothing; an earlier run there is kept in DIR/earlier-runs/
 unless --replace. Exit codes: docs/batch.md (0 ok, 1 input error, 2 usage, 3 partial,
 4 internal).
 """
@@ -75,7 +75,8 @@ def _load_config(ctx, config):
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
             no_cache, log_file, replace, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
-    report.xlsx, summary.html, results.csv, class_summary.csv, fiscal_summary.csv and manifest.json."""
+    report.xlsx, summary.html, results.csv, results.parquet, class_summary.csv, fiscal_summary.csv and
+    manifest.json."""
 
     settings = ctx.meta.get(CONFIG_KEY, {})   # what the defaults (ctx.default_map) do not carry
     if config is not None and workbook is not None:
@@ -121,7 +122,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         for item in written:
             note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
                     if item["warnings"] else "")
-            click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, "
+            click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, results.parquet, "
                        f"class_summary.csv, fiscal_summary.csv, manifest.json{note}")
     if code == batch.EXIT_OK:
         return

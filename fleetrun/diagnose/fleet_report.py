@@ -4,17 +4,19 @@ from __future__ import annotations
 import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
-from fleetrun.diagnose.report import _png, data_uri
+from fleetrun.diagnose.report import NO_FIGURES, _png, data_uri
+from fleetrun.errors import MissingExtraError
+from fleetrun.plots import pyplot
 from fleetrun.resources import templates_dir
 
 
 def fleet_figures(result: dict) -> dict[str, bytes]:
     """Mean error per test (baseline, after the findings, full model) and the unexplained
-    error against the strongest vehicle property."""
-    import matplotlib  # matplotlib: slow to import, only figures need it
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
+    error against the strongest vehicle property; none without matplotlib (NO_FIGURES)."""
+    try:
+        plt = pyplot("diagnosis.html's figures")
+    except MissingExtraError:
+        return {}
 
     tests = list(result["baseline"]["tests"])
     x = np.arange(len(tests))
@@ -67,4 +69,5 @@ def render_fleet_html(prob, result: dict) -> str:
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     figs = {k: data_uri(v) for k, v in fleet_figures(result).items()}
-    return env.get_template("fleet.html.j2").render(r=result, figs=figs, summary=summary_words(result))
+    return env.get_template("fleet.html.j2").render(r=result, figs=figs, no_figures=NO_FIGURES,
+                                                          summary=summary_words(result))

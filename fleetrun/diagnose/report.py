@@ -10,14 +10,17 @@ from jinja2 import Environment, FileSystemLoader, select_autoescape
 from fleetrun.diagnose.locate import binned_profile, smooth
 from fleetrun.effects import EFFECTS
 from fleetrun.resources import templates_dir
+from fleetrun.errors import MissingExtraError
+from fleetrun.plots import pyplot
+
+#: What diagnosis.html says in place of its figures when matplotlib (the plots extra) is absent.
+NO_FIGURES = 'Figures need matplotlib, which is not installed: pip install "fleetrun[plots]".'
 
 
 def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
-
-    plt.close(fig)
+    pyplot("diagnosis.html's figures").close(fig)
     return buf.getvalue()
 
 
@@ -104,11 +107,11 @@ def _driver_figure(problem, result, fitted, plt) -> str | None:
 
 def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, bytes]:
     """The report's figures as PNG bytes, by name (measured, residual, cumulative, drivers,
-    heldout)."""
-    import matplotlib  # matplotlib: slow to import, only figures need it
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # matplotlib: slow to import, only figures need it
+    heldout); none without matplotlib (the page then says so, :data:`NO_FIGURES`)."""
+    try:
+        plt = pyplot("diagnosis.html's figures")
+    except MissingExtraError:
+        return {}
 
     t = problem.time_s - problem.time_s[0]
     figs = _time_figures(problem, result, fitted, t, _thin(len(t)), plt)
@@ -215,5 +218,5 @@ def render_html(problem, result: dict, fitted: np.ndarray) -> str:
                       autoescape=select_autoescape(["html", "j2"]))
     tpl = env.get_template("diagnosis.html.j2")
     figs = {name: data_uri(png) for name, png in figures(problem, result, fitted).items()}
-    return tpl.render(r=result, figs=figs,
+    return tpl.render(r=result, figs=figs, no_figures=NO_FIGURES,
                       summary=summary_sentence(result), effects=EFFECTS)

@@ -3,8 +3,11 @@
 Sheets: Summary, Assumptions, ByClass, ByVehicle, Scenario comparison, Fiscal years,
 Efficiency maps, Inputs, RunInfo, What changed. Native Excel charts, number formats, frozen
 headers, a page setup on every sheet. Written with XlsxWriter in its ``constant_memory``
-mode: each sheet is streamed row by row to a temporary file, so 100,000 vehicle rows x
-scenarios stay memory-bounded.
+mode: each sheet is streamed row by row to a temporary file. The workbook stays a document a
+person opens: per-vehicle tables beyond :data:`DETAIL_ROWS` rows (the Vehicles echoed in Inputs:
+:data:`INPUT_ROWS`) are not copied in (the sheet
+says so and where they are: results.csv, results.parquet), and no sheet is ever cut at Excel's
+row limit without an error.
 
 Numbers: XlsxWriter writes 16 significant digits (``%.16G``), Excel keeps 15; results.csv
 is the exact copy (shortest round-trip repr). Non-finite numbers are never written (the
@@ -57,6 +60,15 @@ FORMATS = {
 
 WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "strings_to_urls": False,
                     "strings_to_numbers": False, "nan_inf_to_errors": False}
+#: Per-vehicle rows a report.xlsx copies (ByVehicle; the Vehicles in Inputs): ~20 columns x
+#: 20,000 rows is a ~5 MB workbook that opens in seconds. Beyond it the sheet says where the
+#: rows are: results.csv and results.parquet hold every row at any size (docs/report.md).
+DETAIL_ROWS = 20_000
+#: Vehicles rows the Inputs sheet echoes as read: a copy of the fleet workbook (whose sha256 the
+#: workbook records), so a smaller bound; beyond it the sheet names the file instead.
+INPUT_ROWS = 2_000
+#: Excel's rows per sheet; a sheet that would pass it is an error, never a silent cut.
+EXCEL_MAX_ROWS = 1_048_576
 ZIP64_CELLS = 20_000_000   # above this many cells a sheet's XML may pass 4 GB: zip64 archive
 CM_TO_PIXELS = 96 / 2.54   # chart sizes are given in cm, XlsxWriter takes pixels at 96 dpi
 
@@ -69,9 +81,17 @@ class Sheet:
         self.book, self.name, self.ws, self.row = book, name, book.workbook.add_worksheet(name), 0
         self.row_breaks: list[int] = []
 
+    def _room(self, rows: int) -> None:
+        """RuntimeError if ``rows`` more rows would pass Excel's last row: XlsxWriter would
+        drop them without a word, and no sheet of the report may be cut silently."""
+        if self.row + rows > EXCEL_MAX_ROWS:
+            raise RuntimeError(f"report.xlsx sheet {self.name!r}: {self.row + rows:,} rows would pass "
+                               f"Excel's {EXCEL_MAX_ROWS:,}; nothing is cut silently")
+
     def append(self, values=(), styles=None, height: float | None = None) -> int:
         """Write ``values`` into the next row (None: empty cell); ``styles``: one style name
         for every cell or one per cell. Returns the row's 1-based number."""
+        self._room(1)
         index, self.row = self.row, self.row + 1
         if height is not None:
             self.ws.set_row(index, height)
@@ -84,6 +104,7 @@ class Sheet:
         """Many rows at once: ``columns`` are the table's columns as lists (a DataFrame's
         ``tolist()``), ``styles`` one style name (or None) per column; each cell as
         :meth:`Book.write` writes it."""
+        self._room(len(columns[0]) if columns else 0)
         cell, ws, index = self.book.cell, self.ws, self.row
         formats = [self.book.style(s) for s in styles]
         for values in zip(*columns):
@@ -161,20 +182,27 @@ def _table(sheet: Sheet, frame: pd.DataFrame, styled: bool = True, widths: bool 
     sheet.rows([frame[n].tolist() for n in frame.columns], [FORMATS.get(n) if styled else None for n in names])
 
 
-def write_report_xlsx(result: RunResult, path: Path) -> None:
-    cells = (len(result.results) * len(result.results.columns)
-             + len(result.fleet.vehicles) * (len(VEHICLE_COLUMNS) + 5))
+def write_report_xlsx(result: RunResult, path: Path, detail_rows: int | None = None,
+                      input_rows: int | None = None) -> None:
+    """The workbook of ``result``. ByVehicle copies results.csv up to ``detail_rows`` rows
+    (default :data:`DETAIL_ROWS`), Inputs the Vehicles rows as read up to ``input_rows``
+    (:data:`INPUT_ROWS`); beyond that the sheet says where the rows are instead
+    (results.csv / results.parquet, the fleet workbook)."""
+    detail_rows = DETAIL_ROWS if detail_rows is None else detail_rows
+    input_rows = INPUT_ROWS if input_rows is None else input_rows
+    cells = (min(len(result.results), detail_rows) * len(result.results.columns)
+             + min(len(result.fleet.vehicles), input_rows) * (len(VEHICLE_COLUMNS) + 5))
     book = Book(path, cells)
     totals = scenario_totals(result.classes)
     _summary(book, result, totals)
     _assumptions(book, result)
     _by_class(book, result)
-    _by_vehicle(book, result)
+    _by_vehicle(book, result, detail_rows)
     _comparison(book, result)
     _fiscal(book, result)
     _registrations(book, result)
     _maps(book, result)
-    _inputs(book, result)
+    _inputs(book, result, input_rows)
     _run_info(book, result)
     _what_changed(book, result)
     book.close()
@@ -331,11 +359,21 @@ def _by_class(book: Book, result: RunResult):
                    (max(7.5, 0.5 * len(pivot) * len(pivot.columns)), 18))
 
 
-def _by_vehicle(book: Book, result: RunResult):
+def _by_vehicle(book: Book, result: RunResult, detail_rows: int):
+    """results.csv as a filterable table, or, beyond ``detail_rows`` rows, a note saying how many
+    rows there are and where they are (results.csv and results.parquet hold every one)."""
     sheet = Sheet(book, "ByVehicle")
     sheet.ws.freeze_panes("C2")
     page_setup(sheet)
     frame = result.results
+    if len(frame) > detail_rows:
+        _widths(sheet, [str(n) for n in frame.columns])
+        sheet.append(list(frame.columns), "header")
+        sheet.append([f"{len(frame):,} per-vehicle rows (scenario x vehicle type): more than the "
+                      f"{detail_rows:,} this workbook holds, so none are copied here."], "bold")
+        sheet.append(["Every row, with these columns, is in results.csv and results.parquet next to this "
+                      "workbook; totals by class are in ByClass, by scenario in Summary (docs/report.md)."])
+        return
     sheet.ws.autofilter(0, 0, len(frame), len(frame.columns) - 1)
     _table(sheet, frame)
 
@@ -481,7 +519,7 @@ def _map_chart(sheet: Sheet, m: EfficiencyMap, header_row: int, n_rows: int, n_s
     return chart
 
 
-def _inputs(book: Book, result: RunResult):
+def _inputs(book: Book, result: RunResult, input_rows: int):
     sheet = Sheet(book, "Inputs")
     page_setup(sheet, title_row=None)
     fleet = result.fleet
@@ -503,6 +541,10 @@ def _inputs(book: Book, result: RunResult):
     sheet.append([])
     sheet.append(["Vehicles (as read)"], "bold")
     sheet.append(vehicle_names, "header")
+    if len(fleet.vehicles) > input_rows:
+        sheet.append([f"{len(fleet.vehicles):,} Vehicles rows: more than the {input_rows:,} this workbook "
+                      f"copies; they are in the fleet workbook {fleet.path.name} (sha256 {fleet.sha256})."], "bold")
+        return
     columns = [[getattr(v, c.name) for v in fleet.vehicles] for c in VEHICLE_COLUMNS]
     ratios = [c.name for c in VEHICLE_COLUMNS].index("transmission_gear_ratios")
     columns[ratios] = [",".join(f"{r:g}" for r in value) for value in columns[ratios]]

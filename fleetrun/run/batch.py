@@ -23,6 +23,8 @@ import traceback
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import click
+
 from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError
@@ -174,7 +176,8 @@ def read_config(path: Path) -> dict:
 
 
 class Progress:
-    """A progress bar on a terminal; plain log lines (every 10 %) otherwise."""
+    """A progress bar on a terminal (``click.progressbar``: bar, count, time left); plain log
+    lines (every 10 %) otherwise."""
 
     def __init__(self, label: str, stream=None, enabled: bool = True):
         self.label = label
@@ -182,26 +185,25 @@ class Progress:
         self.enabled = enabled
         self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
         self._last_decile = -1
-        self._started = time.perf_counter()
+        self._bar = None
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled or total <= 0:
             return
-        fraction = done / total
         if self.tty:
-            width = 30
-            filled = int(round(width * fraction))
-            elapsed = time.perf_counter() - self._started
-            self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] "
-                              f"{done}/{total} tasks {elapsed:5.1f} s")
-            if done == total:
-                self.stream.write("\n")
-            self.stream.flush()
-        else:
-            decile = int(fraction * 10)
-            if decile != self._last_decile:
-                self._last_decile = decile
-                log.info("%s: %d/%d simulation tasks (%d %%)", self.label, done, total, int(fraction * 100))
+            if self._bar is None:
+                self._bar = click.progressbar(length=total, label=self.label, file=self.stream, show_pos=True,
+                                              item_show_func=lambda _: "simulation tasks")
+                self._bar.__enter__()
+            self._bar.update(done - self._bar.pos)
+            if done >= total:
+                self._bar.__exit__(None, None, None)
+            return
+        fraction = done / total
+        decile = int(fraction * 10)
+        if decile != self._last_decile:
+            self._last_decile = decile
+            log.info("%s: %d/%d simulation tasks (%d %%)", self.label, done, total, int(fraction * 100))
 
 
 def setup_logging(log_file: Path | None, quiet: bool) -> list[logging.Handler]:

@@ -328,10 +328,11 @@ def _shortfall_phrase(name: str, value: float) -> str:
 
 
 def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
-    """One line per vehicle that could not follow some cycle: which cycles, and the worst
-    value of each shortfall measure the simulation reports."""
-    by_vehicle: dict[int, dict] = {}
-    for (cycle, ambient), arrays in shortfalls.items():
+    """One line per vehicle that could not follow some cycle (the first MAX_LISTED_WARNINGS,
+    then a count): which cycles, and the worst value of each shortfall measure the simulation
+    reports. The masks are numpy; only the listed vehicles are looked at one by one."""
+    behind_by_condition = {}
+    for condition, arrays in shortfalls.items():
         if not arrays:
             continue
         names = sorted(arrays)
@@ -341,22 +342,34 @@ def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
             behind = np.nan_to_num(arrays["shortfall_time_s"]) > 0
         else:
             behind = (stacked > SHORTFALL_TOLERANCE).any(axis=0)
-        for i in np.flatnonzero(behind):
-            entry = by_vehicle.setdefault(int(i), {"cycles": {}, "worst": {}})
-            entry["cycles"].setdefault(_cycle_label(cycle), []).append(f"{ambient:g} C")
-            for k, name in enumerate(names):
-                if stacked[k, i] > SHORTFALL_TOLERANCE:
-                    entry["worst"][name] = max(entry["worst"].get(name, 0.0), float(stacked[k, i]))
-    lines = []
-    for i in sorted(by_vehicle)[:MAX_LISTED_WARNINGS]:
-        entry = by_vehicle[i]
-        cycles = ", ".join(f"{c} ({', '.join(t)})" for c, t in entry["cycles"].items())
-        worst = ", ".join(_shortfall_phrase(n, v) for n, v in sorted(entry["worst"].items(), key=_phrase_order))
-        lines.append(f"vehicle {vehicles[i].vehicle_id} cannot follow {cycles}; worst shortfall: {worst}")
-    if len(by_vehicle) > MAX_LISTED_WARNINGS:
-        lines.append(f"... and {len(by_vehicle) - MAX_LISTED_WARNINGS} more vehicle types that cannot "
+        behind_by_condition[condition] = (names, stacked, behind)
+    if not behind_by_condition:
+        return []
+    anyone = np.logical_or.reduce([behind for _, _, behind in behind_by_condition.values()])
+    vehicles_behind = np.flatnonzero(anyone)
+    lines = [_shortfall_line(vehicles[i], int(i), behind_by_condition)
+             for i in vehicles_behind[:MAX_LISTED_WARNINGS]]
+    if len(vehicles_behind) > MAX_LISTED_WARNINGS:
+        lines.append(f"... and {len(vehicles_behind) - MAX_LISTED_WARNINGS} more vehicle types that cannot "
                      "follow some cycle")
     return lines
+
+
+def _shortfall_line(vehicle, i: int, behind_by_condition: dict) -> str:
+    """The warning of vehicle ``i``: the cycles (and temperatures) it falls behind on, the worst
+    of each shortfall measure over them."""
+    cycles: dict[str, list[str]] = {}
+    worst: dict[str, float] = {}
+    for (cycle, ambient), (names, stacked, behind) in behind_by_condition.items():
+        if not behind[i]:
+            continue
+        cycles.setdefault(_cycle_label(cycle), []).append(f"{ambient:g} C")
+        for k, name in enumerate(names):
+            if stacked[k, i] > SHORTFALL_TOLERANCE:
+                worst[name] = max(worst.get(name, 0.0), float(stacked[k, i]))
+    listed = ", ".join(f"{c} ({', '.join(t)})" for c, t in cycles.items())
+    measures = ", ".join(_shortfall_phrase(n, v) for n, v in sorted(worst.items(), key=_phrase_order))
+    return f"vehicle {vehicle.vehicle_id} cannot follow {listed}; worst shortfall: {measures}"
 
 
 def _cycle_label(cycle: str) -> str:

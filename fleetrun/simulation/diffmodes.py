@@ -9,7 +9,7 @@ simulation knows the *output* (wheel) torque, so every mode inverts it: find T_i
 L = T_in - T_out / G_tot.
 
 - ``direct`` (Sec. 6.1): the model is called at every step inside a bracketed
-  Illinois (false-position) root search, to 1e-10 of the Kim scale.
+  root search (scipy.optimize.elementwise.find_root), to 1e-10 of the Kim scale.
 - ``map2d`` (Sec. 6.2): per vehicle, the model is evaluated once on an input-torque x speed
   grid at the vehicle's own gear ratio(s); each speed column is inverted (input torque as a
   function of output torque) and the steps interpolate bilinearly in that inverse map.
@@ -111,8 +111,8 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     """Input torque fraction whose output fraction eta*T_in equals ``out_frac`` (>= 0).
 
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
-    Illinois false position on f(x) = eta(x) x - out, bracketed by [out, hi]: eta <= 1 makes
-    f(out) <= 0; hi grows geometrically until f(hi) >= 0.
+    f(x) = eta(x) x - out is bracketed by [out, hi]: eta <= 1 makes f(out) <= 0; hi grows
+    geometrically until f(hi) >= 0; scipy.optimize.elementwise.find_root finds each root.
     """
     # zero output is met by any input up to the no-load loss; aim just above 0 so the
     # answer is that loss (continuous with small outputs, and what the maps give at 0)
@@ -142,30 +142,22 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     else:
         raise FleetrunError("the differential model delivers no output torque at any input torque here",
                             hint="Check the gear ratio and speed range of the vehicle")
-    x = lo.copy()
-    done = np.abs(f_lo) <= tol
-    x[done] = lo[done]
-    side = np.zeros(out.size, np.int8)
-    active = np.flatnonzero(~done)
-    for _ in range(max_iter):
-        if active.size == 0:
-            break
-        a, b, fa, fb = lo[active], hi[active], f_lo[active], f_hi[active]
-        denom = fb - fa
-        xm = np.where(denom > 0, (a * fb - b * fa) / np.where(denom > 0, denom, 1.0), 0.5 * (a + b))
-        xm = np.clip(xm, a, b)
-        fm = f(xm, active)
-        x[active] = xm
-        conv = (np.abs(fm) <= tol) | ((b - a) <= tol)
-        right = fm > 0  # root in [a, xm]
-        s = side[active]
-        # Illinois: halve the retained end's value when the same end is kept twice
-        new_hi, new_lo = np.where(right, xm, b), np.where(right, a, xm)
-        new_fhi = np.where(right, fm, np.where(s == -1, fb * 0.5, fb))
-        new_flo = np.where(right, np.where(s == 1, fa * 0.5, fa), fm)
-        side[active] = np.where(right, 1, -1)
-        lo[active], hi[active], f_lo[active], f_hi[active] = new_lo, new_hi, new_flo, new_fhi
-        active = active[~conv]
+    # the root inside each bracket: scipy's elementwise bracketing solver (Chandrupatla), to
+    # ``tol`` in the torque fraction and in the output mismatch; imported here (direct mode only)
+    from scipy.optimize.elementwise import find_root
+
+    def g(x, idx):
+        return f(x, idx.astype(np.intp))
+
+    # find_root wants a strict sign change. An end that already meets the output is the
+    # answer; where the model gives eta > 1 at ``out`` (f(lo) > 0: no sign change in the
+    # bracket) the answer is ``lo``, as the earlier false-position iteration converged to
+    x = np.where(f_lo >= -tol, lo, hi)
+    todo = np.flatnonzero((f_lo < -tol) & (f_hi > tol))
+    if todo.size:
+        found = find_root(g, (lo[todo], hi[todo]), args=(todo.astype(float),), maxiter=max_iter,
+                          tolerances={"xatol": tol, "xrtol": 0.0, "fatol": tol, "frtol": 0.0})
+        x[todo] = found.x
     return x
 
 

@@ -12,14 +12,15 @@ Refused: merged cells in the data, formulas whose result was never saved, duplic
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import zipfile
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from openpyxl.utils import column_index_from_string, get_column_letter
 from python_calamine import CalamineError
+from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.cycles import load_cycle, shipped_cycles
 from fleetrun.errors import InputError, closest_names, unknown_name_error
@@ -31,7 +32,13 @@ from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO, REGIST
                                    REGISTRATIONS_SHEET, SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.workbook.xlsx_read import XlsxBook
-from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, scan_sheets
+from fleetrun.workbook.xlsx_safety import HINT, check_xlsx, column_number, scan_sheets
+
+
+def get_column_letter(index: int) -> str:
+    """A 1-based column index as its letters (1 = A)."""
+    return xl_col_to_name(index - 1)
+
 
 ROW_MOSTLY_EMPTY = 4       # this many empty required cells: report the row once
 MIX_SUM_TOLERANCE = 0.01   # shares typed as 0.33,0.33,0.33 (0.99) are normalised (with a warning)
@@ -243,6 +250,8 @@ class _Table:
     rows: list[tuple[int, tuple]]        # (Excel row number, values)
     uncached: dict = field(default_factory=dict)   # (row, col) -> formula without saved result
     present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
+    plan: list | None = None             # _plan's per-column fast-path bounds, made once
+    texts: dict = field(default_factory=dict)   # column index -> {text: parsed value or CellProblem}
 
 
 def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allow_empty: bool = False) -> _Table:
@@ -253,7 +262,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
     for ref in values.merged:
         first = ref.split(":")[0]
         match = re.match(r"([A-Z]+)([0-9]+)", first)
-        key = (sheet, int(match.group(2)), column_index_from_string(match.group(1))) if match else (sheet, 0, 0)
+        key = (sheet, int(match.group(2)), column_number(match.group(1))) if match else (sheet, 0, 0)
         problems.errors.append((key, f"{sheet}!{ref}: merged cells; unmerge them and give every "
                                      "row its own values"))
     if values.hidden_rows:
@@ -298,6 +307,8 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
                        sheet, 1, name=None)
     body: list[tuple[int, tuple]] = []
     headed = set(columns.values()) | set(extra.values())
+    widest = max((len(r) for _, r in values.rows), default=0)
+    unheaded = [i for i in range(1, widest + 1) if i not in headed]   # looked at in each row
     unheaded_warned: set[int] = set()
     uncached_rows = {r for r, _ in values.uncached_formulas}
     for row_number, row_values in values.rows:
@@ -305,8 +316,11 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
             continue
         if all(cells.is_blank(v) for v in row_values) and row_number not in uncached_rows:
             continue  # blank rows (between blocks, or formatted-but-empty at the end)
-        for index, value in enumerate(row_values, start=1):
-            if index not in headed and not cells.is_blank(value) and index not in unheaded_warned:
+        width = len(row_values)
+        for index in unheaded:
+            if index > width:
+                break
+            if index not in unheaded_warned and not cells.is_blank(row_values[index - 1]):
                 unheaded_warned.add(index)
                 problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
                               "ignored", sheet, row_number, index)
@@ -326,11 +340,11 @@ def _cell(values: tuple, index: int | None):
 def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: Problems) -> tuple[dict, bool]:
     """The row's schema columns as typed values (None when blank or bad), and whether all
     cells were good (row-level checks still run on the good ones)."""
-    parsed = {c.name: None for c in schema}
+    parsed = dict.fromkeys(_names(schema))
     ok = True
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
-    for column, index in table.present:
+    for column, index, low, high in _plan(table):
         raw = values[index - 1] if index <= width else None
         if uncached and (row_number, index) in uncached:
             problem, raw = rows.scanned_cell(column, uncached[(row_number, index)], raw)
@@ -338,15 +352,19 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
                 problems.error(problem, table.sheet, row_number, index, column.name)
                 ok = False
                 continue
+        if type(raw) is float and low <= raw <= high:   # a number within its range: rows.parse_value's fast path
+            parsed[column.name] = raw
+            continue
         if raw is None or (type(raw) is str and not raw.strip()):
             if column.required:
                 blanks.append((column, index))
             continue
-        try:
-            parsed[column.name] = rows.parse_value(column, raw)
-        except CellProblem as problem:
-            problems.error(str(problem), table.sheet, row_number, index, column.name)
+        value = _parsed_value(table, column, index, raw)
+        if isinstance(value, CellProblem):
+            problems.error(str(value), table.sheet, row_number, index, column.name)
             ok = False
+        else:
+            parsed[column.name] = value
     if len(blanks) >= ROW_MOSTLY_EMPTY:
         # A half-filled row: one line for the row, not one per cell.
         listed = ", ".join(f"{c.name} ({get_column_letter(i)})" for c, i in blanks)
@@ -356,6 +374,46 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
     parsed["_extra"] = {k: v for k, v in extra.items() if not cells.is_blank(v)}
     return parsed, ok and not blanks
+
+
+@lru_cache(maxsize=8)
+def _names(schema) -> tuple[str, ...]:
+    return tuple(c.name for c in schema)
+
+
+def _plan(table: _Table) -> list[tuple[Column, int, float, float]]:
+    """Per schema column present: (column, index, low, high), the range a float cell may take
+    without further parsing (rows.parse_value's own fast path); an empty range for the others."""
+    if table.plan is None:
+        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)))
+                      for c, i in table.present]
+    return table.plan
+
+
+TEXT_CACHE_SIZE = 4096   # distinct texts remembered per column (choices, ratios and tyres repeat)
+
+
+def _parsed_value(table: _Table, column: Column, index: int, raw):
+    """rows.parse_value of a non-blank cell, or the CellProblem it raised. A text cell's result
+    is remembered per column of this table: a fleet repeats its choices, ratios and tyres."""
+    if type(raw) is not str:
+        try:
+            return rows.parse_value(column, raw)
+        except CellProblem as problem:
+            return problem
+    known = table.texts.setdefault(index, {})
+    value = known.get(raw, _UNSEEN)
+    if value is _UNSEEN:
+        try:
+            value = rows.parse_value(column, raw)
+        except CellProblem as problem:
+            value = problem
+        if len(known) < TEXT_CACHE_SIZE:
+            known[raw] = value
+    return value
+
+
+_UNSEEN = object()
 
 
 def _text_or_blank(raw) -> str:

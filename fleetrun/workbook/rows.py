@@ -32,7 +32,7 @@ def parse_value(column: Column, raw):
     """The typed value of a non-blank cell of ``column``, inside the column's physical range;
     CellProblem (quoting the value) otherwise."""
     if type(raw) is float and column.kind == "number":
-        low, high = _bounds(column)
+        low, high = number_bounds(column)
         if low <= raw <= high:          # the common case: a number cell within its range
             return raw
     if type(raw) is str:
@@ -108,7 +108,7 @@ def check_range(column: Column, value, raw) -> None:
 
 
 @lru_cache(maxsize=None)
-def _bounds(column: Column) -> tuple[float, float]:
+def number_bounds(column: Column) -> tuple[float, float]:
     """The closed interval of a number column's range (strictly positive: from the smallest
     positive float); NaN never lies inside."""
     low = -math.inf if column.minimum is None else float(column.minimum)
@@ -196,7 +196,7 @@ def check_vehicle(p: dict, report: Report) -> bool:
             report("low_gear_ratio", f"ignored: {config} has no two-speed axle", warning=True)
             p["low_gear_ratio"] = None
     ratios = p.get("transmission_gear_ratios") or ()
-    if any(later > earlier for earlier, later in zip(ratios, ratios[1:])):
+    if list(ratios) != sorted(ratios, reverse=True):   # some later gear above an earlier one
         report("transmission_gear_ratios", f"{', '.join(f'{r:g}' for r in ratios)} is not in falling "
                "order (first gear first?)", warning=True)
     _vehicle_plausible(p, report)
@@ -236,8 +236,10 @@ def check_temperature_budget(temperatures: list[tuple[int, float]], report_at) -
                       f"runs at most {MAX_AMBIENT_TEMPERATURES} (each costs an efficiency map per axle); "
                       "round the temperatures, or split the scenarios over workbooks")
             return
+_VEHICLE_NAMES = tuple(c.name for c in VEHICLE_COLUMNS)
 
 
 def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:
     """The VehicleSpec of a checked row (``parsed`` keyed by Vehicles column)."""
-    return VehicleSpec(**{c.name: parsed.get(c.name) for c in VEHICLE_COLUMNS}, extra=extra)
+    get = parsed.get
+    return VehicleSpec(**{name: get(name) for name in _VEHICLE_NAMES}, extra=extra)

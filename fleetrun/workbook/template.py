@@ -7,20 +7,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from openpyxl import Workbook
-from openpyxl.comments import Comment
-from openpyxl.styles import Alignment, Font, PatternFill
-from openpyxl.utils import get_column_letter
-from openpyxl.worksheet.datavalidation import DataValidation
+import xlsxwriter
 
 from fleetrun.fileio import atomic_file
 from fleetrun.workbook.schema import (REGISTRATION_COLUMNS, REGISTRATIONS_SHEET, SCENARIO_COLUMNS,
                                    SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET, Column)
 
-HEADER_FILL = PatternFill("solid", fgColor="1F4E78")
-OPTIONAL_FILL = PatternFill("solid", fgColor="5B7FA6")
-HEADER_FONT = Font(bold=True, color="FFFFFF")
+#: Cell formats (XlsxWriter properties): required headers dark, optional ones lighter.
+HEADER = {"bold": True, "font_color": "#FFFFFF", "bg_color": "#1F4E78", "pattern": 1, "align": "center"}
+OPTIONAL_HEADER = {**HEADER, "bg_color": "#5B7FA6"}
 VALIDATED_ROWS = 5000     # drop-downs cover this many data rows
+TITLE_CHARS = 32          # Excel's longest validation error title (XlsxWriter skips a longer rule)
 
 INSTRUCTIONS = [
     ("fleetrun fleet workbook", None),
@@ -64,96 +61,84 @@ INSTRUCTIONS = [
 
 
 def write_template(path: Path) -> None:
-    """Write the template workbook to ``path`` (atomically)."""
-    workbook = build_template()
+    """Write the template workbook to ``path`` (atomically), with XlsxWriter: the one Excel
+    writer of fleetrun (report.xlsx and import-epa's workbook too)."""
     with atomic_file(Path(path)) as temporary:
-        workbook.save(temporary)
+        workbook = xlsxwriter.Workbook(str(temporary), {"strings_to_numbers": False, "strings_to_formulas": False,
+                                                        "strings_to_urls": False})
+        instructions = workbook.add_worksheet("Instructions")
+        formats = {"required": workbook.add_format(HEADER), "optional": workbook.add_format(OPTIONAL_HEADER),
+                   "text": workbook.add_format({"num_format": "@"}), "bold": workbook.add_format({"bold": True}),
+                   "title": workbook.add_format({"bold": True, "font_size": 14})}
+        registrations = workbook.add_worksheet(REGISTRATIONS_SHEET)
+        _fill_sheet(registrations, REGISTRATION_COLUMNS, formats, examples=False)
+        _fill_sheet(workbook.add_worksheet(VEHICLES_SHEET), VEHICLE_COLUMNS, formats)
+        _fill_sheet(workbook.add_worksheet(SCENARIOS_SHEET), SCENARIO_COLUMNS, formats)
+        _fill_instructions(instructions, formats)
+        registrations.activate()   # the second sheet, after the Instructions
+        workbook.close()
 
 
-def build_template() -> Workbook:
-    workbook = Workbook()
-    instructions = workbook.active
-    instructions.title = "Instructions"
-    _fill_sheet(workbook.create_sheet(REGISTRATIONS_SHEET), REGISTRATION_COLUMNS, examples=False)
-    _fill_sheet(workbook.create_sheet(VEHICLES_SHEET), VEHICLE_COLUMNS)
-    _fill_sheet(workbook.create_sheet(SCENARIOS_SHEET), SCENARIO_COLUMNS)
-    _fill_instructions(instructions)
-    workbook.active = 1
-    return workbook
-
-
-def _fill_sheet(ws, columns: tuple[Column, ...], examples: bool = True) -> None:
+def _fill_sheet(ws, columns: tuple[Column, ...], formats: dict, examples: bool = True) -> None:
     """Headers, notes, drop-downs and (``examples``) the two example rows. The Registrations
     sheet has no example rows: a row there has no id a warning could point at, so it would count."""
-    for index, column in enumerate(columns, start=1):
-        cell = ws.cell(row=1, column=index, value=column.name)
-        cell.font = HEADER_FONT
-        cell.fill = HEADER_FILL if column.required else OPTIONAL_FILL
-        cell.alignment = Alignment(horizontal="center")
-        cell.comment = Comment(("required: " if column.required else "optional: ") + column.note,
-                               "fleetrun")
-        ws.column_dimensions[get_column_letter(index)].width = max(12, len(column.name) + 2)
-        for row, example in enumerate(column.example if examples else (), start=2):
-            target = ws.cell(row=row, column=index, value=example)
+    for index, column in enumerate(columns):
+        ws.write_string(0, index, column.name, formats["required" if column.required else "optional"])
+        ws.write_comment(0, index, ("required: " if column.required else "optional: ") + column.note,
+                         {"author": "fleetrun"})
+        ws.set_column(index, index, max(12, len(column.name) + 2))
+        for row, example in enumerate(column.example if examples else (), start=1):
             if column.kind in ("text", "ratios", "cycle_mix", "choice"):
-                target.number_format = "@"  # keep "3.5,2.1" and ids as text
+                ws.write_string(row, index, str(example), formats["text"])  # keep "3.5,2.1" and ids as text
+            else:
+                ws.write(row, index, example)
         if column.kind in ("number", "integer"):
-            _number_rule(ws, column, get_column_letter(index))
+            _number_rule(ws, column, index)
         if column.choices:
-            letter = get_column_letter(index)
-            rule = DataValidation(type="list", formula1='"' + ",".join(column.choices) + '"',
-                                  allow_blank=not column.required, showErrorMessage=True,
-                                  errorTitle=column.name,
-                                  error=f"Choose one of: {', '.join(column.choices)}")
-            rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
-            ws.add_data_validation(rule)
-    ws.freeze_panes = "B2"
+            ws.data_validation(1, index, VALIDATED_ROWS, index, {
+                "validate": "list", "source": list(column.choices), "ignore_blank": not column.required,
+                "error_title": column.name[:TITLE_CHARS], "error_message": f"Choose one of: {', '.join(column.choices)}"})
+    ws.freeze_panes(1, 1)
 
 
-def _number_rule(ws, column: Column, letter: str) -> None:
+def _number_rule(ws, column: Column, index: int) -> None:
     """Excel refuses what is not a number (a whole number for integer columns) in range."""
-    kind = "whole" if column.kind == "integer" else "decimal"
+    kind = "integer" if column.kind == "integer" else "decimal"
     if column.maximum is not None:
         low = column.minimum if column.minimum is not None else 0.0
-        operator, first, second, words = ("between", f"{low:g}", f"{column.maximum:g}",
-                                          f"from {low:g} to {column.maximum:g}")
+        rule, words = {"criteria": "between", "minimum": low, "maximum": column.maximum}, \
+            f"from {low:g} to {column.maximum:g}"
     elif column.strictly_positive:
-        operator, first, second, words = "greaterThan", "0", None, "greater than 0"
+        rule, words = {"criteria": ">", "value": 0}, "greater than 0"
     elif column.minimum is not None:
-        operator, first, second, words = ("greaterThanOrEqual", f"{column.minimum:g}", None,
-                                          f"at least {column.minimum:g}")
+        rule, words = {"criteria": ">=", "value": column.minimum}, f"at least {column.minimum:g}"
     else:
-        operator, first, second, words = "between", "-1E+300", "1E+300", "a number"
-    rule = DataValidation(type=kind, operator=operator, formula1=first, formula2=second,
-                          allow_blank=not column.required, showErrorMessage=True, errorTitle=column.name,
-                          error=f"{column.name}: {'a whole number' if kind == 'whole' else 'a number'} "
-                                f"{words if words != 'a number' else ''}".strip())
-    rule.add(f"{letter}2:{letter}{VALIDATED_ROWS + 1}")
-    ws.add_data_validation(rule)
+        rule, words = {"criteria": "between", "minimum": -1e300, "maximum": 1e300}, ""
+    noun = "a whole number" if kind == "integer" else "a number"
+    ws.data_validation(1, index, VALIDATED_ROWS, index, {
+        "validate": kind, **rule, "ignore_blank": not column.required, "error_title": column.name[:TITLE_CHARS],
+        "error_message": f"{column.name}: {noun} {words}".strip()})
 
 
-def _fill_instructions(ws) -> None:
-    for letter, width in zip("ABCDE", (34, 12, 70, 22, 22)):
-        ws.column_dimensions[letter].width = width
-    row = 1
-    for text, _ in INSTRUCTIONS:
-        ws.cell(row=row, column=1, value=text)
-        row += 1
-    ws["A1"].font = Font(bold=True, size=14)
-    for index, text in enumerate(("", "", "", "range (outside: refused)", "usual (outside: warning)"), start=1):
-        if text:
-            ws.cell(row=row - 1, column=index, value=text)
-        ws.cell(row=row - 1, column=index).font = Font(bold=True)
+def _fill_instructions(ws, formats: dict) -> None:
+    for index, width in enumerate((34, 12, 70, 22, 22)):
+        ws.set_column(index, index, width)
+    for row, (text, _) in enumerate(INSTRUCTIONS):
+        ws.write_string(row, 0, text, formats["title"] if row == 0 else None)
+    row = len(INSTRUCTIONS) - 1      # the "Columns" line: the table's header row
+    ws.write_string(row, 0, INSTRUCTIONS[-1][0], formats["bold"])
+    ws.write_string(row, 3, "range (outside: refused)", formats["bold"])
+    ws.write_string(row, 4, "usual (outside: warning)", formats["bold"])
     for sheet, columns in ((REGISTRATIONS_SHEET, REGISTRATION_COLUMNS), (VEHICLES_SHEET, VEHICLE_COLUMNS),
                            (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
         for column in columns:
-            ws.cell(row=row, column=1, value=f"{sheet}.{column.name}")
-            ws.cell(row=row, column=2, value="required" if column.required else "optional")
-            choices = f" ({', '.join(column.choices)})" if column.choices else ""
-            ws.cell(row=row, column=3, value=column.note + choices)
-            ws.cell(row=row, column=4, value=column.range_text() or None)
-            ws.cell(row=row, column=5, value=usual_text(column) or None)
             row += 1
+            choices = f" ({', '.join(column.choices)})" if column.choices else ""
+            values = (f"{sheet}.{column.name}", "required" if column.required else "optional",
+                      column.note + choices, column.range_text(), usual_text(column))
+            for index, value in enumerate(values):
+                if value:
+                    ws.write_string(row, index, value)
 
 
 def usual_text(column) -> str:

@@ -65,12 +65,15 @@ class XlsxBook:
         data = self.book.get_sheet_by_name(sheet.name)
         rows = []
         for number, values in enumerate(data.to_python(skip_empty_area=False), start=1):
-            cells = tuple(None if v == "" else v for v in values)
-            width = len(cells)
-            while width and cells[width - 1] is None:
-                width -= 1
-            if width:
-                rows.append((number, cells[:width]))
+            if "" in values:   # calamine's empty cell: None, and trailing empties dropped
+                cells = [None if v == "" else v for v in values]
+                width = len(cells)
+                while width and cells[width - 1] is None:
+                    width -= 1
+                if width:
+                    rows.append((number, tuple(cells[:width])))
+            elif values:       # a full row (the common case in a fleet table): as it is
+                rows.append((number, tuple(values)))
         merged = [f"{xl_col_to_name(c0)}{r0 + 1}:{xl_col_to_name(c1)}{r1 + 1}"
                   for (r0, c0), (r1, c1) in (data.merged_cell_ranges or [])]
         scan = self.scans.get(sheet.name) or SheetScan()
