@@ -35,6 +35,8 @@ class RunResult:
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
     error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
+    tornado: pd.DataFrame | None = None        # state revenue per driver at its 5th / 95th percentile
+    ranges: dict = field(default_factory=dict)  # scenario -> fuel or "all" -> (low, high) / central per year
     changes: dict | None = None                # changes.compare with the run already in the folder
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -29,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.budget import arithmetic as budget
+from fleetrun.budget import drivers
 from fleetrun.workbook.schema import DUTY_CLASSES
 from fleetrun.units import METERS_PER_MILE
 
@@ -57,7 +59,19 @@ FISCAL_SOURCES = {"miles": "miles_total", "fuel_gal": "fuel_gal_total", "fuel_ga
                   "ev_fee_usd": "ev_fee_usd"}
 ELECTRIC = "electric"
 CALIBRATION_COLUMNS = ["scenario_id", "fuel", "fiscal_year", "model_gallons", "observed_gallons",
-                       "model_to_observed", "calibrated", "scale"]
+                       "model_to_observed", "calibrated", "scale", "fitted_on"]
+TORNADO_COLUMNS = ["scenario_id", "driver", "low_usd", "high_usd", "central_usd"]
+
+
+@dataclass
+class BudgetTables:
+    """What the budget arithmetic hands the runner."""
+    results: pd.DataFrame
+    yearly: dict            # scenario_id -> {column: rows x budget years}
+    calibration: pd.DataFrame
+    ranges: dict            # scenario_id -> {fuel or "all": (low / central, high / central) per year}
+    tornado: pd.DataFrame
+    warnings: list
 
 
 @lru_cache(maxsize=64)
@@ -75,14 +89,13 @@ def _cycle_kind(cycle: str) -> str:
                              cycle_mean_speed_kph(cycle))
 
 
-def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
-                 error_model=None) -> dict[str, np.ndarray]:
-    """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, the range's
-    gallons per mile, on-road kWh per mile (electric rows) and the energies per mile."""
+def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict) -> dict[str, np.ndarray]:
+    """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, on-road kWh per
+    mile (electric rows) and the energies per mile."""
     n = len(duty_of)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
-    names = ("fuel_gal_cycle", "fuel_gal", "fuel_gal_low", "fuel_gal_high", "kwh") + ENERGY_FIELDS
+    names = ("fuel_gal_cycle", "fuel_gal", "kwh") + ENERGY_FIELDS
     per_mile = {name: np.zeros(n) for name in names}
     for duty in DUTY_CLASSES:
         rows = duty_of == duty
@@ -93,38 +106,79 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
             miles = sim["miles"][rows]
             cycle_gpm = sim["fuel_gal"][rows] / miles
             kind = _cycle_kind(cycle)
-            low, high = error_model.relative_range(cycle, kind) if error_model else (math.nan, math.nan)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
-            # central value and the range's ends: cycle gallons x (1 + e), then on the road
-            for name, factor in (("fuel_gal", 1.0), ("fuel_gal_low", 1.0 + low), ("fuel_gal_high", 1.0 + high)):
-                onroad = budget.onroad_gal_per_mile(cycle_gpm * factor, s.onroad_adjustment, kind, adjusted[rows])
-                per_mile[name][rows] += share * onroad
+            per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(cycle_gpm, s.onroad_adjustment, kind,
+                                                                            adjusted[rows])
             per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)
     return per_mile
 
 
-def calibration(s, fuel: np.ndarray, gallons: np.ndarray) -> tuple[dict[str, float], list[dict]]:
-    """Scale per fuel (1 unless calibrated) and one row per fuel with observed gallons:
-    the first fiscal year's modelled gallons, the observed ones and their ratio."""
-    share = budget.year_shares(s)[0]
-    first_year = budget.fiscal_years(s)[0]
+def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarray:
+    """1 + the model's known fleet-level bias per row (measured / predicted gallons), the
+    centre's correction (docs/budget.md); 1 for electric rows and without an error model."""
+    if error_model is None:
+        return np.ones(len(duty_of))
+    bias = np.array([error_model.for_duty(d).bias for d in duty_of], dtype=float)
+    return np.where(fuel == ELECTRIC, 1.0, 1.0 + bias)
+
+
+class _Scenario:
+    """One scenario's per-vehicle, per-budget-year arrays before calibration (rows x years)."""
+
+    def __init__(self, s, vehicles, per_condition: dict, error_model):
+        self.s = s
+        self.count = np.array([v.count for v in vehicles], dtype=float)
+        annual = np.array([v.annual_miles for v in vehicles], dtype=float)
+        self.fuel = np.array([v.fuel for v in vehicles], dtype=object)
+        self.duty = np.array([v.duty_class for v in vehicles], dtype=object)
+        self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition)
+        g = s.vmt_growth_pct_per_year / 100.0
+        self.years = np.arange(s.budget_years)
+        self.miles = (self.count * annual)[:, None] * ((1.0 + g) ** self.years)[None, :]
+        price = {f: drivers.price_factor(s, f) for f in drivers.FUELS}
+        factor = np.array([price.get(f, np.ones(len(self.years))) for f in self.fuel]).reshape(len(self.fuel), -1)
+        self.gpm = self.per_mile["fuel_gal"] * bias_factor(self.duty, self.fuel, error_model)
+        self.raw = self.miles * self.gpm[:, None] * factor      # on-road, bias-corrected, priced
+
+    def base_year_gallons(self, fuel: str) -> float:
+        return math.fsum(self.raw[self.fuel == fuel, 0])
+
+
+def fit_calibration(prepared: list, warnings: list) -> tuple[dict[str, float], pd.DataFrame]:
+    """One factor per fuel: observed / modelled gallons of the base fiscal year of the first
+    scenario that gives observed gallons and says calibrate_to_observed = yes; and one row per
+    scenario x fuel with observed gallons (the ratio reported, a warning outside the band)."""
+    band = budget.constants()["calibration"]["plausible_model_to_observed"]
     scales: dict[str, float] = {}
+    fitted_on: dict[str, str] = {}
     rows = []
-    for name in ("gasoline", "diesel"):
-        observed = s.observed_base_gallons(name)
-        if observed is None:
-            continue
-        model = math.fsum(gallons[fuel == name]) * share
-        ratio = model / observed
-        scale = observed / model if (s.calibrate_to_observed and model > 0) else 1.0
-        scales[name] = scale
-        rows.append({"scenario_id": s.scenario_id, "fuel": name, "fiscal_year": first_year,
-                     "model_gallons": model, "observed_gallons": observed, "model_to_observed": ratio,
-                     "calibrated": "yes" if scale != 1.0 or s.calibrate_to_observed else "no",
-                     "scale": scale})
-    return scales, rows
+    for p in prepared:
+        s = p.s
+        for name in drivers.FUELS:
+            observed = s.observed_base_gallons(name)
+            if observed is None:
+                continue
+            model = p.base_year_gallons(name)
+            ratio = model / observed
+            if s.calibrate_to_observed and name not in scales and model > 0:
+                scales[name], fitted_on[name] = observed / model, s.scenario_id
+                if not band[0] <= ratio <= band[1]:
+                    warnings.append(f"calibration: the model's {name} gallons are {ratio:.0%} of the observed "
+                                    f"{observed:,.0f} gal (scenario {s.scenario_id}, base fiscal year "
+                                    f"{budget.fiscal_years(s)[0]}); outside the plausible {band[0]:.0%}-"
+                                    f"{band[1]:.0%}: check the vehicles, miles and the year of the collections")
+            elif s.calibrate_to_observed and fitted_on.get(name) not in (None, s.scenario_id):
+                warnings.append(f"calibration: scenario {s.scenario_id}'s observed {name} gallons are not used; "
+                                f"the factor is fitted once, on scenario {fitted_on[name]}, and applies to all")
+            rows.append({"scenario_id": s.scenario_id, "fuel": name, "fiscal_year": budget.fiscal_years(s)[0],
+                         "model_gallons": model, "observed_gallons": observed, "model_to_observed": ratio})
+    table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
+    table["calibrated"] = ["yes" if f in scales else "no" for f in table.fuel]
+    table["scale"] = [scales.get(f, 1.0) for f in table.fuel]
+    table["fitted_on"] = [fitted_on.get(f, "") for f in table.fuel]
+    return scales, table
 
 
 def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy: dict) -> dict:
@@ -141,52 +195,104 @@ def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy
         }
 
 
-def scenario_frame(s, vehicles, per_condition: dict, error_model=None) -> tuple[pd.DataFrame, list[dict]]:
-    """One row per vehicle for scenario ``s`` and its calibration rows."""
-    count = np.array([v.count for v in vehicles], dtype=float)
-    annual = np.array([v.annual_miles for v in vehicles], dtype=float)
-    fuel = np.array([v.fuel for v in vehicles], dtype=object)
-    duty_of = np.array([v.duty_class for v in vehicles], dtype=object)
-    per_mile = mix_per_mile(s, duty_of, fuel, per_condition, error_model)
-    miles_total = count * annual * s.mile_factor()
-    raw = miles_total * per_mile["fuel_gal"]
-    scales, calibration_rows = calibration(s, fuel, raw)
+def _yearly(p: _Scenario, vehicles, scales: dict, ratios: dict) -> dict[str, np.ndarray]:
+    """Per vehicle and budget year: miles, gallons, range, kWh, taxes, fees (rows x years)."""
+    s, fuel = p.s, p.fuel
     scale = np.array([scales.get(f, 1.0) for f in fuel])
-    gallons = raw * scale
-    calibrated = scale != 1.0
-    low = np.where(calibrated, gallons, miles_total * per_mile["fuel_gal_low"])
-    high = np.where(calibrated, gallons, miles_total * per_mile["fuel_gal_high"])
-    energy = {name: miles_total * per_mile[name] for name in ENERGY_FIELDS}
-    state_rate, federal_rate = budget.tax_rates(s, fuel)
+    gallons = p.raw * scale[:, None]
+    low, high = gallons.copy(), gallons.copy()       # rows without gallons (electric): 0
+    for name, (lo, hi) in ratios.items():
+        rows = fuel == name
+        low[rows], high[rows] = gallons[rows] * lo[None, :], gallons[rows] * hi[None, :]
+    state = np.zeros_like(gallons)
+    federal = np.zeros_like(gallons)
+    for name in drivers.FUELS:
+        rows = fuel == name
+        state[rows] = gallons[rows] * drivers.state_rates(s, name)[None, :]
+        federal[rows] = gallons[rows] * drivers.federal_rates(s, name)[None, :]
+    fee = np.where(fuel == ELECTRIC, p.count * s.ev_fee_usd_per_vehicle_year, 0.0)
+    return {"miles": p.miles, "fuel_gal": gallons, "fuel_gal_low": low, "fuel_gal_high": high,
+            "kwh": p.miles * p.per_mile["kwh"][:, None], "state_tax_usd": state, "federal_tax_usd": federal,
+            "ev_fee_usd": np.repeat(fee[:, None], len(p.years), axis=1)}
+
+
+def _total(values: np.ndarray) -> np.ndarray:
+    """Row sums over the years, exact (fsum) so that fiscal rows reconcile to the bit."""
+    return np.array([_fsum(row) for row in values]) if values.size else np.zeros(len(values))
+
+
+def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[pd.DataFrame, dict]:
+    """One row per vehicle for a prepared scenario, and its per-year arrays."""
+    s, fuel, count = p.s, p.fuel, p.count
+    yearly = _yearly(p, vehicles, scales, ratios)
+    miles_total = _total(p.miles)
+    gallons = _total(yearly["fuel_gal"])
+    energy = {name: miles_total * p.per_mile[name] for name in ENERGY_FIELDS}
     frame = pd.DataFrame({
         "scenario_id": s.scenario_id, "vehicle_id": [v.vehicle_id for v in vehicles],
         "vehicle_class": [v.vehicle_class for v in vehicles],
         "configuration": [v.configuration for v in vehicles], "fuel": fuel.astype(str),
         "count": _whole_if_possible(count), "miles_total": miles_total, "fuel_gal_total": gallons,
-        **_ratios(per_mile, miles_total, gallons, energy),
-        "state_tax_usd": gallons * state_rate, "federal_tax_usd": gallons * federal_rate, **energy,
-        "duty_class": duty_of.astype(str), "fuel_gal_cycle_total": miles_total * per_mile["fuel_gal_cycle"],
-        "fuel_gal_uncalibrated_total": raw, "fuel_gal_low_total": low, "fuel_gal_high_total": high,
-        "kwh_total": miles_total * per_mile["kwh"],
-        "ev_fee_usd": np.where(fuel == ELECTRIC, count * s.ev_fee_usd_per_vehicle_year * s.budget_years, 0.0),
+        **_ratios(p.per_mile, miles_total, gallons, energy),
+        "state_tax_usd": _total(yearly["state_tax_usd"]), "federal_tax_usd": _total(yearly["federal_tax_usd"]),
+        **energy, "duty_class": p.duty.astype(str), "fuel_gal_cycle_total": miles_total * p.per_mile["fuel_gal_cycle"],
+        "fuel_gal_uncalibrated_total": _total(p.raw), "fuel_gal_low_total": _total(yearly["fuel_gal_low"]),
+        "fuel_gal_high_total": _total(yearly["fuel_gal_high"]), "kwh_total": _total(yearly["kwh"]),
+        "ev_fee_usd": _total(yearly["ev_fee_usd"]),
     })
     frame.loc[fuel == ELECTRIC, "mpg"] = np.nan   # no gallons: kwh_total instead
-    return frame, calibration_rows
+    return frame, yearly
+
+
+def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: list) -> tuple[dict, dict]:
+    """The Monte Carlo's central gallons per (fuel, duty) and year, and its settings."""
+    from fleetrun.budget.ranges import DUTIES
+
+    scale = np.array([scales.get(f, 1.0) for f in p.fuel])
+    gallons = p.raw * scale[:, None]
+    makers = np.array([v.manufacturer or v.make for v in vehicles], dtype=object)
+    central, sd = {}, {}
+    for fuel in drivers.FUELS:
+        for duty in DUTIES:
+            rows = (p.fuel == fuel) & ((p.duty == "LD") if duty == "LD" else (p.duty != "LD"))
+            if not rows.any():
+                continue
+            central[(fuel, duty)] = gallons[rows].sum(axis=0)
+            model = error_model.for_duty(duty) if error_model is not None else None
+            sd[(fuel, duty)] = model.relative_sd(gallons[rows].sum(axis=1), makers[rows]) if model else 0.0
+    short, long = drivers.elasticities(p.s)
+    spec = {"u": drivers.uncertainty(), "years": len(p.years), "growth": p.s.vmt_growth_pct_per_year / 100.0,
+            "short": short, "long": long, "calibrated": set(scales), "sd_model": sd,
+            "observed_sd": budget.constants()["calibration"]["observed_relative_sd"]}
+    return central, spec
 
 
 def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: dict,
-                       error_model=None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget
-    years), and the calibration table (one row per scenario x fuel with observed gallons)."""
-    frames, rows = [], []
-    for s in scenarios:
-        frame, calibration_rows = scenario_frame(s, vehicles, per_condition, error_model)
+                       error_model=None) -> "BudgetTables":
+    """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget years),
+    the per-year arrays, the calibration table, the ranges and the tornado rows."""
+    from fleetrun.budget import ranges
+
+    warnings: list[str] = []
+    prepared = [_Scenario(s, vehicles, per_condition, error_model) for s in scenarios]
+    scales, calibration_table = fit_calibration(prepared, warnings)
+    u = drivers.uncertainty()
+    z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
+    frames, yearly, fuel_ranges, tornado = [], {}, {}, []
+    for p in prepared:
+        central, spec = _range_spec(p, vehicles, error_model, scales, warnings)
+        found = ranges.fuel_ranges(central, z, spec)
+        fuel_ranges[p.s.scenario_id] = found
+        frame, yearly[p.s.scenario_id] = scenario_frame(p, vehicles, scales,
+                                                        {k: v for k, v in found.items() if k != "all"})
         frames.append(frame)
-        rows += calibration_rows
-    calibration_table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
-    if not frames:
-        return pd.DataFrame(columns=RESULTS_COLUMNS), calibration_table
-    return pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS], calibration_table
+        rates = {f: drivers.state_rates(p.s, f) for f in drivers.FUELS}
+        tornado += [{"scenario_id": p.s.scenario_id, **row} for row in ranges.tornado(central, spec, rates)]
+    if error_model is not None and any(d != "LD" for d in (v.duty_class for v in vehicles)):
+        warnings += list(error_model.warnings)
+    results = pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS] if frames else pd.DataFrame(columns=RESULTS_COLUMNS)
+    return BudgetTables(results=results, yearly=yearly, calibration=calibration_table, ranges=fuel_ranges,
+                        tornado=pd.DataFrame(tornado, columns=TORNADO_COLUMNS), warnings=warnings)
 
 
 def _whole_if_possible(values: np.ndarray) -> np.ndarray:
@@ -253,17 +359,17 @@ def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=SCENARIO_TOTAL_COLUMNS)
 
 
-def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame) -> list[dict]:
-    """The fiscal-year rows of one scenario x fuel x class: shares of the group's totals."""
+def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, yearly: dict) -> list[dict]:
+    """The fiscal-year rows of one scenario x fuel x class: the group's per-year sums, the last
+    year moved by a few units in the last place so that they add up to the results exactly."""
     years = budget.fiscal_years(s)
-    shares = budget.year_shares(s)
     rows = [{"scenario_id": s.scenario_id, "fiscal_year": year, "fuel": fuel, "vehicle_class": vehicle_class}
             for year in years]
+    positions = group["_position"].to_numpy()
     for column, source in FISCAL_SOURCES.items():
         total = _fsum(group[source]) if source in group else 0.0
-        # fees are per vehicle-year (even over the years); everything else follows the miles
-        weights = np.full(len(years), 1.0 / len(years)) if column == "ev_fee_usd" else shares
-        parts = budget.exact_parts(total * weights, total) if math.isfinite(total) else [math.nan] * len(years)
+        per_year = [_fsum(yearly[column][positions, y]) for y in range(len(years))]
+        parts = budget.exact_parts(per_year, total) if math.isfinite(total) else [math.nan] * len(years)
         for row, value in zip(rows, parts):
             row[column] = value
     for row in rows:
@@ -271,17 +377,18 @@ def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame) -> list
     return rows
 
 
-def fiscal_summary(results: pd.DataFrame, scenarios: Sequence) -> pd.DataFrame:
+def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, yearly: dict) -> pd.DataFrame:
     """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv)."""
     rows = []
-    by_id = {s.scenario_id: s for s in scenarios}
-    for (scenario_id, fuel, vehicle_class), group in results.groupby(
-            ["scenario_id", "fuel", "vehicle_class"], sort=False):
-        rows += _fiscal_group(by_id[scenario_id], fuel, vehicle_class, group)
+    for s in scenarios:
+        own = results[results.scenario_id == s.scenario_id]
+        own = own.assign(_position=np.arange(len(own)))
+        for (fuel, vehicle_class), group in own.groupby(["fuel", "vehicle_class"], sort=False):
+            rows += _fiscal_group(s, fuel, vehicle_class, group, yearly[s.scenario_id])
     frame = pd.DataFrame(rows, columns=FISCAL_COLUMNS)
-    order = {s.scenario_id: i for i, s in enumerate(scenarios)}
-    frame["_order"] = frame["scenario_id"].map(order)
-    return frame.sort_values(["_order", "fiscal_year"], kind="stable").drop(columns="_order").reset_index(drop=True)
+    return frame.sort_values(["fiscal_year"], kind="stable").pipe(
+        lambda f: f.iloc[np.argsort(f.scenario_id.map({s.scenario_id: i for i, s in enumerate(scenarios)}).to_numpy(),
+                                    kind="stable")]).reset_index(drop=True)
 
 
 def yearly_totals(fiscal: pd.DataFrame) -> pd.DataFrame:

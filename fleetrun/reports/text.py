@@ -113,12 +113,17 @@ def assumptions(s) -> list[tuple[str, str]]:
 
 
 def range_source_lines(error_model) -> list[str]:
-    """Where the ranges come from, in short lines."""
+    """Where the ranges come from, in short lines (docs/budget.md, "Ranges")."""
+    from fleetrun.budget import drivers
+
+    u = drivers.uncertainty()
+    lines = ["Ranges: 5th to 95th percentile of a Monte Carlo over the model's fleet-level error and the "
+             "drivers (VMT growth, fuel price through the price elasticity, fleet mix); a fuel calibrated to "
+             "collections keeps the uncertainty of the observed gallons and of the years after them.",
+             f"Drivers: VMT growth sd {u['vmt_growth_sd_pct_points']:g} points a year; fuel price sd "
+             f"{u['fuel_price_log_sd_per_year']:.0%} a year (log); each fuel's share of the miles sd "
+             f"{u['fleet_mix_relative_sd']:.0%} (models/budget.toml)."]
     if error_model is None:
-        return ["No range: no measured fuel-economy error in this installation (models/fuel_economy_error.toml)."]
-    lines = ["Ranges: the model's measured fuel-economy error (predicted / measured mpg - 1), 5th to 95th "
-             "percentile, added over vehicles (one model: fully correlated).",
-             f"Measured: {error_model.source} ({error_model.measured_on})."]
-    lines += [f"{test}: {e['p05']:+.1%} to {e['p95']:+.1%} (n = {e.get('n', '?')})"
-              for test, e in sorted(error_model.tests.items())]
-    return lines
+        return lines + ["No model error in these ranges: no measured fleet error in this installation "
+                        "(models/fleet_error.toml)."]
+    return lines + [f"Model error: {error_model.describe()}."]

@@ -127,17 +127,19 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
 
         error_model = read_error_model()
     if error_model is None:
-        warnings.append("totals carry no range: no measured fuel-economy error "
-                        "(models/fuel_economy_error.toml) in this installation")
-    results, calibration = aggregate_vehicles(vehicles, scenarios, per_condition, error_model)
+        warnings.append("ranges hold the drivers only, no model error: no measured fleet error "
+                        "(models/fleet_error.toml) in this installation")
+    budget = aggregate_vehicles(vehicles, scenarios, per_condition, error_model)
+    results, calibration = budget.results, budget.calibration
+    warnings += budget.warnings
     classes = aggregate_classes(results)
-    fiscal = fiscal_summary(results, scenarios)
+    fiscal = fiscal_summary(results, scenarios, budget.yearly)
     maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
     warnings += map_warnings
     finished = time.perf_counter()
     return RunResult(
         fleet=fleet, scenarios=scenarios, results=results, classes=classes, fiscal=fiscal,
-        calibration=calibration, error_model=error_model,
+        calibration=calibration, error_model=error_model, tornado=budget.tornado, ranges=budget.ranges,
         cycles=cycles, maps=maps, warnings=warnings,
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
         distinct_vehicles=len(distinct),
