@@ -221,6 +221,18 @@ def _total(values: np.ndarray) -> np.ndarray:
     return np.array([_fsum(row) for row in values]) if values.size else np.zeros(len(values))
 
 
+def _tax_total(gallons: np.ndarray, yearly: np.ndarray, fuel: np.ndarray, rates, s) -> np.ndarray:
+    """Tax over the budget years: gallons x the rate where the rate is one for all years (so
+    that tax = gallons x rate exactly), else the exact sum of the years."""
+    out = _total(yearly)
+    for name in drivers.FUELS:
+        per_year = rates(s, name)
+        if np.all(per_year == per_year[0]):
+            rows = fuel == name
+            out[rows] = gallons[rows] * per_year[0]
+    return out
+
+
 def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[pd.DataFrame, dict]:
     """One row per vehicle for a prepared scenario, and its per-year arrays."""
     s, fuel, count = p.s, p.fuel, p.count
@@ -234,7 +246,8 @@ def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[
         "configuration": [v.configuration for v in vehicles], "fuel": fuel.astype(str),
         "count": _whole_if_possible(count), "miles_total": miles_total, "fuel_gal_total": gallons,
         **_ratios(p.per_mile, miles_total, gallons, energy),
-        "state_tax_usd": _total(yearly["state_tax_usd"]), "federal_tax_usd": _total(yearly["federal_tax_usd"]),
+        "state_tax_usd": _tax_total(gallons, yearly["state_tax_usd"], fuel, drivers.state_rates, s),
+        "federal_tax_usd": _tax_total(gallons, yearly["federal_tax_usd"], fuel, drivers.federal_rates, s),
         **energy, "duty_class": p.duty.astype(str), "fuel_gal_cycle_total": miles_total * p.per_mile["fuel_gal_cycle"],
         "fuel_gal_uncalibrated_total": _total(p.raw), "fuel_gal_low_total": _total(yearly["fuel_gal_low"]),
         "fuel_gal_high_total": _total(yearly["fuel_gal_high"]), "kwh_total": _total(yearly["kwh"]),

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fleetrun.simulation import diffmodes
+from fleetrun.simulation import climate, diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
@@ -402,6 +402,17 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     return t_max, infeasible, engine_torque, fuel
 
 
+def _with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
+    """``fuel`` plus the A/C or cold-weather accessory load at the ambient temperature
+    (fleetrun/simulation/climate.py) while the engine burns fuel; electric rows keep theirs."""
+    power = climate.accessory_power_W(float(ambient_temp_C))
+    if power == 0.0:
+        return fuel
+    from fleetrun.simulation.params import willans_slope
+
+    return fuel + climate.extra_fuel_g_per_s(power, willans_slope(va), va.lhv, fuel > 0)
+
+
 def _shaft_power_W(torque_Nm, speed_rpm):
     power = torque_Nm * speed_rpm
     power /= RPM
@@ -429,6 +440,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
     t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
                                                     wheel_power)
+    fuel = _with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     V, N = wheel_torque.shape
     out = dict(

@@ -93,7 +93,10 @@ def parse_onroad(value):
 def parse_schedule(value):
     """A number, or ``YEAR:value`` pairs (``2027:3.40, 2028:3.55``) -> {year: value}."""
     if not isinstance(value, str) or ":" not in value:
-        return parse_number(value)
+        try:
+            return parse_number(value)
+        except CellProblem:
+            raise CellProblem(f"{show(value)} is not a number or a YEAR:value list such as 2027:3.40, 2028:3.55") from None
     schedule = {}
     for part in re.split(r"[,;]\s*", value.strip()):
         if not part.strip():
