@@ -59,3 +59,33 @@ def test_bad_schedule_is_an_error_line(tmp_path):
     result = fakes.invoke_run(path, "--out", tmp_path / "o", "--no-cache", "-q")
     assert result.exit_code == 1
     assert "Scenarios!" in result.stderr and "YEAR:value" in result.stderr
+
+
+# FHWA Traffic Volume Trends, April 2019, Figure 2: 2018 average daily VMT [billion], urban + rural
+DAILY_2018 = [5.60 + 2.25, 5.76 + 2.28, 6.13 + 2.56, 6.41 + 2.67, 6.35 + 2.79, 6.47 + 2.89, 6.36 + 2.98,
+              6.33 + 2.90, 6.09 + 2.68, 6.36 + 2.74, 6.07 + 2.54, 6.19 + 2.51]
+DAYS = [31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31]
+
+
+def test_fiscal_periods_follow_the_start_month_and_published_seasonality(tmp_path):
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A", count=10)],
+                       [scenario("s", first_fiscal_year=2027, budget_years=2, fiscal_year_start_month=9)])
+    out = run_to(tmp_path, path)
+    periods = read_csv(out / "fiscal_periods.csv", keep_default_na=False)
+    memo = read_csv(out / "revenue_memo.csv")
+    fy = periods[(periods.fiscal_year == 2027) & (periods.fuel == "gasoline")]
+    months = fy[fy.period.str.startswith("M")]
+    # FY2027 starting in September: September 2026 to August 2027
+    assert list(months.calendar_month) == ["Sep", "Oct", "Nov", "Dec", "Jan", "Feb", "Mar", "Apr", "May", "Jun",
+                                           "Jul", "Aug"]
+    assert list(months.calendar_year) == [2026] * 4 + [2027] * 8
+    total = sum(d * n for d, n in zip(DAILY_2018, DAYS))
+    assert months.share.iloc[0] == pytest.approx(DAILY_2018[8] * 30 / total, rel=1e-12)        # September
+    gallons = memo[(memo.fiscal_year == 2027) & (memo.fuel == "gasoline")].fuel_gal.iloc[0]
+    assert math.fsum(months.fuel_gal) == gallons                      # the months add up exactly
+    quarters = fy[fy.period.str.startswith("Q")]
+    assert math.fsum(quarters.fuel_gal) == pytest.approx(gallons, rel=1e-12)
+    # the memo's all-fuels row is the sum of the fuels, with a range around it
+    fy_memo = memo[memo.fiscal_year == 2027].set_index("fuel")
+    assert fy_memo.fuel_gal["all fuels"] == pytest.approx(fy_memo.fuel_gal.drop("all fuels").sum(), rel=1e-12)
+    assert (fy_memo.fuel_gal_low < fy_memo.fuel_gal).all() and (fy_memo.state_tax_high_usd > fy_memo.state_tax_usd).all()

@@ -18,7 +18,8 @@ from fleetrun.cli import cli
 from fleetrun.run import runner
 from test_fleet_fakes import read_csv, scenario, small_fleet, vehicle, write_fleet
 
-OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "revenue_memo.csv",
+           "fiscal_periods.csv", "manifest.json"}
 RESULTS_CONTRACT = ["scenario_id", "vehicle_id", "vehicle_class", "configuration", "fuel", "count",
                     "miles_total", "fuel_gal_total", "mpg", "diff_efficiency", "drivetrain_efficiency",
                     "state_tax_usd", "federal_tax_usd"]

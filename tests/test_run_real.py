@@ -14,7 +14,8 @@ from test_fleet_fakes import read_csv
 
 pytest.importorskip("fleetrun.simulation")
 EXAMPLE = inputs_dir() / "example_fleet.xlsx"
-OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "revenue_memo.csv",
+           "fiscal_periods.csv", "manifest.json"}
 
 
 @pytest.fixture(scope="module")

@@ -36,6 +36,8 @@ class RunResult:
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
     error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
     tornado: pd.DataFrame | None = None        # state revenue per driver at its 5th / 95th percentile
+    memo: pd.DataFrame | None = None           # revenue_memo.csv: fiscal year x fuel with ranges
+    periods: pd.DataFrame | None = None        # fiscal_periods.csv: quarters and months
     ranges: dict = field(default_factory=dict)  # scenario -> fuel or "all" -> (low, high) / central per year
     changes: dict | None = None                # changes.compare with the run already in the folder
 

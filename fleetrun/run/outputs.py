@@ -12,7 +12,7 @@ from fleetrun.fileio import is_same_file
 from fleetrun.workbook.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
-                "manifest.json")
+                "revenue_memo.csv", "fiscal_periods.csv", "manifest.json")
 
 
 def write_csv(frame, path: Path) -> None:
@@ -44,7 +44,7 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
 
 
 def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
-    """Write the six outputs of a run into ``out_dir``, all or nothing: the folder changes as
+    """Write the outputs (docs/report.md) of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
     the run already there, whose files are then kept in ``earlier-runs/``
     (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
@@ -63,6 +63,8 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
         write_csv(result.results, staging / "results.csv")
         write_csv(result.classes, staging / "class_summary.csv")
         write_csv(result.fiscal, staging / "fiscal_summary.csv")
+        write_csv(result.memo, staging / "revenue_memo.csv")
+        write_csv(result.periods, staging / "fiscal_periods.csv")
         write_report_xlsx(result, staging / "report.xlsx")
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}

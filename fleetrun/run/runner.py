@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.workbook.schema import DUTY_CLASSES
+from fleetrun.budget import periods
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
                                    aggregate_vehicles, fiscal_summary)
 from fleetrun.budget.result import RunResult
@@ -134,12 +135,14 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     warnings += budget.warnings
     classes = aggregate_classes(results)
     fiscal = fiscal_summary(results, scenarios, budget.yearly)
+    memo = periods.memo_table(fiscal, budget.ranges)
     maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
     warnings += map_warnings
     finished = time.perf_counter()
     return RunResult(
         fleet=fleet, scenarios=scenarios, results=results, classes=classes, fiscal=fiscal,
         calibration=calibration, error_model=error_model, tornado=budget.tornado, ranges=budget.ranges,
+        memo=memo, periods=periods.period_rows(memo, scenarios),
         cycles=cycles, maps=maps, warnings=warnings,
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
         distinct_vehicles=len(distinct),
