@@ -12,8 +12,13 @@ import os
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from fleetrun.errors import InputError
+
+#: A JSON object about to be written (``json.dumps``) or just read: the files' form, whose keys
+#: docs/interface.md lists. Code passes typed records between modules, never these.
+JsonDocument = dict[str, Any]
 
 
 def prepare_output_folder(folder: Path, what: Path) -> None:

@@ -20,6 +20,7 @@ from fleetrun.effects import efficiency_with_effects, parse_with
 from fleetrun.workbook.reader import read_fleet
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import SUM_FIELDS, diffmodes, simulate
+from fleetrun.simulation.core import trace_kinematics
 from fleetrun.testing.vehicles import ALL, CAMRY, F150, HD_DUAL, HD_TRUCK
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
@@ -34,12 +35,13 @@ ALL_DIFFERENTIAL = ("bearing_preload:drag_torque_Nm=3,inertia:J_kg_m2=0.2,oil_wa
 def _pinion(trace, i=0):
     """Per-step pinion speed [rad/s], pinion acceleration [rad/s^2], step length, driving mask,
     time since start at the step's middle, from a trace."""
-    w = trace["diff_input_speed_rpm"][i] * RAD_PER_RPM
-    v, a, dt = trace["_v_avg"][i], trace["_accel"][i], trace["_dt"][i]
+    w = trace.diff_input_speed_rpm[i] * RAD_PER_RPM
+    k = trace_kinematics(trace)
+    v, a, dt = k.v_avg[i], k.accel[i], k.dt[0]
     moving = v > 1e-6
     alpha = np.where(moving, a * w / np.where(moving, v, 1.0), 0.0)  # G_tot/r x the vehicle's
-    t = trace["time_s"][i]
-    return w, alpha, dt, trace["_driving"][i], t - dt / 2 - t[0], moving
+    t = trace.time_s[i]
+    return w, alpha, dt, moving & (trace.wheel_torque_Nm[i] > 0), t - dt / 2 - t[0], moving
 
 
 # ----------------------------------------------------------------------------- regression
@@ -64,8 +66,8 @@ def test_no_effect_and_zero_sized_effects_give_identical_numbers(mode, tmp_path)
                             "accessory_load:power_kW=0,road_grade:grade_pct=0")
     for key in SUM_FIELDS:
         np.testing.assert_array_equal(getattr(zero, key), getattr(plain, key), err_msg=key)
-    for key, values in plain.trace.items():
-        np.testing.assert_array_equal(np.asarray(zero.trace[key]), np.asarray(values), err_msg=key)
+    for key, values in plain.trace.columns().items():
+        np.testing.assert_array_equal(np.asarray(getattr(zero.trace, key)), np.asarray(values), err_msg=key)
     assert plain.effects == [] and plain.summary()["with"] == []
 
 
@@ -93,9 +95,9 @@ def test_inertia_stores_and_returns_exactly_what_J_dw_dt_says():
     base = simulate([CAMRY], UDDS, mode="direct", trace=True)
     ine = simulate([CAMRY], UDDS, mode="direct", trace=True, effects=f"inertia:J_kg_m2={J}")
     w, alpha, dt, driving, _, moving = _pinion(base.trace)
-    extra = ine.trace["diff_input_torque_Nm"][0] - base.trace["diff_input_torque_Nm"][0]
+    extra = ine.trace.diff_input_torque_Nm[0] - base.trace.diff_input_torque_Nm[0]
     np.testing.assert_allclose(extra, J * alpha, rtol=0, atol=1e-9)
-    accel = base.trace["_accel"][0]
+    accel = trace_kinematics(base.trace).accel[0]
     # torque only while the pinion speeds up (+) or slows down (-); none cruising or at rest
     assert np.array_equal(extra > 0, moving & (accel > 0)) and np.array_equal(extra < 0, moving & (accel < 0))
     assert np.all(extra[~moving | (accel == 0)] == 0)
@@ -121,9 +123,9 @@ def test_each_step_meets_efficiency_with_effects(vehicle_spec):
                  trace=True, effects=effects, ambient_temp_C=ambient)
     tr = r.trace
     _, alpha, _, driving, since_start, _ = _pinion(tr)
-    t_in = tr["diff_input_torque_Nm"][0]
-    n = tr["diff_input_speed_rpm"][0]
-    low = tr["axle_range"][0] == "low"
+    t_in = tr.diff_input_torque_Nm[0]
+    n = tr.diff_input_speed_rpm[0]
+    low = tr.axle_range[0] == "low"
     kim = vehicle_spec.kim_torque_scale_Nm
     checked = 0
     for axle_gear in ("high", "low"):
@@ -137,7 +139,7 @@ def test_each_step_meets_efficiency_with_effects(vehicle_spec):
             channels={"input_accel_rad_s2": alpha[sel], "time_s": since_start[sel], "ambient_temp_C": ambient})
         ratio = vehicle_spec.final_drive_ratio * (vehicle_spec.low_gear_ratio if axle_gear == "low" else 1.0)
         # direct inversion to 1e-10 of the Kim scale
-        np.testing.assert_allclose(eta * t_in[sel] * ratio, tr["wheel_torque_Nm"][0][sel],
+        np.testing.assert_allclose(eta * t_in[sel] * ratio, tr.wheel_torque_Nm[0][sel],
                                    rtol=0, atol=1e-8 * kim * ratio)
         checked += int(sel.sum())
     assert checked > 300
@@ -172,10 +174,10 @@ def test_vecto_baseline_gets_the_vehicles_kim_scale(tmp_path):
     r = simulate([HD_TRUCK], load_cycle("HD-UDDS"), mode="direct", physics="vecto-generic", trace=True)
     tr = r.trace
     G = HD_TRUCK.final_drive_ratio
-    sel = tr["_driving"][0]
-    t_out = vecto_generic_output_torque_Nm(tr["diff_input_torque_Nm"][0][sel],
-                                           tr["diff_input_speed_rpm"][0][sel] / G, G)
-    np.testing.assert_allclose(t_out, tr["wheel_torque_Nm"][0][sel], rtol=0, atol=1e-8 * HD_TRUCK.kim_torque_scale_Nm * G)
+    sel = trace_kinematics(tr).moving[0] & (tr.wheel_torque_Nm[0] > 0)
+    t_out = vecto_generic_output_torque_Nm(tr.diff_input_torque_Nm[0][sel],
+                                           tr.diff_input_speed_rpm[0][sel] / G, G)
+    np.testing.assert_allclose(t_out, tr.wheel_torque_Nm[0][sel], rtol=0, atol=1e-8 * HD_TRUCK.kim_torque_scale_Nm * G)
     for mode in ("map2d", "map3d"):
         other = simulate([HD_TRUCK], load_cycle("HD-UDDS"), mode=mode, physics="vecto-generic", cache_dir=tmp_path)
         assert other.fuel_g[0] == pytest.approx(r.fuel_g[0], rel=0.002)
@@ -188,10 +190,10 @@ def test_warmup_raises_fuel_only_in_the_first_minutes():
     warm = simulate([CAMRY], UDDS, mode="direct", trace=True,
                     effects=f"warmup:extra_fuel_g_per_s={a_g_s}:tau_s={tau_s}")
     _, _, dt, _, since_start, _ = _pinion(base.trace)
-    t = base.trace["time_s"][0]
-    extra = warm.trace["fuel_rate_g_per_s"][0] - base.trace["fuel_rate_g_per_s"][0]
+    t = base.trace.time_s[0]
+    extra = warm.trace.fuel_rate_g_per_s[0] - base.trace.fuel_rate_g_per_s[0]
     # a exp(-t/tau) wherever the engine burns fuel; nothing during deceleration fuel cut-off
-    cut = base.trace["fuel_rate_g_per_s"][0] == 0
+    cut = base.trace.fuel_rate_g_per_s[0] == 0
     assert cut.sum() > 100
     np.testing.assert_allclose(extra[~cut], a_g_s * np.exp(-since_start[~cut] / tau_s), rtol=1e-9, atol=1e-12)
     assert np.all(extra[cut] == 0)

@@ -133,23 +133,23 @@ def test_three_modes_agree_on_ftp_fuel(ftp_runs):
     for mode in ("map2d", "map3d"):
         np.testing.assert_allclose(ftp_runs[mode].fuel_gal, direct.fuel_gal, rtol=0.002)
         for bag in ("bag1", "bag2", "bag3"):
-            np.testing.assert_allclose(ftp_runs[mode].phases[bag]["fuel_g"], direct.phases[bag]["fuel_g"], rtol=0.002)
+            np.testing.assert_allclose(ftp_runs[mode].phases[bag].fuel_g, direct.phases[bag].fuel_g, rtol=0.002)
 
 
 def test_composite_and_bags_are_consistent(ftp_runs):
     r = ftp_runs["map3d"]
     bags = r.phases
-    gal = {b: bags[b]["fuel_gal"] for b in bags}
-    miles = {b: bags[b]["miles"] for b in bags}
+    gal = {b: bags[b].fuel_gal for b in bags}
+    miles = {b: bags[b].miles for b in bags}
     np.testing.assert_allclose(r.miles, sum(miles.values()), rtol=1e-12)
     np.testing.assert_allclose(r.fuel_gal / r.miles, ftp_weighted_per_mile(gal["bag1"], gal["bag2"], gal["bag3"],
                                                                             miles["bag1"], miles["bag2"], miles["bag3"]),
                                rtol=1e-12)
     np.testing.assert_allclose(r.mpg, r.miles / r.fuel_gal, rtol=1e-12)
     for b in bags:
-        np.testing.assert_allclose(bags[b]["mpg"], miles[b] / gal[b], rtol=1e-12)
+        np.testing.assert_allclose(bags[b].mpg, miles[b] / gal[b], rtol=1e-12)
     # a cold bag 1 burns more than the same driving hot (bag 3) in every vehicle
-    assert np.all(bags["bag1"]["fuel_g"] > bags["bag3"]["fuel_g"])
+    assert np.all(bags["bag1"].fuel_g > bags["bag3"].fuel_g)
 
 
 def _warm_udds_bags(spec, ambient_temp_C):
@@ -166,10 +166,10 @@ def test_a_warm_ftp_is_the_warm_udds():
     ambient = thermal.thermal_constants().thermostat_temp_C
     hot = simulate([CAMRY], "FTP", ambient_temp_C=ambient, trace=True)
     first, rest = _warm_udds_bags(CAMRY, ambient)
-    assert hot.phases["bag1"]["fuel_g"][0] == pytest.approx(first, rel=1e-12)
-    assert hot.phases["bag2"]["fuel_g"][0] == pytest.approx(rest, rel=1e-12)
-    assert hot.phases["bag3"]["fuel_g"][0] == pytest.approx(first, rel=1e-12)  # step 0 has no time
-    assert (hot.trace["cold_start_fuel_g_per_s"] == 0).all()
+    assert hot.phases["bag1"].fuel_g[0] == pytest.approx(first, rel=1e-12)
+    assert hot.phases["bag2"].fuel_g[0] == pytest.approx(rest, rel=1e-12)
+    assert hot.phases["bag3"].fuel_g[0] == pytest.approx(first, rel=1e-12)  # step 0 has no time
+    assert (hot.trace.cold_start_fuel_g_per_s == 0).all()
 
 
 def test_camry_cold_start_against_argonne():
@@ -181,8 +181,8 @@ def test_camry_cold_start_against_argonne():
     1 %."""
     cold = simulate([CAMRY], "FTP", ambient_temp_C=25.0)
     first, rest = _warm_udds_bags(CAMRY, 25.0)
-    penalty = {"bag1": cold.phases["bag1"]["fuel_g"][0] / first - 1.0,
-               "bag2": cold.phases["bag2"]["fuel_g"][0] / rest - 1.0}
+    penalty = {"bag1": cold.phases["bag1"].fuel_g[0] / first - 1.0,
+               "bag2": cold.phases["bag2"].fuel_g[0] / rest - 1.0}
     assert abs(penalty["bag1"] - (392.6 / 336.0 - 1.0)) <= 0.05
     assert 0.0 <= penalty["bag2"] < 0.01
 
@@ -200,7 +200,7 @@ def test_bag_ratio_against_the_epa_list(epa_gasoline):
     ratio_cold = (cold["FE Bag 3"] / cold["FE Bag 1"]).quantile([0.05, 0.95]).to_numpy()
     for temp, (lo, hi) in ((25.0, ratio_warm), (-6.7, ratio_cold)):
         r = simulate(LD_GASOLINE, "FTP", ambient_temp_C=temp).phases
-        model = r["bag1"]["fuel_g"] / r["bag3"]["fuel_g"]
+        model = r["bag1"].fuel_g / r["bag3"].fuel_g
         assert lo <= np.median(model) <= hi, (temp, model, lo, hi)
 
 
@@ -216,7 +216,7 @@ def test_trace_has_phases_soak_and_temperature():
     dt = np.diff(df.time_s, prepend=0.0)
     for bag in ("bag1", "bag2", "bag3"):
         sel = df.phase == bag
-        assert (df.fuel_rate_g_per_s[sel] * dt[sel]).sum() == pytest.approx(r.phases[bag]["fuel_g"][0], rel=1e-9)
+        assert (df.fuel_rate_g_per_s[sel] * dt[sel]).sum() == pytest.approx(r.phases[bag].fuel_g[0], rel=1e-9)
     # the same numbers without the trace (standstill steps skipped)
     fast = simulate([CAMRY], "FTP", ambient_temp_C=10.0)
     assert fast.mpg[0] == pytest.approx(r.mpg[0], rel=1e-9)
@@ -260,10 +260,10 @@ def test_thermal_constants_can_be_varied_per_call():
     free = dataclasses.replace(k, viscosity_exponent=0.0, enrichment_at_25C={"gasoline": 0.0, "diesel": 0.0})
     r = simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=free).phases
     first, _ = _warm_udds_bags(CAMRY, 0.0)
-    assert r["bag1"]["fuel_g"][0] == pytest.approx(first, rel=1e-12)
-    base = simulate([CAMRY], "FTP", ambient_temp_C=0.0).phases["bag1"]["fuel_g"][0]
+    assert r["bag1"].fuel_g[0] == pytest.approx(first, rel=1e-12)
+    base = simulate([CAMRY], "FTP", ambient_temp_C=0.0).phases["bag1"].fuel_g[0]
     slow = dataclasses.replace(k, heat_capacity_J_per_K_per_L=2 * k.heat_capacity_J_per_K_per_L)
-    assert simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=slow).phases["bag1"]["fuel_g"][0] > base
+    assert simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=slow).phases["bag1"].fuel_g[0] > base
 
 
 def test_composed_cycle_errors_name_the_file(tmp_path):
@@ -295,7 +295,7 @@ def test_resampled_ftp_keeps_its_bags():
     assert (again.step_phase() < 0).sum() == 600
     a, b = (simulate([CAMRY], c, ambient_temp_C=10.0) for c in (ftp, again))
     for bag in ("bag1", "bag2", "bag3"):
-        assert b.phases[bag]["fuel_g"][0] == pytest.approx(a.phases[bag]["fuel_g"][0], rel=1e-9)
+        assert b.phases[bag].fuel_g[0] == pytest.approx(a.phases[bag].fuel_g[0], rel=1e-9)
 
 
 def test_a_vehicles_ftp_does_not_depend_on_its_companions():

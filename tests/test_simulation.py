@@ -10,6 +10,7 @@ import pytest
 from fleetrun.cycles import DriveCycle, load_cycle
 from fleetrun.errors import InputError
 from fleetrun.simulation import TRACE_COLUMNS, simulate
+from fleetrun.simulation.core import trace_kinematics
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s, full_load_torque_Nm,
                                         motoring_torque_Nm, stroke_m)
 from fleetrun.simulation.params import vehicle_arrays
@@ -143,27 +144,27 @@ def test_energy_balance_per_step(udds_traces):
     """Engine output = losses + wheel work in every driving step, each loss from its own model."""
     tr = udds_traces.trace
     va = vehicle_arrays(ALL)
-    driving = tr["_driving"]
-    lhs = tr["engine_power_W"][driving]
-    rhs = (tr["wheel_power_W"] + tr["diff_loss_W"] + tr["transmission_loss_W"] + tr["converter_loss_W"])[driving]
+    driving = trace_kinematics(tr).moving & (tr.wheel_torque_Nm > 0)
+    lhs = tr.engine_power_W[driving]
+    rhs = (tr.wheel_power_W + tr.diff_loss_W + tr.transmission_loss_W + tr.converter_loss_W)[driving]
     # pure bookkeeping of the same floats: 1e-9 relative
     np.testing.assert_allclose(lhs, rhs, rtol=1e-9)
     # differential loss from the reported efficiency: P_in - P_out = P_out (1/eta - 1)
-    eta = tr["diff_efficiency"][driving]
-    np.testing.assert_allclose(tr["diff_loss_W"][driving], tr["wheel_power_W"][driving] * (1 / eta - 1),
+    eta = tr.diff_efficiency[driving]
+    np.testing.assert_allclose(tr.diff_loss_W[driving], tr.wheel_power_W[driving] * (1 / eta - 1),
                                rtol=1e-9, atol=1e-6)
     # gearbox loss from the mesh efficiency of the gear in use plus the spin loss a + b n / 1000
     rows = np.broadcast_to(np.arange(va.n)[:, None], driving.shape)[driving]
-    P_d = tr["diff_input_torque_Nm"][driving] * tr["diff_input_speed_rpm"][driving] * 2 * np.pi / 60
-    gear = tr["gear"][driving]
+    P_d = tr.diff_input_torque_Nm[driving] * tr.diff_input_speed_rpm[driving] * 2 * np.pi / 60
+    gear = tr.gear[driving]
     eff = np.array([va.combo_gear_eff[r][np.flatnonzero(va.combo_gear[r] == g)[0]] for r, g in zip(rows, gear)])
-    n_in = tr["transmission_input_speed_rpm"][driving]
+    n_in = tr.transmission_input_speed_rpm[driving]
     spin_W = (va.spin_loss[rows, 0] + va.spin_loss[rows, 1] * n_in / 1000) * n_in * 2 * np.pi / 60
-    np.testing.assert_allclose(tr["transmission_loss_W"][driving], P_d * (1 / eff - 1) + spin_W, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(tr.transmission_loss_W[driving], P_d * (1 / eff - 1) + spin_W, rtol=1e-9, atol=1e-6)
     # locked converter / engaged clutch: no slip loss; slipping: never a gain
-    locked = driving & ~tr["converter_unlocked"] & (tr["engine_speed_rpm"] == tr["transmission_input_speed_rpm"])
-    assert np.all(np.abs(tr["converter_loss_W"][locked]) < 1e-6)
-    assert np.all(tr["converter_loss_W"][driving] > -1e-6)
+    locked = driving & ~tr.converter_unlocked & (tr.engine_speed_rpm == tr.transmission_input_speed_rpm)
+    assert np.all(np.abs(tr.converter_loss_W[locked]) < 1e-6)
+    assert np.all(tr.converter_loss_W[driving] > -1e-6)
 
 
 def test_wheel_work_equals_road_load_work(udds_traces):
@@ -171,8 +172,9 @@ def test_wheel_work_equals_road_load_work(udds_traces):
     term telescopes, sum m (v_i - v_(i-1)) (v_i + v_(i-1)) / 2 = 0 (trapezoidal steps)."""
     tr = udds_traces.trace
     va = vehicle_arrays(ALL)
-    v, dt = tr["_v_avg"], tr["_dt"]
-    wheel = (tr["wheel_power_W"] * dt).sum(axis=1)
+    k = trace_kinematics(tr)
+    v, dt = k.v_avg, k.dt
+    wheel = (tr.wheel_power_W * dt).sum(axis=1)
     road = (road_load_N(v, va.A_N[:, None], va.B_N[:, None], va.C_N[:, None]) * v * dt).sum(axis=1)
     followed = udds_traces.shortfall_distance_m < 1e-9
     assert followed[:4].all()
@@ -206,43 +208,43 @@ def test_idle_fuel_override_and_standstill():
     r = simulate([dataclasses.replace(CAMRY, extra={"idle_fuel_g_per_s": 0.25})], cyc, mode="direct", trace=True)
     assert r.fuel_g[0] == pytest.approx(0.25 * 60)
     assert r.miles[0] == 0 and r.mpg[0] == 0
-    assert np.all(r.trace["gear"] == 0) and np.all(r.trace["diff_efficiency"] == 0)
+    assert np.all(r.trace.gear == 0) and np.all(r.trace.diff_efficiency == 0)
 
 
 def test_deceleration_fuel_cut():
     r = simulate([CIVIC], load_cycle("UDDS"), mode="direct", trace=True)
     tr = r.trace
-    overrun = (tr["engine_torque_Nm"][0] < 0) & (tr["engine_speed_rpm"][0] > 1100)
+    overrun = (tr.engine_torque_Nm[0] < 0) & (tr.engine_speed_rpm[0] > 1100)
     assert overrun.sum() > 50
-    assert np.all(tr["fuel_rate_g_per_s"][0][overrun] == 0)
+    assert np.all(tr.fuel_rate_g_per_s[0][overrun] == 0)
 
 
 def test_vehicle_that_cannot_follow_reports_shortfall():
     weak = dataclasses.replace(CIVIC, vehicle_id="weak", peak_engine_torque_Nm=60.0, rated_power_kW=20.0)
     r = simulate([weak, CIVIC], load_cycle("US06"), mode="direct", trace=True)
-    target = r.trace["target_speed_mps"]
-    achieved = r.trace["vehicle_speed_mps"]
+    target = r.trace.target_speed_mps
+    achieved = r.trace.vehicle_speed_mps
     assert r.shortfall_time_s[0] > 100 and r.shortfall_distance_m[0] > 500
     assert r.shortfall_time_s[1] == 0 and r.shortfall_distance_m[1] == pytest.approx(0, abs=1e-9)
     assert np.all(achieved[0] <= target + 1e-12)      # never ahead of the trace
     assert r.miles[0] < r.miles[1]
     # it follows as closely as it can: full load in most steps where it is behind
-    behind = r.trace["not_followed"][0] & (achieved[0] > 1)
-    at_full = r.trace["engine_torque_Nm"][0] > 0.8 * r.trace["engine_max_torque_Nm"][0]
+    behind = r.trace.not_followed[0] & (achieved[0] > 1)
+    at_full = r.trace.engine_torque_Nm[0] > 0.8 * r.trace.engine_max_torque_Nm[0]
     assert at_full[behind].mean() > 0.6
 
 
 def test_dual_axle_uses_low_range_only_when_high_lugs():
     r = simulate([HD_DUAL], load_cycle("HWFET"), mode="direct", trace=True)
     tr = r.trace
-    low = (tr["axle_range"][0] == "low") & (tr["vehicle_speed_mps"][0] > 0)
-    high = (tr["axle_range"][0] == "high") & (tr["vehicle_speed_mps"][0] > 0)
+    low = (tr.axle_range[0] == "low") & (tr.vehicle_speed_mps[0] > 0)
+    high = (tr.axle_range[0] == "high") & (tr.vehicle_speed_mps[0] > 0)
     assert low.any() and high.any()
     # cruise at highway speed is in the high range (fuel economy, thesis Sec. 2.2.6)
-    assert np.all(tr["axle_range"][0][tr["vehicle_speed_mps"][0] > 25] == "high")
+    assert np.all(tr.axle_range[0][tr.vehicle_speed_mps[0] > 25] == "high")
     # low range multiplies the diff input speed by the low ratio relative to the high one
     with np.errstate(invalid="ignore"):
-        ratio = tr["diff_input_speed_rpm"][0] / tr["wheel_speed_rpm"][0]
+        ratio = tr.diff_input_speed_rpm[0] / tr.wheel_speed_rpm[0]
     assert np.allclose(ratio[low], HD_DUAL.final_drive_ratio * HD_DUAL.low_gear_ratio)
     assert np.allclose(ratio[high], HD_DUAL.final_drive_ratio)
 

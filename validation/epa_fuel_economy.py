@@ -45,6 +45,7 @@ from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
+from fleetrun.simulation.core import trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
@@ -62,10 +63,10 @@ THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enric
 def trace_terms(va, tr):
     """(V, N, 8) terms x dt over the fuelled steps of a trace (warm engine)."""
     col = lambda x: x[:, None]  # noqa: E731
-    n, T, Tmax = tr["engine_speed_rpm"], tr["engine_torque_Nm"], tr["engine_max_torque_Nm"]
-    cold = tr.get("cold_start_fuel_g_per_s", 0.0)
-    dt = tr["_dt"] * ((tr["fuel_rate_g_per_s"] - cold) > 0)
-    inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * tr["_accel"] * tr["_v_avg"]
+    n, T, Tmax = tr.engine_speed_rpm, tr.engine_torque_Nm, tr.engine_max_torque_Nm
+    k = trace_kinematics(tr)
+    dt = np.broadcast_to(k.dt, n.shape) * ((tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0)
+    inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     terms = fuel_power_terms_W(np.minimum(T, Tmax), n, Tmax, col(va.displacement_L), col(va.stroke_m),
                                col(va.T_peak), col(va.throttled), inertial)
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
@@ -78,12 +79,12 @@ def trace_extras(va, tr):
     """(V, N, 5) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
     time [s] and the time the engine turns in fuel cut-off [s] (warm engine)."""
-    cold = tr.get("cold_start_fuel_g_per_s", 0.0)
-    fueled = (tr["fuel_rate_g_per_s"] - cold) > 0
-    dt, v = tr["_dt"], tr["_v_avg"]
-    driving = dt * (fueled & (tr["wheel_power_W"] > 0))
+    fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
+    k = trace_kinematics(tr)
+    dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
+    driving = dt * (fueled & (tr.wheel_power_W > 0))
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr["engine_speed_rpm"] > 0))]
+           dt * (~fueled & (tr.engine_speed_rpm > 0))]
     return np.stack(out, axis=2)
 
 
@@ -97,12 +98,12 @@ def cycle_sums(specs, cycle):
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
-            phase = np.asarray(tr["phase"])
-            cold = tr["cold_start_fuel_g_per_s"] * tr["_dt"]
+            phase = np.asarray(tr.phase)
+            cold = tr.cold_start_fuel_g_per_s * trace_kinematics(tr).dt
             for k, name in enumerate(BAGS):
                 m = phase == name if phase.dtype.kind in "UO" else phase == k
-                parts.setdefault(name, []).append(((terms * m[..., None]).sum(axis=1), r.phases[name]["miles"],
-                                                   r.phases[name]["fuel_g"], (cold * m).sum(axis=1)))
+                parts.setdefault(name, []).append(((terms * m[..., None]).sum(axis=1), r.phases[name].miles,
+                                                   r.phases[name].fuel_g, (cold * m).sum(axis=1)))
         else:
             parts.setdefault("", []).append((terms.sum(axis=1), r.miles, r.fuel_g, np.zeros(va.n)))
     return {k: tuple(np.concatenate([p[i] for p in v]) for i in range(4)) for k, v in parts.items()}
@@ -333,7 +334,7 @@ def bag_ratio_grid(specs, table):
         ratios = []
         for a in range(0, len(chosen), CHUNK):
             ph = simulate(chosen[a:a + CHUNK], "FTP", mode=MODE, ambient_temp_C=AMBIENT_C, thermal=k).phases
-            per_mile = {b: ph[b]["fuel_g"] / ph[b]["miles"] for b in BAGS}
+            per_mile = {b: ph[b].fuel_g / ph[b].miles for b in BAGS}
             ratios.append(np.stack([per_mile["bag1"] / per_mile["bag3"], per_mile["bag2"] / per_mile["bag3"]], axis=1))
         grid[point] = np.concatenate(ratios)
     measured = np.stack([table["FTP:bag3"] / table["FTP:bag1"], table["FTP:bag3"] / table["FTP:bag2"]], axis=1)[keep]

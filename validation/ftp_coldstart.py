@@ -59,7 +59,7 @@ def model_bag_ratio(vehicles, ambient_C: float, thermal=None) -> pd.Series:
     for first in range(0, len(vehicles), CHUNK):
         part = vehicles[first:first + CHUNK]
         bags = simulate(part, "FTP", ambient_temp_C=ambient_C, thermal=thermal).phases
-        ratio = bags["bag1"]["fuel_g"] / bags["bag3"]["fuel_g"]
+        ratio = bags["bag1"].fuel_g / bags["bag3"].fuel_g
         out.update({v.vehicle_id: float(r) for v, r in zip(part, ratio)})
     return pd.Series(out, name="model")
 

@@ -127,6 +127,7 @@ from pathlib import Path
 import numpy as np
 from fleetrun.workbook.reader import read_fleet
 from fleetrun.simulation import simulate, SUM_FIELDS
+from fleetrun.simulation.core import trace_kinematics
 out, fleet, cache = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
 vehicles = read_fleet(fleet).vehicles
 for cycle in sys.argv[4].split(","):
@@ -136,7 +137,12 @@ for cycle in sys.argv[4].split(","):
             r = simulate(vehicles, cycle, mode=mode, ambient_temp_C=ambient, effects=effects, trace=True,
                          cache_dir=cache)
             arrays = {k: np.asarray(getattr(r, k)) for k in SUM_FIELDS}
-            arrays.update({k: np.asarray(v) for k, v in r.trace.items()})
+            arrays.update({k: np.asarray(v) for k, v in r.trace.columns().items()})
+            # the step motion (kept in the golden set since the trace carried it as internals)
+            k = trace_kinematics(r.trace)
+            shape = r.trace.time_s.shape
+            arrays.update({"_v_avg": k.v_avg, "_accel": k.accel, "_dt": np.broadcast_to(k.dt, shape),
+                           "_driving": k.moving & (r.trace.wheel_torque_Nm > 0)})
             for k, a in sorted(arrays.items()):
                 np.save(out / f"sim_{tag}_{k}.npy", np.ascontiguousarray(a))
 """

@@ -258,9 +258,9 @@ def camry_modes(result, mode="auto", dyno_dir=None):
     approximate; the totals are exact."""
     out = {}
     for k, (t, meas, sim, trace) in camry_traces(result, mode, dyno_dir, with_trace=True).items():
-        v = trace["vehicle_speed_mps"].to_numpy()
+        v = trace.vehicle_speed_mps.to_numpy()
         acc = np.r_[0.0, np.diff(v)]
-        wheel = trace["wheel_torque_Nm"].to_numpy()
+        wheel = trace.wheel_torque_Nm.to_numpy()
         label = np.where(v < 0.1, "standstill", np.where(wheel <= 0, "overrun",
                          np.where(acc > 0.15, "acceleration", "cruise")))
         out[k] = {m: dict(seconds=int(np.sum(label == m)), measured_cc=float(meas[label == m].sum()),
@@ -341,7 +341,7 @@ def camry_traces(result, mode="auto", dyno_dir=None, with_trace=False):
         meas = df[df.time_s >= start].fuel_rate_cc_per_s.to_numpy()[:len(cyc.time_s)].copy()
         meas[0] = 0.0
         r = simulate([vehicle], cyc, mode=mode, trace=True)
-        sim = r.trace["fuel_rate_g_per_s"][0] * np.r_[0.0, np.diff(cyc.time_s)] / density
+        sim = r.trace.fuel_rate_g_per_s[0] * np.r_[0.0, np.diff(cyc.time_s)] / density
         out[k] = (cyc.time_s, meas * np.r_[0.0, np.diff(cyc.time_s)], sim)
         if with_trace:
             out[k] = out[k] + (r.trace_frame(0),)

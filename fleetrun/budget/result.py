@@ -2,47 +2,126 @@
 
 Produced by :func:`fleetrun.run.runner.run_fleet`; read by :mod:`fleetrun.reports` and
 :mod:`fleetrun.run.outputs`. It lives below both so the reports never import the orchestrator.
+Every part is a typed, frozen record; ``as_json()`` gives the form manifest.json holds
+(docs/interface.md).
 """
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import pandas as pd
 
+from fleetrun.budget.uncertainty import ErrorModel
+from fleetrun.effects.base import AppliedEffect
+from fleetrun.fileio import JsonDocument
 from fleetrun.workbook.reader import Fleet, Scenario
 
-__all__ = ["RunResult"]
+__all__ = ["RunResult", "CycleInfo", "EfficiencyMap", "EngineInfo", "AppliedEffect", "RunChanges",
+           "InputChange", "TotalChange"]
 
 
-@dataclass
+@dataclass(frozen=True)
+class CycleInfo:
+    """A drive cycle the run used: its name, length, duration and (for a file) path and sha256."""
+
+    name: str
+    miles: float
+    duration_s: float
+    path: str | None = None
+    sha256: str | None = None
+
+    def as_json(self) -> JsonDocument:
+        keys = ("name", "miles", "duration_s") + (("path", "sha256") if self.path else ())
+        return {k: getattr(self, k) for k in keys}
+
+
+@dataclass(frozen=True)
+class EfficiencyMap:
+    """Differential efficiency of one configuration over torque fraction x input speed, at the
+    fleet's median gear ratio and Kim scale (``efficiency[i][j]``: torque fraction i, speed j)."""
+
+    configuration: str
+    gear_ratio: float
+    low_gear_ratio: float | None
+    axle_gear: str
+    torque_fractions: tuple[float, ...]
+    speeds_rpm: tuple[float, ...]
+    efficiency: tuple[tuple[float, ...], ...]
+    vehicle_types: int
+
+
+@dataclass(frozen=True)
+class EngineInfo:
+    """Where the simulations ran: ``local`` or ``dask`` (with its scheduler address)."""
+
+    engine: str
+    scheduler: str | None = None
+
+    def as_json(self) -> JsonDocument:
+        return {"engine": self.engine, **({"scheduler": self.scheduler} if self.scheduler is not None else {})}
+
+
+@dataclass(frozen=True)
+class InputChange:
+    """One input file, compared by sha256 with the earlier run: added, removed, changed, same."""
+
+    path: str
+    status: str
+    earlier_sha256: str | None
+    sha256: str | None
+
+
+@dataclass(frozen=True)
+class TotalChange:
+    """One scenario total, earlier vs now (None: not in that run); ``change_pct`` a fraction."""
+
+    scenario_id: str
+    total: str
+    earlier: float | None
+    now: float | None
+    change_pct: float | None
+
+
+@dataclass(frozen=True)
+class RunChanges:
+    """What changed since the run that was in the output folder (:mod:`fleetrun.reports.changes`)."""
+
+    earlier_created_utc: str
+    earlier_version: str
+    inputs: tuple[InputChange, ...]
+    totals: tuple[TotalChange, ...]
+
+    def as_json(self) -> JsonDocument:
+        return asdict(self) | {"inputs": [asdict(i) for i in self.inputs], "totals": [asdict(t) for t in self.totals]}
+
+
+@dataclass(frozen=True, eq=False)
 class RunResult:
     fleet: Fleet
     scenarios: list[Scenario]
     results: pd.DataFrame
     classes: pd.DataFrame
     fiscal: pd.DataFrame                       # fiscal_summary.csv
-    cycles: dict[str, dict]
-    maps: list[dict]
+    cycles: dict[str, CycleInfo]               # cycle name (or CSV path) as the scenarios give it
+    maps: list[EfficiencyMap]
     warnings: list[str]
     timings_s: dict[str, float]
-    engine: dict
+    engine: EngineInfo
     physics: str
     mode: str
     cycle_inputs: dict[str, str] = field(default_factory=dict)   # CSV path -> sha256
-    effects: list = field(default_factory=list)   # --with: [{"effect", "level", "parameters"}]
+    effects: list[AppliedEffect] = field(default_factory=list)  # --with
     created_utc: str = field(default_factory=lambda: _now_utc())
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
-    error_model: object = None                 # uncertainty.ErrorModel behind the ranges (None: none)
+    error_model: ErrorModel | None = None      # the measured error behind the ranges (None: none)
     tornado: pd.DataFrame | None = None        # state revenue per driver at its 5th / 95th percentile
     memo: pd.DataFrame | None = None           # revenue_memo.csv: fiscal year x fuel with ranges
     periods: pd.DataFrame | None = None        # fiscal_periods.csv: quarters and months
     ranges: dict = field(default_factory=dict)  # scenario -> fuel or "all" -> (low, high) / central per year
-    changes: dict | None = None                # changes.compare with the run already in the folder
+    changes: RunChanges | None = None          # vs the run already in the folder
 
 
 def _now_utc() -> str:
     return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat()
-
-

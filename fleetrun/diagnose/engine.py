@@ -21,7 +21,7 @@ Rules (docs/diagnose.md, section 5):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -94,12 +94,11 @@ def windowed(problem: Problem, w: int) -> Problem:
     ig["weight"] = m(ig["weight"])
     if ig.get("speed_mps") is not None:
         ig["speed_mps"] = m(ig["speed_mps"])
-    return Problem(problem.level, problem.target, m(problem.time_s), m(problem.measured),
-                   m(problem.baseline), [cand(c) for c in problem.candidates],
-                   problem.untestable, {k: cand(c) for k, c in problem.surrogates.items()},
-                   problem.confound_possible, {k: m(v) for k, v in problem.driver_channels.items()},
-                   problem.baseline_info, problem.notes, problem.extra_ambiguity, problem.units,
-                   [(m(c), lo, hi) for c, lo, hi in problem.initial_terms], problem.offset_floor, ig)
+    return replace(problem, time_s=m(problem.time_s), measured=m(problem.measured), baseline=m(problem.baseline),
+                   candidates=[cand(c) for c in problem.candidates],
+                   surrogates={k: cand(c) for k, c in problem.surrogates.items()},
+                   driver_channels={k: m(v) for k, v in problem.driver_channels.items()},
+                   initial_terms=[(m(c), lo, hi) for c, lo, hi in problem.initial_terms], integral=ig, coarse=None)
 
 
 @dataclass

@@ -178,7 +178,7 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
     ftp = run("FTP")
     for name in ("bag1", "bag2", "bag3"):
         ph = ftp.phases[name]
-        full[name] = _amounts(ph["fuel_g"], ph["fuel_gal"], ph["miles"])
+        full[name] = _amounts(ph.fuel_g, ph.fuel_gal, ph.miles)
     out = {"warm": {}, "full": {}, "s_per_mi": {}}
     for key, model in (("warm", warm), ("full", full)):
         bag = [model[b] for b in ("bag1", "bag2", "bag3")]

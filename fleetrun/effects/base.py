@@ -18,6 +18,16 @@ import numpy as np
 
 
 @dataclass(frozen=True)
+class AppliedEffect:
+    """One effect as a run or simulation applied it (``--with``): its id, level and parameters
+    (docs/effects.md); ``dataclasses.asdict`` gives the form of the JSON outputs' ``with``."""
+
+    effect: str
+    level: str
+    parameters: dict[str, float]
+
+
+@dataclass(frozen=True)
 class Parameter:
     """One named parameter of an effect: bounds, the default ``--with`` uses, units."""
 

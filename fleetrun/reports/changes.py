@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from fleetrun.budget.result import InputChange, RunChanges, TotalChange
+
 EARLIER_DIR = "earlier-runs"
 TOTAL_COLUMNS = ("fuel_gal_total", "state_tax_usd", "federal_tax_usd", "kwh_total", "ev_fee_usd")
 
@@ -47,7 +49,7 @@ def read_earlier(out_dir: Path) -> dict | None:
     return data
 
 
-def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float]]) -> dict:
+def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float]]) -> RunChanges:
     """Inputs added, removed or changed (by sha256) and totals by scenario, earlier vs now."""
     before = {item.get("path"): item.get("sha256") for item in earlier.get("inputs", []) if isinstance(item, dict)}
     now = {item["path"]: item["sha256"] for item in inputs}
@@ -55,8 +57,8 @@ def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float
     for path in sorted(set(before) | set(now), key=str):
         status = ("added" if path not in before else "removed" if path not in now
                   else "changed" if before[path] != now[path] else "same")
-        changed_inputs.append({"path": path, "status": status, "earlier_sha256": before.get(path),
-                               "sha256": now.get(path)})
+        changed_inputs.append(InputChange(path=path, status=status, earlier_sha256=before.get(path),
+                                          sha256=now.get(path)))
     rows = []
     earlier_totals = earlier.get("totals") or {}
     for scenario_id in list(totals) + [s for s in earlier_totals if s not in totals]:
@@ -66,27 +68,27 @@ def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float
             if old is None and new is None:
                 continue
             change = (new / old - 1.0) if (old and new is not None) else None
-            rows.append({"scenario_id": scenario_id, "total": column, "earlier": old, "now": new,
-                         "change_pct": change})
-    return {"earlier_created_utc": earlier.get("created_utc", ""), "earlier_version": earlier.get("fleetrun_version", ""),
-            "inputs": changed_inputs, "totals": rows}
+            rows.append(TotalChange(scenario_id=scenario_id, total=column, earlier=old, now=new, change_pct=change))
+    return RunChanges(earlier_created_utc=earlier.get("created_utc", ""),
+                      earlier_version=earlier.get("fleetrun_version", ""), inputs=tuple(changed_inputs),
+                      totals=tuple(rows))
 
 
-def describe(changes: dict) -> list[str]:
+def describe(changes: RunChanges) -> list[str]:
     """Log lines: which inputs changed and how each scenario's totals moved."""
-    lines = [f"compared with the earlier run of {changes['earlier_created_utc'] or 'unknown time'} in this folder"]
-    for item in changes["inputs"]:
-        if item["status"] != "same":
-            lines.append(f"input {item['status']}: {item['path']}")
-    if all(item["status"] == "same" for item in changes["inputs"]):
+    lines = [f"compared with the earlier run of {changes.earlier_created_utc or 'unknown time'} in this folder"]
+    for item in changes.inputs:
+        if item.status != "same":
+            lines.append(f"input {item.status}: {item.path}")
+    if all(item.status == "same" for item in changes.inputs):
         lines.append("inputs unchanged (same sha256)")
-    for row in changes["totals"]:
-        if row["earlier"] is None or row["now"] is None:
-            lines.append(f"{row['scenario_id']} {row['total']}: "
-                         + ("new scenario" if row["earlier"] is None else "scenario no longer run"))
-        elif row["earlier"] != row["now"]:
-            change = f" ({row['change_pct']:+.2%})" if row["change_pct"] is not None else ""
-            lines.append(f"{row['scenario_id']} {row['total']}: {row['earlier']:,.0f} -> {row['now']:,.0f}{change}")
+    for row in changes.totals:
+        if row.earlier is None or row.now is None:
+            lines.append(f"{row.scenario_id} {row.total}: "
+                         + ("new scenario" if row.earlier is None else "scenario no longer run"))
+        elif row.earlier != row.now:
+            change = f" ({row.change_pct:+.2%})" if row.change_pct is not None else ""
+            lines.append(f"{row.scenario_id} {row.total}: {row.earlier:,.0f} -> {row.now:,.0f}{change}")
     return lines
 
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+from fleetrun.budget.result import EfficiencyMap
+
 PALETTE = ("#1f4e78", "#c55a11", "#548235", "#7030a0", "#bf9000", "#2e75b6", "#a5a5a5", "#843c0c")
 
 
@@ -76,7 +78,7 @@ def _efficiency_color(value: float, low: float, high: float) -> str:
 
 def efficiency_scale(maps) -> tuple[float, float]:
     """One colour scale for every map of a run: the lowest and highest efficiency of all."""
-    values = [v for m in maps for row in m["efficiency"] for v in row if math.isfinite(v)]
+    values = [v for m in maps for row in m.efficiency for v in row if math.isfinite(v)]
     return (min(values), max(values)) if values else (0.0, 1.0)
 
 
@@ -89,19 +91,19 @@ def scale_legend(low: float, high: float, *, width: int = 300) -> dict:
     return {"width": width + 20 + width / steps, "stops": stops, "ticks": ticks}
 
 
-def heatmap(effmap: dict, *, low: float, high: float, cell_width: int = 40, cell_height: int = 20) -> dict:
+def heatmap(effmap: EfficiencyMap, *, low: float, high: float, cell_width: int = 40, cell_height: int = 20) -> dict:
     """The efficiency map as a grid of coloured cells with their values [%]; colours on the
     scale ``low``..``high`` shared by every map of the page."""
     left, top = 44, 24
     cells = []
-    for i, (tf, row) in enumerate(zip(effmap["torque_fractions"], effmap["efficiency"])):
+    for i, (tf, row) in enumerate(zip(effmap.torque_fractions, effmap.efficiency)):
         for j, value in enumerate(row):
             cells.append({"x": left + j * cell_width, "y": top + i * cell_height,
                           "fill": _efficiency_color(value, low, high),
                           "text": f"{100 * value:.1f}" if math.isfinite(value) else "n/a"})
-    columns = [{"x": left + (j + 0.5) * cell_width, "text": f"{s:g}"} for j, s in enumerate(effmap["speeds_rpm"])]
+    columns = [{"x": left + (j + 0.5) * cell_width, "text": f"{s:g}"} for j, s in enumerate(effmap.speeds_rpm)]
     rows = [{"y": top + (i + 0.5) * cell_height + 4, "text": f"{tf:g}"}
-            for i, tf in enumerate(effmap["torque_fractions"])]
+            for i, tf in enumerate(effmap.torque_fractions)]
     return {"width": left + cell_width * len(columns) + 10,
             "height": top + cell_height * len(rows) + 26, "cells": cells, "columns": columns,
             "rows": rows, "cell_width": cell_width, "cell_height": cell_height, "left": left,

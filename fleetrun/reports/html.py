@@ -100,9 +100,9 @@ def _maps(result: RunResult) -> tuple[list[dict], dict]:
     low, high = charts.efficiency_scale(result.maps)
     maps = []
     for m in result.maps:
-        title = f"{m['configuration']}, gear ratio {m['gear_ratio']:g}"
-        if m["low_gear_ratio"]:
-            title += f", low {m['low_gear_ratio']:g} (high gear)"
+        title = f"{m.configuration}, gear ratio {m.gear_ratio:g}"
+        if m.low_gear_ratio:
+            title += f", low {m.low_gear_ratio:g} (high gear)"
         maps.append({"title": title, "chart": charts.heatmap(m, low=low, high=high)})
     return maps, charts.scale_legend(low, high)
 

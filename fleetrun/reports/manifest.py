@@ -3,6 +3,7 @@ warnings), so a number in a budget document can be traced back and reproduced.""
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 from fleetrun import __version__
@@ -23,17 +24,17 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "inputs": inputs,
         "physics": result.physics,
         # the --with effects (docs/effects.md) and their parameters: part of the physics used
-        "with": list(getattr(result, "effects", []) or []),
+        "with": [asdict(e) for e in result.effects],
         "mode": result.mode,
-        "engine": result.engine,
+        "engine": result.engine.as_json(),
         "scenarios": [s.scenario_id for s in result.scenarios],
         "vehicle_types": len(result.fleet.vehicles),
         "distinct_vehicles_simulated": result.distinct_vehicles,
-        "cycles": result.cycles,
+        "cycles": {name: info.as_json() for name, info in result.cycles.items()},
         "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
         "warnings": list(result.warnings),
         "totals": scenario_totals_dict(result.classes),          # what the next run compares with
-        "changes": getattr(result, "changes", None),             # vs the run that was in the folder
+        "changes": result.changes.as_json() if result.changes else None,   # vs the run that was in the folder
         "outputs": outputs or {},
     }
 

@@ -25,7 +25,7 @@ import xlsxwriter
 from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.reports.charts import efficiency_scale
-from fleetrun.budget.result import RunResult
+from fleetrun.budget.result import EfficiencyMap, RunResult
 from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from fleetrun.workbook.text_cells import looks_like_formula
 from fleetrun.budget.totals import scenario_totals, yearly_totals
@@ -417,23 +417,23 @@ def _maps(book: Book, result: RunResult):
     sheet.ws.set_h_pagebreaks(sheet.row_breaks)
 
 
-def _map_block(sheet: Sheet, m: dict, low: float, high: float) -> None:
+def _map_block(sheet: Sheet, m: EfficiencyMap, low: float, high: float) -> None:
     """One map: its efficiency table, its loss table (what the chart draws, from zero) and
     the chart beside them."""
     if sheet.row > 1:
         sheet.row_breaks.append(sheet.row)   # each map starts a printed page
-    label = f"{m['configuration']}: gear ratio {m['gear_ratio']:g}"
-    if m["low_gear_ratio"]:
-        label += f", low ratio {m['low_gear_ratio']:g} (axle in high gear)"
+    label = f"{m.configuration}: gear ratio {m.gear_ratio:g}"
+    if m.low_gear_ratio:
+        label += f", low ratio {m.low_gear_ratio:g} (axle in high gear)"
     sheet.append([])
-    sheet.append([label + f"; {m['vehicle_types']} vehicle type(s)"], "bold")
-    speeds = [f"{s:g} rpm" for s in m["speeds_rpm"]]
-    n_rows, last_col = len(m["torque_fractions"]), xl_col_to_name(len(speeds))
+    sheet.append([label + f"; {m.vehicle_types} vehicle type(s)"], "bold")
+    speeds = [f"{s:g} rpm" for s in m.speeds_rpm]
+    n_rows, last_col = len(m.torque_fractions), xl_col_to_name(len(speeds))
     styles = [None] + [FORMATS["efficiency"]] * len(speeds)
     header_rows = {}
     for kind in ("efficiency", "loss"):
         header_rows[kind] = sheet.append([f"{kind} \\ torque fraction"] + speeds)
-        for tf, etas in zip(m["torque_fractions"], m["efficiency"]):
+        for tf, etas in zip(m.torque_fractions, m.efficiency):
             values = etas if kind == "efficiency" else [1.0 - e for e in etas]
             sheet.append([tf] + [float(e) for e in values], styles)
     first = header_rows["efficiency"] + 1
@@ -445,9 +445,9 @@ def _map_block(sheet: Sheet, m: dict, low: float, high: float) -> None:
     sheet.ws.insert_chart(f"{xl_col_to_name(len(speeds) + 2)}{header_rows['efficiency']}", chart)
 
 
-def _map_chart(sheet: Sheet, m: dict, header_row: int, n_rows: int, n_speeds: int):
+def _map_chart(sheet: Sheet, m: EfficiencyMap, header_row: int, n_rows: int, n_speeds: int):
     """Loss (1 - efficiency) against torque fraction, one line per input speed, from zero."""
-    chart = _chart(sheet.book, "line", f"{m['configuration']} differential loss",
+    chart = _chart(sheet.book, "line", f"{m.configuration} differential loss",
                    ("Torque fraction (input torque / Kim torque scale)", "Loss, share of input power", "0%"),
                    (11, 16))
     for column in range(2, 2 + n_speeds):
@@ -507,7 +507,7 @@ def _run_info(book: Book, result: RunResult):
     sheet.append([])
     sheet.append(["Drive cycles", "miles, duration"])
     for c in result.cycles.values():
-        sheet.append([c["name"], f"{c['miles']:.3f} mi, {c['duration_s']:.0f} s"])
+        sheet.append([c.name, f"{c.miles:.3f} mi, {c.duration_s:.0f} s"])
     sheet.append([])
     sheet.append([f"Warnings ({len(result.warnings)})"])
     for warning in result.warnings:
@@ -525,13 +525,13 @@ def _what_changed(book: Book, result: RunResult):
     if not changes:
         sheet.append(["No earlier run in this folder: nothing to compare."])
         return
-    sheet.append(["Earlier run", f"{changes['earlier_created_utc']} (fleetrun {changes['earlier_version']})"])
+    sheet.append(["Earlier run", f"{changes.earlier_created_utc} (fleetrun {changes.earlier_version})"])
     sheet.append([])
     sheet.append(["input", "status", "earlier sha256", "sha256"], "header")
-    for item in changes["inputs"]:
-        sheet.append([item["path"], item["status"], item["earlier_sha256"] or "", item["sha256"] or ""])
+    for item in changes.inputs:
+        sheet.append([item.path, item.status, item.earlier_sha256 or "", item.sha256 or ""])
     sheet.append([])
     sheet.append(["scenario_id", "total", "earlier", "now", "change"], "header")
-    for row in changes["totals"]:
-        sheet.append([row["scenario_id"], row["total"], row["earlier"], row["now"], row["change_pct"]],
+    for row in changes.totals:
+        sheet.append([row.scenario_id, row.total, row.earlier, row.now, row.change_pct],
                      [None, None, "#,##0", "#,##0", FORMATS["change_pct"]])

@@ -20,9 +20,10 @@ import sys
 import time
 import tomllib
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from fleetrun.budget.result import RunResult
 from fleetrun.errors import FleetrunError, InputError
 from fleetrun.fileio import write_error_log
 
@@ -208,9 +209,9 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
                        progress=Progress(fleet_path.name, enabled=progress_enabled),
                        chunk_size=plan.chunk_size or CHUNK_SIZE, simulate=plan.simulate,
                        error_model=plan.error_model)
-    result.timings_s = {"read": read_s, **result.timings_s}
+    result = replace(result, timings_s={"read": read_s, **result.timings_s})
     written_at = time.perf_counter()
-    earlier = _what_changed(result, out_dir, fleet_path)
+    result, earlier = _what_changed(result, out_dir, fleet_path)
     outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
     if earlier is not None and not plan.replace:
         log.info("%s: the earlier run is kept in %s", fleet_path.name, out_dir / "earlier-runs")
@@ -219,19 +220,21 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     return {"fleet": fleet_path, "out": out_dir, "outputs": outputs, "result": result}
 
 
-def _what_changed(result, out_dir: Path, fleet_path: Path) -> dict | None:
+def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[RunResult, dict | None]:
     """Compare with the run already in ``out_dir`` (inputs' sha256, totals by scenario): the
-    comparison goes on ``result.changes`` and into the log; the earlier manifest, or None."""
+    result with the comparison on ``changes`` (logged), and the earlier manifest (None: no
+    earlier run)."""
     from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
     from fleetrun.reports.manifest import manifest_dict
 
     earlier = read_earlier(out_dir)
     if earlier is None:
-        return None
-    result.changes = compare(earlier, manifest_dict(result)["inputs"], scenario_totals_dict(result.classes))
+        return result, None
+    result = replace(result, changes=compare(earlier, manifest_dict(result)["inputs"],
+                                             scenario_totals_dict(result.classes)))
     for line in describe(result.changes):
         log.info("%s: %s", fleet_path.name, line)
-    return earlier
+    return result, earlier
 
 
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:

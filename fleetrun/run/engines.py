@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 
+from fleetrun.budget.result import EngineInfo
 from fleetrun.errors import InputError
 
 ENGINES = ("local", "dask")
@@ -26,8 +27,8 @@ class LocalEngine:
     def close(self):
         pass
 
-    def describe(self) -> dict:
-        return {"engine": "local"}
+    def describe(self) -> EngineInfo:
+        return EngineInfo("local")
 
 
 class DaskEngine:
@@ -99,8 +100,8 @@ class DaskEngine:
         if self._cluster is not None:
             self._cluster.close()
 
-    def describe(self) -> dict:
-        return {"engine": "dask", "scheduler": self.scheduler or "local cluster"}
+    def describe(self) -> EngineInfo:
+        return EngineInfo("dask", self.scheduler or "local cluster")
 
 
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:

@@ -22,7 +22,7 @@ from fleetrun.workbook.schema import DUTY_CLASSES
 from fleetrun.budget import periods
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
                                    aggregate_vehicles, fiscal_summary)
-from fleetrun.budget.result import RunResult
+from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
 from fleetrun.workbook.reader import Fleet, Scenario
 from fleetrun.vehicle import VehicleSpec
 
@@ -147,8 +147,8 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
         distinct_vehicles=len(distinct),
         engine=engine.describe(), physics=physics, mode=mode,
-        cycle_inputs={info["path"]: info["sha256"] for info in cycles.values() if info.get("path")},
-        effects=[{"effect": e.id, "level": e.level, "parameters": dict(p)} for e, p in as_effect_list(effect_pairs)],
+        cycle_inputs={info.path: info.sha256 for info in cycles.values() if info.path},
+        effects=[AppliedEffect(e.id, e.level, dict(p)) for e, p in as_effect_list(effect_pairs)],
     )
 
 
@@ -369,7 +369,7 @@ def _shipped_cycle_file(name: str):
     return None
 
 
-def _cycle_info(names) -> dict[str, dict]:
+def _cycle_info(names) -> dict[str, CycleInfo]:
     from pathlib import Path
 
     from fleetrun.workbook.reader import file_sha256
@@ -378,12 +378,9 @@ def _cycle_info(names) -> dict[str, dict]:
     for name in sorted(names):
         cycle = _cycle(name)
         duration = float(cycle.time_s[-1] - cycle.time_s[0])
-        entry = {"name": cycle.name, "miles": float(cycle.miles), "duration_s": duration}
         path = Path(name) if name.lower().endswith(".csv") else _shipped_cycle_file(name)
-        if path is not None:
-            entry["path"] = str(path)
-            entry["sha256"] = file_sha256(path)
-        info[name] = entry
+        info[name] = CycleInfo(cycle.name, float(cycle.miles), duration, None if path is None else str(path),
+                               None if path is None else file_sha256(path))
     return info
 
 
@@ -393,7 +390,7 @@ MAP_TORQUE_FRACTIONS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 MAP_SPEEDS_RPM = (250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000)
 
 
-def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -> tuple[list[dict], list[str]]:
+def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -> tuple[list[EfficiencyMap], list[str]]:
     """For each configuration in the fleet: efficiency over torque fraction x speed at the
     fleet's median gear ratio and Kim scale (and median low ratio for two-speed axles, high
     gear), with the steady-state part of the differential-level ``effects``."""
@@ -420,8 +417,7 @@ def efficiency_maps(vehicles: Sequence[VehicleSpec], physics: str, effects=()) -
             eta = efficiency(config, tf, rpm, gear, low_gear_ratio=low, axle_gear="high", physics=physics,
                              kim_torque_scale_Nm=kim)
         eta = np.asarray(eta, dtype=float)
-        maps.append({"configuration": config, "gear_ratio": gear, "low_gear_ratio": low,
-                     "axle_gear": "high", "torque_fractions": list(MAP_TORQUE_FRACTIONS),
-                     "speeds_rpm": list(MAP_SPEEDS_RPM), "efficiency": eta.tolist(),
-                     "vehicle_types": len(group)})
+        maps.append(EfficiencyMap(configuration=config, gear_ratio=gear, low_gear_ratio=low, axle_gear="high",
+                                  torque_fractions=MAP_TORQUE_FRACTIONS, speeds_rpm=MAP_SPEEDS_RPM,
+                                  efficiency=tuple(map(tuple, eta.tolist())), vehicle_types=len(group)))
     return maps, []

@@ -6,12 +6,13 @@ vehicles x steps). See docs/simulation.md for the model and its choices.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
 
-from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.cycles import composite_per_mile, load_cycle
+from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
@@ -19,11 +20,14 @@ from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, Differ
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.params import vehicle_arrays
+from fleetrun.simulation.records import (BLOCK_ARRAYS, PHASE_FIELDS, SUM_FIELDS, TRACE_COLUMNS, BlockSums,
+                                         FleetCycleResult, PhaseResult, StepResults, Trace)
 from fleetrun.simulation.thermal import (ThermalConstants, cold_start_extra_fuel, start_temperature_C,
                                          thermal_constants)
 from fleetrun.units import LITERS_PER_GALLON, METERS_PER_MILE
 
-__all__ = ["simulate", "FleetCycleResult", "TRACE_COLUMNS", "MODES", "DEFAULT_MODE"]
+__all__ = ["simulate", "FleetCycleResult", "PhaseResult", "Trace", "TRACE_COLUMNS", "SUM_FIELDS", "PHASE_FIELDS",
+           "MODES", "DEFAULT_MODE"]
 
 MODES = diffmodes.MODES
 # "auto" = the fastest mode whose cycle fuel stays within 0.2 % of direct for every example
@@ -36,92 +40,24 @@ REDRIVE_MARGINS = (0.9, 0.8, 0.7, 0.6, 0.5)
 # numpy's per-call cost more often (docs/benchmarks-simulation.md: the sweep of block sizes)
 BLOCK_STEPS = 88000
 
-# CONTRACT.md trace columns first, then extras
-TRACE_COLUMNS = (
-    "time_s", "vehicle_speed_mps", "wheel_torque_Nm", "diff_input_torque_Nm", "diff_input_speed_rpm",
-    "diff_efficiency", "gear", "engine_speed_rpm", "engine_torque_Nm", "fuel_rate_g_per_s",
-    "target_speed_mps", "grade_pct", "tractive_force_N", "wheel_speed_rpm", "axle_range",
-    "transmission_input_torque_Nm", "transmission_input_speed_rpm", "converter_unlocked",
-    "engine_max_torque_Nm", "wheel_power_W", "diff_loss_W", "transmission_loss_W", "converter_loss_W",
-    "engine_power_W", "not_followed", "phase", "engine_temp_C", "cold_start_fuel_g_per_s",
-)
-PHASE_FIELDS = ("phase_fuel_g", "phase_miles")   # (V, phases) sums; one phase for a plain cycle
-
-
-@dataclass
-class FleetCycleResult:
-    """Per-vehicle results of one cycle (arrays of shape (V,)), and the trace if asked for.
-
-    Energies are summed over steps "while driving" (wheel torque > 0, hence positive
-    differential input torque), so ``diff_efficiency = diff_output / diff_input`` and
-    ``drivetrain_efficiency = wheel / drivetrain_input`` are energy weighted and add over cycles.
-    """
-    vehicle_ids: list
-    cycle: str
-    mode: str
-    miles: np.ndarray
-    fuel_g: np.ndarray
-    fuel_gal: np.ndarray
-    mpg: np.ndarray
-    diff_input_energy_J: np.ndarray
-    diff_output_energy_J: np.ndarray
-    drivetrain_input_energy_J: np.ndarray
-    wheel_energy_J: np.ndarray
-    engine_energy_J: np.ndarray          # positive engine work over the whole cycle
-    shortfall_time_s: np.ndarray         # time the vehicle ran more than 0.1 m/s below the trace
-    shortfall_distance_m: np.ndarray     # trace distance minus distance driven
-    shortfall_max_speed_mps: np.ndarray  # largest speed deficit
-    shortfall_steps: np.ndarray          # steps with demand above full load (after re-drive)
-    duration_s: float = 0.0
-    trace: dict | None = field(default=None, repr=False)
-    effects: list = field(default_factory=list)   # the --with effects and parameters (describe_effects)
-    # a composed cycle (FTP): per phase {"miles", "fuel_g", "fuel_gal", "mpg"} arrays over
-    # vehicles; then miles, fuel_g, fuel_gal and mpg above are the composite (see phase_results)
-    phases: dict = field(default_factory=dict)
-    composite: str = ""
-
-    @property
-    def diff_efficiency(self) -> np.ndarray:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return self.diff_output_energy_J / self.diff_input_energy_J
-
-    @property
-    def drivetrain_efficiency(self) -> np.ndarray:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return self.wheel_energy_J / self.drivetrain_input_energy_J
-
-    def summary(self, i: int = 0) -> dict:
-        """The JSON line of ``fleetrun simulate`` for vehicle ``i``."""
-        def f(x):
-            x = float(x)
-            return x if np.isfinite(x) else None
-        return {
-            "vehicle_id": self.vehicle_ids[i], "cycle": self.cycle, "mode": self.mode,
-            "miles": f(self.miles[i]), "fuel_gal": f(self.fuel_gal[i]), "fuel_g": f(self.fuel_g[i]),
-            "mpg": f(self.mpg[i]), "diff_efficiency": f(self.diff_efficiency[i]),
-            "drivetrain_efficiency": f(self.drivetrain_efficiency[i]),
-            "shortfall_time_s": f(self.shortfall_time_s[i]), "shortfall_distance_m": f(self.shortfall_distance_m[i]),
-            "with": self.effects,
-            **({"composite": self.composite,
-                "phases": {p: {k: f(a[i]) for k, a in arrays.items()} for p, arrays in self.phases.items()}}
-               if self.phases else {}),
-        }
-
-    def trace_frame(self, i: int = 0):
-        """Vehicle ``i``'s per-step trace as a pandas DataFrame (needs ``trace=True``)."""
-        import pandas as pd
-
-        if self.trace is None:
-            raise FleetrunError("no trace: simulate with trace=True")
-        return pd.DataFrame({c: (self.trace[c] if np.ndim(self.trace[c]) == 1 else self.trace[c][i])
-                             for c in TRACE_COLUMNS})
-
 
 def _load(cycle):
     if isinstance(cycle, (str, os.PathLike)):
-        from fleetrun.cycles import load_cycle
         cycle = load_cycle(cycle)
     return cycle
+
+
+@dataclass(frozen=True, eq=False)
+class ThermalPlan:
+    """What the cold-start pass of a composed cycle needs (:func:`_thermal_plan`)."""
+
+    phases: tuple                 # the cycle's phases (fleetrun.cycles)
+    composite: str                # the composite rule's name (fleetrun.cycles.composite_per_mile)
+    step_phase: np.ndarray        # phase index per step, -1 in an engine-off soak
+    step_soak_s: np.ndarray       # engine-off time per step [s]
+    ambient_temp_C: float
+    constants: ThermalConstants
+    start_temp_C: float
 
 
 def _thermal_plan(cycle, t, ambient_temp_C, thermal=None):
@@ -132,10 +68,10 @@ def _thermal_plan(cycle, t, ambient_temp_C, thermal=None):
         return None
     step_phase = cycle.step_phase()
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    return dict(phases=phases, composite=str(getattr(cycle, "composite", "")), step_phase=step_phase,
-                step_soak_s=np.where(step_phase < 0, dt_all, 0.0), ambient_temp_C=float(ambient_temp_C),
-                constants=thermal or thermal_constants(),
-                start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C, thermal))
+    return ThermalPlan(phases=phases, composite=str(getattr(cycle, "composite", "")), step_phase=step_phase,
+                       step_soak_s=np.where(step_phase < 0, dt_all, 0.0), ambient_temp_C=float(ambient_temp_C),
+                       constants=thermal or thermal_constants(),
+                       start_temp_C=start_temperature_C(phases[0].soak_before_s, ambient_temp_C, thermal))
 
 
 def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
@@ -207,11 +143,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                 solver_sub = solver.subset(sub, va_sub)
             parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
                                     v_target, grade, trace, effects, plan))
-        out = {key: np.concatenate([p[key] for p in parts]) for key in SUM_FIELDS + PHASE_FIELDS + ("_behind",)}
-        if trace:
-            out["trace"] = {key: (parts[0]["trace"][key] if np.ndim(parts[0]["trace"][key]) < 2 else
-                                  np.concatenate([p["trace"][key] for p in parts])) for key in parts[0]["trace"]}
-        return out
+        return _concatenate(parts)
 
     everyone = np.arange(V)
     sums = run(everyone, None) if V else None  # first every vehicle drives the trace itself
@@ -222,43 +154,55 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     for margin in REDRIVE_MARGINS:
         if not V:
             break
-        behind = np.flatnonzero(sums["_behind"])
+        behind = np.flatnonzero(sums.behind)
         if behind.size == 0:
             break
         if force_tables is None:  # the drivetrain's maximum effort, once per simulate
             force_tables = np.zeros((V, REDRIVE_SPEED_GRID.size))
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        again = run(behind, achieved)
-        for key in SUM_FIELDS + PHASE_FIELDS + ("_behind",):
-            sums[key][behind] = again[key]
-        if trace:
-            for key, arr in again["trace"].items():
-                if np.ndim(arr) == 2:
-                    sums["trace"][key] = np.array(sums["trace"][key])
-                    sums["trace"][key][behind] = arr
+        sums = _redriven(sums, run(behind, achieved), behind)
     empty = np.zeros(0)
-    result = FleetCycleResult(
-        vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
-        **{key: (sums[key] if V else empty) for key in SUM_FIELDS}, duration_s=float(t[-1] - t[0]),
-        effects=describe_effects(effects),
-    )
+    totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
+    phases, composite = {}, ""
     if plan is not None and V:
-        phase_results(result, plan, sums, va.density)
-    if trace and V:
-        result.trace = sums["trace"]
-    return result
+        phases, composite, composite_totals = phase_results(plan, sums, va.density)
+        totals.update(composite_totals)
+    return FleetCycleResult(
+        vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
+        **totals, duration_s=float(t[-1] - t[0]), effects=describe_effects(effects),
+        trace=sums.trace if trace and V else None, phases=phases, composite=composite,
+    )
 
 
-SUM_FIELDS = ("miles", "fuel_g", "fuel_gal", "mpg", "diff_input_energy_J", "diff_output_energy_J",
-              "drivetrain_input_energy_J", "wheel_energy_J", "engine_energy_J", "shortfall_time_s",
-              "shortfall_distance_m", "shortfall_max_speed_mps", "shortfall_steps")
+def _concatenate(parts: list[BlockSums]) -> BlockSums:
+    """The blocks' sums (and traces) as one record over all their vehicles."""
+    arrays = {key: np.concatenate([getattr(p, key) for p in parts]) for key in BLOCK_ARRAYS}
+    trace = None
+    if parts[0].trace is not None:
+        trace = Trace(**{key: np.concatenate([getattr(p.trace, key) for p in parts]) for key in TRACE_COLUMNS})
+    return BlockSums(**arrays, trace=trace)
 
 
-def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(), plan=None):
+def _redriven(sums: BlockSums, again: BlockSums, behind) -> BlockSums:
+    """``sums`` with the re-driven vehicles' rows ``behind`` replaced by ``again``."""
+    for key in BLOCK_ARRAYS:
+        getattr(sums, key)[behind] = getattr(again, key)
+    if sums.trace is None:
+        return sums
+    columns = {}
+    for key in TRACE_COLUMNS:
+        column = np.array(getattr(sums.trace, key))   # a writable copy (some columns are broadcast views)
+        column[behind] = getattr(again.trace, key)
+        columns[key] = column
+    return replace(sums, trace=Trace(**columns))
+
+
+def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(),
+               plan: ThermalPlan | None = None) -> BlockSums:
     """Simulate one block of vehicles at the speeds ``speed`` (V, N), or None: the trace
     ``v_target`` itself (then the steps' motion is computed once, (1, N), for all vehicles).
-    Per-vehicle sums (and the trace if asked for); ``_behind`` marks vehicles with steps above
+    Per-vehicle sums (and the trace if asked for); ``behind`` marks vehicles with steps above
     full load. ``plan``: a composed cycle's cold-start plan (:func:`_thermal_plan`), None for
     a plain cycle."""
     V, N = va.n, t.size
@@ -269,14 +213,14 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
     columns = None if trace else np.flatnonzero(target_avg > 0)
     out = backward(va, t, speed, grade, solver, columns, effects, losses=trace)
-    dt = out["dt"]
+    dt = out.dt
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    distance_m = _distance_m(out["v_avg"] * dt, V, on_trace)
+    distance_m = _distance_m(out.v_avg * dt, V, on_trace)
     target_m = float((target_avg * dt_all).sum())
     not_followed, shortfall_time_s, shortfall_max_speed_mps = _shortfall(v_target, None if on_trace else speed,
-                                                                         dt_all, columns, out["infeasible"])
+                                                                         dt_all, columns, out.infeasible)
     if plan is None:
-        fuel_g = (out["fuel_rate_g_per_s"] * dt).sum(axis=1)
+        fuel_g = (out.fuel_rate_g_per_s * dt).sum(axis=1)
         if columns is not None:
             standstill_s = dt_all.sum() - dt_all[columns].sum()
             fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
@@ -288,43 +232,43 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         fuel_g, phase_fuel_g, phase_miles, cold, temp = _phased_fuel(va, t, columns, out, effects, plan)
     fuel_gal = fuel_g / 1000.0 / va.density / LITERS_PER_GALLON
     miles = distance_m / METERS_PER_MILE
-    driving = out["moving"] & (out["wheel_torque_Nm"] > 0)
+    driving = out.moving & (out.wheel_torque_Nm > 0)
     driving_dt = np.where(driving, dt, 0.0)
     e = lambda p: (p * driving_dt).sum(axis=1)  # noqa: E731
-    wheel = e(out["wheel_power_W"])
+    wheel = e(out.wheel_power_W)
     with np.errstate(divide="ignore", invalid="ignore"):
         mpg = np.where(fuel_gal > 0, miles / fuel_gal, np.nan)
-    sums = dict(
+    return BlockSums(
         miles=miles, fuel_g=fuel_g, fuel_gal=fuel_gal, mpg=mpg,
-        diff_input_energy_J=e(out["diff_input_torque_Nm"] * out["diff_input_speed_rpm"] * (2 * np.pi / 60)),
-        diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out["engine_power_W"]), wheel_energy_J=wheel,
-        engine_energy_J=(np.maximum(out["engine_power_W"], 0.0) * dt).sum(axis=1),
+        diff_input_energy_J=e(out.diff_input_torque_Nm * out.diff_input_speed_rpm * (2 * np.pi / 60)),
+        diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out.engine_power_W), wheel_energy_J=wheel,
+        engine_energy_J=(np.maximum(out.engine_power_W, 0.0) * dt).sum(axis=1),
         shortfall_time_s=shortfall_time_s, shortfall_distance_m=target_m - distance_m,
         shortfall_max_speed_mps=shortfall_max_speed_mps,
-        shortfall_steps=out["infeasible"].sum(axis=1), _behind=out["infeasible"].any(axis=1),
+        shortfall_steps=out.infeasible.sum(axis=1), behind=out.infeasible.any(axis=1),
         phase_fuel_g=phase_fuel_g, phase_miles=phase_miles,
+        trace=_trace(t, speed, v_target, grade, out, not_followed, plan, cold, temp) if trace else None,
     )
-    if trace:
-        sums["trace"] = {
-            "time_s": np.broadcast_to(t, (V, N)), "vehicle_speed_mps": np.broadcast_to(speed, (V, N)), "wheel_torque_Nm": out["wheel_torque_Nm"],
-            "diff_input_torque_Nm": out["diff_input_torque_Nm"], "diff_input_speed_rpm": out["diff_input_speed_rpm"],
-            "diff_efficiency": out["diff_efficiency"], "gear": out["gear"].astype(np.intp), "engine_speed_rpm": out["engine_speed_rpm"],
-            "engine_torque_Nm": out["engine_torque_Nm"], "fuel_rate_g_per_s": out["fuel_rate_g_per_s"],
-            "target_speed_mps": np.broadcast_to(v_target, (V, N)), "grade_pct": np.broadcast_to(grade, (V, N)),
-            "tractive_force_N": out["force"],
-            "wheel_speed_rpm": out["wheel_speed_rpm"],
-            "axle_range": np.where(out["axle_low"], "low", "high"),
-            "transmission_input_torque_Nm": out["transmission_input_torque_Nm"],
-            "transmission_input_speed_rpm": out["transmission_input_speed_rpm"],
-            "converter_unlocked": out["converter_unlocked"], "engine_max_torque_Nm": out["engine_max_torque_Nm"],
-            "wheel_power_W": out["wheel_power_W"], "diff_loss_W": out["diff_loss_W"],
-            "transmission_loss_W": out["transmission_loss_W"], "converter_loss_W": out["converter_loss_W"],
-            "engine_power_W": out["engine_power_W"], "not_followed": not_followed,
-            **_thermal_trace(V, N, plan, cold, temp),
-            # internals for tests (not written to CSV)
-            "_v_avg": np.broadcast_to(out["v_avg"], (V, N)), "_accel": np.broadcast_to(out["accel"], (V, N)), "_dt": np.broadcast_to(dt, (V, N)), "_driving": driving,
-        }
-    return sums
+
+
+def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold, temp) -> Trace:
+    """The block's trace (V, N) from its backward pass (with losses)."""
+    V, N = out.wheel_torque_Nm.shape
+    full = lambda a: np.broadcast_to(a, (V, N))  # noqa: E731
+    return Trace(
+        time_s=full(t), vehicle_speed_mps=full(speed), wheel_torque_Nm=out.wheel_torque_Nm,
+        diff_input_torque_Nm=out.diff_input_torque_Nm, diff_input_speed_rpm=out.diff_input_speed_rpm,
+        diff_efficiency=out.diff_efficiency, gear=out.gear.astype(np.intp), engine_speed_rpm=out.engine_speed_rpm,
+        engine_torque_Nm=out.engine_torque_Nm, fuel_rate_g_per_s=out.fuel_rate_g_per_s,
+        target_speed_mps=full(v_target), grade_pct=full(grade), tractive_force_N=out.force,
+        wheel_speed_rpm=out.wheel_speed_rpm, axle_range=np.where(out.axle_low, "low", "high"),
+        transmission_input_torque_Nm=out.transmission_input_torque_Nm,
+        transmission_input_speed_rpm=out.transmission_input_speed_rpm,
+        converter_unlocked=out.converter_unlocked, engine_max_torque_Nm=out.engine_max_torque_Nm,
+        wheel_power_W=out.wheel_power_W, diff_loss_W=out.diff_loss_W, transmission_loss_W=out.transmission_loss_W,
+        converter_loss_W=out.converter_loss_W, engine_power_W=out.engine_power_W, not_followed=not_followed,
+        **_thermal_trace(V, N, plan, cold, temp),
+    )
 
 
 def _distance_m(step_m, V, on_trace):
@@ -372,17 +316,17 @@ def _every_step(va, t, columns, out, effects, plan):
     the vehicle-level effects' fuel at rest), engine-off soak steps burn nothing and stand still.
     Sets the soak steps of ``out`` (a traced pass computes them as idle) to engine off."""
     V, N = va.n, t.size
-    off = plan["step_phase"] < 0
+    off = plan.step_phase < 0
     if columns is None:
-        out["fuel_rate_g_per_s"][:, off] = 0.0
-        out["engine_speed_rpm"][:, off] = 0.0
-        return out["fuel_rate_g_per_s"].copy(), out["engine_speed_rpm"].copy()
+        out.fuel_rate_g_per_s[:, off] = 0.0
+        out.engine_speed_rpm[:, off] = 0.0
+        return out.fuel_rate_g_per_s.copy(), out.engine_speed_rpm.copy()
     rate = np.repeat(idle_fuel_rate_g_per_s(va)[:, None], N, axis=1)
     rpm = np.repeat(va.n_idle[:, None], N, axis=1)
     if effects.vehicle:
         rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)
-    rate[:, columns] = out["fuel_rate_g_per_s"]
-    rpm[:, columns] = out["engine_speed_rpm"]
+    rate[:, columns] = out.fuel_rate_g_per_s
+    rpm[:, columns] = out.engine_speed_rpm
     rate[:, off] = 0.0
     rpm[:, off] = 0.0
     return rate, rpm
@@ -396,13 +340,13 @@ def _phased_fuel(va, t, columns, out, effects, plan):
     V, N = va.n, t.size
     dt_all = np.concatenate([[0.0], np.diff(t)])
     rate, rpm = _every_step(va, t, columns, out, effects, plan)
-    cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan["step_soak_s"], plan["start_temp_C"],
-                                       plan["ambient_temp_C"], plan["constants"])
+    cold, temp = cold_start_extra_fuel(va, rate, rpm, dt_all, plan.step_soak_s, plan.start_temp_C,
+                                       plan.ambient_temp_C, plan.constants)
     rate += cold
-    if columns is None:
-        out["fuel_rate_g_per_s"] += cold
+    if columns is None:  # the traced pass's fuel rate, in place
+        np.add(out.fuel_rate_g_per_s, cold, out=out.fuel_rate_g_per_s)
     step_m = np.zeros((V, N))
-    step_m[:, np.arange(N) if columns is None else columns] = out["v_avg"] * out["dt"]
+    step_m[:, np.arange(N) if columns is None else columns] = out.v_avg * out.dt
     step_fuel = rate * dt_all
     return (step_fuel.sum(axis=1), _sum_by_phase(step_fuel, plan), _sum_by_phase(step_m, plan) / METERS_PER_MILE,
             cold, temp)
@@ -410,8 +354,8 @@ def _phased_fuel(va, t, columns, out, effects, plan):
 
 def _sum_by_phase(per_step, plan):
     """Sums (V, phases) of a per-step quantity (V, N) over each phase's steps."""
-    index = plan["step_phase"]
-    return np.stack([per_step[:, index == k].sum(axis=1) for k in range(len(plan["phases"]))], axis=1)
+    index = plan.step_phase
+    return np.stack([per_step[:, index == k].sum(axis=1) for k in range(len(plan.phases))], axis=1)
 
 
 def _thermal_trace(V, N, plan, cold, temp):
@@ -420,31 +364,29 @@ def _thermal_trace(V, N, plan, cold, temp):
     if plan is None:
         return {"phase": np.full((V, N), ""), "engine_temp_C": np.full((V, N), thermal_constants().thermostat_temp_C),
                 "cold_start_fuel_g_per_s": np.zeros((V, N))}
-    names = np.array([p.name for p in plan["phases"]] + [""])   # index -1: the soak, no phase
-    return {"phase": np.broadcast_to(names[plan["step_phase"]], (V, N)), "engine_temp_C": temp,
+    names = np.array([p.name for p in plan.phases] + [""])   # index -1: the soak, no phase
+    return {"phase": np.broadcast_to(names[plan.step_phase], (V, N)), "engine_temp_C": temp,
             "cold_start_fuel_g_per_s": cold}
 
 
-def phase_results(result: FleetCycleResult, plan, sums, density_kg_per_L):
-    """Fill ``result.phases`` (per phase: miles, fuel_g, fuel_gal, mpg) and set its miles,
-    fuel_g, fuel_gal and mpg to the composite: the cycle's miles driven, and fuel at the
+def phase_results(plan: ThermalPlan, sums: BlockSums, density_kg_per_L):
+    """A composed cycle's results per phase (miles, fuel_g, fuel_gal, mpg), the composite's
+    name and its miles, fuel_g, fuel_gal and mpg: the cycle's miles driven, and fuel at the
     composite rate per mile (:func:`fleetrun.cycles.composite_per_mile`, for the FTP EPA's bag
     weighting, 40 CFR 86.144), so that ``mpg = miles / fuel_gal`` is the composite mpg and
     fuel per mile is what a budget multiplies by miles."""
-    from fleetrun.cycles import composite_per_mile
-
     to_gal = 1.0 / (1000.0 * np.asarray(density_kg_per_L, float) * LITERS_PER_GALLON)
-    fuel, miles = {}, {}
-    for k, phase in enumerate(plan["phases"]):
-        fuel[phase.name], miles[phase.name] = sums["phase_fuel_g"][:, k], sums["phase_miles"][:, k]
+    fuel, miles, phases = {}, {}, {}
+    for k, phase in enumerate(plan.phases):
+        fuel[phase.name], miles[phase.name] = sums.phase_fuel_g[:, k], sums.phase_miles[:, k]
         with np.errstate(divide="ignore", invalid="ignore"):
             mpg = np.where(fuel[phase.name] > 0, miles[phase.name] / (fuel[phase.name] * to_gal), np.nan)
-        result.phases[phase.name] = {"miles": miles[phase.name], "fuel_g": fuel[phase.name],
-                                     "fuel_gal": fuel[phase.name] * to_gal, "mpg": mpg}
-    result.composite = plan["composite"]
+        phases[phase.name] = PhaseResult(miles=miles[phase.name], fuel_g=fuel[phase.name],
+                                         fuel_gal=fuel[phase.name] * to_gal, mpg=mpg)
     with np.errstate(divide="ignore", invalid="ignore"):
-        grams_per_mile = composite_per_mile(plan["composite"], fuel, miles)
-        result.miles = sum(miles.values()) if miles else result.miles
-        result.fuel_g = grams_per_mile * result.miles
-        result.fuel_gal = result.fuel_g * to_gal
-        result.mpg = np.where(result.fuel_gal > 0, result.miles / result.fuel_gal, np.nan)
+        grams_per_mile = composite_per_mile(plan.composite, fuel, miles)
+        total_miles = sum(miles.values()) if miles else sums.miles
+        fuel_g = grams_per_mile * total_miles
+        fuel_gal = fuel_g * to_gal
+        mpg = np.where(fuel_gal > 0, total_miles / fuel_gal, np.nan)
+    return phases, plan.composite, dict(miles=total_miles, fuel_g=fuel_g, fuel_gal=fuel_gal, mpg=mpg)

@@ -29,6 +29,7 @@ from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
                                         full_load_torque_Nm, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
+from fleetrun.simulation.records import StepResults, Trace
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
@@ -184,7 +185,7 @@ def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     return va.idle_fuel_rate
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class Kinematics:
     """Per-step motion of one backward pass: step i covers [t_{i-1}, t_i] (vehicles x steps,
     or 1 x steps when every vehicle drives the same speeds; quantities of time only are 1 x
@@ -226,6 +227,12 @@ def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
     accel = (v_now - v_prev) * inv_dt
     moving = v_avg > 1e-6
     return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
+
+
+def trace_kinematics(trace: Trace) -> Kinematics:
+    """The step motion (dt, mean speed, acceleration, moving; (V, N)) of a simulated trace,
+    as the backward pass computed it: for checks of the per-step physics against the trace."""
+    return kinematics(trace.time_s[0], np.asarray(trace.vehicle_speed_mps), trace.grade_pct[0])
 
 
 def _col(a):
@@ -420,7 +427,7 @@ def _shaft_power_W(torque_Nm, speed_rpm):
 
 
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects(), losses: bool = True):
+             effects: CycleEffects = CycleEffects(), losses: bool = True) -> StepResults:
     """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
     vehicle's achieved speed), or (1, N) when every vehicle drives the same speeds (then the
     motion of the steps, ``dt`` to ``moving``, is (1, N) too).
@@ -442,22 +449,22 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                                                     wheel_power)
     fuel = _with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
+    losses_W = {}
+    if losses:
+        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
+        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+        losses_W = dict(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
+                        converter_loss_W=engine_power - turbine_power)
     V, N = wheel_torque.shape
-    out = dict(
+    return StepResults(
         dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
         moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
         diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
         transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
         converter_unlocked=k.at_rest(unlocked, False), engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
         engine_max_torque_Nm=t_max, infeasible=k.at_rest(infeasible, False), fuel_rate_g_per_s=fuel,
-        wheel_power_W=wheel_power, engine_power_W=engine_power,
+        wheel_power_W=wheel_power, engine_power_W=engine_power, **losses_W,
     )
-    if losses:
-        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
-        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
-        out.update(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
-                   converter_loss_W=engine_power - turbine_power)
-    return out
 
 
 REDRIVE_SPEED_GRID = np.linspace(0.0, 70.0, 281)  # m/s, 0.25 m/s steps, beyond any cycle

@@ -26,6 +26,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from fleetrun.effects.base import AppliedEffect
 from fleetrun.errors import DomainError
 
 FIXED_POINT_TOL = 1e-10   # of the Kim scale: the direct inversion's tolerance
@@ -55,13 +56,13 @@ def cycle_effects(effects) -> CycleEffects:
                         vehicle=tuple(p for p in pairs if p[0].level == "vehicle"))
 
 
-def describe_effects(effects) -> list[dict]:
-    """JSON-ready record of ``effects``: [{"effect": id, "level": ..., "parameters": {...}}]."""
+def describe_effects(effects) -> list[AppliedEffect]:
+    """The record of ``effects``: each one's id, level and parameters."""
     from fleetrun.effects import as_effect_list
 
     if isinstance(effects, CycleEffects):
         effects = effects.differential + effects.vehicle
-    return [{"effect": e.id, "level": e.level, "parameters": {k: float(v) for k, v in params.items()}}
+    return [AppliedEffect(e.id, e.level, {k: float(v) for k, v in params.items()})
             for e, params in as_effect_list(effects or [])]
 
 

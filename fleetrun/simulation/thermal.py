@@ -54,8 +54,8 @@ class ThermalConstants:
     soak_time_constant_s: float
     friction_share: float
     viscosity_exponent: float
-    oil_walther: dict            # fuel -> (A, B) of Walther's equation
-    enrichment_at_25C: dict      # fuel -> e_25
+    oil_walther: dict[str, tuple[float, float]]   # fuel -> (A, B) of Walther's equation
+    enrichment_at_25C: dict[str, float]           # fuel -> e_25
 
 
 @lru_cache(maxsize=None)
