@@ -50,13 +50,13 @@ def memo_table(fiscal: pd.DataFrame, ranges: dict) -> pd.DataFrame:
     each with its 90 % range (revenue ranges are the gallons' range x the year's rates)."""
     rows = []
     for (scenario_id, year), group in fiscal.groupby(["scenario_id", "fiscal_year"], sort=False):
-        found = ranges.get(scenario_id, {})
         index = _year_index(fiscal, scenario_id, year)
         for fuel, part in list(group.groupby("fuel", sort=False)) + [(ALL_FUELS, group)]:
             if fuel == "electric":
                 continue
             part = part[part.fuel != "electric"]
-            low, high = found.get("all" if fuel == ALL_FUELS else fuel, (np.ones(index + 1), np.ones(index + 1)))
+            found = ranges.get((scenario_id, "all" if fuel == ALL_FUELS else fuel))
+            low, high = (found.low, found.high) if found else (np.ones(index + 1), np.ones(index + 1))
             row = {"scenario_id": scenario_id, "fiscal_year": year, "fuel": fuel}
             for column, prefix in (("fuel_gal", "fuel_gal"), ("state_tax_usd", "state_tax"),
                                    ("federal_tax_usd", "federal_tax")):

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import dataclass
+
 from fleetrun.budget import drivers
 from fleetrun.budget.uncertainty import Z90
 
@@ -29,6 +31,14 @@ DRIVER_LABELS = {"model_LD": "Fuel model, light duty", "model_HD": "Fuel model, 
                  "vmt_growth": "VMT growth", "fuel_price": "Fuel price (via elasticity)",
                  "fleet_mix": "Fleet mix", "observed_gallons": "Observed base-year gallons"}
 MAX_YEARS = 50
+
+
+@dataclass(frozen=True)
+class YearRange:
+    """The 90 % range of one total per budget year, relative to its centre (5th and 95th
+    percentile / central)."""
+    low: np.ndarray
+    high: np.ndarray
 
 
 def standard_normals(samples: int, seed: int) -> dict[str, np.ndarray]:
@@ -70,7 +80,7 @@ def gallons_draws(central: dict, z: dict, spec: dict) -> dict[str, np.ndarray]:
     return out
 
 
-def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, YearRange]:
     """Per fuel: (low, high) / central gallons of each budget year (5th and 95th percentiles),
     and under ``"all"`` the same for the sum of the fuels."""
     draws = gallons_draws(central, z, spec)
@@ -78,11 +88,11 @@ def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, tuple[np.ndarra
     for fuel, samples in draws.items():
         centre = sum(np.asarray(c) for (name, _), c in central.items() if name == fuel)
         low, high = np.percentile(samples, [5, 95], axis=0)
-        out[fuel] = (_ratio(low, centre), _ratio(high, centre))
+        out[fuel] = YearRange(_ratio(low, centre), _ratio(high, centre))
     if draws:
         centre = sum(np.asarray(c) for c in central.values())
         low, high = np.percentile(sum(draws.values()), [5, 95], axis=0)
-        out["all"] = (_ratio(low, centre), _ratio(high, centre))
+        out["all"] = YearRange(_ratio(low, centre), _ratio(high, centre))
     return out
 
 

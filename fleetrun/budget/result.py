@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field
 
 import pandas as pd
 
+from fleetrun.budget.ranges import YearRange
 from fleetrun.budget.uncertainty import ErrorModel
 from fleetrun.effects.base import AppliedEffect
 from fleetrun.fileio import JsonDocument
@@ -119,7 +120,7 @@ class RunResult:
     tornado: pd.DataFrame | None = None        # state revenue per driver at its 5th / 95th percentile
     memo: pd.DataFrame | None = None           # revenue_memo.csv: fiscal year x fuel with ranges
     periods: pd.DataFrame | None = None        # fiscal_periods.csv: quarters and months
-    ranges: dict = field(default_factory=dict)  # scenario -> fuel or "all" -> (low, high) / central per year
+    ranges: dict[tuple[str, str], YearRange] = field(default_factory=dict)  # (scenario, fuel or "all")
     changes: RunChanges | None = None          # vs the run already in the folder
 
 

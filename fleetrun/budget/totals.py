@@ -69,7 +69,7 @@ class BudgetTables:
     results: pd.DataFrame
     yearly: dict            # scenario_id -> {column: rows x budget years}
     calibration: pd.DataFrame
-    ranges: dict            # scenario_id -> {fuel or "all": (low / central, high / central) per year}
+    ranges: dict            # (scenario_id, fuel or "all") -> ranges.YearRange
     tornado: pd.DataFrame
     warnings: list
 
@@ -201,9 +201,9 @@ def _yearly(p: _Scenario, vehicles, scales: dict, ratios: dict) -> dict[str, np.
     scale = np.array([scales.get(f, 1.0) for f in fuel])
     gallons = p.raw * scale[:, None]
     low, high = gallons.copy(), gallons.copy()       # rows without gallons (electric): 0
-    for name, (lo, hi) in ratios.items():
+    for name, found in ratios.items():
         rows = fuel == name
-        low[rows], high[rows] = gallons[rows] * lo[None, :], gallons[rows] * hi[None, :]
+        low[rows], high[rows] = gallons[rows] * found.low[None, :], gallons[rows] * found.high[None, :]
     state = np.zeros_like(gallons)
     federal = np.zeros_like(gallons)
     for name in drivers.FUELS:
@@ -295,7 +295,7 @@ def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: d
     for p in prepared:
         central, spec = _range_spec(p, vehicles, error_model, scales, warnings)
         found = ranges.fuel_ranges(central, z, spec)
-        fuel_ranges[p.s.scenario_id] = found
+        fuel_ranges.update({(p.s.scenario_id, name): r for name, r in found.items()})
         frame, yearly[p.s.scenario_id] = scenario_frame(p, vehicles, scales,
                                                         {k: v for k, v in found.items() if k != "all"})
         frames.append(frame)

@@ -23,7 +23,7 @@ from fleetrun.resources import model_file
 
 
 @lru_cache(maxsize=1)
-def climate_constants() -> dict:
+def _climate_constants() -> dict:
     """``models/climate.toml``."""
     return model_file("climate.toml")
 
@@ -46,7 +46,7 @@ def cold_power_W(ambient_temp_C: float, onset_temp_C: float, reference_temp_C: f
 
 def accessory_power_W(ambient_temp_C: float) -> float:
     """The climate accessory load [W] at ``ambient_temp_C`` [C] (models/climate.toml)."""
-    c = climate_constants()
+    c = _climate_constants()
     keys = ("onset_temp_C", "reference_temp_C", "power_at_reference_W")
     return (ac_power_W(ambient_temp_C, *(c["ac"][k] for k in keys))
             + cold_power_W(ambient_temp_C, *(c["cold"][k] for k in keys)))
