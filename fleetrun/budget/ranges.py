@@ -96,6 +96,34 @@ def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, YearRange]:
     return out
 
 
+@dataclass(frozen=True)
+class PeriodRange:
+    """The 90 % range of a scenario's budget-period totals (all fuels), relative to the centre:
+    gallons, state and federal revenue (each its own 5th and 95th percentile)."""
+    fuel_low: float
+    fuel_high: float
+    state_low: float
+    state_high: float
+    federal_low: float
+    federal_high: float
+
+
+def period_range(central: dict, z: dict, spec: dict, state: dict, federal: dict) -> PeriodRange:
+    """Percentiles of the budget period's totals over fuels and years; ``state`` / ``federal``:
+    each fuel's rate per budget year [$/gal]."""
+    draws = gallons_draws(central, z, spec)
+    out = {}
+    for name, rates in (("fuel", None), ("state", state), ("federal", federal)):
+        samples = sum((d * (1.0 if rates is None else rates[f][None, :])).sum(axis=1) for f, d in draws.items())
+        centre = sum((np.asarray(c) * (1.0 if rates is None else rates[f])).sum() for (f, _), c in central.items())
+        if not draws or centre <= 0:
+            out[f"{name}_low"] = out[f"{name}_high"] = 1.0
+            continue
+        low, high = np.percentile(samples, [5, 95])
+        out[f"{name}_low"], out[f"{name}_high"] = float(low / centre), float(high / centre)
+    return PeriodRange(**out)
+
+
 def _ratio(value, centre):
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(centre > 0, value / centre, 1.0)

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 
 import pandas as pd
 
-from fleetrun.budget.ranges import YearRange
+from fleetrun.budget.ranges import PeriodRange, YearRange
 from fleetrun.budget.uncertainty import ErrorModel
 from fleetrun.effects.base import AppliedEffect
 from fleetrun.fileio import JsonDocument
@@ -121,6 +121,7 @@ class RunResult:
     memo: pd.DataFrame | None = None           # revenue_memo.csv: fiscal year x fuel with ranges
     periods: pd.DataFrame | None = None        # fiscal_periods.csv: quarters and months
     ranges: dict[tuple[str, str], YearRange] = field(default_factory=dict)  # (scenario, fuel or "all")
+    period_ranges: dict[str, PeriodRange] = field(default_factory=dict)  # scenario -> budget-period range
     changes: RunChanges | None = None          # vs the run already in the folder
 
 

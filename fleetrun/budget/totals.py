@@ -72,6 +72,7 @@ class BudgetTables:
     ranges: dict            # (scenario_id, fuel or "all") -> ranges.YearRange
     tornado: pd.DataFrame
     warnings: list
+    period_ranges: dict     # scenario_id -> ranges.PeriodRange
 
 
 @lru_cache(maxsize=64)
@@ -291,7 +292,7 @@ def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: d
     scales, calibration_table = fit_calibration(prepared, warnings)
     u = drivers.uncertainty()
     z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
-    frames, yearly, fuel_ranges, tornado = [], {}, {}, []
+    frames, yearly, fuel_ranges, tornado, period = [], {}, {}, [], {}
     for p in prepared:
         central, spec = _range_spec(p, vehicles, error_model, scales, warnings)
         found = ranges.fuel_ranges(central, z, spec)
@@ -300,11 +301,13 @@ def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: d
                                                         {k: v for k, v in found.items() if k != "all"})
         frames.append(frame)
         rates = {f: drivers.state_rates(p.s, f) for f in drivers.FUELS}
+        period[p.s.scenario_id] = ranges.period_range(central, z, spec, rates,
+                                                      {f: drivers.federal_rates(p.s, f) for f in drivers.FUELS})
         tornado += [{"scenario_id": p.s.scenario_id, **row} for row in ranges.tornado(central, spec, rates)]
     if error_model is not None and any(d != "LD" for d in (v.duty_class for v in vehicles)):
         warnings += list(error_model.warnings)
     results = pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS] if frames else pd.DataFrame(columns=RESULTS_COLUMNS)
-    return BudgetTables(results=results, yearly=yearly, calibration=calibration_table, ranges=fuel_ranges,
+    return BudgetTables(results=results, yearly=yearly, calibration=calibration_table, ranges=fuel_ranges, period_ranges=period,
                         tornado=pd.DataFrame(tornado, columns=TORNADO_COLUMNS), warnings=warnings)
 
 

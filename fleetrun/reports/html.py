@@ -55,7 +55,7 @@ def _raw(value) -> str:
 def _cards(result: RunResult, totals) -> list[dict]:
     """One card per scenario: totals rounded to their range, state and federal apart, and
     each one's change against the first scenario."""
-    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
     described = {s.scenario_id: s for s in result.scenarios}
     cards, base = [], None
     for row in totals.itertuples(index=False):

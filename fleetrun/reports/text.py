@@ -50,24 +50,19 @@ def with_range(value: float, low: float, high: float, prefix: str = "", unit: st
             f"({short(low, prefix, low, high)} to {short(high, prefix, low, high)})")
 
 
-def scenario_ranges(fiscal: pd.DataFrame, scenarios) -> dict[str, dict[str, float]]:
-    """Per scenario: fuel, state and federal tax with their low and high ends (the taxes'
-    range is each fuel's gallon range x that fuel's rate)."""
+def scenario_ranges(fiscal: pd.DataFrame, scenarios, period_ranges=None) -> dict[str, dict[str, float]]:
+    """Per scenario: fuel, state and federal tax over the budget period with their 90 % range
+    (the Monte Carlo's percentiles of the period totals, ``RunResult.period_ranges``; without
+    them, no range)."""
     out = {}
     for s in scenarios:
-        rows = fiscal[fiscal["scenario_id"] == s.scenario_id]
-        entry = {key: 0.0 for key in ("fuel", "fuel_low", "fuel_high", "state", "state_low", "state_high",
-                                      "federal", "federal_low", "federal_high")}
-        for fuel, group in rows.groupby("fuel", sort=False):
-            gallons = [math.fsum(group[c]) if group[c].notna().all() else math.nan
-                       for c in ("fuel_gal", "fuel_gal_low", "fuel_gal_high")]
-            for key, rate in (("state", s.state_tax_usd_per_gal(fuel)), ("federal", s.federal_tax_usd_per_gal(fuel))):
-                entry[key] += math.fsum(group[f"{key}_tax_usd"])
-                entry[f"{key}_low"] += gallons[1] * rate
-                entry[f"{key}_high"] += gallons[2] * rate
-            entry["fuel"] += gallons[0]
-            entry["fuel_low"] += gallons[1]
-            entry["fuel_high"] += gallons[2]
+        rows = fiscal[(fiscal["scenario_id"] == s.scenario_id) & (fiscal["fuel"] != "electric")]
+        found = (period_ranges or {}).get(s.scenario_id)
+        entry = {"fuel": math.fsum(rows["fuel_gal"]), "state": math.fsum(rows["state_tax_usd"]),
+                 "federal": math.fsum(rows["federal_tax_usd"])}
+        for key in ("fuel", "state", "federal"):
+            low, high = (getattr(found, f"{key}_low"), getattr(found, f"{key}_high")) if found else (math.nan, math.nan)
+            entry[f"{key}_low"], entry[f"{key}_high"] = entry[key] * low, entry[key] * high
         out[s.scenario_id] = entry
     return out
 

@@ -260,7 +260,7 @@ def _summary_words(sheet: Sheet, result: RunResult) -> int:
     where the ranges come from; the last row written."""
     from fleetrun.reports import text as report_text
 
-    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
     heads = ["Headline (rounded to its range)"] + [None] * 12
     for column, label in labels:

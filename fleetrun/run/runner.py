@@ -141,7 +141,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     finished = time.perf_counter()
     return RunResult(
         fleet=fleet, scenarios=scenarios, results=results, classes=classes, fiscal=fiscal,
-        calibration=calibration, error_model=error_model, tornado=budget.tornado, ranges=budget.ranges,
+        calibration=calibration, error_model=error_model, tornado=budget.tornado, ranges=budget.ranges, period_ranges=budget.period_ranges,
         memo=memo, periods=periods.period_rows(memo, scenarios),
         cycles=cycles, maps=maps, warnings=warnings,
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
