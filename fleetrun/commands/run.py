@@ -15,6 +15,8 @@ from pathlib import Path
 
 import click
 
+from fleetrun.run.outputs import OUTPUT_FILES
+
 from fleetrun.run.engines import ENGINES
 
 
@@ -99,8 +101,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         for item in written:
             note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
                     if item["warnings"] else "")
-            click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, "
-                       f"class_summary.csv, fiscal_summary.csv, manifest.json{note}")
+            click.echo(f"Wrote {item['out']}/: {', '.join(OUTPUT_FILES)}{note}")
     if code == batch.EXIT_OK:
         return
     if len(errors) == 1 and len(plan.inputs) == 1:
