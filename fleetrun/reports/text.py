@@ -67,6 +67,28 @@ def scenario_ranges(fiscal: pd.DataFrame, scenarios, period_ranges=None) -> dict
     return out
 
 
+def fuel_mpg(results: pd.DataFrame) -> dict[tuple[str, str], float]:
+    """(scenario, fuel) -> miles / gallons of that fuel's vehicles (never gasoline and diesel
+    mixed: their gallons differ in energy and tax)."""
+    out = {}
+    for (scenario_id, fuel), group in results.groupby(["scenario_id", "fuel"], sort=False):
+        gallons = math.fsum(group["fuel_gal_total"])
+        if fuel != "electric" and gallons > 0:
+            out[(scenario_id, fuel)] = math.fsum(group["miles_total"]) / gallons
+    return out
+
+
+def totals_with_fuel_mpg(totals: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:
+    """The scenario totals with ``mpg_<fuel>`` per fuel in place of one mixed fleet mpg."""
+    mpg = fuel_mpg(results)
+    fuels = list(dict.fromkeys(f for _, f in mpg))
+    frame = totals.drop(columns=["mpg"])
+    position = list(totals.columns).index("mpg")
+    for k, fuel in enumerate(fuels):
+        frame.insert(position + k, f"mpg_{fuel}", [mpg.get((s, fuel), math.nan) for s in frame["scenario_id"]])
+    return frame
+
+
 def headline(s, entry: dict) -> list[tuple[str, str]]:
     """(label, text) pairs for one scenario's headline, state and federal apart."""
     years = budget.fiscal_years(s)
