@@ -19,7 +19,7 @@ from fleetrun.fileio import JsonDocument
 from fleetrun.workbook.reader import Fleet, Scenario
 
 __all__ = ["RunResult", "CycleInfo", "EfficiencyMap", "EngineInfo", "AppliedEffect", "RunChanges",
-           "InputChange", "TotalChange"]
+           "InputChange", "TotalChange", "ChangeCause"]
 
 
 @dataclass(frozen=True)
@@ -85,6 +85,18 @@ class TotalChange:
 
 
 @dataclass(frozen=True)
+class ChangeCause:
+    """The part of one scenario total's change due to one cause (``vehicles``, ``scenario``,
+    ``model version``, ``calibration``, ``tax rates``, or several inputs together), in the
+    total's unit."""
+
+    scenario_id: str
+    total: str
+    cause: str
+    amount: float
+
+
+@dataclass(frozen=True)
 class RunChanges:
     """What changed since the run that was in the output folder (:mod:`fleetrun.reports.changes`)."""
 
@@ -92,9 +104,11 @@ class RunChanges:
     earlier_version: str
     inputs: tuple[InputChange, ...]
     totals: tuple[TotalChange, ...]
+    causes: tuple[ChangeCause, ...] = ()
 
     def as_json(self) -> JsonDocument:
-        return asdict(self) | {"inputs": [asdict(i) for i in self.inputs], "totals": [asdict(t) for t in self.totals]}
+        return asdict(self) | {"inputs": [asdict(i) for i in self.inputs], "totals": [asdict(t) for t in self.totals],
+                               "causes": [asdict(c) for c in self.causes]}
 
 
 @dataclass(frozen=True, eq=False)

@@ -634,7 +634,7 @@ def _what_changed(book: Book, result: RunResult):
     """The comparison with the run that was in the output folder (fleetrun.reports.changes)."""
     sheet = Sheet(book, "What changed")
     page_setup(sheet, title_row=None)
-    for column, width in enumerate((40, 18, 20, 20, 14)):
+    for column, width in enumerate((40, 18, 30, 20, 14)):
         sheet.ws.set_column(column, column, width)
     changes = result.changes
     sheet.append(["What changed since the earlier run in this output folder"], "title")
@@ -651,3 +651,8 @@ def _what_changed(book: Book, result: RunResult):
     for row in changes.totals:
         sheet.append([row.scenario_id, row.total, row.earlier, row.now, row.change_pct],
                      [None, None, "#,##0", "#,##0", FORMATS["change_pct"]])
+    if changes.causes:
+        sheet.append([])
+        sheet.append(["scenario_id", "total", "cause", "change"], "header")
+        for c in changes.causes:
+            sheet.append([c.scenario_id, c.total, c.cause, c.amount], [None, None, None, "#,##0"])
