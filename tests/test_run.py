@@ -305,3 +305,14 @@ def test_dask_scheduler_address(fleet_path, tmp_path):
     manifest = json.loads((tmp_path / "remote" / "manifest.json").read_text())
     assert manifest["engine"] == {"engine": "dask", "scheduler": cluster.scheduler_address}
     assert (tmp_path / "remote" / "results.csv").read_bytes() == (local / "results.csv").read_bytes()
+
+
+def test_docs_name_every_output():
+    from pathlib import Path
+
+    from fleetrun.run.outputs import OUTPUT_FILES
+
+    words = {6: "six", 7: "seven", 8: "eight", 9: "nine"}
+    batch = (Path(__file__).parents[1] / "docs" / "batch.md").read_text()
+    assert f"writes {words[len(OUTPUT_FILES)]} files into DIR" in batch
+    assert all(f"`{name}`" in batch for name in OUTPUT_FILES)
