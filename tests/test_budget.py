@@ -175,3 +175,26 @@ def test_budget_column_errors(tmp_path, overrides, message):
     result = fakes.invoke_run(path, "--out", tmp_path / "o", "--no-cache", "-q")
     assert result.exit_code == 1
     assert message in result.stderr
+
+
+def test_heavy_duty_error_file_of_per_test_distributions(tmp_path, monkeypatch):
+    """models/heavy_duty/fuel_economy_error.toml in the heavy-duty validation's format: no
+    centre correction, one shared sd = RMS over tests of sqrt(mean^2 + ((p95 - p05)/3.29)^2)."""
+    import shutil
+
+    from fleetrun.budget import uncertainty
+
+    models = tmp_path / "models"
+    shutil.copytree(uncertainty.models_dir(), models)
+    (models / "heavy_duty").mkdir(exist_ok=True)
+    (models / "heavy_duty" / "fuel_economy_error.toml").write_text(
+        'source = "fixture"\n[tests.A]\nmean = 0.03\np05 = -0.02\np95 = 0.08\n'
+        '[tests.B]\nmean = -0.01\np05 = -0.05\np95 = 0.03\n')
+    monkeypatch.setattr(uncertainty, "models_dir", lambda: models)
+    model = uncertainty.read_error_model()
+    heavy = model.for_duty("HD")
+    sd_a = math.hypot(0.03, 0.10 / 3.2897072539029444)
+    sd_b = math.hypot(0.01, 0.08 / 3.2897072539029444)
+    assert heavy.bias == 0.0 and heavy.tau == pytest.approx(math.sqrt((sd_a ** 2 + sd_b ** 2) / 2), rel=1e-12)
+    assert heavy.relative_sd([1.0, 1.0]) == pytest.approx(heavy.tau, rel=1e-12)    # shared: no averaging
+    assert model.for_duty("LD").tau == pytest.approx(0.0347, abs=1e-3) and not model.warnings

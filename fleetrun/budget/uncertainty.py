@@ -49,6 +49,7 @@ class DutyError:
     makes: dict = field(default_factory=dict)
     source: str = ""
     note: str = ""
+    shared: bool = False        # tau shared by every vehicle (no manufacturer make-up measured)
 
     def relative_sd(self, gallons, makers=None) -> float:
         """sd of the relative error of the total of ``gallons`` (one entry per vehicle type);
@@ -59,7 +60,7 @@ class DutyError:
             return 0.0
         g = gallons / total
         per_vehicle = float((g ** 2).sum())
-        d = self._make_up(g, makers)
+        d = 1.0 if self.shared else self._make_up(g, makers)
         if d is None:
             d = (1.0 - sum(v ** 2 for v in self.market_share.values())) * per_vehicle
         return math.sqrt(self.tau ** 2 * d + self.sigma ** 2 * per_vehicle)
@@ -142,9 +143,12 @@ def _bias_of(models: Path) -> float | None:
 
 
 def _heavy(models: Path) -> DutyError | None:
-    """Heavy-duty constants from ``models/heavy_duty/fuel_economy_error.toml``: a per-vehicle
-    distribution (``[tests.*]`` with mean/p05/p95 of predicted / measured mpg - 1, or a
-    ``[fleet]`` table with bias/tau/sigma)."""
+    """Heavy-duty constants from ``models/heavy_duty/fuel_economy_error.toml``: a ``[fleet]``
+    table with bias/tau/sigma, or per-test ``[tests.*]`` distributions of predicted / reference
+    mpg - 1 (mean, p05, p95). From the latter no centre correction is made (a handful of
+    reference vehicles against their standards, not measured fleets): each test's mean error
+    and spread become one sd, sqrt(mean^2 + ((p95 - p05) / 3.29)^2), the root mean square over
+    the tests, all of it treated as shared by the fleet (tau = sd; no manufacturer split)."""
     path = models / HEAVY_FILE
     if not path.is_file():
         return None
@@ -154,12 +158,10 @@ def _heavy(models: Path) -> DutyError | None:
     tests = [t for t in (data.get("tests") or {}).values() if isinstance(t, dict) and "p05" in t and "p95" in t]
     if not tests:
         raise InputError("has neither [fleet] nor [tests.*] with p05/p95", file=path)
-    mean = float(np.mean([t.get("mean", 0.0) for t in tests]))
-    sd = float(np.mean([(t["p95"] - t["p05"]) / (2 * Z90) for t in tests]))
-    # mpg error e -> gallons error 1 / (1 + e) - 1; the make-up of its spread is not measured:
-    # all of it is treated as between manufacturers (shared by every vehicle, the wider case)
-    return DutyError(bias=1.0 / (1.0 + mean) - 1.0, tau=sd, sigma=sd, source=str(data.get("source", path.name)),
-                     note="per-vehicle distribution; spread taken as shared (no manufacturer split measured)")
+    sd = math.sqrt(float(np.mean([t.get("mean", 0.0) ** 2 + ((t["p95"] - t["p05"]) / (2 * Z90)) ** 2
+                                  for t in tests])))
+    return DutyError(bias=0.0, tau=sd, sigma=0.0, source=str(data.get("source", path.name)),
+                     note="per-test errors against reference values; no centre correction", shared=True)
 
 
 def read_error_model(path: Path | None = None) -> ErrorModel | None:

@@ -33,6 +33,20 @@ TAX_FIELDS = ("state_tax", "federal_tax")
 CALIBRATION_FIELDS = ("observed_base_gallons", "calibrate_to_observed")
 
 
+def model_files() -> list[dict]:
+    """Every file of the models folder the package reads its constants from (models/**), with
+    its sha256: the numbers of a run come from these and the code."""
+    import hashlib
+
+    from fleetrun.resources import models_dir
+
+    root = models_dir()
+    out = []
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        out.append({"path": path.relative_to(root).as_posix(), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    return out
+
+
 def _sha(text: str) -> str:
     import hashlib
 
@@ -46,7 +60,6 @@ def fingerprints(result) -> dict:
     from dataclasses import fields
 
     from fleetrun import __version__
-    from fleetrun.reports.manifest import model_files
 
     vehicles = _sha(repr(sorted(repr(v) for v in result.fleet.vehicles)))
     scenarios = {}

@@ -11,22 +11,8 @@ from fleetrun import __version__
 SCHEMA = "fleetrun.run/1"
 
 
-def model_files() -> list[dict]:
-    """Every file of the models folder the package reads its constants from (models/**), with
-    its sha256: the numbers of a run come from these and the code."""
-    import hashlib
-
-    from fleetrun.resources import models_dir
-
-    root = models_dir()
-    out = []
-    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
-        out.append({"path": path.relative_to(root).as_posix(), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
-    return out
-
-
 def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
-    from fleetrun.reports.changes import attribution_inputs, scenario_totals_dict
+    from fleetrun.reports.changes import attribution_inputs, model_files, scenario_totals_dict
 
     inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
     inputs += [{"role": "drive cycle", "path": path, "sha256": sha}
