@@ -98,10 +98,17 @@ class ErrorModel:
         return self.duty.get(duty_class) or self.duty["LD"]
 
     def describe(self) -> str:
-        parts = []
-        for name, e in self.duty.items():
-            parts.append(f"{name}: bias {e.bias:+.2%} corrected in the centre, between manufacturers "
-                         f"{e.tau:.1%}, per vehicle type {e.sigma:.1%} ({e.source})")
+        light = self.duty["LD"]
+        parts = [f"light duty: bias {light.bias:+.2%} corrected in the centre, between manufacturers "
+                 f"{light.tau:.1%}, per vehicle type {light.sigma:.1%} ({light.source}"
+                 + (f"; {light.note}" if light.note else "") + ")"]
+        heavy = self.duty.get("HD")
+        if heavy is light:
+            parts.append("medium and heavy duty: the light-duty constants (no heavy-duty error measured)")
+        elif heavy is not None:
+            parts.append(f"medium and heavy duty: bias {heavy.bias:+.2%}, shared sd {heavy.tau:.1%}"
+                         + (f", per vehicle type {heavy.sigma:.1%}" if heavy.sigma else "")
+                         + f" ({heavy.source}" + (f"; {heavy.note}" if heavy.note else "") + ")")
         return "; ".join(parts)
 
 

@@ -105,15 +105,22 @@ def tornado(rows, *, prefix: str = "$", width: int = 460, bar_height: int = 16) 
     def x(value):
         return plot_left + plot_width * (value - lo) / span
 
+    scale, word = next(((t, w) for t, w in ((1e12, "T"), (1e9, "B"), (1e6, "M"), (1e3, "k"))
+                        if abs(hi) >= t), (1.0, ""))
+    digits = max(0, min(4, -math.floor(math.log10(max(span / scale / 10, 1e-9)))))
+
+    def label(value):       # one number of decimals for every label, enough to tell them apart
+        return f"{prefix}{value / scale:,.{digits}f}{word}"
+
     bars, y = [], 24
     for r in rows:
         bars.append({"label": r["driver"], "y": y, "x": x(r["low_usd"]), "w": max(1.0, x(r["high_usd"]) - x(r["low_usd"])),
-                     "low": short_number(r["low_usd"], prefix), "high": short_number(r["high_usd"], prefix),
+                     "low": label(r["low_usd"]), "high": label(r["high_usd"]),
                      "low_x": x(r["low_usd"]) - 4, "high_x": x(r["high_usd"]) + 4})
         y += bar_height + 8
     centre = x(rows[0]["central_usd"]) if rows else plot_left
     return {"width": width, "height": y + 24, "label_width": label_width, "bars": bars, "bar_height": bar_height,
-            "centre_x": centre, "axis_y": y, "centre_text": short_number(rows[0]["central_usd"], prefix) if rows else ""}
+            "centre_x": centre, "axis_y": y, "centre_text": label(rows[0]["central_usd"]) if rows else ""}
 
 
 def _efficiency_color(value: float, low: float, high: float) -> str:

@@ -119,6 +119,7 @@ def assumptions(s) -> list[tuple[str, str]]:
             ("On-road fuel", budget.onroad_label(s.onroad_adjustment)),
             ("Fiscal years", ", ".join(str(y) for y in budget.fiscal_years(s))
              if s.first_fiscal_year else f"{s.budget_years} budget year(s), numbered from 1")]
+    rows += driver_rows(s)
     if s.ev_fee_usd_per_vehicle_year:
         rows.append(("Electric-vehicle fee", f"${s.ev_fee_usd_per_vehicle_year:,.2f} per vehicle per year"))
     observed = [f"{fuel} {s.observed_base_gallons(fuel):,.0f} gal" for fuel in ("gasoline", "diesel")
@@ -126,6 +127,35 @@ def assumptions(s) -> list[tuple[str, str]]:
     if observed:
         rows.append(("Observed first-year gallons", ", ".join(observed)
                      + ("; forecast calibrated to them" if s.calibrate_to_observed else "; not calibrated")))
+    return rows
+
+
+def _schedule_text(value, unit: str = "$/gal") -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{year}: ${rate:.3f}" for year, rate in sorted(value.items())) + f" ({unit})"
+    return f"${float(value):.3f} {unit}"
+
+
+def driver_rows(s) -> list[tuple[str, str]]:
+    """The drivers of one scenario (docs/budget.md): fiscal year start, fuel price and price
+    response, state tax per year."""
+    from fleetrun.budget import drivers
+
+    import calendar
+
+    rows = [("Fiscal year starts", calendar.month_name[drivers.start_month(s)])]
+    prices = [f"{fuel} {_schedule_text(p)}" for fuel, p in (("gasoline", s.fuel_price_gasoline_usd_per_gal),
+                                                            ("diesel", s.fuel_price_diesel_usd_per_gal)) if p is not None]
+    short, long = drivers.elasticities(s)
+    rows.append(("Fuel price", "; ".join(prices) if prices else "not given (no price response; price uncertainty "
+                                                                  "in the range)"))
+    rows.append(("Price elasticity of gallons", f"short run {short:g}, long run {long:g}"))
+    schedules = [f"{fuel} {_schedule_text(v)}" for fuel, v in (("gasoline", s.state_tax_schedule_gasoline_usd_per_gal),
+                                                               ("diesel", s.state_tax_schedule_diesel_usd_per_gal)) if v]
+    if schedules:
+        rows.append(("State tax per fiscal year", "; ".join(schedules)))
+    elif s.state_tax_index_pct_per_year:
+        rows.append(("State tax index", f"{s.state_tax_index_pct_per_year:g} % per year"))
     return rows
 
 
