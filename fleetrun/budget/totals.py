@@ -121,7 +121,9 @@ def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarra
     centre's correction (docs/budget.md); 1 for electric rows and without an error model."""
     if error_model is None:
         return np.ones(len(duty_of))
-    bias = np.array([error_model.for_duty(d).bias for d in duty_of], dtype=float)
+    bias = np.zeros(len(duty_of))
+    for duty in set(duty_of.tolist()):
+        bias[duty_of == duty] = error_model.for_duty(duty).bias
     return np.where(fuel == ELECTRIC, 1.0, 1.0 + bias)
 
 
@@ -138,8 +140,9 @@ class _Scenario:
         g = s.vmt_growth_pct_per_year / 100.0
         self.years = np.arange(s.budget_years)
         self.miles = (self.count * annual)[:, None] * ((1.0 + g) ** self.years)[None, :]
-        price = {f: drivers.price_factor(s, f) for f in drivers.FUELS}
-        factor = np.array([price.get(f, np.ones(len(self.years))) for f in self.fuel]).reshape(len(self.fuel), -1)
+        factor = np.ones((len(self.fuel), len(self.years)))
+        for name in drivers.FUELS:
+            factor[self.fuel == name] = drivers.price_factor(s, name)[None, :]
         self.gpm = self.per_mile["fuel_gal"] * bias_factor(self.duty, self.fuel, error_model)
         self.raw = self.miles * self.gpm[:, None] * factor      # on-road, bias-corrected, priced
 
@@ -218,8 +221,9 @@ def _yearly(p: _Scenario, vehicles, scales: dict, ratios: dict) -> dict[str, np.
 
 
 def _total(values: np.ndarray) -> np.ndarray:
-    """Row sums over the years, exact (fsum) so that fiscal rows reconcile to the bit."""
-    return np.array([_fsum(row) for row in values]) if values.size else np.zeros(len(values))
+    """Row sums over the budget years (the fiscal rows are reconciled to these sums to the
+    last bit by :func:`fleetrun.budget.arithmetic.exact_parts`)."""
+    return values.sum(axis=1) if values.size else np.zeros(len(values))
 
 
 def _tax_total(gallons: np.ndarray, yearly: np.ndarray, fuel: np.ndarray, rates, s) -> np.ndarray:
@@ -324,8 +328,8 @@ def _ratio(numerator: float, denominator: float) -> float:
 
 def _fsum(values) -> float:
     """fsum that stays NaN when any value is NaN (a range that was not measured)."""
-    values = list(values)
-    return math.nan if any(math.isnan(v) for v in values) else math.fsum(values)
+    array = np.asarray(values, dtype=float)
+    return math.nan if np.isnan(array).any() else math.fsum(array.tolist())
 
 
 def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
