@@ -9,7 +9,7 @@ budget's ranges cover it (docs/budget.md, "Ranges").
 predicted by the constants fitted without it) and writes one row per vehicle with its
 manufacturer, fuel and relative errors e = predicted mpg / measured mpg - 1 per test to
 ``validation/data/epa_heldout_errors.csv`` (the input of the other two steps and of
-tests/test_fleet_error.py; about 10 minutes of simulation).
+tests/test_fleet_error.py; a few minutes of simulation).
 """
 from __future__ import annotations
 
