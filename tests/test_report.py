@@ -322,3 +322,23 @@ def test_report_prints_through_libreoffice(outputs, tmp_path):
         assert "efficiency \\ torque fraction" in page and "loss \\ torque fraction" in page
         assert page.count("4000 rpm") >= 3   # both tables' headers and the chart legend
     assert len(pages) <= 16
+
+
+def test_chart_labels_and_legend_fit_inside_the_chart():
+    """The class chart's labels and legend (the long class names and scenario ids that were
+    clipped at 390 and 1366 px) lie inside the SVG's box: a label's right end at the label
+    column, its left end (at 6.6 px per character of the 11 px font, a generous width) not
+    before 0; legend items wrap before the right edge."""
+    from fleetrun.reports import charts
+
+    classes = ["Tractor-trailer (class 8)", "Medium truck (class 6)", "Bus"]
+    scenarios = ["baseline", "hot_summer_with_a_long_identifier", "congested_urban", "ev_adoption_2030"]
+    chart = charts.grouped_bars(classes, scenarios, {(c, s): 1e9 for c in classes for s in scenarios})
+    for group in chart["groups"]:
+        assert chart["label_width"] - 6 - 6.6 * len(group["label"]) >= 0
+    for item in chart["legend"]:
+        assert item["x"] >= 0 and item["x"] + 14 + 6.6 * len(item["name"]) <= chart["width"]
+    assert len({item["y"] for item in chart["legend"]}) > 1          # it wrapped
+    for group in chart["groups"]:
+        for bar in group["bars"]:   # the value text after the longest bar stays inside
+            assert chart["label_width"] + bar["length"] + 4 + 6.6 * len(bar["text"]) <= chart["width"]
