@@ -16,9 +16,9 @@ from fleetrun.testing.vehicles import CAMRY, CIVIC, F150
 
 
 def test_load_shapes_by_hand():
-    # linear through the reference point: (38 - 25) / (35 - 25) x 3200 W = 4160 W
-    assert ac_power_W(38.0, 25.0, 35.0, 3200.0) == pytest.approx(4160.0)
-    assert ac_power_W(20.0, 25.0, 35.0, 3200.0) == 0.0
+    # linear through the reference point: (38 - 25) / (35 - 25) x 2500 W = 3250 W
+    assert ac_power_W(38.0, 25.0, 35.0, 2500.0) == pytest.approx(3250.0)
+    assert ac_power_W(20.0, 25.0, 35.0, 2500.0) == 0.0
     assert cold_power_W(1.65, 10.0, -6.7, 400.0) == pytest.approx(200.0)
     assert cold_power_W(-20.0, 10.0, -6.7, 400.0) == 400.0
     assert cold_power_W(20.0, 10.0, -6.7, 400.0) == 0.0
@@ -45,3 +45,18 @@ def test_hot_weather_burns_more_as_published(runs):
 def test_certification_temperatures_are_untouched(runs):
     for cycle in ("UDDS", "HWFET"):
         np.testing.assert_allclose(runs[(cycle, 25.0)], runs[(cycle, 20.0)], rtol=2e-3)
+
+
+@pytest.mark.parametrize("ambient", [38.0, -10.0])
+def test_the_load_runs_at_idle_with_or_without_a_trace(ambient):
+    """A run without a trace skips the standstill steps (idle fuel added in one sum): the
+    accessory load is in that idle fuel too, so both give the same fuel; and it is in the
+    idle steps (the A/C runs at a red light)."""
+    plain = simulate([CAMRY], "UDDS", ambient_temp_C=ambient).fuel_g[0]
+    traced = simulate([CAMRY], "UDDS", ambient_temp_C=ambient, trace=True)
+    assert plain == pytest.approx(traced.fuel_g[0], rel=1e-9)
+    frame = traced.trace_frame(0)
+    still = frame.vehicle_speed_mps == 0 if "vehicle_speed_mps" in frame else None
+    if still is not None:
+        mild = simulate([CAMRY], "UDDS", ambient_temp_C=20.0, trace=True).trace_frame(0)
+        assert (frame.fuel_rate_g_per_s[still] > mild.fuel_rate_g_per_s[still]).mean() > 0.9

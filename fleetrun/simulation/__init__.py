@@ -15,7 +15,8 @@ from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
-                                      forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
+                                      forward_redrive, idle_fuel_at_ambient_g_per_s, idle_fuel_rate_g_per_s,
+                                      max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
@@ -223,7 +224,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         fuel_g = (out.fuel_rate_g_per_s * dt).sum(axis=1)
         if columns is not None:
             standstill_s = dt_all.sum() - dt_all[columns].sum()
-            fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
+            fuel_g = fuel_g + idle_fuel_at_ambient_g_per_s(va, solver.ambient) * standstill_s
             if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
                 fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
         phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
@@ -321,7 +322,7 @@ def _every_step(va, t, columns, out, effects, plan):
         out.fuel_rate_g_per_s[:, off] = 0.0
         out.engine_speed_rpm[:, off] = 0.0
         return out.fuel_rate_g_per_s.copy(), out.engine_speed_rpm.copy()
-    rate = np.repeat(idle_fuel_rate_g_per_s(va)[:, None], N, axis=1)
+    rate = np.repeat(idle_fuel_at_ambient_g_per_s(va, plan.ambient_temp_C)[:, None], N, axis=1)
     rpm = np.repeat(va.n_idle[:, None], N, axis=1)
     if effects.vehicle:
         rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)

@@ -52,8 +52,12 @@ def accessory_power_W(ambient_temp_C: float) -> float:
             + cold_power_W(ambient_temp_C, *(c["cold"][k] for k in keys)))
 
 
-def extra_fuel_g_per_s(power_W: float, eta_indicated, lhv_MJ_per_kg, burning) -> np.ndarray:
-    """Extra fuel [g/s] of an accessory load ``power_W`` [W] while ``burning`` (V, N):
+def per_vehicle_fuel_g_per_s(power_W: float, eta_indicated, lhv_MJ_per_kg) -> np.ndarray:
+    """Extra fuel [g/s] per vehicle (V,) of an accessory load ``power_W`` [W]:
     P / (eta_indicated [-] x LHV [MJ/kg = kJ/g] x 1000)."""
-    per_vehicle = power_W / (np.asarray(eta_indicated, float) * np.asarray(lhv_MJ_per_kg, float) * 1000.0)
-    return np.where(burning, per_vehicle[:, None], 0.0)
+    return power_W / (np.asarray(eta_indicated, float) * np.asarray(lhv_MJ_per_kg, float) * 1000.0)
+
+
+def extra_fuel_g_per_s(power_W: float, eta_indicated, lhv_MJ_per_kg, burning) -> np.ndarray:
+    """Extra fuel [g/s] of an accessory load ``power_W`` [W] while ``burning`` (V, N)."""
+    return np.where(burning, per_vehicle_fuel_g_per_s(power_W, eta_indicated, lhv_MJ_per_kg)[:, None], 0.0)

@@ -420,6 +420,18 @@ def _with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
     return fuel + climate.extra_fuel_g_per_s(power, willans_slope(va), va.lhv, fuel > 0)
 
 
+def idle_fuel_at_ambient_g_per_s(va: VehicleArrays, ambient_temp_C) -> np.ndarray:
+    """Idle fuel (V,) [g/s] with the climate accessory load at ``ambient_temp_C``: the rate of
+    the standstill steps a run without a trace does not simulate one by one."""
+    idle = idle_fuel_rate_g_per_s(va)
+    power = climate.accessory_power_W(float(ambient_temp_C))
+    if power == 0.0:
+        return idle
+    from fleetrun.simulation.params import willans_slope
+
+    return idle + climate.per_vehicle_fuel_g_per_s(power, willans_slope(va), va.lhv)
+
+
 def _shaft_power_W(torque_Nm, speed_rpm):
     power = torque_Nm * speed_rpm
     power /= RPM
