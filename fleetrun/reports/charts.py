@@ -141,12 +141,13 @@ def efficiency_scale(maps) -> tuple[float, float]:
 
 
 def scale_legend(low: float, high: float, *, width: int = 300) -> dict:
-    """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``."""
-    steps = 24
-    stops = [{"x": 10 + width * k / steps, "w": width / steps + 0.5,
+    """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``, with a
+    margin either side for the end labels (centred on the bar's ends, they would be cut)."""
+    steps, margin = 24, 28
+    stops = [{"x": margin + width * k / steps, "w": width / steps + 0.5,
               "fill": _efficiency_color(low + (high - low) * k / steps, low, high)} for k in range(steps + 1)]
-    ticks = [{"x": 10 + width * f, "text": f"{low + (high - low) * f:.1%}"} for f in (0.0, 0.5, 1.0)]
-    return {"width": width + 20 + width / steps, "stops": stops, "ticks": ticks}
+    ticks = [{"x": margin + width * f, "text": f"{low + (high - low) * f:.1%}"} for f in (0.0, 0.5, 1.0)]
+    return {"width": width + 2 * margin + width / steps, "stops": stops, "ticks": ticks}
 
 
 def heatmap(effmap: EfficiencyMap, *, low: float, high: float, cell_width: int = 40, cell_height: int = 20) -> dict:
