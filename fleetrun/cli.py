@@ -22,7 +22,7 @@ EXIT_INTERNAL = 4
 
 # Command modules in fleetrun/commands, in the order `fleetrun --help` lists them.
 COMMANDS = ("map", "cycles", "simulate", "run", "template", "validate", "diagnose", "import-epa",
-            "diagnose-fleet")
+            "import-registrations", "diagnose-fleet")
 
 
 class FleetrunGroup(click.Group):

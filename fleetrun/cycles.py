@@ -260,7 +260,24 @@ def ftp_weighted_per_mile(bag1, bag2, bag3, miles1, miles2, miles3):
     applies to fuel per mile, not to mpg: composite mpg = 1 / (weighted gallons per mile).
     Works element-wise on arrays (one value per vehicle).
     """
-    return 0.43 * (bag1 + bag2) / (miles1 + miles2) + 0.57 * (bag3 + bag2) / (miles3 + miles2)
+    return (FTP_TRANSIENT_WEIGHT * (bag1 + bag2) / (miles1 + miles2)
+            + FTP_HOT_WEIGHT * (bag3 + bag2) / (miles3 + miles2))
+
+
+#: 40 CFR 86.144-94(a): the weights of the cold-start (bags 1 + 2) and hot-start (bags 3 + 2)
+#: halves of the FTP in :func:`ftp_weighted_per_mile`
+FTP_TRANSIENT_WEIGHT = 0.43
+FTP_HOT_WEIGHT = 0.57
+
+
+def ftp_bag1_end_s() -> float:
+    """End of FTP bag 1 [s] on the UDDS schedule: the first 505 s (40 CFR 86.135-12(a)), as
+    the shipped FTP rule (inputs/cycles/FTP.toml) sets it; bag 2 is the rest of the UDDS.
+
+    >>> ftp_bag1_end_s()
+    505.0
+    """
+    return float(load_cycle("FTP").phases[0].end_s)
 
 
 #: Composite rules by name: (phase names in the rule's argument order, function).

@@ -24,6 +24,7 @@ LAYERS = (
     ("simulation", ("fleetrun.vehicle", "fleetrun.cycles", "fleetrun.simulation")),
     ("workbook", ("fleetrun.workbook",)),
     ("epa", ("fleetrun.epa", "fleetrun.plots")),
+    ("registrations", ("fleetrun.registrations",)),
     ("budget", ("fleetrun.budget",)),
     ("reports", ("fleetrun.reports",)),
     ("run", ("fleetrun.run",)),

@@ -54,7 +54,7 @@ def test_template_has_instructions_dropdowns_and_examples(tmp_path):
     path = tmp_path / "t.xlsx"
     assert CliRunner().invoke(cli, ["template", "-o", str(path)]).exit_code == 0
     wb = openpyxl.load_workbook(path)
-    assert wb.sheetnames == ["Instructions", "Vehicles", "Scenarios"]
+    assert wb.sheetnames == ["Instructions", "Registrations", "Vehicles", "Scenarios"]   # registrations first
     ws = wb["Vehicles"]
     header = [c.value for c in ws[1]]
     lists = {dv.formula1 for dv in ws.data_validations.dataValidation}

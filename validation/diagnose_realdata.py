@@ -24,6 +24,7 @@ import pandas as pd
 from fleetrun.testing.recordings import Recording
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
 from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.units import RPM_PER_RAD_S  # noqa: E402
 from validation.simulation import TABLE_7_1, matthews_c19
 
 
@@ -73,7 +74,7 @@ def matthews_recording(vehicle: str = "Ford F-150", *, gear_ratio: float = 3.55,
     t_out = force * r
     eta = matthews_c19(v * 3.6)
     t_in = np.where(v > 0, t_out / (gear_ratio * eta), 0.0)
-    n_in = v / r * gear_ratio * 60 / (2 * np.pi)
+    n_in = v / r * gear_ratio * RPM_PER_RAD_S
     df = pd.DataFrame({"time_s": t, "diff_input_torque_Nm": t_in, "diff_input_speed_rpm": n_in,
                        "diff_output_torque_Nm": t_out, "vehicle_speed_kph": v * 3.6})
     if straight:

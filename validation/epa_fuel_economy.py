@@ -49,6 +49,7 @@ from fleetrun.simulation.core import trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
+from fleetrun.units import RAD_S_PER_RPM  # noqa: E402
 
 GAL_L = 3.785411784
 HOT_TESTS = {"UDDS:hot": "UDDS", "HWFET": "HWFET", "US06": "US06"}
@@ -500,7 +501,7 @@ def candidate_columns(d, specs, table):
     val = lambda name: _row_values(d, table, per_test, name)  # noqa: E731
     dA, dB, dC = (val(f"target_{k}") - val(f"set_{k}") for k in "ABC")
     own_loss_J = LBF_N * (dA * d.X_speed + dB / MPH_M_S * d.X_speed2 + dC / MPH_M_S ** 2 * d.X_speed3)
-    drag_W = np.where(va.automatic, (va.n_idle / va.K_tc) ** 2, 0.0) * va.n_idle * (2.0 * np.pi / 60.0)
+    drag_W = np.where(va.automatic, (va.n_idle / va.K_tc) ** 2, 0.0) * va.n_idle * RAD_S_PER_RPM
     S = lambda k: d[f"S_{k}"].to_numpy()  # noqa: E731
     free = [-np.inf]
     return {

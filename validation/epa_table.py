@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from fleetrun.cycles import ftp_bag1_end_s
+
 ROOT = Path(__file__).resolve().parents[1]
 TSTCAR = ROOT / "inputs" / "epa" / "22-tstcar.csv"
-UDDS_BAG1_END_S = 505.0
+UDDS_BAG1_END_S = ftp_bag1_end_s()
 TESTS = ("FTP", "FTP:bag1", "FTP:bag2", "FTP:bag3", "HWFET", "US06")
 
 

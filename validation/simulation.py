@@ -22,6 +22,7 @@ import numpy as np
 from fleetrun.simulation.diffmodes import invert_direct
 from fleetrun.simulation.road_load import coastdown_to_si, road_load_N
 from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.units import RPM_PER_RAD_S
 
 KPH_MPS = 1.0 / 3.6
 
@@ -65,7 +66,7 @@ def proof_of_concept(speeds_kph=None, gear_ratio=POC_GEAR_RATIO, physics="thesis
         r = rolling_radius_m(tyre)
         v = S * KPH_MPS
         T_out = road_load_N(v, A_N, B_N, C_N) * r
-        n_in = v / r * 60.0 / (2 * np.pi) * gear_ratio
+        n_in = v / r * RPM_PER_RAD_S * gear_ratio
         kim = peak * POC_CONVERTER_RATIO * POC_FIRST_GEAR
         x = invert_direct("LD_RWD", T_out / (kim * gear_ratio), n_in, gear_ratio, None, False, physics)
         T_in = x * kim

@@ -137,6 +137,8 @@ class RunResult:
     ranges: dict[tuple[str, str], YearRange] = field(default_factory=dict)  # (scenario, fuel or "all")
     period_ranges: dict[str, PeriodRange] = field(default_factory=dict)  # scenario -> budget-period range
     changes: RunChanges | None = None          # vs the run already in the folder
+    registrations: pd.DataFrame | None = None  # registration rows: vehicle chosen, matched on, assumed
+    turnover: pd.DataFrame | None = None       # year-on-year gallons change: VMT vs gallons per mile
 
 
 def _now_utc() -> str:

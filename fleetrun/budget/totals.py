@@ -44,7 +44,9 @@ RESULTS_COLUMNS = ["scenario_id", "vehicle_id", "vehicle_class", "configuration"
                    "wheel_energy_J", "duty_class",
                    # budget: cycle (dynamometer) and uncalibrated fuel, the range, CO2
                    "fuel_gal_cycle_total", "fuel_gal_uncalibrated_total", "fuel_gal_low_total",
-                   "fuel_gal_high_total", "kwh_total", "ev_fee_usd"]
+                   "fuel_gal_high_total", "kwh_total", "ev_fee_usd",
+                   # registrations (docs/registrations.md): empty where a row has none
+                   "model_year"]
 CLASS_COLUMNS = ["scenario_id", "vehicle_class", "vehicles", "miles_total", "fuel_gal_total", "mpg",
                  "diff_efficiency", "state_tax_usd", "federal_tax_usd",
                  "drivetrain_efficiency", "vehicle_types", "fuel_gal_low_total", "fuel_gal_high_total",
@@ -90,9 +92,12 @@ def _cycle_kind(cycle: str) -> str:
                              cycle_mean_speed_kph(cycle))
 
 
-def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict) -> dict[str, np.ndarray]:
+def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
+                 fuel_factor: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, on-road kWh per
-    mile (electric rows) and the energies per mile."""
+    mile (electric rows) and the energies per mile. ``fuel_factor``: each row's cycle fuel per
+    mile relative to its simulated vehicle (a registration cohort's model year,
+    docs/registrations.md); None: 1."""
     n = len(duty_of)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
@@ -106,6 +111,8 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict) 
             sim = per_condition[(cycle, s.ambient_temp_C)]
             miles = sim["miles"][rows]
             cycle_gpm = sim["fuel_gal"][rows] / miles
+            if fuel_factor is not None:
+                cycle_gpm = cycle_gpm * fuel_factor[rows]
             kind = _cycle_kind(cycle)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
             per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(cycle_gpm, s.onroad_adjustment, kind,
@@ -130,16 +137,23 @@ def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarra
 class _Scenario:
     """One scenario's per-vehicle, per-budget-year arrays before calibration (rows x years)."""
 
-    def __init__(self, s, vehicles, per_condition: dict, error_model):
+    def __init__(self, s, vehicles, per_condition: dict, error_model, years=None):
+        """``years``: per-row miles by budget year and fuel factors (registration turnover,
+        fleetrun.registrations); None: count x annual_miles x (1 + g)^(y - 1) for every row."""
         self.s = s
         self.count = np.array([v.count for v in vehicles], dtype=float)
         annual = np.array([v.annual_miles for v in vehicles], dtype=float)
         self.fuel = np.array([v.fuel for v in vehicles], dtype=object)
         self.duty = np.array([v.duty_class for v in vehicles], dtype=object)
-        self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition)
+        self.model_year = pd.array([v.model_year for v in vehicles], dtype="Int64")
+        self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition,
+                                     None if years is None else years.fuel_factor(s))
         g = s.vmt_growth_pct_per_year / 100.0
         self.years = np.arange(s.budget_years)
-        self.miles = (self.count * annual)[:, None] * ((1.0 + g) ** self.years)[None, :]
+        if years is None:
+            self.miles = (self.count * annual)[:, None] * ((1.0 + g) ** self.years)[None, :]
+        else:
+            self.miles = np.asarray(years.year_miles(s), dtype=float)[:, :s.budget_years]
         factor = np.ones((len(self.fuel), len(self.years)))
         for name in drivers.FUELS:
             factor[self.fuel == name] = drivers.price_factor(s, name)[None, :]
@@ -256,7 +270,7 @@ def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[
         **energy, "duty_class": p.duty.astype(str), "fuel_gal_cycle_total": miles_total * p.per_mile["fuel_gal_cycle"],
         "fuel_gal_uncalibrated_total": _total(p.raw), "fuel_gal_low_total": _total(yearly["fuel_gal_low"]),
         "fuel_gal_high_total": _total(yearly["fuel_gal_high"]), "kwh_total": _total(yearly["kwh"]),
-        "ev_fee_usd": _total(yearly["ev_fee_usd"]),
+        "ev_fee_usd": _total(yearly["ev_fee_usd"]), "model_year": p.model_year,
     })
     frame.loc[fuel == ELECTRIC, "mpg"] = np.nan   # no gallons: kwh_total instead
     return frame, yearly
@@ -286,13 +300,13 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
 
 
 def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: dict,
-                       error_model=None) -> "BudgetTables":
+                       error_model=None, years=None) -> "BudgetTables":
     """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget years),
     the per-year arrays, the calibration table, the ranges and the tornado rows."""
     from fleetrun.budget import ranges
 
     warnings: list[str] = []
-    prepared = [_Scenario(s, vehicles, per_condition, error_model) for s in scenarios]
+    prepared = [_Scenario(s, vehicles, per_condition, error_model, years) for s in scenarios]
     scales, calibration_table = fit_calibration(prepared, warnings)
     u = drivers.uncertainty()
     z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
@@ -421,3 +435,31 @@ def yearly_totals(fiscal: pd.DataFrame) -> pd.DataFrame:
         rows.append({"scenario_id": scenario_id, "fiscal_year": int(year),
                      **{c: _fsum(group[c]) for c in columns}})
     return pd.DataFrame(rows, columns=["scenario_id", "fiscal_year"] + columns)
+
+
+CHANGE_COLUMNS = ["scenario_id", "fiscal_year", "miles", "fuel_gal", "gal_per_mile", "mpg", "change_gal",
+                  "change_from_vmt_gal", "change_from_gal_per_mile_gal"]
+
+
+def change_decomposition(fiscal: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario and fiscal year, the fleet's fuel-burning miles, gallons and gallons per
+    mile, and the change in gallons from the year before split exactly into VMT
+    (change in miles x last year's gallons per mile) and gallons per mile (this year's miles x
+    the change in gallons per mile: turnover, the fleet's mix of model years)."""
+    burning = fiscal[fiscal["fuel"] != ELECTRIC]
+    rows = []
+    for scenario_id, group in burning.groupby("scenario_id", sort=False):
+        previous = None
+        for year, part in group.groupby("fiscal_year", sort=True):
+            miles, gallons = math.fsum(part["miles"]), math.fsum(part["fuel_gal"])
+            gpm = gallons / miles if miles > 0 else math.nan
+            row = {"scenario_id": scenario_id, "fiscal_year": int(year), "miles": miles, "fuel_gal": gallons,
+                   "gal_per_mile": gpm, "mpg": 1.0 / gpm if gpm else math.nan,
+                   "change_gal": math.nan, "change_from_vmt_gal": math.nan, "change_from_gal_per_mile_gal": math.nan}
+            if previous is not None:
+                row["change_gal"] = gallons - previous["fuel_gal"]
+                row["change_from_vmt_gal"] = (miles - previous["miles"]) * previous["gal_per_mile"]
+                row["change_from_gal_per_mile_gal"] = miles * (gpm - previous["gal_per_mile"])
+            rows.append(row)
+            previous = row
+    return pd.DataFrame(rows, columns=CHANGE_COLUMNS)

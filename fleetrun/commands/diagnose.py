@@ -47,7 +47,9 @@ def command(recording, meta, calibrate_on, out, physics, n_shifts, seed, residua
     u = result["unexplained"]
     if u["significant"]:
         click.echo(f"unexplained: RMSE {u['rmse']:.4g} left against {u['noise_rmse']:.4g} that no "
-                   "function of the channels explains; the cause is not in the catalogue")
+                   f"function of the channels explains ({100 * u['energy_share']:.0f} % of the "
+                   "mismatch's structured energy); the cause is not in the catalogue"
+                   + ("; the sensor_drift check fires" if u.get("drift", {}).get("significant") else ""))
     for f in result["findings"]:
         ps = ", ".join(f"{k}={v:.4g}" for k, v in f["parameters"].items())
         click.echo(f"finding: {f['effect']} ({ps}): held-out RMSE "

@@ -22,5 +22,7 @@ def command(workbook: Path, strict: bool):
                          hint="Fix the values or drop --strict.")
     click.echo(f"{workbook}: OK: {len(fleet.vehicles)} vehicle types, "
                f"{sum(v.count for v in fleet.vehicles):,.0f} vehicles, "
-               f"{len(fleet.scenarios)} scenarios ({', '.join(s.scenario_id for s in fleet.scenarios)}); "
+               + (f"{len(fleet.registrations):,} registration rows ({sum(r['count'] for r in fleet.registrations):,.0f} "
+                  "vehicles), " if fleet.registrations else "")
+               + f"{len(fleet.scenarios)} scenarios ({', '.join(s.scenario_id for s in fleet.scenarios)}); "
                f"{len(fleet.warnings)} warning(s)")

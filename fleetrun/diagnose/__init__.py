@@ -62,17 +62,16 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     t0 = time.perf_counter()
     r = problem.residual
     sel = select(problem.coarse or problem, s)
-    fitted = sel.pop("fitted_effects")
-    base_heldout = sel.pop("baseline_heldout_rmse")
-    search = sel.pop("search")
+    fitted = sel.fitted_effects
+    base_heldout = sel.baseline_heldout_rmse
     if problem.coarse is not None:
-        fitted = fitted_on(problem, search)
+        fitted = fitted_on(problem, sel)
     rate = len(r) / max(problem.time_s[-1] - problem.time_s[0], 1e-9)
     drv, drv_sig = find_drivers(problem.driver_channels, r, rng=np.random.default_rng(s.seed + 1),
                                 smooth_window=max(1, int(rate)),
-                                null_residual=r - fitted if sel["findings"] else None)
-    significant = bool(sel["significant"] or drv_sig)
-    segs = find_segments(problem.time_s, r, noise=(r - fitted) if sel["findings"] else None) \
+                                null_residual=r - fitted if sel.findings else None)
+    significant = bool(sel.significant or drv_sig)
+    segs = find_segments(problem.time_s, r, noise=(r - fitted) if sel.findings else None) \
         if significant else []
     rmse = float(np.sqrt(np.mean(r ** 2)))
     info = {k: v for k, v in problem.baseline_info.items() if not k.startswith("_")}
@@ -85,6 +84,8 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     phase_list = phases(problem.time_s, ig["moving"], ig.get("speed_mps"))
     integral_list = integrals(problem.time_s, ig["weight"], problem.measured, problem.baseline,
                               problem.baseline + fitted, phase_list, segs)
+    chosen = sel.as_json()
+    chosen["unexplained"]["integral_share"] = integral_share(integral_list)
     from fleetrun import __version__
 
     result = {
@@ -100,20 +101,29 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
                      "drivers": drv},
         "integrals": integral_list,
         "integral_unit": ig["unit"],
-        "findings": sel["findings"],
-        "candidates": sel["candidates"],
-        "ambiguities": sel["ambiguities"],
-        "descriptions": sel["descriptions"],
-        "unexplained": sel["unexplained"],
+        "findings": chosen["findings"],
+        "candidates": chosen["candidates"],
+        "ambiguities": chosen["ambiguities"],
+        "descriptions": chosen["descriptions"],
+        "unexplained": chosen["unexplained"],
         "after": {"rmse": round(float(np.sqrt(np.mean(after ** 2))), 6),
                   "bias": round(float(np.mean(after)), 6)},
         "method": {"folds": s.folds, "n_shifts": s.n_shifts, "quantile": s.quantile,
-                   "min_gain": s.min_gain, "rounds": _clean(sel["rounds"])},
+                   "min_gain": s.min_gain, "rounds": _clean(sel.rounds)},
         "notes": problem.notes,
         "version": __version__,
     }
     result["timing_s"] = round(time.perf_counter() - t0, 3)
     return result, fitted
+
+
+def integral_share(integral_list: list) -> float | None:
+    """The phase-integral error the findings leave, as a share of the error before:
+    ``sum |after - measured| / sum |before - measured|`` over the phases."""
+    ph = [e for e in integral_list if e.get("kind") == "phase"]
+    before = sum(abs(e["before"] - e["measured"]) for e in ph)
+    after = sum(abs(e["after"] - e["measured"]) for e in ph)
+    return float(after / before) if before > 0 else None
 
 
 def _clean(obj):

@@ -24,6 +24,7 @@ from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate
 from fleetrun.differential import kim_torque_scale_Nm
 from fleetrun.effects import effects_for_level, overall_ratio
+from fleetrun.units import RAD_S_PER_RPM
 
 #: Pinion speed [rpm] below which the rig/vehicle counts as standing still.
 STANDSTILL_RPM = 5.0
@@ -138,12 +139,12 @@ def _zero_sensors(t, t_in, y, g, still, notes, extra_ambiguity):
 
 def _channels(df, meta, rec, t0, t_in, n_rpm, g, lubricant) -> dict:
     """The effects' channels (fleetrun.effects.differential) from the recording."""
-    w = n_rpm * 2 * np.pi / 60.0
+    w = n_rpm * RAD_S_PER_RPM
     ch = {"time_s": t0, "input_torque_Nm": t_in, "input_speed_rad_s": w,
           "input_accel_rad_s2": acceleration(w, rec.dt_s), "gear_ratio": g, "lubricant": lubricant}
     if "wheel_speed_left_rpm" in df and "wheel_speed_right_rpm" in df:
         ch["wheel_speed_difference_rad_s"] = np.abs(df["wheel_speed_left_rpm"].to_numpy()
-                                                    - df["wheel_speed_right_rpm"].to_numpy()) * 2 * np.pi / 60
+                                                    - df["wheel_speed_right_rpm"].to_numpy()) * RAD_S_PER_RPM
     if "ambient_temp_C" in df:
         ch["ambient_temp_C"] = df["ambient_temp_C"].to_numpy()
     elif "ambient_temp_C" in meta:

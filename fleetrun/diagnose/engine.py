@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fleetrun.diagnose.openworld import review, unexplained
+from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
 from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
                                       refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
@@ -156,28 +157,28 @@ def _ambiguity(best_id, rivals, statuses, ambiguities):
             statuses[cid]["separating_test"] = test
 
 
-def _refine_jointly(r, initial_terms, accepted, passes: int = 2) -> None:
+def _refine_jointly(r, initial_terms, accepted: list[Accepted], passes: int = 2) -> list[Accepted]:
     """Re-fit the shape parameters of the accepted effects with each other in the model.
 
     A shape found while another effect was still missing (a warm-up time constant fitted
     before the inertia was in the model) is biased; left so, the misfit it leaves behind can
     be picked up as a spurious further effect. Coordinate passes over the accepted effects.
     """
+    accepted = list(accepted)
     if len(accepted) < 2:
-        return
+        return accepted
     for _ in range(passes):
-        for a in accepted:
-            cand = a["cand"]
-            if cand.column_for is None or len(a["shape"]) != 1:
+        for i, a in enumerate(accepted):
+            cand = a.cand
+            if cand.column_for is None or len(a.shape) != 1:
                 continue
-            name, value = next(iter(a["shape"].items()))
+            name, value = next(iter(a.shape.items()))
             grid = [sh[name] for sh in cand.shapes]
             index = int(np.argmin(np.abs(np.log(np.asarray(grid) / value))))
-            others = list(initial_terms) + [(b["column"], b["cand"].lower, b["cand"].upper)
-                                            for b in accepted if b is not a]
+            others = list(initial_terms) + [b.term() for j, b in enumerate(accepted) if j != i]
             v, col = refine_shape(r, others, cand, index, name)
-            a["shape"] = {name: v}
-            a["column"] = col
+            accepted[i] = replace(a, shape={name: v}, column=col)
+    return accepted
 
 
 @dataclass
@@ -189,7 +190,7 @@ class _Search:
     rng: np.random.Generator
     folds: np.ndarray
     statuses: dict = field(default_factory=dict)
-    accepted: list = field(default_factory=list)      # {cand, shape, column, before, after, gain}
+    accepted: list[Accepted] = field(default_factory=list)
     nuisance: list = field(default_factory=list)      # terms in the model: (column, lower, upper)
     ambiguities: list = field(default_factory=list)
     rounds: list = field(default_factory=list)
@@ -210,8 +211,7 @@ class _Search:
 
     def model_terms(self, without=None) -> list:
         """The calibration terms and every accepted effect but ``without``."""
-        return list(self.problem.initial_terms) + [
-            (a["column"], a["cand"].lower, a["cand"].upper) for a in self.accepted if a is not without]
+        return list(self.problem.initial_terms) + [a.term() for a in self.accepted if a is not without]
 
 
 def _noise_threshold(s: _Search, terms, column, cand, pool) -> float:
@@ -325,10 +325,9 @@ def _forward_step(s: _Search) -> bool:
         # now can be trusted to leave only noise behind, so the search stops here
         s.stopped_untestable = True
         return False
-    s.accepted.append({"cand": best, "shape": shape, "column": col,
-                       "before": bev.rmse_before, "after": bev.rmse_after, "gain": bev.gain})
+    s.accepted.append(Accepted(best, shape, col, bev.rmse_before, bev.rmse_after, bev.gain))
     s.statuses[best.id]["status"] = "accepted"
-    _refine_jointly(r, s.problem.initial_terms, s.accepted)
+    s.accepted = _refine_jointly(r, s.problem.initial_terms, s.accepted)
     s.nuisance = s.model_terms()
     s.active = [c for c in s.active if c.id != best.id]
     return True
@@ -343,31 +342,31 @@ def _rival_check(s: _Search) -> None:
     noise estimate holds its structure and every rival looks "as good".
     """
     r, n, st = s.r, len(s.r), s.settings
-    taken = {a["cand"].id for a in s.accepted}
+    taken = {a.id for a in s.accepted}
     remaining = [c for c in s.problem.candidates if c.id not in taken]
     keep = []
     for a in s.accepted:
         others = s.model_terms(without=a)
-        thr_dsse = _noise_threshold(s, others, a["column"], a["cand"], remaining + [a["cand"]])
+        thr_dsse = _noise_threshold(s, others, a.column, a.cand, remaining + [a.cand])
         rivals = []
         for c in remaining:
             ev = evaluate_candidate(r, others, c, s.folds, s.k)
             if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= st.min_gain:
                 continue
             ccol = c.columns[ev.shape_index]
-            b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a["column"],
-                               a["cand"].lower, a["cand"].upper, s.folds, s.k)
+            b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a.column,
+                               a.cand.lower, a.cand.upper, s.folds, s.k)
             if b1 - a1 <= thr_dsse:
                 rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
-                                     f"it in the model, {a['cand'].id} adds nothing beyond noise"))
+                                     f"it in the model, {a.id} adds nothing beyond noise"))
         if rivals:
-            _ambiguity(a["cand"].id, rivals, s.statuses, s.ambiguities)
+            _ambiguity(a.id, rivals, s.statuses, s.ambiguities)
         else:
             keep.append(a)
     s.accepted = keep
 
 
-def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
+def _final_refit(s: _Search) -> tuple[list[Finding], np.ndarray]:
     """Joint refit of every accepted effect on all data: the parameters reported, and the
     fitted effects (calibration constants move with them) in target units."""
     p = s.problem
@@ -376,59 +375,65 @@ def _final_refit(s: _Search) -> tuple[list, np.ndarray]:
     if not s.accepted:
         return findings, fitted
     init = list(p.initial_terms)
-    cols = [t[0] for t in init] + [a["column"] for a in s.accepted]
+    cols = [t[0] for t in init] + [a.column for a in s.accepted]
     coefs = full_fit(s.r, cols, [(t[1], t[2]) for t in init]
-                     + [(a["cand"].lower, a["cand"].upper) for a in s.accepted])
+                     + [(a.cand.lower, a.cand.upper) for a in s.accepted])
     s.initial_coefficients = [float(c) for c in coefs[:len(init)]]
     for col, c in zip(cols[:len(init)], coefs[:len(init)]):
         fitted = fitted + c * col
-    for a, c in zip(s.accepted, coefs[len(init):]):
-        params = _params(a["cand"], a["shape"], c)
-        a["coefficient"] = float(c)
-        s.statuses[a["cand"].id]["parameters"] = params
-        s.statuses[a["cand"].id]["heldout_gain"] = round(a["gain"], 5)
-        findings.append({"effect": a["cand"].id, "parameters": params,
-                         "heldout_rmse_before": round(a["before"], 6),
-                         "heldout_rmse_after": round(a["after"], 6),
-                         "explanation": explanation(a["cand"].id, params, a["before"],
-                                                    a["after"], p.units),
-                         "seed": EFFECTS[a["cand"].id].seed})
-        fitted = fitted + c * a["column"]
+    s.accepted = [replace(a, coefficient=float(c)) for a, c in zip(s.accepted, coefs[len(init):])]
+    for a in s.accepted:
+        params = _params(a.cand, a.shape, a.coefficient)
+        s.statuses[a.id]["parameters"] = params
+        s.statuses[a.id]["heldout_gain"] = round(a.gain, 5)
+        findings.append(Finding(a.id, params, round(a.before, 6), round(a.after, 6),
+                                explanation(a.id, params, a.before, a.after, p.units),
+                                EFFECTS[a.id].seed))
+        fitted = fitted + a.coefficient * a.column
     return findings, fitted
 
 
-def fitted_on(problem: Problem, search: _Search) -> np.ndarray:
-    """The findings of ``search`` (run on ``problem.coarse``) and the moves of the calibration
-    terms, evaluated on ``problem``'s own samples."""
+def fitted_on(problem: Problem, selection: Selection) -> np.ndarray:
+    """The findings of ``selection`` (made on ``problem.coarse``) and the moves of the
+    calibration terms, evaluated on ``problem``'s own samples."""
     fitted = np.zeros(len(problem.time_s))
-    for (col, _, _), c in zip(problem.initial_terms, search.initial_coefficients):
+    for (col, _, _), c in zip(problem.initial_terms, selection.initial_coefficients):
         fitted = fitted + c * col
     by_id = {c.id: c for c in problem.candidates}
-    for a in search.accepted:
-        cand = by_id[a["cand"].id]
-        if cand.column_for is not None and a["shape"]:
-            col = cand.column_for(a["shape"])
+    for a in selection.accepted:
+        cand = by_id[a.id]
+        if cand.column_for is not None and a.shape:
+            col = cand.column_for(a.shape)
         else:
-            col = cand.columns[cand.shapes.index(a["shape"]) if a["shape"] in cand.shapes else 0]
-        fitted = fitted + a["coefficient"] * col
+            col = cand.columns[cand.shapes.index(a.shape) if a.shape in cand.shapes else 0]
+        fitted = fitted + a.coefficient * col
     return fitted
 
 
-def _open_world(s: _Search) -> tuple[list, np.ndarray, dict, list]:
-    """Final findings, their fit, what they leave unexplained, and the effects moved to
-    descriptions (:mod:`.openworld`); each demotion changes the remainder, so the review
-    repeats until nothing more is demoted."""
+def _open_world(s: _Search) -> tuple[list, np.ndarray, "Unexplained", list]:
+    """Final findings and their fit, then what they leave (:mod:`.openworld`): physics first,
+    the remainder judged after it and never against it. Each demotion of a weak effect
+    changes the fit, so the review repeats until nothing more is demoted."""
     descriptions: list = []
     findings, fitted = _final_refit(s)
-    while True:
-        left = unexplained(s.problem, s.r - fitted, s.settings, rng=s.rng, folds=s.folds)
-        if not s.accepted or not review(s, findings, left, descriptions):
-            return findings, fitted, left, descriptions
+    while s.accepted and review(s, findings, descriptions):
         findings, fitted = _final_refit(s)
+    left = unexplained(s.problem, s.r, fitted, s.accepted, s.settings, rng=s.rng, folds=s.folds)
+    return findings, fitted, left, descriptions
 
 
-def select(problem: Problem, settings: Settings | None = None) -> dict:
-    """Run the selection; returns findings, candidate statuses, ambiguities and the model fit."""
+def _drift_status(left) -> dict:
+    """The ``sensor_drift`` entry of ``candidates``: a calibration check, never a finding."""
+    d = left.drift
+    return {"effect": "sensor_drift", "status": "accepted" if d.significant else "rejected",
+            "kind": "calibration", "heldout_gain": round(d.heldout_gain, 5),
+            "parameters": {"gain_change": round(d.gain_change, 6),
+                           "offset_change": round(d.offset_change, 6),
+                           "start_s": round(d.start_s, 3), "end_s": round(d.end_s, 3)}}
+
+
+def select(problem: Problem, settings: Settings | None = None) -> Selection:
+    """Run the selection: physics first, then what it leaves, then the drift check."""
     st = settings or Settings()
     n = len(problem.residual)
     duration = float(problem.time_s[-1] - problem.time_s[0])
@@ -452,9 +457,7 @@ def select(problem: Problem, settings: Settings | None = None) -> dict:
             if cid in s.statuses:
                 s.statuses[cid]["heldout_gain_vs_baseline"] = round(float(g), 5)
     order = [c.id for c in problem.candidates] + list(problem.untestable)
-    candidates = [s.statuses[cid] for cid in order if cid in s.statuses]
-    return {"findings": findings, "candidates": candidates, "ambiguities": s.ambiguities,
-            "descriptions": descriptions, "unexplained": left,
-            "significant": s.significant or bool(s.ambiguities), "threshold": s.first_threshold,
-            "rounds": s.rounds, "fitted_effects": fitted,
-            "baseline_heldout_rmse": s.baseline_heldout, "search": s}
+    candidates = [s.statuses[cid] for cid in order if cid in s.statuses] + [_drift_status(left)]
+    return Selection(tuple(findings), candidates, s.ambiguities, descriptions, left,
+                     s.significant or bool(s.ambiguities), s.first_threshold, s.rounds, fitted,
+                     s.baseline_heldout, tuple(s.accepted), tuple(s.initial_coefficients))

@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fleetrun.cycles import FTP_TRANSIENT_WEIGHT, ftp_bag1_end_s
 from fleetrun.diagnose.select import _solve_bounded
 from fleetrun.errors import InputError
 
@@ -208,9 +209,9 @@ def cruise_share(test: str) -> float:
     c = load_cycle(name)
     t, v = np.asarray(c.time_s, float), np.asarray(c.speed_mps, float)
     if test in ("FTP:bag1", "FTP:bag3"):
-        keep = t <= 505.0
+        keep = t <= ftp_bag1_end_s()
     elif test == "FTP:bag2":
-        keep = t >= 505.0
+        keep = t >= ftp_bag1_end_s()
     else:
         keep = np.ones(len(t), bool)
     a = np.gradient(v, t)
@@ -223,7 +224,7 @@ def _bag1_share_column(warm, rows_v, rows_t) -> np.ndarray:
     g = {b: warm[f"FTP:{b}"]["g"] for b in ("bag1", "bag2", "bag3")}
     mi = {b: warm[f"FTP:{b}"]["mi"] for b in ("bag1", "bag2", "bag3")}
     composite = warm["FTP"]["g"] / warm["FTP"]["mi"]
-    in_ftp = 0.43 * g["bag1"] / (mi["bag1"] + mi["bag2"]) / composite
+    in_ftp = FTP_TRANSIENT_WEIGHT * g["bag1"] / (mi["bag1"] + mi["bag2"]) / composite
     return np.array([1.0 if t == "FTP:bag1" else (in_ftp[v] if t == "FTP" else 0.0)
                      for v, t in zip(rows_v, rows_t)])
 

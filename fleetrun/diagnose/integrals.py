@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.cycles import ftp_bag1_end_s
+
 #: A standstill or engine-off stretch longer than this [s] separates two phases (a soak).
 GAP_S = 60.0
 #: Bag boundaries [s from the cycle's start] of the EPA cycles fleetrun recognises in a
 #: recording: UDDS bag 1 (the transient phase of the FTP-75, 0-505 s) and bag 2 (505-1369 s),
 #: 40 CFR 86.137 and 40 CFR 86 Appendix I (a).
-BAG_BOUNDARIES_S = {"UDDS": (505.0,)}
+BAG_BOUNDARIES_S = {"UDDS": (ftp_bag1_end_s(),)}
 #: Largest RMS speed difference [m/s] between a phase and a cycle over its first bag for the
 #: phase to count as that cycle (drivers follow the trace within about +-2 mph, 40 CFR 86.115).
 MATCH_RMS_MPS = 1.0

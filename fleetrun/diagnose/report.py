@@ -161,7 +161,23 @@ def _unexplained_words(result: dict) -> str:
     if segs:
         text += "; it concentrates in " + " and ".join(
             f"{s['start_s']:.0f}-{s['end_s']:.0f} s" for s in segs)
-    return text + "."
+    if result["findings"] and u.get("energy_share") is not None:
+        text += (f". Its size: {100 * u['energy_share']:.0f} % of the mismatch's structured "
+                 "energy is left")
+        if u.get("integral_share") is not None:
+            text += f", and {100 * u['integral_share']:.0f} % of its phase-integral error"
+    return text + "." + _drift_words(u)
+
+
+def _drift_words(u: dict) -> str:
+    d = u.get("drift") or {}
+    if not d.get("significant"):
+        return ""
+    return (f" The target's sensor looks miscalibrated rather than the physics incomplete: a "
+            f"gain drifting by {100 * d['gain_change']:+.1f} % and an offset by "
+            f"{d['offset_change']:+.3g} over the run follow it, moving mostly between "
+            f"{d['start_s']:.0f} and {d['end_s']:.0f} s (sensor_drift; check the channel's "
+            "calibration).")
 
 
 def _descriptions_words(result: dict) -> str:

@@ -58,20 +58,21 @@ def fold_ids(n: int, k: int, blocks_per_fold: int = 1) -> np.ndarray:
     return np.minimum((np.arange(n) * nb) // n, nb - 1) % k
 
 
-def _solve_bounded(G, c, lo, hi):
+def _solve_bounded(G, c, lo, hi, ridge: float = 1e-12):
     """Least squares from normal equations with every coefficient kept in [lo, hi].
 
     ``G`` (..., p, p), ``c`` (..., p), ``lo``/``hi`` (p,). Greedy active set, vectorised over
     the leading axes: solve, fix the coefficients that left their bounds at the bound, re-solve
     the rest; at most p passes. Exact for one bounded coefficient; for several it never
-    releases a bound again, which is fine for the 1-4 columns used here.
+    releases a bound again, which is fine for the 1-4 columns used here. ``ridge``: the
+    Tikhonov term relative to the mean diagonal of ``G`` (1e-12: only against singularity).
     """
     p = G.shape[-1]
     lo = np.broadcast_to(np.asarray(lo, dtype=float), (p,))
     hi = np.broadcast_to(np.asarray(hi, dtype=float), (p,))
     eye = np.eye(p)
     scale = np.trace(G, axis1=-2, axis2=-1)[..., None, None] / p
-    ridge = (1e-12 * scale + 1e-300) * eye
+    ridge = (ridge * scale + 1e-300) * eye
     fixed = np.zeros(c.shape, bool)
     val = np.zeros(c.shape)
     b = None
@@ -89,16 +90,17 @@ def _solve_bounded(G, c, lo, hi):
     return np.where(fixed, val, b)
 
 
-def _heldout_sse(G_f, c_f, rr_f, lo, hi):
+def _heldout_sse(G_f, c_f, rr_f, lo, hi, ridge: float = 1e-12):
     """Sum over folds of the held-out SSE; stats per fold on the last-but-one axes.
 
-    ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K); bounds (p,).
+    ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K); bounds (p,); ``ridge`` as
+    in :func:`_solve_bounded`.
     """
     if G_f.shape[-1] == 0:
         return rr_f.sum(axis=-1)
     G_tr = G_f.sum(axis=-3, keepdims=True) - G_f
     c_tr = c_f.sum(axis=-2, keepdims=True) - c_f
-    b = _solve_bounded(G_tr, c_tr, lo, hi)
+    b = _solve_bounded(G_tr, c_tr, lo, hi, ridge)
     sse = rr_f - 2 * np.einsum("...p,...p->...", b, c_f) + np.einsum("...p,...pq,...q->...", b, G_f, b)
     return sse.sum(axis=-1)
 

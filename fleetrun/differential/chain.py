@@ -15,6 +15,7 @@ from fleetrun.differential.models import ReferenceModel, reference_model
 from fleetrun.errors import InputError
 from fleetrun.physics import bearings, gear_mesh, seals, windage
 from fleetrun.physics.floor import mark_negative, zero_nan
+from fleetrun.units import RAD_S_PER_RPM
 
 # Stage parameters that steer the chain rather than feed the component.
 _CONTROL_KEYS = {"component", "label", "split"}
@@ -35,7 +36,7 @@ def _bearing(p, torque, speed_rpm):
 
 def _cylinder(p, torque, speed_rpm):
     return windage.cylindrical_windage_torque_Nm(p["viscosity_Pa_s"], p["diameter_m"], p["length_m"],
-                                                 p["clearance_m"], 2 * np.pi / 60 * speed_rpm)
+                                                 p["clearance_m"], RAD_S_PER_RPM * speed_rpm)
 
 
 def _sphere(p, torque, speed_rpm):

@@ -19,6 +19,7 @@ from fleetrun.effects.differential import DIFFERENTIAL_EFFECTS
 from fleetrun.effects.vehicle import VEHICLE_EFFECTS
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.registry import EFFECTS
+from fleetrun.units import RAD_S_PER_RPM
 
 for _effect in DIFFERENTIAL_EFFECTS + VEHICLE_EFFECTS:
     EFFECTS.register(_effect.id, _effect)
@@ -113,7 +114,7 @@ def steady_channels(input_torque_Nm, input_speed_rpm, gear_ratio, *, lubricant="
     ``{"wheel_speed_difference_rad_s": 2.0}``).
     """
     t = np.asarray(input_torque_Nm, dtype=float)
-    w = np.asarray(input_speed_rpm, dtype=float) * 2 * np.pi / 60.0
+    w = np.asarray(input_speed_rpm, dtype=float) * RAD_S_PER_RPM
     ch = {"input_torque_Nm": t, "input_speed_rad_s": w, "input_accel_rad_s2": 0.0,
           "wheel_speed_difference_rad_s": 0.0, "time_s": np.inf, "ambient_temp_C": 20.0,
           "gear_ratio": float(gear_ratio), "lubricant": lubricant}

@@ -18,6 +18,7 @@ import numpy as np
 
 from fleetrun.effects.base import Effect, Parameter
 from fleetrun.physics.lubricant import OPERATING_RISE_K, operating_temperature_C
+from fleetrun.units import RPM_PER_RAD_S
 
 #: Speed [rad/s] below which the pinion counts as stopped: Coulomb drags are regularised with
 #: tanh(w / W_STOP) so that a stopped differential has no drag and the fit stays smooth.
@@ -134,7 +135,7 @@ def bearing_viscous_drag_Nm(input_speed_rad_s, reference_speed_rpm=1000.0):
     Here ``dT = c_b (n / 1000 rpm)^(2/3)``.
     """
     w = np.asarray(input_speed_rad_s, dtype=float)
-    n_rpm = np.abs(w) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
     return (n_rpm / reference_speed_rpm) ** (2.0 / 3.0) * _rotating(w)
 
 
@@ -162,7 +163,7 @@ def boundary_share(input_speed_rad_s, speed_ref_rpm):
     asperity contact area ~ F_2(lambda) (Eqs 16-17), boundary friction f_b = tau_L A_a
     (Eq. 14). With lambda = (n / n_ref)^0.68 the share is ``F_2(lambda) / F_2(0)``.
     """
-    n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S
     lam = (n_rpm / speed_ref_rpm) ** FILM_SPEED_EXPONENT
     return greenwood_tripp_F2(lam) / 0.5
 
@@ -209,7 +210,7 @@ def hypoid_mesh_loss_share(input_speed_rad_s):
     from fleetrun.physics import gear_mesh
 
     p = _reference_stage("hypoid_mesh")
-    n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * 60.0 / (2 * np.pi)
+    n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S
     v = gear_mesh.hypoid_sliding_speed_fpm(n_rpm, p["outer_pitch_radius_gap_in"],
                                            p["face_width_gap_in"], p["pinion_teeth"])
     eta = gear_mesh.hypoid_mesh_efficiency(gear_mesh.dudley_friction_coefficient(v),
@@ -249,7 +250,7 @@ def ring_gear_churning_torque_Nm(input_speed_rad_s, gear_ratio):
 
     p = _reference_stage("bevel_gear_windage", "ring")
     g = np.asarray(gear_ratio, dtype=float)
-    n_ring = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * 60.0 / (2 * np.pi) / g
+    n_ring = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S / g
 
     def windage(x):
         return bevel_gear_windage_torque_Nm(n_ring, p["pitch_radius_in"], p["face_width_in"],

@@ -10,8 +10,8 @@ import numpy as np
 
 from fleetrun.effects.base import Effect, Parameter
 from fleetrun.physics.fuels import fuel_properties
+from fleetrun.units import STANDARD_GRAVITY_M_S2
 
-G_M_S2 = 9.80665
 
 
 def marginal_fuel_g_per_J(fuel: str, eta_indicated: float, drivetrain_efficiency: float = 1.0) -> float:
@@ -55,7 +55,18 @@ def grade_extra_fuel(vehicle_speed_mps, vehicle_mass_kg, marginal_g_per_J):
     here because the baseline already floors the total.
     """
     v = np.asarray(vehicle_speed_mps, dtype=float)
-    return vehicle_mass_kg * G_M_S2 * v / 100.0 * marginal_g_per_J
+    return vehicle_mass_kg * STANDARD_GRAVITY_M_S2 * v / 100.0 * marginal_g_per_J
+
+
+def aero_drag_extra_fuel(vehicle_speed_mps, marginal_g_per_J):
+    """Extra fuel per N s^2/m^2 of extra quadratic road load: ``v^2 * v * fuel per J``.
+
+    The road load's quadratic coefficient (EPA coastdown C, thesis Eq. 3.5) is aerodynamic,
+    ``C = rho Cd A / 2``; a roof box, an open window or a trailer raises it. Only while the
+    wheels are driven (``vehicle_speed_mps`` is zero elsewhere in the channels).
+    """
+    v = np.asarray(vehicle_speed_mps, dtype=float)
+    return v * v * v * marginal_g_per_J
 
 
 def accessory_extra_fuel(engine_on, marginal_g_per_J):
@@ -69,6 +80,10 @@ def _basis_warmup(ch, tau_s):
 
 def _basis_grade(ch):
     return grade_extra_fuel(ch["vehicle_speed_mps"], ch["vehicle_mass_kg"], ch["marginal_fuel_g_per_J"])
+
+
+def _basis_aero(ch):
+    return aero_drag_extra_fuel(ch["vehicle_speed_mps"], ch["marginal_fuel_g_per_J"])
 
 
 def _basis_accessory(ch):
@@ -99,6 +114,16 @@ VEHICLE_EFFECTS = (
         seed="thesis Sec. 3.1.6 (straight, level road); seed 004 Eqs 34-38 (longitudinal balance)",
         steady_state="adds m g v grade/100 of tractive power", basis=_basis_grade,
         separating_test="record grade_pct, or drive the route in both directions"),
+    Effect(
+        id="aero_drag", level="vehicle", title="extra aerodynamic drag",
+        parameters=(Parameter("extra_C_N_s2_per_m2", 0.1, 0.0, 2.0, "N s^2/m^2",
+                              "extra quadratic road-load coefficient (coastdown C in SI units)"),),
+        linear="extra_C_N_s2_per_m2", channels=(),
+        signature="fuel shortfall growing as the cube of speed while the wheels are driven: "
+                  "small in town, large on the highway",
+        seed="thesis Eq. 3.5 (road load A + B v + C v^2 from the EPA coastdown coefficients)",
+        steady_state="adds extra_C v^3 of tractive power", basis=_basis_aero,
+        separating_test="a coastdown of the vehicle as driven (roof box, windows, trailer)"),
     Effect(
         id="accessory_load", level="vehicle", title="constant accessory power",
         parameters=(Parameter("power_kW", 1.0, 0.0, 30.0, "kW",

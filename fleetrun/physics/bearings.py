@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.units import RAD_S_PER_RPM
+
 #: Lubricant friction factors f_L of Khonsari & Booser Table 15.2; B.2 picks index 3 (MATLAB,
 #: 1-based) = 8, "oil bath lubrication".
 LUBRICATION_FACTORS = {"grease": 4.2, "oil_mist": 6.0, "oil_bath": 8.0, "oil_jet": 9.0}
@@ -37,7 +39,7 @@ def viscous_moment(speed_rpm, kinematic_viscosity, mean_diameter_mm, lubrication
     n in rpm and nu in cSt; the printed code uses rad/s and m^2/s, so the first branch never
     fires at road speeds (docs/thesis-quirks.md). Both branches are kept.
     """
-    omega_nu = 2 * np.pi / 60 * np.asarray(speed_rpm, dtype=float) * kinematic_viscosity
+    omega_nu = RAD_S_PER_RPM * np.asarray(speed_rpm, dtype=float) * kinematic_viscosity
     with np.errstate(invalid="ignore"):
         fast = 1e-10 * lubrication_factor * np.abs(omega_nu) ** (2 / 3) * mean_diameter_mm ** 3
     slow = 1.6e-8 * lubrication_factor * mean_diameter_mm ** 3

@@ -28,6 +28,8 @@ TEXT_FORMATS = {
     "fiscal_year": "{}", "miles": "{:,.0f}", "fuel_gal": "{:,.0f}", "fuel_gal_low": "{:,.0f}",
     "fuel_gal_high": "{:,.0f}", "co2_t": "{:,.0f}", "kwh": "{:,.0f}", "ev_fee_usd": "${:,.0f}",
     "model_gallons": "{:,.0f}", "observed_gallons": "{:,.0f}", "model_to_observed": "{:.1%}", "scale": "{:.4f}",
+    "gal_per_mile": "{:.5f}", "change_gal": "{:+,.0f}", "change_from_vmt_gal": "{:+,.0f}",
+    "change_from_gal_per_mile_gal": "{:+,.0f}",
 }
 MEMO_LABELS = {"fuel_gal": "Gallons", "state_tax_usd": "State revenue", "federal_tax_usd": "Federal revenue"}
 
@@ -176,7 +178,17 @@ def render_summary(result: RunResult) -> str:
         calibration_rows=_table_rows(calibration, list(calibration.columns))
         if calibration is not None and len(calibration) else [],
         changes=result.changes, change_lines=describe_changes(result.changes) if result.changes else [],
+        **_turnover(result),
         sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")
+
+
+def _turnover(result: RunResult) -> dict:
+    """The registrations' change table (docs/registrations.md), when the fleet has registrations."""
+    if result.turnover is None:
+        return {"turnover_rows": [], "turnover_columns": [], "registration_rows": 0}
+    columns = list(result.turnover.columns)
+    return {"turnover_rows": _table_rows(result.turnover, columns), "turnover_columns": columns,
+            "registration_rows": f"{len(result.registrations):,}"}
 
 
 def _assumption_rows(result: RunResult) -> list[dict]:

@@ -84,17 +84,14 @@ class Sheet:
 
     def rows(self, columns: list[list], styles: list) -> None:
         """Many rows at once: ``columns`` are the table's columns as lists (a DataFrame's
-        ``tolist()``), ``styles`` one style name (or None) per column. The fast path."""
-        write = self.book.write
+        ``tolist()``), ``styles`` one style name (or None) per column; each cell as
+        :meth:`Book.write` writes it."""
+        cell, ws, index = self.book.cell, self.ws, self.row
         formats = [self.book.style(s) for s in styles]
-        number, index = self.ws.write_number, self.row
         for values in zip(*columns):
             for column, value in enumerate(values):
-                if type(value) is float:   # the common case first: a finite float
-                    if value - value == 0.0:
-                        number(index, column, value, formats[column])
-                elif value is not None:
-                    write(self.ws, index, column, value, styles[column])
+                if value is not None:
+                    cell(ws, index, column, value, styles[column], formats[column])
             index += 1
         self.row = index
 
@@ -119,14 +116,21 @@ class Book:
 
     def write(self, ws, row: int, column: int, value, style: str | None = None) -> None:
         """One cell: text as text, finite numbers as numbers, booleans, nothing for None/NaN."""
-        if isinstance(value, str):
+        self.cell(ws, row, column, value, style, self.style(style))
+
+    def cell(self, ws, row: int, column: int, value, style: str | None, cell_format) -> None:
+        """:meth:`write` with the style's Format already looked up (``cell_format``)."""
+        if type(value) is float:   # the common case first
+            if math.isfinite(value):
+                ws.write_number(row, column, value, cell_format)
+        elif isinstance(value, str):
             self.text(ws, row, column, value, style)
         elif isinstance(value, (bool, np.bool_)):
-            ws.write_boolean(row, column, bool(value), self.style(style))
+            ws.write_boolean(row, column, bool(value), cell_format)
         elif isinstance(value, (int, float)) or hasattr(value, "__float__") and not pd.isna(value):
             number = float(value)
             if math.isfinite(number):
-                ws.write_number(row, column, value if isinstance(value, int) else number, self.style(style))
+                ws.write_number(row, column, value if isinstance(value, int) else number, cell_format)
         elif value is not None and not pd.isna(value):
             self.text(ws, row, column, str(value), style)
 
@@ -213,6 +217,7 @@ def write_report_xlsx(result: RunResult, path: Path) -> None:
     _comparison(book, result)
     _fiscal(book, result)
     _periods(book, result)
+    _registrations(book, result)
     _maps(book, result)
     _inputs(book, result)
     _run_info(book, result)
@@ -513,6 +518,29 @@ def _fiscal(book: Book, result: RunResult):
         sheet.append([])
         sheet.append(["Calibration to collections: model vs observed taxable gallons, first fiscal year"], "bold")
         _table(sheet, calibration, widths=False)
+
+
+REGISTRATION_ROWS_SHOWN = 5_000   # more rows: registrations.csv has them all
+
+
+def _registrations(book: Book, result: RunResult):
+    """Registrations (docs/registrations.md): the year-on-year change in gallons split into VMT
+    and gallons per mile (turnover), then every registration row's choice of vehicle."""
+    if result.registrations is None:
+        return
+    sheet = Sheet(book, "Registrations")
+    page_setup(sheet)
+    frame = result.registrations
+    _widths(sheet, list(frame.columns), minimum=12)
+    sheet.append(["Change in gallons from the year before: from VMT (change in miles x last year's gallons "
+                  "per mile) and from gallons per mile (turnover: newer model years replace older ones)"], "bold")
+    _table(sheet, result.turnover, widths=False)
+    sheet.append([])
+    shown = frame.head(REGISTRATION_ROWS_SHOWN)
+    more = f" (first {len(shown):,} of {len(frame):,}; all in registrations.csv)" if len(shown) < len(frame) else ""
+    sheet.append([f"Each registration row: the vehicle that represents it, matched on what, assumed what{more}"],
+                 "bold")
+    _table(sheet, shown, widths=False)
 
 
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table

@@ -13,6 +13,8 @@ from fleetrun.workbook.text_cells import FORMULA_START
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv",
                 "revenue_memo.csv", "fiscal_periods.csv", "manifest.json")
+# written when the fleet has Registrations (docs/registrations.md); an older run's are replaced
+REGISTRATION_FILES = ("registrations.csv", "turnover.csv")
 
 
 def write_csv(frame, path: Path) -> None:
@@ -57,7 +59,7 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
 
     out_dir = Path(out_dir)
     refuse_overwriting_inputs(out_dir, [result.fleet.path, *result.cycle_inputs])
-    with new_output_folder(out_dir, replaces=OUTPUT_FILES) as staging:
+    with new_output_folder(out_dir, replaces=OUTPUT_FILES + REGISTRATION_FILES) as staging:
         if earlier is not None:
             keep_earlier_run(out_dir, staging, earlier, OUTPUT_FILES)
         write_csv(result.results, staging / "results.csv")
@@ -65,6 +67,9 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
         write_csv(result.fiscal, staging / "fiscal_summary.csv")
         write_csv(result.memo, staging / "revenue_memo.csv")
         write_csv(result.periods, staging / "fiscal_periods.csv")
+        if result.registrations is not None:
+            write_csv(result.registrations, staging / "registrations.csv")
+            write_csv(result.turnover, staging / "turnover.csv")
         write_report_xlsx(result, staging / "report.xlsx")
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}

@@ -10,6 +10,7 @@ in :mod:`fleetrun.budget.totals` and :mod:`fleetrun.budget.arithmetic` (also doc
 """
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ import pandas as pd
 from fleetrun.workbook.schema import DUTY_CLASSES
 from fleetrun.budget import periods
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
-                                   aggregate_vehicles, fiscal_summary)
+                                   aggregate_vehicles, change_decomposition, fiscal_summary)
 from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
 from fleetrun.workbook.reader import Fleet, Scenario
 from fleetrun.vehicle import VehicleSpec
@@ -103,7 +104,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     effect_pairs = tuple((e.id, tuple(sorted(p.items()))) for e, p in as_effect_list(effects))
     scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
     engine = engine or LocalEngine()
-    vehicles = fleet.vehicles
+    vehicles, years, registrations = registration_vehicles(fleet, scenarios)
     # Rows that differ only in id, class, count or miles drive the same: simulate each
     # distinct physical vehicle once and hand its per-vehicle results to every such row.
     distinct, owner = distinct_vehicles(vehicles)
@@ -121,7 +122,11 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
                   for cond, arrays in shortfalls.items()}
 
-    warnings = list(fleet.warnings) + _map_grid_notes(fleet, mode) + _shortfall_warnings(vehicles, shortfalls)
+    shortfall_lines = _shortfall_warnings(vehicles, shortfalls)
+    if registrations:   # one line per representing vehicle, not per model year (docs/registrations.md)
+        shortfall_lines = list(dict.fromkeys(re.sub(r":MY\d+(:mi[0-9.e+]+)?", ":MY*", t) for t in shortfall_lines))
+    warnings = list(fleet.warnings) + (registrations.warnings if registrations else []) \
+        + _map_grid_notes(fleet, mode) + shortfall_lines
     cycles = _cycle_info({cycle for cycle, _ in conditions})
     if error_model == "default":
         from fleetrun.budget.uncertainty import read_error_model
@@ -130,7 +135,7 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     if error_model is None:
         warnings.append("ranges hold the drivers only, no model error: no measured fleet error "
                         "(models/fleet_error.toml) in this installation")
-    budget = aggregate_vehicles(vehicles, scenarios, per_condition, error_model)
+    budget = aggregate_vehicles(vehicles, scenarios, per_condition, error_model, years)
     results, calibration = budget.results, budget.calibration
     warnings += budget.warnings
     classes = aggregate_classes(results)
@@ -149,7 +154,21 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
         engine=engine.describe(), physics=physics, mode=mode,
         cycle_inputs={info.path: info.sha256 for info in cycles.values() if info.path},
         effects=[AppliedEffect(e.id, e.level, dict(p)) for e, p in as_effect_list(effect_pairs)],
+        registrations=registrations.choices if registrations else None,
+        turnover=change_decomposition(fiscal) if registrations else None,
     )
+
+
+def registration_vehicles(fleet: Fleet, scenarios) -> tuple[list, object, object]:
+    """The fleet's rows to simulate: its Vehicles rows, then the cohorts of its Registrations
+    (:mod:`fleetrun.registrations`), with their miles by year (None without registrations)."""
+    from fleetrun.registrations import expand
+    from fleetrun.registrations.expand import FleetYears
+
+    expansion = expand(fleet, scenarios)
+    if expansion is None:
+        return fleet.vehicles, None, None
+    return list(fleet.vehicles) + expansion.vehicles, FleetYears(fleet.vehicles, expansion), expansion
 
 
 def refuse_non_finite(fleet: Fleet, tasks, positions, per_condition) -> None:

@@ -25,7 +25,7 @@ from fleetrun.simulation.records import (BLOCK_ARRAYS, PHASE_FIELDS, SUM_FIELDS,
                                          FleetCycleResult, PhaseResult, StepResults, Trace)
 from fleetrun.simulation.thermal import (ThermalConstants, cold_start_extra_fuel, start_temperature_C,
                                          thermal_constants)
-from fleetrun.units import LITERS_PER_GALLON, METERS_PER_MILE
+from fleetrun.units import LITERS_PER_GALLON, METERS_PER_MILE, RAD_S_PER_RPM
 
 __all__ = ["simulate", "FleetCycleResult", "PhaseResult", "Trace", "TRACE_COLUMNS", "SUM_FIELDS", "PHASE_FIELDS",
            "MODES", "DEFAULT_MODE"]
@@ -241,7 +241,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         mpg = np.where(fuel_gal > 0, miles / fuel_gal, np.nan)
     return BlockSums(
         miles=miles, fuel_g=fuel_g, fuel_gal=fuel_gal, mpg=mpg,
-        diff_input_energy_J=e(out.diff_input_torque_Nm * out.diff_input_speed_rpm * (2 * np.pi / 60)),
+        diff_input_energy_J=e(out.diff_input_torque_Nm * out.diff_input_speed_rpm * RAD_S_PER_RPM),
         diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out.engine_power_W), wheel_energy_J=wheel,
         engine_energy_J=(np.maximum(out.engine_power_W, 0.0) * dt).sum(axis=1),
         shortfall_time_s=shortfall_time_s, shortfall_distance_m=target_m - distance_m,

@@ -20,6 +20,7 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -33,8 +34,8 @@ from fleetrun.simulation.records import StepResults, Trace
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
+from fleetrun.units import RPM_PER_RAD_S
 
-RPM = 60.0 / (2.0 * np.pi)          # rad/s -> rpm
 FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than this = not followed
 DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
 N_POWER_TABLE = 65
@@ -54,7 +55,7 @@ def power_speed_table(va: VehicleArrays) -> np.ndarray:
     n = col(va.n_idle) + x * col(va.n_rated - va.n_idle)
     T = full_load_torque_Nm(n, col(va.T_peak), col(va.P_rated_kW), col(va.n_rated), col(va.n_idle),
                             col(va.n_peak_torque), col(va.idle_T_frac))
-    p = np.maximum.accumulate(T * n / RPM / col(va.P_rated_kW * 1e3), axis=1)
+    p = np.maximum.accumulate(T * n / RPM_PER_RAD_S / col(va.P_rated_kW * 1e3), axis=1)
     p_grid = np.linspace(0.0, 1.0, N_POWER_TABLE)
     # p is non-decreasing per row: count of grid points below each target = its index. Counted
     # as: each point lies below the targets from the first one above it on (a cumulative count)
@@ -246,7 +247,7 @@ def wheel_demand(va: VehicleArrays, k: Kinematics):
     force = k.at_rest(force, 0.0)  # at standstill the brakes hold the vehicle
     r = _col(va.radius_m)
     wheel_omega = k.v_avg / r
-    return force, force * r, wheel_omega, wheel_omega * RPM
+    return force, force * r, wheel_omega, wheel_omega * RPM_PER_RAD_S
 
 
 def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
@@ -434,7 +435,7 @@ def idle_fuel_at_ambient_g_per_s(va: VehicleArrays, ambient_temp_C) -> np.ndarra
 
 def _shaft_power_W(torque_Nm, speed_rpm):
     power = torque_Nm * speed_rpm
-    power /= RPM
+    power /= RPM_PER_RAD_S
     return power
 
 
@@ -506,7 +507,7 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     v = REDRIVE_SPEED_GRID[None, :, None]
     col = lambda a: a[:, None, None]  # noqa: E731
     overall = (va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0))[:, None, :]
-    n_e = v / col(va.radius_m) * RPM * overall * col(va.final_drive)
+    n_e = v / col(va.radius_m) * RPM_PER_RAD_S * overall * col(va.final_drive)
     n_stall, T_stall = converter_stall_point(va)
     first = (va.combo_gear == 1)[:, None, :]
     auto = col(va.automatic)
@@ -520,78 +521,79 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     return margin * F.max(axis=2)
 
 
+@dataclass(frozen=True)
+class _Arithmetic:
+    """The few operations the re-drive loop needs, for Python floats (one vehicle at a time:
+    no numpy call per step, ~5x faster for one vehicle, benchmarks/bench_simulate.py) or for
+    numpy arrays over vehicles: the equations are written once (:func:`_full_effort_speeds`)."""
+
+    minimum: Callable
+    maximum: Callable
+    index: Callable
+
+
+_FLOATS = _Arithmetic(min, max, int)
+_ARRAYS = _Arithmetic(np.minimum, np.maximum, lambda x: x.astype(np.intp))
+# up to this many vehicles, the loop runs per vehicle on Python floats: numpy's per-call cost
+# for arrays of a few elements is larger than the arithmetic (benchmarks/bench_simulate.py)
+SCALAR_REDRIVE_MAX = 4
+
+
+def _full_effort_speeds(v0, t: list, cap: list, force_at, coast, grade_force_at, inv_m, dv: float, top: float,
+                        ops: _Arithmetic) -> list:
+    """Speeds v(0..N-1) at full effort, as floats or arrays over vehicles (``ops``).
+
+    v(i) = min(cap(i), v(i-1) + a dt), clipped at 0; a = (F(v) - coastdown(v) - grade force) / m_eff,
+    F interpolated on the force table (``force_at(j)``: grid point j) at the step's mean speed
+    (one predictor-corrector pass, as the backward pass evaluates the step at its mean speed).
+    """
+    def accel(v, i):
+        x = ops.minimum(v / dv, top)
+        j = ops.index(x)
+        w = x - j
+        force = force_at(j) * (1.0 - w) + force_at(j + 1) * w
+        v = ops.maximum(v, 1e-3)
+        return (force - coast(v) - grade_force_at(i - 1)) * inv_m
+
+    speeds = [v0]
+    vp = v0
+    for i in range(1, len(t)):
+        dt = t[i] - t[i - 1]
+        guess = ops.maximum(ops.minimum(cap[i], vp + accel(vp, i) * dt), 0.0)
+        vp = ops.maximum(ops.minimum(cap[i], vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
+        speeds.append(vp)
+    return speeds
+
+
 def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.97, table=None):
     """Achieved speed (V, N) of vehicles driven at most at full tractive effort.
 
     v(i) = min(trace(i), v(i-1) + a_max dt), a_max from the force table at the step's mean
-    speed (one predictor-corrector pass, as the backward pass evaluates the step at its mean
-    speed): the vehicle falls behind on hard accelerations and re-joins the trace when it
-    slows down. One loop over steps, vectorised over vehicles. ``table``: the unscaled
+    speed (:func:`_full_effort_speeds`): the vehicle falls behind on hard accelerations and
+    re-joins the trace when it slows down. One loop over steps, vectorised over vehicles (or,
+    for a few vehicles, one vehicle at a time on floats). ``table``: the unscaled
     :func:`max_tractive_force_table` if already computed.
     """
-    N = time_s.size
     if table is None:
         table = max_tractive_force_table(va, 1.0)
-    dv = REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0]
-    last = REDRIVE_SPEED_GRID.size - 1
+    dv = float(REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0])
+    top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
     flat = table.reshape(-1) * margin
-    base = np.arange(va.n) * table.shape[1]
+    width = table.shape[1]
     inv_m = 1.0 / (va.mass_kg * (1.0 + va.rot_frac))
     grade_force = grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :])
     A, B, C = va.A_N, va.B_N, va.C_N
-
-    def accel(v, i):
-        x = np.minimum(v / dv, last - 1e-9)
-        j = x.astype(np.intp)
-        w = x - j
-        F = flat[base + j] * (1.0 - w) + flat[base + j + 1] * w
-        v = np.maximum(v, 1e-3)
-        return (F - coastdown_force_N(v, A, B, C) - grade_force[:, i - 1]) * inv_m
-
+    t, cap = np.asarray(time_s, float).tolist(), np.asarray(target_mps, float).tolist()
     if va.n <= SCALAR_REDRIVE_MAX:
-        return _forward_redrive_scalar(flat, table.shape[1], dv, last, inv_m, grade_force, A, B, C, time_s, target_mps)
-    v = np.empty((va.n, N))
-    v[:, 0] = target_mps[0]
-    vp = v[:, 0].copy()
-    for i in range(1, N):
-        dt = time_s[i] - time_s[i - 1]
-        cap = target_mps[i]
-        guess = np.maximum(np.minimum(cap, vp + accel(vp, i) * dt), 0.0)
-        vp = np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
-        v[:, i] = vp
-    return v
-
-
-SCALAR_REDRIVE_MAX = 4  # up to this many vehicles, plain Python floats beat numpy's per-call cost
-
-
-def _forward_redrive_scalar(flat, width, dv, last, inv_m, grade_force, A, B, C, time_s, target_mps):
-    """:func:`forward_redrive` for a few vehicles, one at a time with Python floats (same
-    arithmetic)."""
-    N = len(time_s)
-    out = np.empty((len(inv_m), N))
-    t = time_s.tolist()
-    cap = target_mps.tolist()
-    for k in range(len(inv_m)):
-        F = flat[k * width:(k + 1) * width].tolist()
-        a_, b_, c_, im = float(A[k]), float(B[k]), float(C[k]), float(inv_m[k])
-        gf = grade_force[k].tolist()
-        top = last - 1e-9
-
-        def accel(v, i):
-            x = min(v / dv, top)
-            j = int(x)
-            w = x - j
-            f = F[j] * (1.0 - w) + F[j + 1] * w
-            v = max(v, 1e-3)
-            return (f - coastdown_force_N(v, a_, b_, c_) - gf[i - 1]) * im
-
-        row = out[k]
-        vp = cap[0]
-        row[0] = vp
-        for i in range(1, N):
-            dt = t[i] - t[i - 1]
-            guess = max(min(cap[i], vp + accel(vp, i) * dt), 0.0)
-            vp = max(min(cap[i], vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
-            row[i] = vp
-    return out
+        out = np.empty((va.n, len(t)))
+        for k in range(va.n):
+            a, b, c = float(A[k]), float(B[k]), float(C[k])
+            out[k] = _full_effort_speeds(cap[0], t, cap, flat[k * width:(k + 1) * width].tolist().__getitem__,
+                                         lambda v: coastdown_force_N(v, a, b, c), grade_force[k].tolist().__getitem__,
+                                         float(inv_m[k]), dv, top, _FLOATS)
+        return out
+    base = np.arange(va.n) * width
+    speeds = _full_effort_speeds(np.full(va.n, cap[0]), t, cap, lambda j: flat[base + j],
+                                 lambda v: coastdown_force_N(v, A, B, C), lambda i: grade_force[:, i], inv_m, dv, top,
+                                 _ARRAYS)
+    return np.stack(speeds, axis=1)

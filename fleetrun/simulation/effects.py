@@ -28,6 +28,7 @@ import numpy as np
 
 from fleetrun.effects.base import AppliedEffect
 from fleetrun.errors import DomainError
+from fleetrun.units import RAD_S_PER_RPM
 
 FIXED_POINT_TOL = 1e-10   # of the Kim scale: the direct inversion's tolerance
 FIXED_POINT_MAX_ITER = 200
@@ -96,7 +97,7 @@ def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_inp
     out = np.zeros(shape)
     if not effects.differential or base.size == 0:
         return out
-    speed = np.broadcast_to(np.asarray(input_speed_rpm, float) * (2.0 * np.pi / 60.0), shape)
+    speed = np.broadcast_to(np.asarray(input_speed_rpm, float) * RAD_S_PER_RPM, shape)
     accel = np.broadcast_to(np.asarray(input_accel_rad_s2, float), shape)
     time = np.broadcast_to(np.asarray(time_since_start_s, float), shape)
     ratio = np.broadcast_to(np.asarray(overall_ratio, float), shape)

@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import numpy as np
 
-RPM_RAD_S = 2.0 * np.pi / 60.0
+from fleetrun.units import RAD_S_PER_RPM
+
 FUEL_TERMS = ("brake", "brake_high_load", "friction", "friction_piston_speed", "friction_peak_pressure",
               "pumping", "accessory", "transient")
 
@@ -63,7 +64,7 @@ def mean_piston_speed_m_s(speed_rpm, stroke_m):
 
 def mep_power_W_per_kPa(speed_rpm, displacement_L):
     """Power [W] of 1 kPa of mean effective pressure in a four-stroke engine: V_d omega / (4 pi)."""
-    return (np.asarray(displacement_L, float) * (RPM_RAD_S / (4.0 * np.pi))) * np.asarray(speed_rpm, float)
+    return (np.asarray(displacement_L, float) * (RAD_S_PER_RPM / (4.0 * np.pi))) * np.asarray(speed_rpm, float)
 
 
 def load_fraction(torque_Nm, max_torque_Nm):
@@ -91,19 +92,16 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     do not vary with the step keep their own (broadcastable) shape.
     """
     n = np.asarray(speed_rpm, float)
-    omega = n * RPM_RAD_S
-    brake = np.maximum(torque_Nm, 0.0)
-    brake *= omega
+    omega = n * RAD_S_PER_RPM
+    brake_W = np.maximum(torque_Nm, 0.0) * omega
     load = load_fraction(torque_Nm, max_torque_Nm)
     mep = mep_power_W_per_kPa(n, displacement_L)
-    pumping = 1.0 - load
-    pumping *= mep
-    pumping *= throttled
-    load *= brake                     # brake x L
+    pumping_W = (1.0 - load) * mep * throttled
+    brake_high_load_W = brake_W * load
     # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
     # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each
-    return [brake, load, mep, mep * mean_piston_speed_m_s(n, stroke_m), np.asarray(peak_torque_Nm) * omega,
-            pumping, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
+    return [brake_W, brake_high_load_W, mep, mep * mean_piston_speed_m_s(n, stroke_m),
+            np.asarray(peak_torque_Nm) * omega, pumping_W, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
 
 
 def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m,
@@ -173,7 +171,7 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     torque = np.multiply(rise, 1.0 - idle_torque_fraction, out=np.empty(shape))
     torque += idle_torque_fraction
     torque *= peak_torque_Nm
-    power_cap = np.multiply(n, RPM_RAD_S, out=np.empty(shape))
+    power_cap = np.multiply(n, RAD_S_PER_RPM, out=np.empty(shape))
     np.maximum(power_cap, 1e-9, out=power_cap)
     np.divide(rated_power_kW * 1e3, power_cap, out=power_cap)
     np.minimum(torque, power_cap, out=torque)

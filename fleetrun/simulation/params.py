@@ -32,6 +32,7 @@ from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
+from fleetrun.units import RAD_S_PER_RPM
 from fleetrun.vehicle import VehicleSpec
 
 DUAL_CONFIGURATIONS = frozenset(dual_configuration_ids())  # models/configurations.toml
@@ -252,7 +253,7 @@ def _row(v: VehicleSpec) -> dict:
     n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
     n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
-               eng["rated_power_factor"] * T_peak * n_rated * 2 * math.pi / 60 / 1e3)
+               eng["rated_power_factor"] * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
     cylinders = _get(v, "cylinders", default_cylinders(disp))

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.cycles import MPH_TO_MPS
+from fleetrun.units import STANDARD_GRAVITY_M_S2
 
 LBF_N = 4.4482216152605  # exact (avoirdupois pound x standard gravity)
-G_MPS2 = 9.80665         # standard gravity
 
 # EPA's effective-mass allowance for rotating parts in coastdown analysis is 1.5 % of the
 # test mass (40 CFR 1066.310(b)(7): M_e = M + 1.5 % for the rotating inertia of the wheels
@@ -49,7 +49,7 @@ def road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
 def grade_force_N(mass_kg, grade_pct):
     """Gravity along the road, m g sin(atan(grade/100)) [N]; positive uphill."""
     theta = np.arctan(np.asarray(grade_pct, float) / 100.0)
-    return np.asarray(mass_kg, float) * G_MPS2 * np.sin(theta)
+    return np.asarray(mass_kg, float) * STANDARD_GRAVITY_M_S2 * np.sin(theta)
 
 
 def tractive_force_N(speed_mps, accel_mps2, grade_pct, mass_kg, rotating_mass_fraction,

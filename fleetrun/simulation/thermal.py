@@ -38,7 +38,8 @@ import numpy as np
 from fleetrun.physics.lubricant import KELVIN, walther_coefficients, walther_kinematic_viscosity_m2_s
 from fleetrun.resources import model_file
 from fleetrun.simulation.core import engine_motoring_torque_Nm
-from fleetrun.simulation.engine import RPM_RAD_S, fuel_rate_g_per_s
+from fleetrun.simulation.engine import fuel_rate_g_per_s
+from fleetrun.units import RAD_S_PER_RPM
 
 REFERENCE_COLD_C = 25.0      # engine temperature at which the enrichment share is e_25 [C]
 FIXED_POINT_TOL_G = 1e-6     # fuel per step [g]: the forward pass' iteration tolerance
@@ -233,7 +234,7 @@ def _cold_fuel_function(va, fuel_rate, engine_speed_rpm, k: ThermalConstants):
     # fuel of the warm rubbing friction s T_f (where the engine burns fuel), along the Willans slope
     friction = engine_motoring_torque_Nm(va, engine_speed_rpm, col, throttled=False)   # FMEP: no pumping
     slope = 1.0 / col(va.fuel_constants[:, 0])   # 1 / eta_indicated (engine.fuel_coefficients)
-    warm_friction_fuel = fuel_rate_g_per_s([k.friction_share * friction * engine_speed_rpm * RPM_RAD_S], [slope],
+    warm_friction_fuel = fuel_rate_g_per_s([k.friction_share * friction * engine_speed_rpm * RAD_S_PER_RPM], [slope],
                                            fuel_rate > 0, col(va.lhv))
     grid = np.linspace(-80.0, k.thermostat_temp_C, int(round((k.thermostat_temp_C + 80.0) / 0.05)) + 1)
     # the factor (nu/nu_hot)^n - 1: cold_friction_torque_Nm of a unit torque and share

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 
 from fleetrun.effects import _as_effect_list, differential_extra_torque_Nm, overall_ratio
+from fleetrun.units import RPM_PER_RAD_S, STANDARD_GRAVITY_M_S2
 
-G_M_S2 = 9.80665
 
 
 @dataclass
@@ -202,7 +202,8 @@ def generate_differential_recording(
         vehicle_speed: bool = True, high_speed_turns: bool = False,
         min_drive_fraction: float = 0.04, oil_temp_column: bool = False,
         oil_tau_s: float | None = None, noise_oil_C: float = 0.3,
-        hidden_loss=None) -> Recording:
+        hidden_loss=None, forms: str = "catalogue", output_gain_drift=None,
+        output_offset_drift=None) -> Recording:
     """A differential-level recording (CONTRACT.md) with ``effects`` hidden in the output torque.
 
     ``effects``: ids, ``(id, params)`` pairs or a ``--with`` string. Noise is AR(1) with
@@ -211,6 +212,13 @@ def generate_differential_recording(
     loss outside the catalogue (:data:`OUT_OF_CATALOGUE`). ``min_drive_fraction`` keeps a
     light positive pinion torque while moving (Kim-scale fraction) so the reverse power flow
     the thesis model does not cover never occurs.
+
+    ``forms``: ``"catalogue"`` computes each hidden effect with the catalogue's own form;
+    ``"perturbed"`` with a true form close to it but not the same (:data:`PERTURBED_FORMS`:
+    a step instead of ``tanh`` switching, a plain central-difference acceleration through a
+    shaft lag, a warm-up with a second time constant, ...). ``output_gain_drift(t) ->
+    fraction`` and ``output_offset_drift(t) -> N m`` make the output torque transducer's gain
+    and zero drift over the run (a calibration fault, not physics).
     """
     rig = rig or RigSpec()
     rng = np.random.default_rng(seed)
@@ -220,23 +228,30 @@ def generate_differential_recording(
     channels, moving, w_left, w_right = _rig_channels(prof, rig, dt, ambient_temp_C, min_drive_fraction)
     t_in, w_in, g = channels["input_torque_Nm"], channels["input_speed_rad_s"], rig.ratio
     effect_list = _as_effect_list(effects)
-    d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
+    if forms == "perturbed":
+        d_t = sum((PERTURBED_FORMS[e.id](channels, p, dt) for e, p in effect_list), np.zeros_like(t))
+    elif forms == "catalogue":
+        d_t = differential_extra_torque_Nm(effect_list, channels) if effect_list else np.zeros_like(t)
+    else:
+        raise ValueError(f"forms must be 'catalogue' or 'perturbed', not {forms!r}")
     d_t = np.broadcast_to(d_t, t.shape)
     if hidden_loss is not None:
         d_t = d_t + np.broadcast_to(hidden_loss({**channels, "kim_torque_scale_Nm": rig.kim_torque_scale_Nm,
                                                  "dt_s": dt}), t.shape)
-    n_rpm = w_in * 60 / (2 * np.pi)
+    n_rpm = w_in * RPM_PER_RAD_S
     t_out, eta = _output_torque(rig, t_in, d_t, n_rpm, moving)
     n = len(t)
+    gain = 1.0 + (output_gain_drift(t) if output_gain_drift is not None else 0.0)
+    zero = offset_out_Nm + (output_offset_drift(t) if output_offset_drift is not None else 0.0)
     meas = {
         "time_s": t,
         "diff_input_torque_Nm": t_in + offset_in_Nm + _ar1(n, noise_rho, noise_in_Nm, rng),
         "diff_input_speed_rpm": n_rpm + _ar1(n, noise_rho, noise_speed_rpm, rng) * moving,
-        "diff_output_torque_Nm": t_out + offset_out_Nm + _ar1(n, noise_rho, noise_out_Nm, rng),
+        "diff_output_torque_Nm": gain * t_out + zero + _ar1(n, noise_rho, noise_out_Nm, rng),
     }
     if wheel_speeds:
-        meas["wheel_speed_left_rpm"] = w_left * 60 / (2 * np.pi)
-        meas["wheel_speed_right_rpm"] = w_right * 60 / (2 * np.pi)
+        meas["wheel_speed_left_rpm"] = w_left * RPM_PER_RAD_S
+        meas["wheel_speed_right_rpm"] = w_right * RPM_PER_RAD_S
     if ambient_column:
         meas["ambient_temp_C"] = np.full(n, ambient_temp_C)
     if vehicle_speed:
@@ -251,7 +266,7 @@ def generate_differential_recording(
     meta = rig.sidecar()
     if ambient_in_sidecar:
         meta["ambient_temp_C"] = ambient_temp_C
-    truth = {"effects": [(e.id, dict(p)) for e, p in effect_list],
+    truth = {"effects": [(e.id, dict(p)) for e, p in effect_list], "forms": forms,
              "hidden_loss": getattr(hidden_loss, "__name__", None) if hidden_loss else None,
              "extra_input_torque_Nm": np.asarray(d_t),
              "noise_out_Nm": noise_out_Nm, "noise_rho": noise_rho,
@@ -280,17 +295,128 @@ CASE_RIGS = (
 )
 
 
-def random_case(effects, seed: int, **kw) -> Recording:
-    """An acceptance case: ``effects`` (ids) with parameters drawn from
-    :data:`CASE_PARAMETER_RANGES`, random sensor offsets, alternating rigs."""
+def random_case(effects, seed: int, ranges=None, **kw) -> Recording:
+    """An acceptance case: ``effects`` (ids) with parameters drawn from ``ranges`` (default
+    :data:`CASE_PARAMETER_RANGES`), random sensor offsets, alternating rigs."""
     rng = np.random.default_rng(1000 + seed)
-    chosen = [(e, {k: float(rng.uniform(*v)) for k, v in CASE_PARAMETER_RANGES[e].items()})
-              for e in effects]
+    ranges = ranges or CASE_PARAMETER_RANGES
+    chosen = [(e, {k: float(rng.uniform(*v)) for k, v in ranges[e].items()}) for e in effects]
     kw.setdefault("rig", CASE_RIGS[seed % len(CASE_RIGS)])
     kw.setdefault("offset_out_Nm", float(rng.normal(0, 5)))
     kw.setdefault("offset_in_Nm", float(rng.normal(0, 1)))
     return generate_differential_recording(chosen, seed=seed, **kw)
 
+
+
+# ----------------------------------------------------------------- true forms off the catalogue
+# Real benches and vehicles never follow a catalogue's form exactly. Each function below is
+# the extra pinion torque [N m] of one catalogue effect with the same parameters, computed
+# with a form close to the catalogue's but not the same; ``diagnose`` must still name the
+# effect and size it (docs/diagnose.md, "Form mismatch"). Arguments: the generator's
+# channels, the effect's full parameters, the sample interval [s].
+
+#: Pinion speed [rad/s] above which a stepped Coulomb drag is on (the catalogue uses tanh).
+STEP_ON_RAD_S = 0.3
+
+
+def _step(w):
+    """Coulomb direction switched by a step, not the catalogue's ``tanh(w / 1 rad/s)``."""
+    return np.sign(w) * (np.abs(w) > STEP_ON_RAD_S)
+
+
+def _lag(x, tau_s: float, dt: float):
+    """First-order lag of ``x`` with time constant ``tau_s`` (exact discretisation)."""
+    from scipy.signal import lfilter
+
+    a = 1.0 - np.exp(-dt / tau_s)
+    return lfilter([a], [1.0, a - 1.0], x, zi=[(1 - a) * x[0]])[0]
+
+
+def _perturbed_preload(ch, p, dt):
+    return p["drag_torque_Nm"] * _step(ch["input_speed_rad_s"])
+
+
+def _perturbed_cornering(ch, p, dt):
+    # the spider gears follow the wheel-speed difference through the tyres' compliance
+    from fleetrun.effects.differential import cornering_extra_torque_Nm
+
+    dw = _lag(ch["wheel_speed_difference_rad_s"], 0.3, dt)
+    return p["k_c"] * cornering_extra_torque_Nm(ch["input_torque_Nm"], ch["input_speed_rad_s"],
+                                                dw, ch["gear_ratio"])
+
+
+def _perturbed_inertia(ch, p, dt):
+    # a plain central difference over +-1 sample (no smoothing), through a 0.1-s shaft lag
+    w = ch["input_speed_rad_s"]
+    acc = np.zeros_like(w)
+    acc[1:-1] = (w[2:] - w[:-2]) / (2 * dt)
+    return p["J_kg_m2"] * _lag(acc, 0.1, dt)
+
+
+def _perturbed_oil_warmup(ch, p, dt):
+    # the mesh film warms with its own, faster time constant for 15 % of the rise
+    from fleetrun.effects.differential import warmup_viscosity_excess
+    from fleetrun.physics.lubricant import OPERATING_RISE_K
+
+    t, tau = np.maximum(ch["time_s"], 0.0), p["tau_s"]
+    cold = 0.85 * np.exp(-t / tau) + 0.15 * np.exp(-t / (0.2 * tau))
+    t_oil = ch["ambient_temp_C"] + OPERATING_RISE_K * (1.0 - cold)
+    excess = warmup_viscosity_excess(t_oil, ch["ambient_temp_C"], ch["lubricant"])
+    return p["c_w_Nm"] * excess * _step(ch["input_speed_rad_s"])
+
+
+def _perturbed_bearing_drag(ch, p, dt):
+    w = ch["input_speed_rad_s"]
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
+    return p["drag_1000rpm_Nm"] * (n_rpm / 1000.0) ** 0.6 * _step(w)
+
+
+def _perturbed_mixed(ch, p, dt):
+    # film thickness ~ U^0.6 instead of seed 004's 0.68
+    from fleetrun.effects.differential import W_STOP_RAD_S, greenwood_tripp_F2
+
+    w = ch["input_speed_rad_s"]
+    lam = (np.abs(w) * RPM_PER_RAD_S / p["speed_ref_rpm"]) ** 0.6
+    return (p["mu_b"] * np.abs(ch["input_torque_Nm"]) * greenwood_tripp_F2(lam) / 0.5
+            * (np.abs(w) > W_STOP_RAD_S))
+
+
+def _perturbed_mesh_friction(ch, p, dt):
+    # the hypoid's sliding speed 15 % above the reference geometry's
+    from fleetrun.effects.differential import mesh_friction_torque_Nm
+
+    return p["friction_excess"] * mesh_friction_torque_Nm(ch["input_torque_Nm"], 1.15 * ch["input_speed_rad_s"])
+
+
+def _perturbed_churning(ch, p, dt):
+    # windage growing as speed^2.2 (normalised at 2000 rpm) instead of speed^2
+    from fleetrun.effects.differential import ring_gear_churning_torque_Nm
+
+    w = ch["input_speed_rad_s"]
+    n_rpm = np.abs(w) * RPM_PER_RAD_S
+    return p["immersion_excess"] * ring_gear_churning_torque_Nm(w, ch["gear_ratio"]) * (n_rpm / 2000.0) ** 0.2
+
+
+#: Effect id -> its perturbed true form (``generate_differential_recording(forms="perturbed")``).
+PERTURBED_FORMS = {
+    "bearing_preload": _perturbed_preload, "cornering": _perturbed_cornering,
+    "inertia": _perturbed_inertia, "oil_warmup": _perturbed_oil_warmup,
+    "bearing_drag": _perturbed_bearing_drag, "mixed_lubrication": _perturbed_mixed,
+    "mesh_friction": _perturbed_mesh_friction, "oil_churning": _perturbed_churning,
+}
+
+
+def perturbed_case(effects, seed: int, **kw) -> Recording:
+    """:func:`random_case` with the true forms perturbed (:data:`PERTURBED_FORMS`) and the
+    output noise's AR(1) coefficient drawn from 0.9-0.98 per recording."""
+    rng = np.random.default_rng(5000 + seed)
+    kw.setdefault("noise_rho", float(rng.uniform(0.9, 0.98)))
+    return random_case(effects, seed, ranges=PERTURBED_PARAMETER_RANGES, forms="perturbed", **kw)
+
+
+#: The ranges :func:`perturbed_case` draws from: :data:`CASE_PARAMETER_RANGES` and the
+#: catalogue's oil churning (immersion 0.3-0.6 above the dipped level).
+PERTURBED_PARAMETER_RANGES = {**CASE_PARAMETER_RANGES, "oil_churning": {"immersion_excess": (0.3, 0.6)}}
 
 
 # ----------------------------------------------------------------- causes outside the catalogue
@@ -339,6 +465,33 @@ OUT_OF_CATALOGUE = {
     "load_squared_loss": (load_squared_loss, {"c": (0.2, 0.4)}),
     "heat_soak_loss": (heat_soak_loss, {"share": (0.03, 0.06), "tau_s": (200.0, 600.0)}),
 }
+
+
+def gain_ramp(change: float, start_s: float, end_s: float):
+    """A transducer gain that changes by ``change`` (a fraction) linearly between ``start_s``
+    and ``end_s`` and stays there: a calibration drift (temperature of the bridge, a loosening
+    clamp), not physics."""
+    def drift(t):
+        return change * np.clip((np.asarray(t, float) - start_s) / max(end_s - start_s, 1e-9), 0.0, 1.0)
+    drift.__name__ = "gain_ramp"
+    return drift
+
+
+def drift_case(seed: int, **kw) -> Recording:
+    """Nothing hidden in the physics; the output torque transducer's gain drifts by 2-4 %
+    (either sign) over a random stretch of the run. Parameters in ``truth["drift"]``."""
+    rng = np.random.default_rng(3000 + seed)
+    duration = kw.get("duration_s", 1800.0)
+    change = float(rng.uniform(0.02, 0.04)) * (1 if rng.random() < 0.5 else -1)
+    start = float(rng.uniform(0.1, 0.5)) * duration
+    end = start + float(rng.uniform(0.2, 0.4)) * duration
+    kw.setdefault("rig", CASE_RIGS[seed % len(CASE_RIGS)])
+    kw.setdefault("offset_out_Nm", float(rng.normal(0, 5)))
+    kw.setdefault("offset_in_Nm", float(rng.normal(0, 1)))
+    kw.setdefault("noise_rho", float(rng.uniform(0.9, 0.98)))
+    rec = generate_differential_recording((), seed=seed, output_gain_drift=gain_ramp(change, start, end), **kw)
+    rec.truth["drift"] = {"gain_change": change, "start_s": start, "end_s": min(end, duration)}
+    return rec
 
 
 def unknown_case(cause: str, seed: int, **kw) -> Recording:

@@ -23,8 +23,8 @@ from openpyxl.utils import column_index_from_string, get_column_letter
 from fleetrun.errors import InputError
 from fleetrun.workbook import cells, rows
 from fleetrun.workbook.cells import CellProblem
-from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO,
-                                   SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
+from fleetrun.workbook.schema import (EXAMPLE_PREFIX, PLAUSIBLE_SCENARIO, REGISTRATION_COLUMNS,
+                                   REGISTRATIONS_SHEET, SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
                                    VEHICLES_SHEET, Column)
 from fleetrun.vehicle import VehicleSpec
 
@@ -63,6 +63,8 @@ class Scenario:
     state_tax_schedule_gasoline_usd_per_gal: dict | float | None = None
     state_tax_schedule_diesel_usd_per_gal: dict | float | None = None
     state_tax_index_pct_per_year: float | None = None
+    base_year_vmt_million: float | None = None          # registrations: base fiscal year's VMT
+    new_vehicle_mpg_change_pct_per_year: float | None = None   # None: the published trend's
     extra: dict = field(default_factory=dict, compare=False)
 
     def mix_for(self, duty_class: str) -> dict[str, float]:
@@ -113,6 +115,8 @@ class Fleet:
     warnings: list[str] = field(default_factory=list)
     vehicle_rows: dict[str, int] = field(default_factory=dict)    # vehicle_id -> Excel row
     scenario_rows: dict[str, int] = field(default_factory=dict)
+    # Registrations sheet rows: column -> value, plus "_row" (Excel row); docs/registrations.md
+    registrations: list[dict] = field(default_factory=list)
 
     def input_files(self) -> list[Path]:
         """The files besides the workbook that a run of this fleet reads (cycle CSVs)."""
@@ -196,20 +200,27 @@ def read_fleet(path) -> Fleet:
 
     path = Path(path)
     check_xlsx(path)
-    scans = scan_sheets(path, (VEHICLES_SHEET, SCENARIOS_SHEET))   # before any allocation
+    scans = scan_sheets(path, (VEHICLES_SHEET, SCENARIOS_SHEET, REGISTRATIONS_SHEET))   # before any allocation
     problems = Problems()
-    vehicle_table = scenario_table = None
+    vehicle_table = scenario_table = registration_table = None
     try:
         with XlsxBook(path, scans) as book:
             sheets = {s.name: s for s in book.sheets}
+            if REGISTRATIONS_SHEET in sheets:   # an empty Registrations sheet (the template's) is no fleet
+                registration_table = _read_table(book, sheets[REGISTRATIONS_SHEET], REGISTRATION_COLUMNS, problems,
+                                                 allow_empty=True)
+            has_registrations = bool(registration_table and registration_table.rows)
             for name in (VEHICLES_SHEET, SCENARIOS_SHEET):
+                if name == VEHICLES_SHEET and name not in sheets and has_registrations:
+                    continue   # a fleet from registrations only
                 if name not in sheets:
                     similar = [t for t in sheets if t.strip().lower() == name.lower()]
                     hint = f" (found '{similar[0]}': rename it)" if similar else ""
                     problems.error(f"sheet is missing{hint}; the workbook has: "
                                    f"{', '.join(sheets) or 'no sheets'}", name)
-            if VEHICLES_SHEET in sheets:
-                vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems)
+            if VEHICLES_SHEET in sheets:   # may be empty beside registrations
+                vehicle_table = _read_table(book, sheets[VEHICLES_SHEET], VEHICLE_COLUMNS, problems,
+                                            allow_empty=has_registrations)
             if SCENARIOS_SHEET in sheets:
                 scenario_table = _read_table(book, sheets[SCENARIOS_SHEET], SCENARIO_COLUMNS, problems)
     except (CalamineError, KeyError, ValueError, IndexError, zipfile.BadZipFile, OSError, EOFError) as exc:
@@ -224,6 +235,7 @@ def read_fleet(path) -> Fleet:
     scenarios, scenario_rows = ([], {})
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
+    registrations = _registrations(registration_table, vehicle_rows, problems) if registration_table else []
 
     if problems.errors:
         errors = problems.sorted_errors()
@@ -237,7 +249,7 @@ def read_fleet(path) -> Fleet:
         raise error
     return Fleet(path=path, sha256=file_sha256(path), vehicles=vehicles, scenarios=scenarios,
                  warnings=problems.sorted_warnings(), vehicle_rows=vehicle_rows,
-                 scenario_rows=scenario_rows)
+                 scenario_rows=scenario_rows, registrations=registrations)
 
 
 # --- reading a sheet into rows of raw values ---------------------------------------------
@@ -252,7 +264,7 @@ class _Table:
     present: list[tuple[Column, int]] = field(default_factory=list)   # schema columns found, in order
 
 
-def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _Table:
+def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allow_empty: bool = False) -> _Table:
     sheet = info.name
     if info.state != "visible":
         problems.warn("sheet is hidden; read anyway", sheet)
@@ -311,7 +323,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems) -> _
                 problems.warn(f"has data in column {get_column_letter(index)} that has no header; "
                               "ignored", sheet, row_number, index)
         body.append((row_number, row_values))
-    if not body:
+    if not body and not allow_empty:
         problems.error("has no data rows below the header", sheet)
     present = [(c, columns[c.name]) for c in schema if c.name in columns]
     return _Table(sheet, columns, extra, body, values.uncached_formulas, present)
@@ -439,6 +451,7 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
         ok = _first_use(parsed, "scenario_id", first_rows, table, row_number, problems) and ok
         _warn_example(parsed, "scenario_id", table, row_number, problems)
+        _default_mixes(parsed)
         mixes = {}
         for name in MIX_COLUMNS:
             if parsed[name] is not None:
@@ -555,3 +568,38 @@ def _shipped_cycle_names() -> list[str]:
     if isinstance(found, dict):
         found = list(found)
     return [getattr(c, "name", c) for c in found]
+
+
+# --- Registrations (docs/registrations.md) ------------------------------------------------
+
+def _default_mixes(parsed: dict) -> None:
+    """``cycle_mix = default``: each duty class's documented mix (models/turnover.toml
+    [cycle_mix_default]); an MD / HD mix column left empty (or ``default``) takes its class's."""
+    from fleetrun.resources import model_file
+
+    if rows.DEFAULT_MIX not in (parsed.get(name) for name in MIX_COLUMNS):
+        return
+    defaults = model_file("turnover.toml")["cycle_mix_default"]
+    all_default = parsed.get("cycle_mix") == rows.DEFAULT_MIX
+    for name, duty in (("cycle_mix", "LD"), ("cycle_mix_MD", "MD"), ("cycle_mix_HD", "HD")):
+        value = parsed.get(name)
+        if value == rows.DEFAULT_MIX or (value is None and all_default):
+            parsed[name] = cells.parse_cycle_mix(defaults[duty])
+
+
+def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Problems) -> list[dict]:
+    """The Registrations rows as typed values (``_row``: the Excel row); a ``vehicle_id``
+    must name a Vehicles row."""
+    found = []
+    for row_number, values in table.rows:
+        parsed, ok = _parse_row(table, REGISTRATION_COLUMNS, row_number, values, problems)
+        vid = parsed.get("vehicle_id")
+        if vid and vid not in vehicle_rows:
+            problems.error(f"{cells.show(vid)} is not a vehicle_id of the Vehicles sheet", table.sheet, row_number,
+                           table.columns.get("vehicle_id"), "vehicle_id")
+            ok = False
+        if ok:
+            parsed.pop("_extra", None)
+            parsed["_row"] = row_number
+            found.append(parsed)
+    return found

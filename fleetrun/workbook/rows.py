@@ -23,6 +23,9 @@ MAX_GEARS = 20
 Report = Callable[..., None]     # report(column_name, text, warning=False)
 
 
+DEFAULT_MIX = "default"   # cycle_mix = default (docs/registrations.md)
+
+
 def parse_value(column: Column, raw):
     """The typed value of a non-blank cell of ``column``, inside the column's physical range;
     CellProblem (quoting the value) otherwise."""
@@ -64,6 +67,8 @@ def _parse(column: Column, raw):
             raise CellProblem(f"{cells.show(raw)} lists {len(ratios)} gears; at most {MAX_GEARS}")
         return ratios
     if kind == "cycle_mix":
+        if isinstance(raw, str) and raw.strip().lower() == DEFAULT_MIX:
+            return DEFAULT_MIX   # each duty class's documented mix (reader._default_mixes)
         return cells.parse_cycle_mix(raw)
     if kind == "onroad":
         return cells.parse_onroad(raw)

@@ -11,11 +11,15 @@ from fleetrun.differential import configuration_ids, dual_configuration_ids
 
 VEHICLES_SHEET = "Vehicles"
 SCENARIOS_SHEET = "Scenarios"
+REGISTRATIONS_SHEET = "Registrations"
 
 CONFIGURATIONS = tuple(configuration_ids())              # models/configurations.toml
 DUAL_CONFIGURATIONS = tuple(dual_configuration_ids())
 DUTY_CLASSES = ("LD", "MD", "HD")
 FUELS = ("gasoline", "diesel", "electric")
+# FHWA classes of the Registrations sheet; "truck" is MV-1's all trucks (split by documented shares)
+FHWA_CLASSES = ("automobile", "light_truck", "single_unit_truck", "combination_truck", "bus", "motorcycle")
+REGISTRATION_CLASSES = FHWA_CLASSES + ("truck",)
 ONROAD_CHOICES = ("epa_label", "none")   # or a positive factor
 # The template's example rows carry this id prefix; `validate` warns while one is left in.
 EXAMPLE_PREFIX = "EXAMPLE-"
@@ -130,7 +134,8 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            example=("Average year, mixed driving", "Heat wave: 38 C ambient")),
     Column("ambient_temp_C", "number", True, "ambient temperature [C]", minimum=-50, maximum=60,
            example=(20, 38), plausible=(-40.0, 50.0)),
-    Column("cycle_mix", "cycle_mix", True, "CYCLE:share list, shares of annual miles, sum 1",
+    Column("cycle_mix", "cycle_mix", True, "CYCLE:share list, shares of annual miles, sum 1; or default "
+           "(each duty class's documented mix)",
            example=("UDDS:0.55,HWFET:0.45", "UDDS:0.5,HWFET:0.4,US06:0.1")),
     Column("budget_years", "integer", True, "years forecast (2 = a biennium)", minimum=1, maximum=50,
            example=(2, 2), plausible=(1, 10)),
@@ -180,6 +185,30 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            minimum=0, maximum=20),
     Column("state_tax_index_pct_per_year", "number", False, "state rates indexed: rate of year y = "
            "rate x (1 + i)^(y - 1) [% per year]", minimum=-50, maximum=50, plausible=(-5.0, 10.0)),
+    # Registrations columns (docs/registrations.md)
+    Column("base_year_vmt_million", "number", False, "the base fiscal year's vehicle-miles in millions "
+           "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7),
+    Column("new_vehicle_mpg_change_pct_per_year", "number", False, "fuel-economy change of each new model "
+           "year beyond the published trend [% per year] (empty: the trend's last ten years)",
+           minimum=-20, maximum=20),
+)
+
+
+# Registrations sheet (docs/registrations.md): the fleet as a registration office counts it.
+REGISTRATION_COLUMNS: tuple[Column, ...] = (
+    Column("vehicle_class", "choice", True, "FHWA class: automobile, light_truck, single_unit_truck, "
+           "combination_truck, bus, motorcycle, or truck (MV-1 all trucks)", choices=REGISTRATION_CLASSES,
+           example=("automobile", "truck")),
+    Column("count", "number", True, "vehicles registered", minimum=0, maximum=1e9, example=(2_300_000, 3_000_000)),
+    Column("model_year", "integer", False, "model year (empty: the class's default age distribution)",
+           minimum=1900, maximum=2200),
+    Column("fuel", "choice", False, "gasoline, diesel or electric (empty: the class's default split)",
+           choices=FUELS),
+    Column("make", "text", False, "make, matched to the EPA Test Car List (e.g. Toyota)"),
+    Column("model", "text", False, "model, matched to the EPA Test Car List (e.g. Camry)"),
+    Column("vehicle_id", "text", False, "a Vehicles row that represents these vehicles"),
+    Column("annual_miles", "number", False, "miles per vehicle per year (empty: by class and age)",
+           minimum=0, maximum=500_000),
 )
 
 

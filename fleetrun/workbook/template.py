@@ -13,8 +13,8 @@ from openpyxl.styles import Alignment, Font, PatternFill
 from openpyxl.utils import get_column_letter
 from openpyxl.worksheet.datavalidation import DataValidation
 
-from fleetrun.workbook.schema import (SCENARIO_COLUMNS, SCENARIOS_SHEET, VEHICLE_COLUMNS,
-                                   VEHICLES_SHEET, Column)
+from fleetrun.workbook.schema import (REGISTRATION_COLUMNS, REGISTRATIONS_SHEET, SCENARIO_COLUMNS,
+                                   SCENARIOS_SHEET, VEHICLE_COLUMNS, VEHICLES_SHEET, Column)
 
 HEADER_FILL = PatternFill("solid", fgColor="1F4E78")
 OPTIONAL_FILL = PatternFill("solid", fgColor="5B7FA6")
@@ -24,7 +24,19 @@ VALIDATED_ROWS = 5000     # drop-downs cover this many data rows
 INSTRUCTIONS = [
     ("fleetrun fleet workbook", None),
     ("", None),
-    ("Vehicles: one row per vehicle type; header in row 1 (do not rename the headers).", None),
+    ("START HERE (a revenue office): the Registrations sheet, then Scenarios; docs/registrations.md.", None),
+    ("Registrations: one row per count you have: vehicle_class (automobile, light_truck, single_unit_truck,", None),
+    ("   combination_truck, bus, motorcycle, or truck = FHWA MV-1's all trucks) and count are enough.", None),
+    ("   Optional: model_year, fuel, make and model (a DMV extract), vehicle_id (a Vehicles row).", None),
+    ("   A DMV extract as CSV:  fleetrun import-registrations EXTRACT.csv -o fleet.xlsx", None),
+    ("   fleetrun picks a vehicle for every row (listed in registrations.csv and the report's", None),
+    ("   Registrations sheet) and ages the fleet over the budget years (scrappage, new model years).", None),
+    ("Scenarios for registrations: cycle_mix = default; base_year_vmt_million = the state's VMT", None),
+    ("   of the first fiscal year in millions (FHWA VM-2); first_fiscal_year = the year the counts describe.", None),
+    ("   Delete the Vehicles sheet's example rows (or the sheet) when you have no engineering data.", None),
+    ("", None),
+    ("Vehicles (engineering data, optional beside Registrations): one row per vehicle type;", None),
+    ("   header in row 1 (do not rename the headers).", None),
     ("Dark headers are required; lighter headers are optional (leave the cell empty).", None),
     ("configuration, duty_class, fuel and transmission have drop-down lists.", None),
     ("transmission_gear_ratios: comma list, first gear first, e.g. 4.62,3.04,2.06,1.66,1.26,1.00", None),
@@ -63,6 +75,7 @@ def build_template() -> Workbook:
     workbook = Workbook()
     instructions = workbook.active
     instructions.title = "Instructions"
+    _fill_sheet(workbook.create_sheet(REGISTRATIONS_SHEET), REGISTRATION_COLUMNS, examples=False)
     _fill_sheet(workbook.create_sheet(VEHICLES_SHEET), VEHICLE_COLUMNS)
     _fill_sheet(workbook.create_sheet(SCENARIOS_SHEET), SCENARIO_COLUMNS)
     _fill_instructions(instructions)
@@ -70,7 +83,9 @@ def build_template() -> Workbook:
     return workbook
 
 
-def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
+def _fill_sheet(ws, columns: tuple[Column, ...], examples: bool = True) -> None:
+    """Headers, notes, drop-downs and (``examples``) the two example rows. The Registrations
+    sheet has no example rows: a row there has no id a warning could point at, so it would count."""
     for index, column in enumerate(columns, start=1):
         cell = ws.cell(row=1, column=index, value=column.name)
         cell.font = HEADER_FONT
@@ -79,7 +94,7 @@ def _fill_sheet(ws, columns: tuple[Column, ...]) -> None:
         cell.comment = Comment(("required: " if column.required else "optional: ") + column.note,
                                "fleetrun")
         ws.column_dimensions[get_column_letter(index)].width = max(12, len(column.name) + 2)
-        for row, example in enumerate(column.example, start=2):
+        for row, example in enumerate(column.example if examples else (), start=2):
             target = ws.cell(row=row, column=index, value=example)
             if column.kind in ("text", "ratios", "cycle_mix", "choice"):
                 target.number_format = "@"  # keep "3.5,2.1" and ids as text
@@ -130,7 +145,8 @@ def _fill_instructions(ws) -> None:
         if text:
             ws.cell(row=row - 1, column=index, value=text)
         ws.cell(row=row - 1, column=index).font = Font(bold=True)
-    for sheet, columns in ((VEHICLES_SHEET, VEHICLE_COLUMNS), (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
+    for sheet, columns in ((REGISTRATIONS_SHEET, REGISTRATION_COLUMNS), (VEHICLES_SHEET, VEHICLE_COLUMNS),
+                           (SCENARIOS_SHEET, SCENARIO_COLUMNS)):
         for column in columns:
             ws.cell(row=row, column=1, value=f"{sheet}.{column.name}")
             ws.cell(row=row, column=2, value="required" if column.required else "optional")

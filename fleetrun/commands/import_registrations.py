@@ -1,0 +1,32 @@
+"""``fleetrun import-registrations EXTRACT.csv -o FLEET.xlsx``: a fleet workbook from a DMV-style
+registration extract (docs/registrations.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from fleetrun.errors import InputError
+
+
+@click.command("import-registrations")
+@click.argument("extract", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Fleet workbook to write (.xlsx): a Registrations sheet and a default scenario.")
+@click.option("--first-fiscal-year", type=int, default=None, help="Fiscal year of budget year 1 (e.g. 2027).")
+@click.option("--base-year-vmt-million", type=float, default=None,
+              help="The base fiscal year's vehicle-miles in millions (e.g. from FHWA VM-2).")
+def command(extract: Path, output: Path, first_fiscal_year, base_year_vmt_million):
+    """Aggregate a registration extract (one line per vehicle, or counts per make, model and
+    model year; read in chunks) into the Registrations sheet of a new fleet workbook."""
+    from fleetrun.fileio import refuse_replacing_inputs
+    from fleetrun.registrations.extract import read_extract
+    from fleetrun.registrations.workbook import write_registrations_workbook
+
+    if output.suffix.lower() != ".xlsx":
+        raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")
+    refuse_replacing_inputs(output, [extract], "-o")
+    frame = read_extract(extract)
+    write_registrations_workbook(frame, output, first_fiscal_year, base_year_vmt_million)
+    click.echo(f"Wrote {output}: {len(frame):,} registration rows ({frame['count'].sum():,.0f} vehicles). "
+               f"Next: check the Scenarios sheet (tax rates, VMT), then `fleetrun run {output}`.")

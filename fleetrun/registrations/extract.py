@@ -1,0 +1,96 @@
+"""DMV-style registration extracts (CSV): read in chunks and aggregated, never loaded whole.
+
+An extract has the Registrations sheet's columns (docs/registrations.md): ``vehicle_class``
+required; ``count`` optional (without it every line is one vehicle); ``model_year``, ``fuel``,
+``make``, ``model`` optional; other columns are ignored. Lines are read ``chunk_rows`` at a
+time and added into one count per distinct (class, fuel, make, model, model year), so memory
+is bounded by the number of distinct combinations, not by the lines (a million-vehicle
+extract of a state's 50,000 make/model/year combinations needs a few megabytes).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from fleetrun.errors import InputError
+from fleetrun.workbook.schema import FUELS, REGISTRATION_CLASSES
+
+KEYS = ("vehicle_class", "fuel", "make", "model", "model_year")
+CHUNK_ROWS = 200_000
+MAX_COUNT = 1e9
+
+
+def _columns(path: Path) -> list[str]:
+    header = pd.read_csv(path, nrows=0, encoding="utf-8-sig")
+    names = {str(c).strip().lower(): c for c in header.columns}
+    if "vehicle_class" not in names:
+        raise InputError(f"has no vehicle_class column (columns: {', '.join(map(str, header.columns))})", file=path,
+                         hint="Name the FHWA class column vehicle_class (docs/registrations.md)")
+    return [names[k] for k in (*KEYS, "count") if k in names]
+
+
+def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
+    for name, allowed in (("vehicle_class", REGISTRATION_CLASSES), ("fuel", FUELS)):
+        if name not in chunk:
+            continue
+        values = chunk[name]
+        bad = values.notna() & ~values.isin(allowed)
+        if bad.any():
+            where = int(np.flatnonzero(bad.to_numpy())[0])
+            raise InputError(f"line {first_line + where}: {name} {values.iloc[where]!r} is not one of "
+                             f"{', '.join(allowed)}", file=path, hint="Fix the extract (docs/registrations.md)")
+    for name, low, high in (("model_year", 1900, 2200), ("count", 0, MAX_COUNT)):
+        if name not in chunk:
+            continue
+        numbers = pd.to_numeric(chunk[name], errors="coerce")
+        bad = (chunk[name].notna() & numbers.isna()) | (numbers < low) | (numbers > high)
+        if bad.any():
+            where = int(np.flatnonzero(bad.to_numpy())[0])
+            raise InputError(f"line {first_line + where}: {name} {chunk[name].iloc[where]!r} is not a number "
+                             f"from {low} to {high:g}", file=path, hint="Fix the extract (docs/registrations.md)")
+        chunk[name] = numbers
+
+
+def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
+    """One row per distinct (vehicle_class, fuel, make, model, model_year) with its ``count``
+    (the sum of the counts, or of the lines when the extract has none)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("does not exist", file=path, hint="Check the path of the registration extract")
+    usecols = _columns(path)
+    totals: pd.Series | None = None
+    line = 2
+    reader = pd.read_csv(path, usecols=usecols, chunksize=chunk_rows, dtype=str, encoding="utf-8-sig",
+                         keep_default_na=False, na_values=[""])
+    for chunk in reader:
+        chunk.columns = [str(c).strip().lower() for c in chunk.columns]
+        for name in ("vehicle_class", "fuel"):
+            if name in chunk:
+                chunk[name] = chunk[name].str.strip().str.lower()
+        _check(chunk, line, path)
+        line += len(chunk)
+        if "count" not in chunk:
+            chunk["count"] = 1.0
+        keys = [k for k in KEYS if k in chunk]
+        part = chunk.groupby(keys, dropna=False, sort=False)["count"].sum()
+        totals = part if totals is None else totals.add(part, fill_value=0.0)
+    if totals is None:
+        raise InputError("has no data lines below the header", file=path)
+    frame = totals.reset_index()
+    for k in KEYS:
+        if k not in frame:
+            frame[k] = None
+    return frame[list(KEYS) + ["count"]]
+
+
+def extract_rows(frame: pd.DataFrame) -> list[dict]:
+    """The aggregated extract as Registrations rows (blank cells as None)."""
+    rows = []
+    for record in frame.to_dict("records"):
+        row = {k: (None if (v is None or (isinstance(v, float) and np.isnan(v))) else v) for k, v in record.items()}
+        if row["model_year"] is not None:
+            row["model_year"] = int(row["model_year"])
+        rows.append(row)
+    return rows

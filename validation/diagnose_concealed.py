@@ -1,0 +1,213 @@
+"""Real Argonne Camry recordings with physics concealed in them: does diagnose name it?
+
+    python validation/diagnose_concealed.py [--out DIR]
+
+The recording is the real cold-start UDDS of the 2018 Camry (inputs/dyno, Argonne test
+61811011), diagnosed against the real hot-start UDDS (61811012) with ``--calibrate-on``: the
+same-trace residual of docs/diagnose-realdata.md, with the real cold start, the real
+run-to-run variation of the dyno and driver, and the fuel meter's own noise. Into its
+measured fuel rate one effect is concealed, computed with fleetrun's simulation of the Camry
+(its sidecar's Vehicles row) on the recording's own speed trace:
+
+* ``road_grade``: a hilly profile ``g0 (1 + 0.5 sin(2 pi t / 300 s))`` (uphill throughout),
+  the simulation with that grade minus the simulation on the level;
+* ``accessory_load``: an air-conditioning compressor that switches on for 60 s and off for
+  60 s while the engine runs, the simulation with ``accessory_power_W`` raised by P minus
+  the simulation without, times the switch;
+* ``aero_drag``: the road load's quadratic coefficient raised by a share (a roof box), the
+  simulation with the larger coastdown C minus the simulation without.
+
+Each is sized at 2-5 % of the recording's fuel. Scored (issue 16): the effect is a finding,
+its fuel over the recording, less what the same effect fits on the clean recording (the real
+recording pair already differs by 2-5 % in the second UDDS: run-to-run variation that a grade,
+a drag or an accessory load describe equally), within 25 % of the concealed fuel, and the
+phase-fuel error the concealment adds (concealed run minus clean run, per phase) at least
+halved by the diagnosis; the clean recording gives no finding beyond the real cold start's
+``warmup``.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fleetrun.cycles import DriveCycle  # noqa: E402
+from fleetrun.diagnose import diagnosis  # noqa: E402
+from fleetrun.diagnose.recording import load_recording  # noqa: E402
+from fleetrun.diagnose.vehicle import engine_on  # noqa: E402
+from fleetrun.resources import inputs_dir  # noqa: E402
+from fleetrun.simulation import simulate  # noqa: E402
+from fleetrun.simulation.road_load import coastdown_to_si  # noqa: E402
+from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
+
+TARGET = "camry2018_udds_cold"
+REFERENCE = "camry2018_udds_hot"
+#: Concealed sizes: grade g0 [%], switched accessory power [W], share added to coastdown C.
+#: Chosen so that each adds 1-5 % of the recording's fuel (the table prints the share).
+SIZES = {"road_grade": (0.25, 0.35), "accessory_load": (800.0, 1100.0), "aero_drag": (0.4, 0.6)}
+#: Issue 16's tolerance on the size of a named effect.
+SIZE_TOLERANCE = 0.25
+
+
+@dataclass(frozen=True)
+class Case:
+    effect: str
+    size: float
+    share_of_fuel: float        # concealed fuel / recording's fuel
+    named: bool
+    findings: tuple[str, ...]
+    concealed_g: float
+    fitted_g: float             # the named effect's fuel over the recording, less what the
+    #                             same effect fits on the clean recording (its background)
+    phase_error_before_g: float  # sum over phases of |concealed fuel in the phase|
+    phase_error_after_g: float   # sum over phases of |concealed - what the diagnosis added|
+    parameters: dict
+
+    @property
+    def size_ok(self) -> bool:
+        return self.named and abs(self.fitted_g / self.concealed_g - 1) <= SIZE_TOLERANCE
+
+    @property
+    def phases_ok(self) -> bool:
+        return self.phase_error_after_g <= 0.5 * self.phase_error_before_g
+
+
+def _simulated(spec, t, v, grade=None) -> np.ndarray:
+    cycle = DriveCycle("concealed", t, v, np.zeros_like(t) if grade is None else grade)
+    return simulate([spec], cycle, mode="direct", trace=True).trace_frame(0)["fuel_rate_g_per_s"].to_numpy()
+
+
+def concealed_fuel(effect: str, size: float, data, spec) -> tuple[np.ndarray, float]:
+    """The extra fuel rate [g/s] of ``effect`` at ``size`` on the recording ``data`` (time_s,
+    vehicle_speed_mps, fuel_rate_g_per_s) computed with the simulation, and the catalogue
+    parameter it corresponds to (mean grade %, mean accessory kW, extra C in SI)."""
+    t = data["time_s"].to_numpy()
+    v = data["vehicle_speed_mps"].to_numpy()
+    on = engine_on(t, v, data["fuel_rate_g_per_s"].to_numpy(), float(np.median(np.diff(t))))
+    base = _simulated(spec, t, v)
+    if effect == "road_grade":
+        grade = size * (1 + 0.5 * np.sin(2 * np.pi * (t - t[0]) / 300.0))
+        return (_simulated(spec, t, v, grade) - base) * on, size
+    if effect == "accessory_load":
+        more = dataclasses.replace(spec, extra={**(spec.extra or {}), "accessory_power_W": 0.0})
+        more_on = dataclasses.replace(spec, extra={**(spec.extra or {}), "accessory_power_W": size})
+        switch = ((t - t[0]) // 60.0) % 2 == 0
+        extra = (_simulated(more_on, t, v) - _simulated(more, t, v)) * switch * on
+        return extra, 0.5 * size / 1000.0
+    if effect == "aero_drag":
+        c = spec.coastdown_C_lbf_per_mph2
+        heavier = dataclasses.replace(spec, coastdown_C_lbf_per_mph2=c * (1 + size))
+        _, _, c_si = coastdown_to_si(0.0, 0.0, c * size)
+        return (_simulated(heavier, t, v) - base) * on, float(c_si)
+    raise ValueError(effect)
+
+
+def _write(data, meta_text: str, path: Path) -> Path:
+    data.to_csv(path, index=False, float_format="%.6g")
+    path.with_suffix(".toml").write_text(meta_text)
+    return path
+
+
+def _phases(result) -> list[dict]:
+    return [e for e in result["integrals"] if e["kind"] == "phase"]
+
+
+def _effect_fuel(d, effect: str, findings_only: bool = True) -> np.ndarray:
+    """The effect's fuel [g] in each sample from its fitted parameters: as a finding, or
+    (``findings_only`` False) as the candidate's own fit whatever its status."""
+    pool = d.result["findings"] if findings_only else d.result["candidates"]
+    f = next((x for x in pool if x["effect"] == effect and x.get("parameters")), None)
+    if f is None:
+        return np.zeros(len(d.problem.time_s))
+    cand = next(c for c in d.problem.candidates if c.id == effect)
+    from fleetrun.effects import EFFECTS
+
+    e = EFFECTS[effect]
+    shape = {p.name: f["parameters"][p.name] for p in e.shape}
+    col = cand.column_for(shape) if cand.column_for is not None and shape else cand.columns[0]
+    dt = np.gradient(d.problem.time_s)
+    return f["parameters"][e.linear] * col * dt
+
+
+def run(workdir=None, end_s: float | None = None) -> tuple[dict, list[Case]]:
+    """The clean diagnosis and one case per (effect, size), on the recording up to ``end_s``
+    (None: all of it)."""
+    workdir = Path(workdir or tempfile.mkdtemp())
+    dyno = inputs_dir() / "dyno"
+    rec = load_recording(dyno / f"{TARGET}.csv")
+    data = rec.data[["time_s", "vehicle_speed_mps", "fuel_rate_g_per_s"]]
+    data = data[data["time_s"] < end_s].copy() if end_s else data.copy()
+    meta_text = (dyno / f"{TARGET}.toml").read_text()
+    spec = read_vehicle_toml(dyno / f"{TARGET}.toml")
+    ref = dyno / f"{REFERENCE}.csv"
+    clean = diagnosis(_write(data, meta_text, workdir / "clean.csv"), calibrate_on=ref)
+    t = data["time_s"].to_numpy()
+    dt = np.gradient(t)
+    total = float(np.sum(data["fuel_rate_g_per_s"].to_numpy() * dt))
+    cases, background = [], {}
+    for effect, sizes in SIZES.items():
+        for size in sizes:
+            extra, param = concealed_fuel(effect, size, data, spec)
+            hidden = data.copy()
+            hidden["fuel_rate_g_per_s"] = data["fuel_rate_g_per_s"] + extra
+            d = diagnosis(_write(hidden, meta_text, workdir / f"{effect}_{size:g}.csv"), calibrate_on=ref)
+            names = tuple(f["effect"] for f in d.result["findings"])
+            params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
+            if effect not in background:
+                # what the same effect fits on the clean recording where it is no finding
+                # (the pair's run-to-run difference): not added by the clean diagnosis, so
+                # it is taken off what the concealed diagnosis adds
+                background[effect] = np.zeros(len(t)) if effect in \
+                    [f["effect"] for f in clean.result["findings"]] else _effect_fuel(clean, effect, False)
+            bg = background[effect] if effect in names else np.zeros(len(t))
+            before = after = 0.0
+            for p0, p1 in zip(_phases(clean.result), _phases(d.result)):
+                inside = (t >= p1["start_s"] + t[0]) & (t < p1["end_s"] + t[0])
+                hidden_g = float(np.sum((extra * dt)[inside]))
+                added = (p1["after"] - p1["before"]) - (p0["after"] - p0["before"]) - float(bg[inside].sum())
+                before += abs(hidden_g)
+                after += abs(hidden_g - added)
+            fitted = float(_effect_fuel(d, effect).sum() - bg.sum()) if effect in names else 0.0
+            cases.append(Case(effect, size, float(np.sum(extra * dt)) / total, effect in names, names,
+                              float(np.sum(extra * dt)), fitted, before, after,
+                              {"concealed": param, **params}))
+    return clean.result, cases
+
+
+def table(clean: dict, cases: list[Case]) -> str:
+    lines = [f"clean {TARGET} against {REFERENCE}: findings "
+             f"{[f['effect'] for f in clean['findings']] or 'none'}, unexplained significant "
+             f"{clean['unexplained']['significant']}", "",
+             "| concealed | size | share of fuel | findings | concealed g | named effect's g | "
+             "phase error g before -> after | parameter (concealed / fitted) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for c in cases:
+        fitted = {k: v for k, v in c.parameters.items() if k != "concealed"}
+        lines.append(f"| {c.effect} | {c.size:g} | {100 * c.share_of_fuel:.1f} % | "
+                     f"{', '.join(c.findings) or 'none'} | {c.concealed_g:.1f} | {c.fitted_g:.1f} | "
+                     f"{c.phase_error_before_g:.1f} -> {c.phase_error_after_g:.1f} | "
+                     f"{c.parameters['concealed']:.3g} / {fitted} |")
+    ok = sum(c.named and c.size_ok and c.phases_ok for c in cases)
+    lines.append(f"\n{ok}/{len(cases)} named, sized within 25 % and with the phase error at least halved")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=None, help="folder for the recordings written")
+    args = ap.parse_args(argv)
+    clean, cases = run(args.out)
+    print(table(clean, cases))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,148 @@
+"""Registrations -> state highway fuel, checked on FHWA state statistics no fit used
+(docs/validation-state-fuel.md).
+
+    python validation/state_fuel.py [--states Alabama,Arizona] [--out docs/validation-state-fuel.csv]
+
+For every state-year of ``inputs/state_statistics/fhwa_state_years.csv`` with registrations:
+
+1. uncalibrated: a workbook with only a Registrations sheet (the state's MV-1 automobiles,
+   buses, trucks and motorcycles) and a scenario with ``base_year_vmt_million`` (VM-2) and
+   ``cycle_mix = default``; the base year's gasoline and diesel against MF-27 highway gasoline
+   (target within 5 %) and special fuels (within 10 %);
+2. forecast (states with a later year): each fuel calibrated to the base year's observed
+   gallons, the later year predicted from that year's VMT (the scenario's growth set so the
+   fleet's miles reach it) with turnover; error against the observed gallons beside the naive
+   forecast, gallons proportional to VMT;
+3. turnover: the light-duty fleet's mpg change per year against the published range
+   (:data:`PUBLISHED_MPG_CHANGE_PCT`).
+
+Every state tried is reported, hit or miss.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import openpyxl
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+DATA = ROOT / "inputs" / "state_statistics" / "fhwa_state_years.csv"
+KM_PER_MILE = 1.609344
+GASOLINE_TOLERANCE, DIESEL_TOLERANCE = 0.05, 0.10      # the issue's targets
+# Published yearly change of fleet on-road mpg [%/yr]: FHWA VM-1 all motor vehicles 1990-2002
+# (16.4 -> 17.0 mpg, BTS NTS Table 4-9) as the low end; EPA Automotive Trends new light-duty
+# vehicles 2004-2022 (19.3 -> 26.0 mpg) as the most a fleet that replaces its vehicles can gain.
+PUBLISHED_MPG_CHANGE_PCT = (100 * ((17.0 / 16.4) ** (1 / 12) - 1), 100 * ((26.0 / 19.3) ** (1 / 18) - 1))
+SCENARIO = ["scenario_id", "ambient_temp_C", "cycle_mix", "budget_years", "vmt_growth_pct_per_year",
+            "state_tax_gasoline_usd_per_gal", "state_tax_diesel_usd_per_gal", "federal_tax_gasoline_usd_per_gal",
+            "federal_tax_diesel_usd_per_gal", "first_fiscal_year", "base_year_vmt_million"]
+
+
+def workbook(path: Path, row: pd.Series, years: int, growth_pct: float) -> Path:
+    """Registrations (MV-1) and one scenario (VM-2 miles, default mixes)."""
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.title = "Registrations"
+    ws.append(["vehicle_class", "count"])
+    for name, column in (("automobile", "mv1_automobiles"), ("bus", "mv1_buses"), ("truck", "mv1_trucks"),
+                         ("motorcycle", "mv1_motorcycles")):
+        ws.append([name, int(row[column])])
+    sc = wb.create_sheet("Scenarios")
+    sc.append(SCENARIO)
+    sc.append([f"{row.state} {row.year}", 20, "default", years, growth_pct, 0.2, 0.2, 0.184, 0.244, int(row.year),
+               row.vmt_million_km / KM_PER_MILE])
+    wb.save(path)
+    return path
+
+
+def by_fuel_year(fiscal: pd.DataFrame) -> dict[tuple[int, str], float]:
+    return {(int(y), f): float(g) for (y, f), g in fiscal.groupby(["fiscal_year", "fuel"])["fuel_gal"].sum().items()}
+
+
+def light_duty_mpg_change_pct(fiscal: pd.DataFrame) -> float:
+    ld = fiscal[fiscal.vehicle_class.isin(["automobile", "light_truck"])].groupby("fiscal_year")[["miles", "fuel_gal"]].sum()
+    mpg = (ld.miles / ld.fuel_gal).to_numpy()
+    return 100 * ((mpg[-1] / mpg[0]) ** (1 / (len(mpg) - 1)) - 1)
+
+
+def run_state(row: pd.Series, later: pd.Series | None, folder: Path) -> dict:
+    from fleetrun.run.runner import run_fleet
+    from fleetrun.workbook import read_fleet
+
+    years = 1 + (int(later.year) - int(row.year) if later is not None else 1)
+    growth = 100 * ((later.vmt_million_km / row.vmt_million_km) ** (1 / (years - 1)) - 1) if later is not None else 0.0
+    fleet = read_fleet(workbook(folder / f"{row.state}-{row.year}.xlsx", row, years, growth))
+    result = run_fleet(fleet, error_model=None)
+    gallons = by_fuel_year(result.fiscal)
+    base = int(row.year)
+    out = {"state": row.state, "year": base, "vmt_million_mi": row.vmt_million_km / KM_PER_MILE}
+    for fuel, column, tol in (("gasoline", "highway_gasoline_kgal", GASOLINE_TOLERANCE),
+                              ("diesel", "special_fuels_kgal", DIESEL_TOLERANCE)):
+        observed = row[column] * 1e3
+        model = gallons.get((base, fuel), 0.0)
+        out[f"{fuel}_model_Mgal"], out[f"{fuel}_observed_Mgal"] = model / 1e6, observed / 1e6
+        out[f"{fuel}_error_pct"] = 100 * (model / observed - 1)
+        out[f"{fuel}_hit"] = abs(model / observed - 1) <= tol
+        if later is not None:
+            scale = observed / model
+            predicted = gallons[(int(later.year), fuel)] * scale
+            naive = observed * later.vmt_million_km / row.vmt_million_km
+            actual = later[column] * 1e3
+            out[f"{fuel}_forecast_error_pct"] = 100 * (predicted / actual - 1)
+            out[f"{fuel}_naive_error_pct"] = 100 * (naive / actual - 1)
+    out["ld_mpg_change_pct_per_year"] = light_duty_mpg_change_pct(result.fiscal)
+    low, high = PUBLISHED_MPG_CHANGE_PCT
+    out["mpg_change_in_published_range"] = low <= out["ld_mpg_change_pct_per_year"] <= high
+    return out
+
+
+def summarize(table: pd.DataFrame) -> None:
+    """Hits per fuel; forecast and naive mean absolute errors; turnover in the published range."""
+    for fuel in ("gasoline", "diesel"):
+        print(f"{fuel}: {int(table[f'{fuel}_hit'].sum())} hits of {len(table)}")
+        if f"{fuel}_forecast_error_pct" in table:
+            both = table.dropna(subset=[f"{fuel}_forecast_error_pct"])
+            better = (both[f"{fuel}_forecast_error_pct"].abs() < both[f"{fuel}_naive_error_pct"].abs()).sum()
+            print(f"  forecast mean |error| {both[f'{fuel}_forecast_error_pct'].abs().mean():.2f} % vs naive "
+                  f"{both[f'{fuel}_naive_error_pct'].abs().mean():.2f} %; better in {better} of {len(both)}")
+    print(f"LD mpg change in the published range {PUBLISHED_MPG_CHANGE_PCT[0]:.2f}-{PUBLISHED_MPG_CHANGE_PCT[1]:.2f} "
+          f"%/yr: {int(table.mpg_change_in_published_range.sum())} of {len(table)}")
+
+
+def main(argv=None) -> pd.DataFrame:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--states", default="", help="comma list (default: every state with registrations)")
+    parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
+    args = parser.parse_args(argv)
+    data = pd.read_csv(DATA)
+    bases = data[data.mv1_automobiles.notna()]
+    if args.states:
+        bases = bases[bases.state.isin(args.states.split(","))]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _, row in bases.iterrows():
+            later = data[(data.state == row.state) & (data.year > row.year)]
+            rows.append(run_state(row, later.iloc[0] if len(later) else None, Path(tmp)))
+            r = rows[-1]
+            print(f"{r['state']} {r['year']}: gasoline {r['gasoline_error_pct']:+.1f} % "
+                  f"({'hit' if r['gasoline_hit'] else 'miss'}), special fuels {r['diesel_error_pct']:+.1f} % "
+                  f"({'hit' if r['diesel_hit'] else 'miss'}), LD mpg {r['ld_mpg_change_pct_per_year']:+.2f} %/yr"
+                  + (f"; forecast gasoline {r['gasoline_forecast_error_pct']:+.1f} % (naive "
+                     f"{r['gasoline_naive_error_pct']:+.1f} %), special fuels {r['diesel_forecast_error_pct']:+.1f} % "
+                     f"(naive {r['diesel_naive_error_pct']:+.1f} %)" if "gasoline_forecast_error_pct" in r else ""),
+                  flush=True)
+    table = pd.DataFrame(rows)
+    summarize(table)
+    if args.out:
+        table.to_csv(args.out, index=False, float_format="%.4g")
+    return table
+
+
+if __name__ == "__main__":
+    main()
