@@ -10,9 +10,9 @@ import operator
 from dataclasses import dataclass, field, fields
 
 
-# VehicleSpec fields that do not change how a vehicle drives a cycle.
-BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model",
-                      "model_year")
+# VehicleSpec fields that do not change how a vehicle drives a cycle (model_year does: it
+# chooses a medium- or heavy-duty diesel's engine, fleetrun.simulation.heavy_duty_engine).
+BOOKKEEPING_FIELDS = ("vehicle_id", "vehicle_class", "count", "annual_miles", "manufacturer", "make", "model")
 
 
 @dataclass(frozen=True)

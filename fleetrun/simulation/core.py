@@ -358,11 +358,12 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     coasting = unlocked & ~drive  # unlocked converter on overrun: the engine idles unloaded
     np.copyto(engine_rpm, np.maximum(idle, turbine_rpm), where=coasting)
     np.copyto(engine_torque, 0.0, where=coasting)
-    # manual: the clutch slips at take-off (engine held at launch speed) and is disengaged
-    # below idle on overrun
+    # manual: the clutch slips at take-off (first gear: engine held at launch speed) and is
+    # disengaged below idle on overrun; in a higher gear it is closed (a heavy diesel cruises
+    # below the launch speed, which is no slip)
     manual = ~auto
     launch = _col(va.launch_rpm)
-    slip = manual & drive & (turbine_rpm < launch)
+    slip = manual & drive & (gear == 1) & (turbine_rpm < launch)
     np.copyto(engine_rpm, launch, where=slip)
     declutch = manual & ~drive & (turbine_rpm < idle)
     np.copyto(engine_rpm, idle, where=declutch)
@@ -496,14 +497,31 @@ def converter_stall_point(va: VehicleArrays):
     return n[rows, i], np.minimum((n[rows, i] / va.K_tc) ** 2, T[rows, i])
 
 
+def _drivetrain_rows(va: VehicleArrays) -> np.ndarray:
+    """What :func:`max_tractive_force_table` reads of each vehicle, one row per vehicle (the
+    table does not depend on mass or road load)."""
+    return np.column_stack([va.combo_trans_ratio, va.combo_axle_low, va.combo_gear_eff, va.combo_gear,
+                            va.low_ratio, va.radius_m, va.final_drive, va.automatic, va.n_idle, va.launch_rpm,
+                            va.T_peak, va.P_rated_kW, va.n_rated, va.n_peak_torque, va.idle_T_frac, va.K_tc,
+                            va.stall_TR])
+
+
 def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     """Largest wheel force [N] the drivetrain can deliver, (V, len(REDRIVE_SPEED_GRID)).
 
     Over every gear: full-load torque at the engine speed the gear implies (clutch: at least
     the launch speed; automatics in first gear: the converter slips up to its stall point and
     multiplies the stall torque by its torque ratio), times gearbox ratio and efficiency,
-    final drive and 0.95 for the axle; x ``margin``.
+    final drive and 0.95 for the axle; x ``margin``. Computed once per distinct drivetrain
+    (vehicles that differ only in mass or road load share a row), as power_speed_table does
+    per engine: element-wise arithmetic, so the values are the same bit for bit.
     """
+    if va.n > 1:
+        keys = _drivetrain_rows(va)
+        if np.isfinite(keys).all():
+            _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+            if first.size < va.n:
+                return max_tractive_force_table(va.subset(first), margin)[inverse.reshape(-1)]
     v = REDRIVE_SPEED_GRID[None, :, None]
     col = lambda a: a[:, None, None]  # noqa: E731
     overall = (va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0))[:, None, :]

@@ -18,7 +18,7 @@ docs/simulation.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from operator import itemgetter
 from typing import Sequence
@@ -30,6 +30,8 @@ from fleetrun.errors import FleetrunError, InputError
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
+from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
+from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.units import RAD_S_PER_RPM
@@ -240,6 +242,11 @@ def _ROW_CACHE(key) -> dict:
     return _row(key[0])
 
 
+def _with(defaults: dict, record) -> dict:
+    """``defaults`` with the fields of ``record`` (a heavy-duty record) on top; None: unchanged."""
+    return defaults if record is None else {**defaults, **asdict(record)}
+
+
 def _row(v: VehicleSpec) -> dict:
     """One vehicle's checked parameters with defaults filled in."""
     _check(v)
@@ -252,10 +259,14 @@ def _row(v: VehicleSpec) -> dict:
     T_peak = float(v.peak_engine_torque_Nm)
     n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
     n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
+    n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
+    trn = _with(trn, heavy_duty_shift_speeds(v, n_pk))   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
                eng["rated_power_factor"] * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
+    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng["idle_speed_rpm"], eng["peak_torque_speed_fraction"],
+                                               eng["idle_torque_fraction"]))   # MD/HD diesels: models/heavy_duty/
     cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
@@ -289,7 +300,7 @@ def _row(v: VehicleSpec) -> dict:
         lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
         launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
-        n_pk=_get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated),
+        n_pk=n_pk,
         idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
         disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
         throttled=v.fuel == "gasoline",

@@ -208,3 +208,45 @@ class FleetCycleResult:
         if self.trace is None:
             raise FleetrunError("no trace: simulate with trace=True")
         return pd.DataFrame({c: (a if np.ndim(a) == 1 else a[i]) for c, a in self.trace.columns().items()})
+
+
+# ----------------------------------------------------------------------------- heavy duty
+# Records of the heavy-duty modules (simulation/heavy_duty_engine.py, heavy_duty_shift.py;
+# docs/validation-heavy-duty.md): the reference engine the SET is run on, the fuel-equation
+# constants of a medium- or heavy-duty diesel, its economy shift speeds.
+
+@dataclass(frozen=True)
+class ReferenceEngine:
+    """An engine's size and full-load shape (engine.full_load_torque_Nm's parameters)."""
+    displacement_L: float
+    peak_torque_Nm: float
+    rated_power_kW: float
+    rated_speed_rpm: float
+    cylinders: int
+    idle_speed_rpm: float
+    peak_torque_speed_fraction: float
+    idle_torque_fraction: float
+
+
+@dataclass(frozen=True)
+class HeavyDutyFuelConstants:
+    """The eight constants of engine.py's fuel equation (params.FUEL_CONSTANTS names)."""
+    eta_indicated: float
+    high_load_factor: float
+    fmep_0_kPa: float
+    fmep_piston_speed_kPa_s_per_m: float
+    fmep_peak_fraction: float
+    pmep_throttle_kPa: float
+    accessory_power_W: float
+    transient_factor: float
+
+
+@dataclass(frozen=True)
+class EconomyShiftSpeeds:
+    """Shift-schedule speeds of a heavy diesel [rpm] (params' transmission-set key names)."""
+    shift_speed_min_rpm: float
+    shift_speed_accel_rpm: float
+    launch_speed_rpm: float
+
+
+__all__ += ["ReferenceEngine", "HeavyDutyFuelConstants", "EconomyShiftSpeeds"]

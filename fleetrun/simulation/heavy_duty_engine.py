@@ -1,0 +1,177 @@
+"""Heavy-duty diesel engines: the fuel equation's constants for medium- and heavy-duty diesel rows.
+
+The fuel equation is the one of :mod:`fleetrun.simulation.engine` (a Willans line with
+Chen-Flynn friction). What differs for trucks is where its constants come from
+(``models/heavy_duty/engines.toml``):
+
+- friction, full-load efficiency fall-off, accessory load: heavy-diesel literature values;
+- the Willans slope ``eta_indicated``: anchored on EPA's engine CO2 standards. An engine of the
+  row's service class (heavy >= 10 L, else medium) and model year that just meets its
+  standard emits, over the steady-state SET modes (40 CFR 1036.510), exactly the standard in
+  g CO2/hp-hr (40 CFR 1036.108). The fuel equation is linear in 1 / eta_indicated, so the
+  slope that does so is found in closed form (:func:`willans_slope_for_standard`).
+
+This is the role of GEM's default engine fuel maps (the maps EPA ran its Phase 2 reference
+vehicles with, one per service class and standard year): a map of a compliant engine. Here
+the map is the fuel equation; :func:`bsfc_map_g_per_kWh` tabulates it.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import lru_cache
+
+import numpy as np
+
+from fleetrun.physics.fuels import fuel_properties
+from fleetrun.resources import model_file
+from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
+                                        full_load_torque_Nm, stroke_m)
+from fleetrun.simulation.records import HeavyDutyFuelConstants, ReferenceEngine
+from fleetrun.units import LITERS_PER_GALLON, RAD_S_PER_RPM
+
+ENGINES_FILE = "heavy_duty/engines.toml"
+HP_W = 745.699872                 # mechanical horsepower [W] (NIST SP 811)
+SET_SPEED_FRACTIONS = {"A": 0.25, "B": 0.50, "C": 0.75}
+HEAVY_DUTIES = ("MD", "HD")
+
+
+def set_speeds_rpm(speed_rpm, power_W) -> dict[str, float]:
+    """SET speeds A, B, C [rpm] from a full-load power curve (40 CFR 1065.610).
+
+    n_lo = the lowest speed at which power reaches 50 % of its maximum, n_hi = the highest at
+    which it is still 70 %; A, B, C = n_lo + 25 / 50 / 75 % of (n_hi - n_lo).
+
+    Parameters
+    ----------
+    speed_rpm : increasing engine speeds of the full-load curve [rpm].
+    power_W : full-load power at those speeds [W].
+    """
+    n, p = np.asarray(speed_rpm, float), np.asarray(power_W, float)
+    p_max = p.max()
+    lo = n[np.argmax(p >= 0.5 * p_max)]
+    hi = n[len(p) - 1 - np.argmax(p[::-1] >= 0.7 * p_max)]
+    return {k: lo + f * (hi - lo) for k, f in SET_SPEED_FRACTIONS.items()}
+
+
+def _full_load(engine: ReferenceEngine, speed_rpm):
+    return full_load_torque_Nm(speed_rpm, engine.peak_torque_Nm, engine.rated_power_kW, engine.rated_speed_rpm,
+                               engine.idle_speed_rpm, engine.peak_torque_speed_fraction * engine.rated_speed_rpm,
+                               engine.idle_torque_fraction)
+
+
+def _set_modes() -> tuple[list, np.ndarray, np.ndarray]:
+    """The SET modes of engines.toml: speed labels, load fractions, weights."""
+    modes = model_file(ENGINES_FILE)["set_modes"]
+    return ([m["speed"] for m in modes], np.array([m["load_pct"] for m in modes]) / 100.0,
+            np.array([m["weight"] for m in modes]))
+
+
+def set_points(engine: ReferenceEngine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed [rpm], torque [N m] and weight of each SET mode (engines.toml) for ``engine``."""
+    labels, loads, weights = _set_modes()
+    n = np.linspace(engine.idle_speed_rpm, 1.1 * engine.rated_speed_rpm, 881)
+    speeds = set_speeds_rpm(n, _full_load(engine, n) * n * RAD_S_PER_RPM)
+    speeds["idle"] = engine.idle_speed_rpm
+    speed = np.array([speeds[label] for label in labels])
+    return speed, _full_load(engine, speed) * loads, weights
+
+
+def co2_g_per_g_fuel(fuel: str = "diesel") -> float:
+    """Tailpipe CO2 per gram of fuel, from models/fuels.toml's CO2 per gallon and density."""
+    props = fuel_properties(fuel)
+    return props.co2_g_per_gal / (props.density_kg_per_L * LITERS_PER_GALLON * 1e3)
+
+
+def _engine_fuel_g_per_s(engine: ReferenceEngine, constants: HeavyDutyFuelConstants, speed_rpm, torque_Nm):
+    """Fuel rate [g/s] of ``engine`` on the dynamometer (no accessory load) at speed x torque."""
+    disp = engine.displacement_L
+    terms = fuel_power_terms_W(torque_Nm, speed_rpm, _full_load(engine, speed_rpm), disp,
+                               stroke_m(disp, engine.cylinders), engine.peak_torque_Nm, False)
+    coeffs = fuel_coefficients(constants.eta_indicated, constants.high_load_factor, constants.fmep_0_kPa,
+                               constants.fmep_piston_speed_kPa_s_per_m, constants.fmep_peak_fraction,
+                               constants.pmep_throttle_kPa, 0.0, constants.transient_factor)
+    return fuel_rate_g_per_s(terms, coeffs, True, fuel_properties("diesel").lhv_MJ_per_kg)
+
+
+def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngine) -> float:
+    """Cycle-weighted brake-specific CO2 [g/hp-hr] of ``engine`` over the SET modes:
+    sum(w CO2 rate) / sum(w brake power) (40 CFR 1036.510 weighting), no accessory load
+    (an engine on the dynamometer drives none)."""
+    speed, torque, weight = set_points(engine)
+    fuel = _engine_fuel_g_per_s(engine, constants, speed, torque)
+    work_hp_h = float(np.sum(weight * torque * speed * RAD_S_PER_RPM)) / HP_W
+    return float(np.sum(weight * fuel)) * 3600.0 * co2_g_per_g_fuel() / work_hp_h
+
+
+def willans_slope_for_standard(standard_g_per_hp_hr: float, constants: HeavyDutyFuelConstants,
+                               engine: ReferenceEngine) -> float:
+    """The eta_indicated at which ``engine`` meets the SET standard exactly. Every term of the
+    fuel equation is divided by eta_indicated, so SET CO2 x eta is a constant."""
+    return set_co2_g_per_hp_hr(replace(constants, eta_indicated=1.0), engine) / standard_g_per_hp_hr
+
+
+def service_class(displacement_L: float) -> str:
+    """``heavy`` (>= heavy_min_displacement_L) or ``medium``."""
+    return "heavy" if displacement_L >= model_file(ENGINES_FILE)["heavy_min_displacement_L"] else "medium"
+
+
+def standard_for(service: str, model_year: int) -> float:
+    """The SET CO2 standard [g/hp-hr] in force for ``model_year`` (the latest step at or
+    before it; before the first step, the first)."""
+    steps = sorted((int(y), s) for y, s in model_file(ENGINES_FILE)["set_standard_g_per_hp_hr"][service].items())
+    in_force = [s for y, s in steps if y <= model_year]
+    return in_force[-1] if in_force else steps[0][1]
+
+
+def reference_engine(service: str, idle_speed_rpm: float, peak_torque_speed_fraction: float,
+                     idle_torque_fraction: float) -> ReferenceEngine:
+    """The reference engine of ``service`` (engines.toml) with the full-load shape given (the
+    engines.toml set of the row's duty class)."""
+    size = model_file(ENGINES_FILE)["reference_engine"][service]
+    return ReferenceEngine(displacement_L=size["displacement_L"], peak_torque_Nm=size["peak_torque_Nm"],
+                           rated_power_kW=size["rated_power_kW"], rated_speed_rpm=size["rated_speed_rpm"],
+                           cylinders=int(size["cylinders"]), idle_speed_rpm=idle_speed_rpm,
+                           peak_torque_speed_fraction=peak_torque_speed_fraction,
+                           idle_torque_fraction=idle_torque_fraction)
+
+
+@lru_cache(maxsize=None)
+def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, peak_torque_speed_fraction: float,
+                         idle_torque_fraction: float) -> HeavyDutyFuelConstants:
+    """The fuel-equation constants of a ``service``-class diesel of ``model_year``: the
+    literature constants of engines.toml and the Willans slope that meets the SET standard."""
+    literature = HeavyDutyFuelConstants(eta_indicated=1.0, **model_file(ENGINES_FILE)["constants"])
+    engine = reference_engine(service, idle_speed_rpm, peak_torque_speed_fraction, idle_torque_fraction)
+    eta = willans_slope_for_standard(standard_for(service, model_year), literature, engine)
+    return replace(literature, eta_indicated=eta)
+
+
+def engine_model_year(vehicle) -> int:
+    """The model year whose engine standard applies to ``vehicle`` (VehicleSpec): its
+    ``engine_model_year`` column, else ``model_year``, else ``default_model_year``."""
+    for year in ((vehicle.extra or {}).get("engine_model_year"), vehicle.model_year):
+        if year not in (None, "") and year == year:   # year == year: not NaN
+            return int(year)
+    return int(model_file(ENGINES_FILE)["default_model_year"])
+
+
+def heavy_duty_fuel_constants(vehicle, displacement_L: float, idle_speed_rpm: float,
+                              peak_torque_speed_fraction: float,
+                              idle_torque_fraction: float) -> HeavyDutyFuelConstants | None:
+    """The fuel constants of a medium- or heavy-duty diesel ``vehicle`` (VehicleSpec) of
+    ``displacement_L`` whose engine set (params.engine_defaults) has the given full-load
+    shape; None for any other vehicle (it keeps its set's constants)."""
+    if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
+        return None
+    return heavy_duty_constants(service_class(displacement_L), engine_model_year(vehicle), idle_speed_rpm,
+                                peak_torque_speed_fraction, idle_torque_fraction)
+
+
+def bsfc_map_g_per_kWh(engine: ReferenceEngine, constants: HeavyDutyFuelConstants, speed_rpm, load_fraction):
+    """Brake-specific fuel consumption [g/kWh] of ``engine`` on a grid of speeds [rpm] x load
+    fractions of full-load torque (the fuel map the docs quote), accessories excluded."""
+    n = np.asarray(speed_rpm, float)[:, None]
+    torque = _full_load(engine, n) * np.asarray(load_fraction, float)[None, :]
+    fuel = _engine_fuel_g_per_s(engine, constants, n, torque)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return fuel * 3.6e6 / (torque * n * RAD_S_PER_RPM)

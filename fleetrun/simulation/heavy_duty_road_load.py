@@ -1,0 +1,34 @@
+"""Road load of heavy vehicles from the GEM inputs: tyre rolling resistance and drag area.
+
+EPA's Greenhouse gas Emissions Model (GEM, 40 CFR 1037.520) describes a truck's road load by
+its tyres' coefficient of rolling resistance (Crr, kg/t: 40 CFR 1037.520(c)) and its drag area
+(CdA, m^2: 40 CFR 1037.520(b)) at the regulatory weight, not by coastdown coefficients. This
+module turns them into the EPA target coefficients a Vehicles row holds (F = A + B v + C v^2,
+lbf and mph, fleetrun.simulation.road_load):
+
+    A = Crr m g,  B = 0 (GEM's rolling resistance does not vary with speed),  C = rho CdA / 2.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrun.cycles import MPH_TO_MPS
+from fleetrun.simulation.road_load import LBF_N
+from fleetrun.units import STANDARD_GRAVITY_M_S2 as G_MPS2
+
+AIR_DENSITY_KG_M3 = 1.2   # the density make_example_fleet.py and the FHWA class defaults use
+
+
+def gem_coastdown_lbf(mass_kg, crr, cda_m2, air_density_kg_m3=AIR_DENSITY_KG_M3):
+    """EPA target coefficients (A [lbf], B [lbf/mph], C [lbf/mph^2]) of a GEM vehicle.
+
+    Parameters
+    ----------
+    mass_kg : regulatory (test) weight [kg].
+    crr : tyre coefficient of rolling resistance [-] (GEM's kg/t / 1000).
+    cda_m2 : drag area [m^2].
+    air_density_kg_m3 : air density [kg/m^3].
+    """
+    a = np.asarray(crr, float) * np.asarray(mass_kg, float) * G_MPS2 / LBF_N
+    c = 0.5 * air_density_kg_m3 * np.asarray(cda_m2, float) * MPH_TO_MPS ** 2 / LBF_N
+    return a, np.zeros_like(a), c

@@ -1,0 +1,242 @@
+"""Heavy-duty validation (docs/validation-heavy-duty.md).
+
+    python validation/heavy_duty.py [--write] [--plot docs/img/validation-heavy-duty.png]
+
+Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a published figure:
+
+1. the issue's typed class-8 tractor (65,000 lb, CdA 5.8 m^2, Crr 6.5 kg/t, 15 L 2,237 N m,
+   18-speed manual, axle 2.64, 295/75R22.5) at a level 65 and 55 mph: mpg against the
+   6.5-7.5 / 7.8-9.0 mpg that its road load, a 0.93 driveline and a 43-45 % brake efficiency
+   give (issue 21);
+2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
+   cycles and weighting: g CO2/ton-mile against the standard each is set at (40 CFR 1037.105,
+   1037.106);
+3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes: mpg
+   against the national combination-truck range (FHWA Highway Statistics VM-1, 5.4-6.4 mpg).
+
+``--write`` stores the relative fuel-economy errors of check 2 as
+``models/heavy_duty/fuel_economy_error.toml`` (the shape of models/fuel_economy_error.toml).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from fleetrun.cycles import load_cycle  # noqa: E402
+from fleetrun.resources import models_dir  # noqa: E402
+from fleetrun.simulation import simulate  # noqa: E402
+from fleetrun.simulation.heavy_duty_gem import (composite_g_co2_per_ton_mile, gem_cycle_mix,  # noqa: E402
+                                                payload_short_tons)
+from fleetrun.simulation.heavy_duty_road_load import gem_coastdown_lbf  # noqa: E402
+from fleetrun.workbook import read_fleet  # noqa: E402
+from fleetrun.workbook.vehicle_file import vehicle_from_mapping  # noqa: E402
+
+LB_KG = 0.45359237
+HD_DIR = models_dir() / "heavy_duty"
+ERROR_FILE = HD_DIR / "fuel_economy_error.toml"
+TYPED_TRACTOR = dict(
+    vehicle_id="TYPED-CLASS8", vehicle_class="Class 8 tractor", count=1, annual_miles=1, duty_class="HD",
+    configuration="HD_TANDEM", fuel="diesel", peak_engine_torque_Nm=2237.0, transmission="manual",
+    transmission_gear_ratios="14.40,12.29,8.56,7.30,6.05,5.16,4.38,3.74,3.20,2.73,2.29,1.95,1.62,1.38,1.17,1.00,0.86,0.73",
+    final_drive_ratio=2.64, tire_size="295/75R22.5", engine_displacement_L=15.0)
+TYPED_WEIGHT_LB, TYPED_CRR, TYPED_CDA = 65000.0, 0.0065, 5.8
+TYPED_TARGETS_MPG = {"CRUISE-65": (6.5, 7.5), "CRUISE-55": (7.8, 9.0)}
+VM1_COMBINATION_MPG = (5.4, 6.4)
+COMBINATION_CLASS = "Tractor-trailer (class 8)"
+
+
+def gem_row(basis: dict, vehicle_id: str) -> dict:
+    """A Vehicles row (mapping) from GEM inputs: weight [lb], Crr [kg/t], CdA [m^2]."""
+    mass = basis["test_weight_lb"] * LB_KG
+    a, b, c = gem_coastdown_lbf(mass, basis["crr_kg_per_t"] / 1000.0, basis["cda_m2"])
+    skip = {"gem_type", "regulatory_class", "standard_g_per_ton_mile", "test_weight_lb", "crr_kg_per_t", "cda_m2"}
+    row = {k: v for k, v in basis.items() if k not in skip}
+    return dict(row, vehicle_id=vehicle_id, vehicle_class=vehicle_id, count=1, annual_miles=1, test_weight_kg=mass,
+                coastdown_A_lbf=float(a), coastdown_B_lbf_per_mph=float(b), coastdown_C_lbf_per_mph2=float(c))
+
+
+def typed_tractor():
+    row = gem_row(dict(TYPED_TRACTOR, test_weight_lb=TYPED_WEIGHT_LB, crr_kg_per_t=TYPED_CRR * 1000,
+                       cda_m2=TYPED_CDA), "TYPED-CLASS8")
+    return vehicle_from_mapping(row, Path("typed-tractor"))
+
+
+def check_typed_tractor() -> list[dict]:
+    v = typed_tractor()
+    rows = []
+    for cycle, (low, high) in TYPED_TARGETS_MPG.items():
+        r = simulate([v], cycle)
+        mpg = float(r.mpg[0])
+        rows.append(dict(cycle=cycle, mpg=round(mpg, 3), target_low=low, target_high=high,
+                         drivetrain_efficiency=round(float(r.drivetrain_efficiency[0]), 4),
+                         brake_efficiency=round(brake_efficiency(r), 4), within=bool(low <= mpg <= high)))
+    return rows
+
+
+def brake_efficiency(result) -> float:
+    """Engine work / fuel energy over the cycle (diesel LHV, models/fuels.toml)."""
+    from fleetrun.physics.fuels import fuel_properties
+
+    return float(result.engine_energy_J[0] / (result.fuel_g[0] * fuel_properties("diesel").lhv_MJ_per_kg * 1e3))
+
+
+def reference_vehicles() -> tuple[dict, dict]:
+    with open(HD_DIR / "gem_reference_vehicles.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return data["defaults"], data["vehicles"]
+
+
+def check_reference_vehicles() -> list[dict]:
+    defaults, vehicles = reference_vehicles()
+    specs = {name: vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"],
+                                                     engine_model_year=defaults["standard_year"]), name), Path(name))
+             for name, basis in vehicles.items()}
+    cycles = sorted({c for b in vehicles.values() for c in gem_cycle_mix(b["gem_type"])})
+    gal_per_mile = {}
+    for cycle in cycles:
+        r = simulate(list(specs.values()), cycle)
+        for i, name in enumerate(specs):
+            gal_per_mile.setdefault(name, {})[cycle] = float(r.fuel_gal[i] / r.miles[i])
+    rows = []
+    for name, basis in vehicles.items():
+        mix = gem_cycle_mix(basis["gem_type"])
+        model = composite_g_co2_per_ton_mile(gal_per_mile[name], mix, payload_short_tons(basis["regulatory_class"]))
+        standard = basis["standard_g_per_ton_mile"]
+        rows.append(dict(vehicle=name, gem_type=basis["gem_type"], standard_year=defaults["standard_year"],
+                         model_g_per_ton_mile=round(model, 2), standard_g_per_ton_mile=standard,
+                         co2_error=round(model / standard - 1.0, 4),
+                         mpg_error=round(standard / model - 1.0, 4)))
+    return rows
+
+
+def check_example_combination_trucks() -> list[dict]:
+    fleet = read_fleet(ROOT / "inputs" / "example_fleet.xlsx")
+    trucks = [v for v in fleet.vehicles if v.vehicle_class == COMBINATION_CLASS]
+    rows = []
+    for scenario in fleet.scenarios:
+        mix = scenario.mix_for("HD")
+        gal_per_mile = np.zeros(len(trucks))
+        for cycle, share in mix.items():
+            r = simulate(trucks, cycle, ambient_temp_C=scenario.ambient_temp_C)
+            gal_per_mile += share * r.fuel_gal / r.miles
+        for v, g in zip(trucks, gal_per_mile):
+            mpg = 1.0 / g
+            rows.append(dict(scenario=scenario.scenario_id, vehicle=v.vehicle_id, mpg=round(float(mpg), 3),
+                             within_vm1=bool(VM1_COMBINATION_MPG[0] <= mpg <= VM1_COMBINATION_MPG[1])))
+    return rows
+
+
+def check_example_trucks_on_gem_weighting() -> list[dict]:
+    """The example fleet's combination trucks (as typed, fully loaded) on GEM's day- and
+    sleeper-cab weighting of the heavy-duty cycles."""
+    fleet = read_fleet(ROOT / "inputs" / "example_fleet.xlsx")
+    trucks = [v for v in fleet.vehicles if v.vehicle_class == COMBINATION_CLASS]
+    rows = []
+    for gem_type in ("day_cab", "sleeper_cab"):
+        gal_per_mile = np.zeros(len(trucks))
+        for cycle, share in gem_cycle_mix(gem_type).items():
+            r = simulate(trucks, cycle)
+            gal_per_mile += share * r.fuel_gal / r.miles
+        rows += [dict(gem_type=gem_type, vehicle=v.vehicle_id, mpg=round(float(1.0 / g), 3),
+                      within_vm1=bool(VM1_COMBINATION_MPG[0] <= 1.0 / g <= VM1_COMBINATION_MPG[1]))
+                 for v, g in zip(trucks, gal_per_mile)]
+    return rows
+
+
+FHWA_GEM_TYPES = {"combination_truck": ("day_cab", "sleeper_cab"),
+                  "single_unit_truck": ("vocational_regional", "vocational_multipurpose"),
+                  "bus": ("vocational_multipurpose", "vocational_urban")}
+
+
+def check_fhwa_class_defaults() -> list[dict]:
+    """mpg of the FHWA class defaults (models/heavy_duty/fhwa_classes.toml) on GEM weightings."""
+    with open(HD_DIR / "fhwa_classes.toml", "rb") as fh:
+        classes = tomllib.load(fh)
+    rows = []
+    for name, gem_types in FHWA_GEM_TYPES.items():
+        row = {k: v for k, v in classes[name].items() if k != "source"}
+        spec = vehicle_from_mapping(dict(row, vehicle_id=name, vehicle_class=name, count=1), Path(name))
+        for gem_type in gem_types:
+            gal = sum(share * float(r.fuel_gal[0] / r.miles[0])
+                      for cycle, share in gem_cycle_mix(gem_type).items() for r in [simulate([spec], cycle)])
+            rows.append(dict(fhwa_class=name, gem_type=gem_type, mpg=round(1.0 / gal, 3)))
+    return rows
+
+
+def error_summary(errors) -> dict:
+    e = np.asarray(errors, float)
+    return dict(n=int(e.size), mean=round(float(e.mean()), 4), median=round(float(np.median(e)), 4),
+                p05=round(float(np.percentile(e, 5)), 4), p95=round(float(np.percentile(e, 95)), 4),
+                within_5pct=round(float(np.mean(np.abs(e) <= 0.05)), 4),
+                median_abs=round(float(np.median(np.abs(e))), 4))
+
+
+def error_groups(reference_rows: list[dict]) -> dict:
+    """{test name: summary} of the mpg errors: tractors and vocational vehicles apart (they
+    are validated to very different degrees, docs/validation-heavy-duty.md)."""
+    groups = {"GEM_TRACTOR": [r for r in reference_rows if not r["gem_type"].startswith("vocational")],
+              "GEM_VOCATIONAL": [r for r in reference_rows if r["gem_type"].startswith("vocational")]}
+    return {name: error_summary([r["mpg_error"] for r in rows]) for name, rows in groups.items() if rows}
+
+
+def write_error_file(reference_rows: list[dict]) -> None:
+    lines = ['source = "validation/heavy_duty.py: EPA GEM Phase 2 reference vehicles (models/heavy_duty/'
+             'gem_reference_vehicles.toml) on GEM cycles and weighting against their 40 CFR 1037 standards"',
+             f'measured_on = "{datetime.date.today().isoformat()}"',
+             'note = "relative error = predicted mpg / mpg at the standard - 1 (= standard CO2 / predicted CO2 - 1) '
+             'of each reference vehicle\'s GEM composite; docs/validation-heavy-duty.md"', ""]
+    for test, summary in error_groups(reference_rows).items():
+        lines.append(f"[tests.{test}]")
+        lines += [f"{k} = {v}" for k, v in summary.items()] + [""]
+    ERROR_FILE.write_text("\n".join(lines) + "\n")
+
+
+def plot(reference_rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [r["vehicle"] for r in reference_rows]
+    x = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    ax.bar(x - 0.2, [r["standard_g_per_ton_mile"] for r in reference_rows], 0.4, label="standard (40 CFR 1037)")
+    ax.bar(x + 0.2, [r["model_g_per_ton_mile"] for r in reference_rows], 0.4, label="fleetrun, GEM weighting")
+    ax.set_xticks(x, names, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("g CO2 / ton-mile")
+    ax.set_title("Phase 2 reference vehicles, model year %d" % reference_rows[0]["standard_year"])
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="write models/heavy_duty/fuel_economy_error.toml")
+    parser.add_argument("--plot", type=Path, help="bar chart of the reference vehicles (PNG)")
+    args = parser.parse_args(argv)
+    report = dict(typed_tractor=check_typed_tractor(), reference_vehicles=check_reference_vehicles(),
+                  example_combination_trucks=check_example_combination_trucks(),
+                  example_combination_trucks_gem=check_example_trucks_on_gem_weighting(),
+                  fhwa_class_defaults=check_fhwa_class_defaults())
+    report["reference_error"] = error_groups(report["reference_vehicles"])
+    print(json.dumps(report, indent=1))
+    if args.write:
+        write_error_file(report["reference_vehicles"])
+    if args.plot:
+        plot(report["reference_vehicles"], args.plot)
+    return report
+
+
+if __name__ == "__main__":
+    main()
