@@ -17,6 +17,7 @@ The ratio is the figure to compare (README, docs/benchmarks-simulation.md).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 import time
@@ -46,10 +47,12 @@ def fastsim_runner():
     return once, fsim.__version__
 
 
-def measure(repeat: int, fastsim_runs: int, vehicles: int = 1000):
+def measure(repeat: int, fastsim_runs: int, vehicles: int = 1000, technology: str | None = None):
     once, version = fastsim_runner()
     once()                                                   # warm up (loads, JIT-free Rust)
     fleet = make_fleet(vehicles, kind="cars")
+    if technology:   # the technology classes' physics on every car (docs/simulation.md "Technology")
+        fleet = [dataclasses.replace(v, technology=technology) for v in fleet]
     cycle = load_cycle("UDDS")
     best_fs, best_fr = float("inf"), float("inf")
     with tempfile.TemporaryDirectory() as cache:
@@ -70,12 +73,15 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--fastsim-runs", type=int, default=30)
+    p.add_argument("--technology", help="technology column for every fleetrun car, e.g. "
+                   "start_stop,mild_hybrid_48v,atkinson,cylinder_deactivation,turbo")
     args = p.parse_args(argv)
     info = machine()
-    r = measure(args.repeat, args.fastsim_runs)
+    r = measure(args.repeat, args.fastsim_runs, technology=args.technology)
     print(f"{info}\nUDDS, one core, best of {args.repeat}:\n"
           f"  FASTSim {r['fastsim_version']} 2012 Ford Fusion: {r['fastsim_rate']:,.1f} vehicle-cycles/s\n"
-          f"  fleetrun, {r['vehicles']:,} cars in one call: {r['fleetrun_rate']:,.0f} vehicle-cycles/s\n"
+          f"  fleetrun, {r['vehicles']:,} cars in one call (technology: {args.technology or 'none'}): "
+          f"{r['fleetrun_rate']:,.0f} vehicle-cycles/s\n"
           f"  ratio fleetrun / FASTSim: {r['ratio']:,.0f}x")
 
 

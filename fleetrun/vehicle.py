@@ -52,6 +52,9 @@ class VehicleSpec:
     converter_lockup: str | None = None  # "yes" / "no"
     cylinders: int | None = None
     nv_ratio_rpm_per_mph: float | None = None   # EPA N/V: engine rpm per mph in top gear
+    technology: str | None = None        # comma list of fleetrun.simulation.technology names
+    measured_ftp_mpg: float | None = None  # measured FTP composite: calibrates the vehicle's efficiency
+    label_combined_mpg: float | None = None   # EPA label combined, used when no measured FTP
     extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):

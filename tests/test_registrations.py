@@ -170,3 +170,45 @@ def test_extract_errors_name_the_line(tmp_path):
     path.write_text("vehicle_class,count\nautomobile,3\nspaceship,1\n", encoding="utf-8")
     with pytest.raises(InputError, match="line 3: vehicle_class 'spaceship'"):
         read_extract(path)
+
+
+def test_import_registrations_then_run_lists_every_row(tmp_path):
+    """The analyst's path end to end with the stand-in simulation: extract -> workbook -> run;
+    registrations.csv and turnover.csv beside the usual outputs, the report's Registrations sheet."""
+    from click.testing import CliRunner
+
+    from fleetrun.cli import cli
+    from tests import test_fleet_fakes as fakes
+
+    extract = tmp_path / "dmv.csv"
+    extract.write_text("VIN,vehicle_class,make,model,model_year,fuel\n"
+                       "1,automobile,Toyota,Camry,2015,gasoline\n2,automobile,Toyota,Camry,2015,gasoline\n"
+                       "3,light_truck,Nomake,X,2008,\n4,combination_truck,,,2019,diesel\n5,truck,,,,\n",
+                       encoding="utf-8")
+    workbook = tmp_path / "fleet.xlsx"
+    done = CliRunner().invoke(cli, ["import-registrations", str(extract), "-o", str(workbook),
+                                    "--first-fiscal-year", "2027", "--base-year-vmt-million", "0.05"])
+    assert done.exit_code == 0, done.output
+    fleet = read_fleet(workbook)
+    assert sorted(r["count"] for r in fleet.registrations) == [1, 1, 1, 2]
+    out = tmp_path / "out"
+    result = fakes.invoke_run(workbook, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
+    choices = pd.read_csv(out / "registrations.csv")
+    rows = choices[choices.registration_row != "new sales"]
+    assert rows["count"].sum() == pytest.approx(5)
+    assert set(pd.read_csv(out / "turnover.csv").fiscal_year) == {2027, 2028}
+    assert "Registrations" in openpyxl.load_workbook(out / "report.xlsx", read_only=True).sheetnames
+    fiscal = pd.read_csv(out / "fiscal_summary.csv")
+    assert fiscal[fiscal.fiscal_year == 2027].miles.sum() == pytest.approx(0.05e6, rel=1e-9)
+
+
+def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
+    """Beyond EPA Trends' last model year (2022, 26.0 mpg) new model years improve by the
+    scenario's rate: MY2026 at 5 %/yr uses 26.0 x 1.05^4 mpg; MY2022 keeps the table's value."""
+    s = scenario(first_fiscal_year=2026, budget_years=1, new_vehicle_mpg_change_pct_per_year=5.0)
+    rows = [{"vehicle_class": "automobile", "count": 10, "model_year": my, "fuel": "gasoline"} for my in (2022, 2026)]
+    e = expand(fleet_of(rows), [s])
+    by_year = {v.model_year: f for v, f in zip(e.vehicles, e.fuel_factor(s))}
+    assert by_year[2022] == pytest.approx(1.0, rel=1e-12)
+    assert by_year[2026] == pytest.approx(1 / 1.05 ** 4, rel=1e-12)

@@ -45,9 +45,10 @@ from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
-from fleetrun.simulation.core import trace_kinematics  # noqa: E402
+from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
+from fleetrun.simulation.technology import technology_constants  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 from fleetrun.units import RAD_S_PER_RPM  # noqa: E402
 
@@ -66,26 +67,35 @@ def trace_terms(va, tr):
     col = lambda x: x[:, None]  # noqa: E731
     n, T, Tmax = tr.engine_speed_rpm, tr.engine_torque_Nm, tr.engine_max_torque_Nm
     k = trace_kinematics(tr)
-    dt = np.broadcast_to(k.dt, n.shape) * ((tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0)
+    # technology classes: an engine that is off (start-stop stops, hybrids coasting) stands still
+    # (speed 0) and its fuel, if any, is the fitted stop power, not the fuel equation
+    dt = np.broadcast_to(k.dt, n.shape) * (((tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0) & (n > 0))
     inertial = col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
-    terms = fuel_power_terms_W(np.minimum(T, Tmax), n, Tmax, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial)
+    Tf = np.minimum(T, Tmax)
+    pumping, gain = technology_fuel_inputs(va, Tf, n, Tmax, k.v_avg > 1e-6, col)
+    terms = fuel_power_terms_W(Tf, n, Tmax, col(va.displacement_L), col(va.stroke_m),
+                               col(va.T_peak), col(va.throttled), inertial, pumping, gain)
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
-EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time")
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time")
 
 
 def trace_extras(va, tr):
-    """(V, N, 5) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
-    time [s] and the time the engine turns in fuel cut-off [s] (warm engine)."""
+    time [s], the time the engine turns in fuel cut-off [s] (warm engine) and the standstill
+    time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
+    the engine stands still, outside a composed cycle's soak)."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
     driving = dt * (fueled & (tr.wheel_power_W > 0))
+    named = tr.phase != ""
+    in_cycle = named if named.any() else True       # the FTP's soak has no phase name
+    stop_off = dt * ((tr.engine_speed_rpm <= 0) & (v <= 0.0) & in_cycle)
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0))]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off]
     return np.stack(out, axis=2)
 
 
@@ -545,17 +555,28 @@ def _summary_line(label, s):
         f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
 
 
+STOP = ("X_stop_off_time",)   # start-stop's stop power is fitted with the constants (models/technology.toml)
+
+
 def run(specs, table):
     """Dataset, held-out predictions, final fit and summaries."""
     d = build_dataset(specs, table)
     own = (design(d) * coefficients_of(d.attrs["constants"][d.vehicle])).sum(axis=1)
+    own = own + d.X_stop_off_time.to_numpy() * technology_constants().stop_fuel_power_W / (d.lhv.to_numpy() * 1e3)
     warm_sim = (d.sim_fuel_g - d.cold_g).to_numpy()
     gap = float(np.max(np.abs(own / warm_sim - 1.0)))
-    pred, folds = held_out(d, table)
-    final = fit(d)
+    pred, folds = held_out(d, table, extra=STOP)
+    final = fit(d, extra=STOP)
     return dict(d=d, gap=gap, pred=pred, folds=folds, final=final,
                 err=relative_errors(pred, table), err_sim=relative_errors(errors(d, d.sim_fuel_g.to_numpy()), table),
-                err_in=relative_errors(errors(d, predicted_fuel_g(d, final)), table))
+                err_in=relative_errors(errors(d, predicted_fuel_g(d, final, STOP)), table))
+
+
+def write_stop_power(final, path):
+    """The fitted start-stop stop power [W] into models/technology.toml [fitted]."""
+    text = Path(path).read_text()
+    Path(path).write_text(re.sub(r"stop_fuel_power_W = [0-9.eE+-]+", f"stop_fuel_power_W = {final['gasoline'][-1]:.1f}",
+                                 text))
 
 
 def main(argv=None):
@@ -599,6 +620,7 @@ def main(argv=None):
             print(line, flush=True)
     if args.write:
         write_calibration_toml(r["final"], r["folds"], ROOT / "models" / "engine_calibration.toml", len(specs))
+        write_stop_power(r["final"], ROOT / "models" / "technology.toml")
         write_error_toml(s, ROOT / "models" / "fuel_economy_error.toml")
     return r, table
 

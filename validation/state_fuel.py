@@ -21,7 +21,6 @@ Every state tried is reported, hit or miss.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 from pathlib import Path

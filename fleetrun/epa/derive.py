@@ -25,6 +25,7 @@ import pandas as pd
 
 from fleetrun.epa import rules
 from fleetrun.epa.measured import measured_results
+from fleetrun.epa.technology import match_configuration
 from fleetrun.epa.vehicle import vehicle_row
 from fleetrun.workbook.schema import VEHICLE_COLUMNS, columns_by_name
 
@@ -79,6 +80,10 @@ def import_rows(table: pd.DataFrame, model_years=(), makes=()) -> ImportResult:
             result.excluded.append({**ident, "rule": reason[0], "reason": reason[1]})
             continue
         row, derived = vehicle_row(vehicle_id, facts)
+        match = match_configuration(facts["manufacturer"], facts["displacement_L"], facts["coef_A_lbf"],
+                                    facts["coef_B_lbf_per_mph"], facts["coef_C_lbf_per_mph2"])
+        row["technology"] = (match.technology or "none") if match.omega_vehicle else None
+        derived.append({"vehicle_id": vehicle_id, "column": "technology", "value": match.technology, "rule": match.note})
         result.vehicles.append(row)
         result.derived += derived
         result.measured += [{"vehicle_id": vehicle_id, **m, **{k: ident[k] for k in ID_FIELDS}} for m in measured]

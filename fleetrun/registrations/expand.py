@@ -9,7 +9,6 @@ count and a warning, never dropped silently. Arithmetic: docs/registrations.md.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -64,16 +63,8 @@ class Expansion:
         out = np.ones(len(self.vehicles))
         for name in set(self.fhwa_class.tolist()):
             rows = self.fhwa_class == name
-            out[rows] = _factor(name, self.model_year[rows], self.reference_year[rows], rate)
+            out[rows] = turnover.fuel_factor(name, self.model_year[rows], self.reference_year[rows], rate)
         return out
-
-
-def _factor(name, model_years, reference_years, rate) -> np.ndarray:
-    trend = turnover.class_info(name)["trend"]
-    mine = turnover.trend_mpg(trend, model_years, rate)
-    ref = turnover.trend_mpg(trend, reference_years, rate)
-    factor = ref / mine
-    return np.where(np.isfinite(factor), factor, 1.0)
 
 
 def base_year(scenarios) -> int:
@@ -200,7 +191,7 @@ def build(acc: _Cohorts, scenarios, path=None) -> Expansion:
     keys = list(acc.counts)
     counts0 = np.array([acc.counts[k] for k in keys])
     _new_sales(acc, keys, counts0, h)
-    return _arrays(acc, keys, h, path)
+    return _arrays(acc, h, path)
 
 
 def _cohort_counts(classes, ages0, counts0, h) -> np.ndarray:
@@ -254,7 +245,7 @@ def _new_sales(acc: _Cohorts, keys: list, counts0: np.ndarray, h: int) -> None:
                                                                  "(stock kept at its base-year count)", assumed) if t)})
 
 
-def _arrays(acc: _Cohorts, keys_before: list, h: int, path) -> Expansion:
+def _arrays(acc: _Cohorts, h: int, path) -> Expansion:
     base = acc.base
     new = acc.new_sales
     keys = list(acc.counts)
@@ -291,10 +282,9 @@ def _arrays(acc: _Cohorts, keys_before: list, h: int, path) -> Expansion:
                      choices=pd.DataFrame(acc.choices, columns=CHOICE_COLUMNS), warnings=warnings)
 
 
-def expand(fleet, scenarios, extra_rows=()) -> Expansion | None:
-    """The cohorts of ``fleet.registrations`` (and ``extra_rows``: (label, row) pairs of an
-    extract), or None when there are none."""
-    rows = [(f"Registrations!row {r['_row']}", r) for r in fleet.registrations] + list(extra_rows)
+def expand(fleet, scenarios) -> Expansion | None:
+    """The cohorts of ``fleet.registrations``, or None when there are none."""
+    rows = [(f"Registrations!row {r['_row']}", r) for r in fleet.registrations]
     if not rows:
         return None
     acc = _Cohorts(base_year(scenarios), {v.vehicle_id: v for v in fleet.vehicles})

@@ -84,13 +84,3 @@ def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
             frame[k] = None
     return frame[list(KEYS) + ["count"]]
 
-
-def extract_rows(frame: pd.DataFrame) -> list[dict]:
-    """The aggregated extract as Registrations rows (blank cells as None)."""
-    rows = []
-    for record in frame.to_dict("records"):
-        row = {k: (None if (v is None or (isinstance(v, float) and np.isnan(v))) else v) for k, v in record.items()}
-        if row["model_year"] is not None:
-            row["model_year"] = int(row["model_year"])
-        rows.append(row)
-    return rows

@@ -103,11 +103,9 @@ def trend_mpg(name: str, model_years, future_rate: float | None = None) -> np.nd
     return np.where(model_years > years[-1], after, inside)
 
 
-def fuel_factor(fhwa_class: str, model_years, reference_year: float, future_rate: float | None = None) -> np.ndarray:
-    """Fuel per mile of each model year relative to the representing vehicle's model year:
+def fuel_factor(fhwa_class: str, model_years, reference_years, future_rate: float | None = None) -> np.ndarray:
+    """Fuel per mile of each model year relative to its representing vehicle's model year:
     mpg(reference) / mpg(model year) from the class's trend (1 without a trend)."""
     name = class_info(fhwa_class)["trend"]
-    mine = trend_mpg(name, model_years, future_rate)
-    ref = trend_mpg(name, [reference_year], future_rate)[0]
-    factor = ref / mine
+    factor = trend_mpg(name, reference_years, future_rate) / trend_mpg(name, model_years, future_rate)
     return np.where(np.isfinite(factor), factor, 1.0)

@@ -164,8 +164,7 @@ def render_summary(result: RunResult) -> str:
     fleet = result.fleet
     calibration = result.calibration if result.calibration is not None else None
     return _environment().get_template("summary.html.j2").render(
-        version=__version__, fleet_name=fleet.path.name, vehicle_types=f"{len(fleet.vehicles):,}",
-        vehicles=f"{sum(v.count for v in fleet.vehicles):,.0f}", created_utc=result.created_utc,
+        version=__version__, fleet_name=fleet.path.name, **_fleet_size(result), created_utc=result.created_utc,
         physics=physics_label(info), mode=result.mode, engine=engine, fingerprint=fleet.sha256,
         scenarios=_cards(result, totals), revenue_chart=revenue_chart, memo_groups=_memo_groups(result),
         memo_labels=list(MEMO_LABELS.values()), tornado=_tornado(result), class_columns=CLASS_TABLE_COLUMNS,
@@ -180,6 +179,18 @@ def render_summary(result: RunResult) -> str:
         changes=result.changes, change_lines=describe_changes(result.changes) if result.changes else [],
         **_turnover(result),
         sim_seconds=f"{result.timings_s.get('simulate', 0.0):.1f}")
+
+
+def _fleet_size(result: RunResult) -> dict:
+    """Vehicle types and vehicles: the Vehicles rows, plus the registration cohorts and the
+    registered vehicles (docs/registrations.md) when there are registrations."""
+    fleet = result.fleet
+    types, vehicles = len(fleet.vehicles), sum(v.count for v in fleet.vehicles)
+    if result.registrations is not None:
+        types = result.results["vehicle_id"].nunique()
+        registered = result.registrations[result.registrations["registration_row"] != "new sales"]
+        vehicles += float(registered["count"].sum())
+    return {"vehicle_types": f"{types:,}", "vehicles": f"{vehicles:,.0f}"}
 
 
 def _turnover(result: RunResult) -> dict:

@@ -13,10 +13,10 @@ import numpy as np
 
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
-from fleetrun.simulation import diffmodes
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
-                                      forward_redrive, idle_fuel_at_ambient_g_per_s, idle_fuel_rate_g_per_s,
-                                      max_tractive_force_table,
+from fleetrun.simulation import diffmodes, measured
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
+                                      standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
+                                      forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
@@ -107,7 +107,7 @@ def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
              physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None,
-             thermal: ThermalConstants | None = None) -> FleetCycleResult:
+             thermal: ThermalConstants | None = None, calibrate: bool = True) -> FleetCycleResult:
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
@@ -116,7 +116,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     Sec. 3.1.2), a composed cycle's (FTP's) cold start and the effects' cold start.
     ``effects``: physics the thesis left out (a ``--with`` string, or what
     ``fleetrun.effects.parse_with`` returns), per step on top of any mode. ``thermal``: the
-    cold-start constants (default ``models/thermal.toml``). See docs/simulation.md."""
+    cold-start constants (default ``models/thermal.toml``). ``calibrate``: apply measured figures. See docs/simulation.md."""
     vehicles = list(vehicles)
     if mode == "auto":
         mode = DEFAULT_MODE
@@ -169,11 +169,46 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if plan is not None and V:
         phases, composite, composite_totals = phase_results(plan, sums, va.density)
         totals.update(composite_totals)
-    return FleetCycleResult(
+    result = FleetCycleResult(
         vehicle_ids=[getattr(x, "vehicle_id", str(i)) for i, x in enumerate(vehicles)], cycle=name, mode=mode,
         **totals, duration_s=float(t[-1] - t[0]), effects=describe_effects(effects),
         trace=sums.trace if trace and V else None, phases=phases, composite=composite,
     )
+    return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir) if calibrate and V else result
+
+
+_NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
+
+
+def _nominal_mpg(vehicles, cycle, mode, physics, cache_dir) -> np.ndarray:
+    """Simulated mpg of ``vehicles`` on ``cycle`` at EPA's nominal 25 C, uncalibrated (remembered)."""
+    keys = [(v.physics_key(), cycle, mode, physics) for v in vehicles]
+    todo = [i for i, key in enumerate(keys) if key not in _NOMINAL_MPG]
+    if todo:
+        mpg = simulate([vehicles[i] for i in todo], cycle, mode=mode, physics=physics, cache_dir=cache_dir,
+                       ambient_temp_C=measured.NOMINAL_AMBIENT_C, calibrate=False).mpg
+        _NOMINAL_MPG.update({keys[i]: m for i, m in zip(todo, mpg)})
+    return np.array([_NOMINAL_MPG[key] for key in keys], float)
+
+
+def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambient_temp_C, mode, physics,
+                           cache_dir) -> FleetCycleResult:
+    """``result`` with the fuel of vehicles with a measured FTP or label figure scaled
+    (simulation/measured.py)."""
+    ftp, label = measured.measured_figures(vehicles)
+    rows = np.flatnonzero(np.isfinite(ftp) | np.isfinite(label))
+    if rows.size == 0:
+        return result
+    sub = [vehicles[i] for i in rows]
+    sim_ftp = _nominal_mpg(sub, "FTP", mode, physics, cache_dir)
+    sim_hwfet = (_nominal_mpg(sub, "HWFET", mode, physics, cache_dir) if np.isnan(ftp[rows]).any()
+                 else np.full(rows.size, np.nan))
+    k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet)
+    at_nominal = abs(ambient_temp_C - measured.NOMINAL_AMBIENT_C) < 1e-9
+    exact = at_nominal & ((cycle_name == "FTP") | ((cycle_name == "HWFET") & np.isnan(ftp[rows])))
+    factor = np.ones(len(vehicles))
+    factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
+    return measured.scale_result(result, factor)
 
 
 def _concatenate(parts: list[BlockSums]) -> BlockSums:
@@ -224,7 +259,12 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         fuel_g = (out.fuel_rate_g_per_s * dt).sum(axis=1)
         if columns is not None:
             standstill_s = dt_all.sum() - dt_all[columns].sum()
-            fuel_g = fuel_g + idle_fuel_at_ambient_g_per_s(va, solver.ambient) * standstill_s
+            if has_technology(va):   # start-stop: engine off at the warm stops
+                still = _still(N, columns)
+                rate = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])[0]
+                fuel_g = fuel_g + (with_climate_load(va, solver.ambient, rate) * dt_all[still]).sum(axis=1)
+            else:
+                fuel_g = fuel_g + idle_fuel_at_ambient_g_per_s(va, solver.ambient) * standstill_s
             if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
                 fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
         phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
@@ -324,6 +364,11 @@ def _every_step(va, t, columns, out, effects, plan):
         return out.fuel_rate_g_per_s.copy(), out.engine_speed_rpm.copy()
     rate = np.repeat(idle_fuel_at_ambient_g_per_s(va, plan.ambient_temp_C)[:, None], N, axis=1)
     rpm = np.repeat(va.n_idle[:, None], N, axis=1)
+    if has_technology(va):   # start-stop: engine off at the warm stops
+        still = _still(N, columns)
+        at_stop, off_still = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])
+        rate[:, still] = with_climate_load(va, plan.ambient_temp_C, at_stop)
+        rpm[:, still] = np.where(off_still, 0.0, rpm[:, still])
     if effects.vehicle:
         rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)
     rate[:, columns] = out.fuel_rate_g_per_s

@@ -28,10 +28,11 @@ from fleetrun.simulation import climate, diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
-                                        full_load_torque_Nm, motoring_torque_Nm)
+                                        full_load_torque_Nm, load_fraction, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.records import StepResults, Trace
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
+from fleetrun.simulation import technology as tech
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
 from fleetrun.units import RPM_PER_RAD_S
@@ -157,12 +158,99 @@ class DifferentialSolver:
 
 
 def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, fueled, inertial_power_W=0.0,
-                             col=lambda a: a):
-    """The fuel equation (engine.py) with each vehicle's constants; ``col`` shapes the (V,)
-    parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles x steps arrays)."""
+                             col=lambda a: a, moving=True):
+    """The fuel equation (engine.py) with each vehicle's constants and technology classes;
+    ``col`` shapes the (V,) parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles
+    x steps arrays)."""
+    pumping, gain = technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
     terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial_power_W)
+                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain)
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
+
+
+def has_technology(va: VehicleArrays) -> bool:
+    return va.technology is not None and bool(va.technology.any())
+
+
+def _flag(va: VehicleArrays, name: str) -> np.ndarray:
+    return va.technology[:, tech.TECHNOLOGIES.index(name)]
+
+
+def _rows_with(va: VehicleArrays, *names: str):
+    """Indices of the vehicles that have any of the technology classes ``names`` (a full slice
+    when all have: no copies)."""
+    rows = np.flatnonzero(np.logical_or.reduce([_flag(va, name) for name in names]))
+    return slice(None) if rows.size == va.n else rows
+
+
+def _any(rows) -> bool:
+    return isinstance(rows, slice) or rows.size > 0
+
+
+def _pick(va: VehicleArrays, a, rows):
+    """``a`` for the vehicles ``rows`` when it has one row per vehicle, else ``a`` (a shared row or scalar)."""
+    a = np.asarray(a)
+    return a[rows] if a.ndim and a.shape[0] == va.n else a
+
+
+def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
+    """The throttle-pumping share and brake-work multiplier of each vehicle's technology
+    classes (simulation/technology.py) for :func:`engine.fuel_power_terms_W`; (None, None)
+    when no vehicle has any. Each class is evaluated on its own vehicles' rows only."""
+    if not has_technology(va):
+        return None, None
+    c = tech.technology_constants()
+    load = load_fraction(torque_Nm, max_torque_Nm)
+    share = 1.0 - load
+    rows = _rows_with(va, "turbo")
+    if _any(rows):
+        share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]), c.na_bmep_kPa)
+    rows = _rows_with(va, "atkinson", "miller")
+    if _any(rows):
+        share[rows] = tech.atkinson_pumping_share(share[rows], c.pumping_retained)
+    rows = _rows_with(va, "cylinder_deactivation")
+    if _any(rows):
+        share[rows] = tech.deactivated_pumping_share(share[rows], load[rows], _pick(va, speed_rpm, rows),
+                                                     _pick(va, moving, rows), c.deac_max_load, c.deac_min_rpm,
+                                                     c.deac_max_rpm)
+    gain = np.ones(va.n)
+    for name, ratio in (("atkinson", c.compression_ratio_atkinson), ("miller", c.compression_ratio_miller)):
+        gain = np.where(_flag(va, name), tech.expansion_ratio_gain(ratio, c.compression_ratio_base, c.gamma), gain)
+    return share, col(gain)
+
+
+def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, engine_rpm, drive, wheel_power):
+    """Hybrids' assist (engine torque after the e-machine's share of the positive work) and the
+    steps with the engine off: start-stop at warm stops, hybrids also while coasting."""
+    c = tech.technology_constants()
+    hybrid = _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid")
+    torque = engine_torque
+    rows = _rows_with(va, "mild_hybrid_48v", "p2_hybrid")
+    if _any(rows):
+        motor_W = np.where(_flag(va, "p2_hybrid")[rows], c.motor_power_p2_W, c.motor_power_48v_W)
+        dt = _pick(va, k.dt, rows)
+        recovered = tech.recovered_braking_energy_J(_pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows),
+                                                    dt, motor_W, c.round_trip_efficiency)
+        own = engine_torque[rows]
+        positive = (np.maximum(own, 0.0) * engine_rpm[rows] / RPM_PER_RAD_S * dt).sum(axis=1)
+        keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
+        torque = engine_torque.copy()
+        torque[rows] = np.where(own > 0, own * keep[:, None], own)
+    stop_off = _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
+                                                                                 c.inhibit_after_cold_start_s)
+    coast_off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
+    return torque, stop_off, coast_off
+
+
+def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
+    """Fuel rate (V, n) at standstill at the times ``time_since_start_s`` (n,) and the
+    engine-off mask: idle fuel, or under start-stop (and hybrids) once warm the fitted stop power."""
+    c = tech.technology_constants()
+    stops = (_flag(va, "start_stop") | _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid"))[:, None]
+    off = stops & tech.engine_off_at_stop(np.zeros(np.shape(time_since_start_s), bool), time_since_start_s,
+                                          c.inhibit_after_cold_start_s)[None, :]
+    rate = np.where(off, c.stop_fuel_power_W / (va.lhv[:, None] * 1e3), idle_fuel_rate_g_per_s(va)[:, None])
+    return rate, off
 
 
 def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None):
@@ -377,12 +465,14 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
 
 
 def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, idling,
-           wheel_power):
+           wheel_power, drive=None):
     """Engine limits and fuel (engine.py): full load (steps above it are infeasible), motoring
     (engine braking; the rest is brakes), the fuel equation, idle fuel, fuel cut-off, and the
-    vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun.
+    vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun; ``drive``:
+    the driveline pulls (technology classes: hybrids' assist and engine off, start-stop).
 
-    Returns the full-load torque, the infeasible mask, the engine torque and the fuel rate.
+    Returns the full-load torque, the infeasible mask, the engine torque, the fuel rate and the
+    engine-off mask (None without technology classes).
     """
     idle = _col(va.n_idle)
     t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), idle,
@@ -396,22 +486,31 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     engine_torque = np.maximum(engine_torque, -t_offset)
     fueled = ~(overrun & (engine_rpm >= _col(va.fuel_cut_rpm)))
     inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
-    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col)
+    off = None
+    if has_technology(va):
+        engine_torque_fuel, stop_off, coast_off = technology_engine_state(
+            va, k, engine_torque_fuel, engine_rpm, engine_torque > 0 if drive is None else drive, wheel_power)
+        engine_torque = np.where(engine_torque > 0, engine_torque_fuel, engine_torque)
+        off = stop_off | coast_off
+    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving)
     idle_fuel = _col(va.idle_fuel_g_s)
     if np.isfinite(idle_fuel).any():
         np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
     if not k.all_moving:
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
+    if off is not None:   # engine off: no fuel; start-stop's stops cost the fitted average power
+        stop_W = tech.technology_constants().stop_fuel_power_W
+        fuel = np.where(off, np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
         fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va, k.since_start,
                                                             np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
                                                             burning), 0.0)
-    return t_max, infeasible, engine_torque, fuel
+    return t_max, infeasible, engine_torque, fuel, off
 
 
-def _with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
+def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
     """``fuel`` plus the A/C or cold-weather accessory load at the ambient temperature
     (fleetrun/simulation/climate.py) while the engine burns fuel; electric rows keep theirs."""
     power = climate.accessory_power_W(float(ambient_temp_C))
@@ -459,9 +558,11 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
     trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
     engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
-    t_max, infeasible, engine_torque, fuel = engine(va, k, effects, engine_rpm, engine_torque, unlocked & ~drive,
-                                                    wheel_power)
-    fuel = _with_climate_load(va, solver.ambient, fuel)
+    t_max, infeasible, engine_torque, fuel, off = engine(va, k, effects, engine_rpm, engine_torque,
+                                                         unlocked & ~drive, wheel_power, drive)
+    if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
+        engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
+    fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}
     if losses:

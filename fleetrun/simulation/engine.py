@@ -74,7 +74,7 @@ def load_fraction(torque_Nm, max_torque_Nm):
 
 
 def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stroke_m, peak_torque_Nm, throttled,
-                       inertial_power_W=0.0):
+                       inertial_power_W=0.0, pumping_share=None, brake_gain=None):
     """The eight terms of the fuel equation (module docstring), in the order of FUEL_TERMS.
 
     Parameters
@@ -85,6 +85,9 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     displacement_L, stroke_m, peak_torque_Nm : the engine's V_d, S and T_peak.
     throttled : bool, True for spark-ignition (gasoline) engines.
     inertial_power_W : m (1 + f_rot) a v of the vehicle (only its positive part counts).
+    pumping_share : the throttle-pumping share in place of (1 - L) (technology classes,
+        fleetrun/simulation/technology.py); None: (1 - L).
+    brake_gain : multiplier of the two brake-work terms (a higher expansion ratio); None: 1.
 
     Returns a list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
     x c_m [m/s], T_peak omega (the bmep_max term: f_pk bmep_max V_d omega / (4 pi) = f_pk T_peak
@@ -96,7 +99,9 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     brake_W = np.maximum(torque_Nm, 0.0) * omega
     load = load_fraction(torque_Nm, max_torque_Nm)
     mep = mep_power_W_per_kPa(n, displacement_L)
-    pumping_W = (1.0 - load) * mep * throttled
+    pumping_W = ((1.0 - load) if pumping_share is None else np.asarray(pumping_share, float)) * mep * throttled
+    if brake_gain is not None:       # technology classes: a higher expansion ratio
+        brake_W = brake_W * brake_gain
     brake_high_load_W = brake_W * load
     # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
     # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each

@@ -33,6 +33,7 @@ from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
 from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
+from fleetrun.simulation.technology import TECHNOLOGIES, parse_technology
 from fleetrun.simulation.tyre import rolling_radius_m
 from fleetrun.units import RAD_S_PER_RPM
 from fleetrun.vehicle import VehicleSpec
@@ -184,6 +185,7 @@ class VehicleArrays:
     fuel_cut_rpm: np.ndarray
     idle_fuel_g_s: np.ndarray       # NaN: from the Willans line
     fuel: list                      # "gasoline" / "diesel" (vehicle-level effects price extra work by it)
+    technology: np.ndarray | None = None   # (V, len(TECHNOLOGIES)) bool (simulation/technology.py)
     power_table: np.ndarray | None = None   # filled by the simulation on first use
     idle_fuel_rate: np.ndarray | None = None   # [g/s] idem (simulation.core.idle_fuel_rate_g_per_s)
 
@@ -313,7 +315,17 @@ def _row(v: VehicleSpec) -> dict:
         cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
         idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
         fuel=v.fuel,
+        technology=_technology(v),
     )
+
+
+def _technology(v: VehicleSpec) -> tuple[bool, ...]:
+    """The ``technology`` column as flags (simulation/technology.py); errors name the vehicle."""
+    try:
+        return parse_technology(column_value(v, "technology"))
+    except FleetrunError as exc:
+        raise InputError(f"vehicle '{v.vehicle_id}': {exc.message}", column="technology",
+                         value=column_value(v, "technology"), hint=exc.hint) from None
 
 
 _NUMBERS = ("mass", "rot", "radius", "fd", "low", "kim", "stall_TR", "stall_rpm", "lockup", "launch", "T_peak", "P",
@@ -352,6 +364,7 @@ def _gather(rows: list) -> VehicleArrays:
         fuel_constants=np.array([r["fuel_constants"] for r in rows], float).reshape(V, len(FUEL_CONSTANTS)),
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
+        technology=np.array([r["technology"] for r in rows], bool).reshape(V, len(TECHNOLOGIES)),
     )
 
 

@@ -123,6 +123,13 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
     Column("cylinders", "integer", False, "number of engine cylinders", minimum=1, maximum=24),
     Column("nv_ratio_rpm_per_mph", "number", False, "engine rpm per mph in top gear (EPA N/V)",
            minimum=5, maximum=300),
+    # Light-duty fuel economy (docs/simulation.md "Technology"): technology classes and one measured number
+    Column("technology", "text", False, "comma list: start_stop, mild_hybrid_48v, p2_hybrid, atkinson, miller, "
+           "cylinder_deactivation, turbo"),
+    Column("measured_ftp_mpg", "number", False, "this vehicle's measured FTP composite [mpg, unadjusted]: "
+           "calibrates its efficiency", minimum=3, maximum=200),
+    Column("label_combined_mpg", "number", False, "its EPA label combined [mpg], used when no measured FTP",
+           minimum=3, maximum=200),
 )
 
 # cycle_mix_MD / cycle_mix_HD go beyond CONTRACT.md: heavy trucks cannot follow light-duty

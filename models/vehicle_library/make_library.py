@@ -1,6 +1,9 @@
 """Write ``models/vehicle_library/library.toml``: the vehicles fleetrun picks for registrations.
 
-    python models/vehicle_library/make_library.py
+    python models/vehicle_library/make_library.py OMEGA_VEHICLES_CSV
+
+(OMEGA_VEHICLES_CSV: ``omega_model/test_inputs/vehicles.csv`` of the EPA OMEGA repository at the
+commit below, e.g. ``git show 050975ea:omega_model/test_inputs/vehicles.csv > vehicles.csv``.)
 
 Light duty: the example fleet's EPA 2022 Test Car List rows (``inputs/make_example_fleet.py``:
 the list's road load, weight and axle ratio with published torque, gear sets and tyres) and one
@@ -121,4 +124,6 @@ def main(omega_csv: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "/tmp/h19_omega_vehicles.csv")
+    if len(sys.argv) != 2:
+        raise SystemExit(__doc__)
+    main(sys.argv[1])

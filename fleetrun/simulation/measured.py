@@ -1,0 +1,74 @@
+"""One measured number per vehicle: the optional Vehicles columns ``measured_ftp_mpg`` (the
+vehicle's measured FTP composite, unadjusted) or ``label_combined_mpg`` (its EPA label
+combined figure) calibrate its efficiency (docs/simulation.md "One measured number").
+
+The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
+nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
+600.210-12, city 1/mpg = 0.003259 + 1.1805/mpg_FTP, highway 1/mpg = 0.001376 + 1.3466/mpg_HWFET,
+combined 55 % city, 45 % highway; the formulas' constants are models/budget.toml's). On that test the fuel is multiplied by k exactly; on every
+other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
+one global constant fitted with manufacturers held out (validation/epa_technology.py).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from fleetrun.resources import model_file
+
+NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
+LABEL_CITY_SHARE = 0.55   # the label's combined figure: 55 % city, 45 % highway (40 CFR 600.210-12(c))
+FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
+
+
+def transfer_share() -> float:
+    """The share (in log) of a vehicle's calibration carried to other cycles (models/technology.toml)."""
+    return float(model_file("technology.toml")["fitted"]["transfer_share"])
+
+
+def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
+    """(measured FTP, label combined) mpg per vehicle, NaN where blank."""
+    def column(name):
+        return np.array([np.nan if getattr(v, name, None) is None else float(getattr(v, name)) for v in vehicles])
+    return column("measured_ftp_mpg"), column("label_combined_mpg")
+
+
+def label_formulas() -> tuple[tuple[float, float], tuple[float, float]]:
+    """(intercept [gal/mi], slope) of EPA's city and highway label formulas (their owner:
+    models/budget.toml [onroad.epa_label])."""
+    label = model_file("budget.toml")["onroad"]["epa_label"]
+    return tuple((label[kind]["intercept_gal_per_mile"], label[kind]["slope"]) for kind in ("city", "highway"))
+
+
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
+    """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
+    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k."""
+    city, highway = label_formulas()
+    a = LABEL_CITY_SHARE * city[0] + (1 - LABEL_CITY_SHARE) * highway[0]
+    b = LABEL_CITY_SHARE * city[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * highway[1] / hwfet_mpg
+    return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
+
+
+def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg):
+    """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
+    from the label; NaN where neither figure is given."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
+        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg))
+
+
+def carried_scale(k, exact, share):
+    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere."""
+    k = np.asarray(k, float)
+    return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
+
+
+def scale_result(result, factor):
+    """A FleetCycleResult with its fuel (totals, phases, trace fuel rate) multiplied by ``factor`` (V,)."""
+    phases = {name: replace(p, fuel_g=p.fuel_g * factor, fuel_gal=p.fuel_gal * factor, mpg=p.mpg / factor)
+              for name, p in result.phases.items()}
+    trace = (None if result.trace is None else
+             replace(result.trace, fuel_rate_g_per_s=result.trace.fuel_rate_g_per_s * factor[:, None]))
+    return replace(result, fuel_g=result.fuel_g * factor, fuel_gal=result.fuel_gal * factor, mpg=result.mpg / factor,
+                   phases=phases, trace=trace)

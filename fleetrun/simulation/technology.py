@@ -1,0 +1,132 @@
+"""Engine and powertrain technology classes as physics (the Vehicles column ``technology``).
+
+Each class is a named model function; constants in ``models/technology.toml`` (docs/simulation.md
+"Technology"):
+
+- ``start_stop``: engine off at standstill once warm (:func:`engine_off_at_stop`);
+- ``mild_hybrid_48v``, ``p2_hybrid``: regenerative braking to a small battery, the recovered
+  energy returned as assist, engine off while coasting (:func:`recovered_braking_energy_J`,
+  :func:`assist_share`, :func:`engine_off_coasting`); both also stop the engine at standstill;
+- ``atkinson``, ``miller``: late intake-valve closing and a higher expansion ratio
+  (:func:`atkinson_pumping_share`, :func:`expansion_ratio_gain`);
+- ``cylinder_deactivation``: half the cylinders off at light load (:func:`deactivated_pumping_share`);
+- ``turbo``: boosted engine unthrottled above the naturally aspirated bmep (:func:`boosted_pumping_share`).
+
+The pumping functions give the throttle-pumping share that replaces (1 - L) in the fuel
+equation (fleetrun/simulation/engine.py): PMEP = p_th x share.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from fleetrun.errors import unknown_name_error
+from fleetrun.resources import model_file
+
+TECHNOLOGIES = ("start_stop", "mild_hybrid_48v", "p2_hybrid", "atkinson", "miller", "cylinder_deactivation", "turbo")
+HYBRIDS = ("mild_hybrid_48v", "p2_hybrid")
+NONE = "none"
+
+
+def parse_technology(text) -> tuple[bool, ...]:
+    """A ``technology`` cell (comma list, blank or ``none``) -> one flag per TECHNOLOGIES name."""
+    if text is None or (isinstance(text, float) and np.isnan(text)):
+        return (False,) * len(TECHNOLOGIES)
+    names = {t.strip().lower().replace("-", "_").replace(" ", "_") for t in str(text).split(",")} - {"", NONE}
+    for name in names:
+        if name not in TECHNOLOGIES:
+            raise unknown_name_error("technology", name, TECHNOLOGIES + (NONE,),
+                                     hint="Write a comma list of these names, or leave the cell blank")
+    return tuple(t in names for t in TECHNOLOGIES)
+
+
+@dataclass(frozen=True)
+class TechnologyConstants:
+    inhibit_after_cold_start_s: float
+    round_trip_efficiency: float
+    motor_power_48v_W: float
+    motor_power_p2_W: float
+    max_assist_share: float
+    pumping_retained: float
+    compression_ratio_base: float
+    compression_ratio_atkinson: float
+    compression_ratio_miller: float
+    gamma: float
+    deac_max_load: float
+    deac_min_rpm: float
+    deac_max_rpm: float
+    na_bmep_kPa: float
+    stop_fuel_power_W: float
+
+
+@lru_cache(maxsize=1)
+def technology_constants() -> TechnologyConstants:
+    """models/technology.toml as :class:`TechnologyConstants`."""
+    m = model_file("technology.toml")
+    h, a, d = m["hybrid"], m["atkinson"], m["cylinder_deactivation"]
+    return TechnologyConstants(
+        m["start_stop"]["inhibit_after_cold_start_s"], h["round_trip_efficiency"],
+        1e3 * h["motor_power_kW"]["mild_hybrid_48v"], 1e3 * h["motor_power_kW"]["p2_hybrid"], h["max_assist_share"],
+        a["pumping_retained"], a["compression_ratio_base"], a["compression_ratio"]["atkinson"],
+        a["compression_ratio"]["miller"], a["gamma"], d["max_load"], d["min_rpm"],
+        d["max_rpm"], m["turbo"]["na_bmep_kPa"], m["fitted"]["stop_fuel_power_W"])
+
+
+def otto_efficiency(compression_ratio, gamma):
+    """Ideal Otto-cycle efficiency 1 - r^(1 - gamma) (Heywood 1988, Eq. 5.31)."""
+    return 1.0 - np.asarray(compression_ratio, float) ** (1.0 - gamma)
+
+
+def expansion_ratio_gain(compression_ratio, compression_ratio_base, gamma):
+    """Brake-work multiplier of the Willans line for a higher expansion ratio: eta_otto(base) /
+    eta_otto(r) (< 1: less fuel per unit of brake work)."""
+    return otto_efficiency(compression_ratio_base, gamma) / otto_efficiency(compression_ratio, gamma)
+
+
+def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa):
+    """Throttle-pumping share of a boosted engine: 1 - bmep / bmep_NA, 0 above (unthrottled).
+
+    bmep = 4 pi T / V_d (Heywood 1988, Eq. 2.19) [kPa with V_d in L]."""
+    bmep_kPa = np.maximum(torque_Nm, 0.0) * (4.0 * np.pi) / np.asarray(displacement_L, float)
+    return np.clip(1.0 - bmep_kPa / na_bmep_kPa, 0.0, 1.0)
+
+
+def atkinson_pumping_share(share, pumping_retained):
+    """Late intake-valve closing: the pumping share kept (``pumping_retained`` of it)."""
+    return share * pumping_retained
+
+
+def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm, max_rpm):
+    """Half the cylinders at twice the load: pumping of load 2L on half the displacement,
+    0.5 max(1 - 2L, 0) in place of (1 - L) inside the window (load < ``max_load``, engine
+    speed within [min_rpm, max_rpm], moving); ``share`` outside it."""
+    window = moving & (load < max_load) & (speed_rpm >= min_rpm) & (speed_rpm <= max_rpm)
+    return np.where(window, 0.5 * np.maximum(1.0 - 2.0 * load, 0.0), share)
+
+
+def engine_off_at_stop(moving, time_since_start_s, inhibit_s):
+    """Steps with the engine off under start-stop: at standstill once ``inhibit_s`` have passed
+    since the (cold) start."""
+    return ~moving & (time_since_start_s >= inhibit_s)
+
+
+def engine_off_coasting(moving, drive):
+    """Hybrids: the engine is off (or decoupled and unfuelled) while moving without drive demand."""
+    return moving & ~drive
+
+
+def recovered_braking_energy_J(wheel_power_W, dt_s, motor_power_W, round_trip_efficiency):
+    """Energy [J] per vehicle a hybrid returns from braking: sum of min(-P_wheel, P_motor) dt
+    over braking steps, times the round-trip efficiency (machine, inverter, battery, both ways)."""
+    braking = np.clip(-np.asarray(wheel_power_W, float), 0.0, np.asarray(motor_power_W, float)[:, None])
+    return round_trip_efficiency * (braking * dt_s).sum(axis=1)
+
+
+def assist_share(recovered_J, positive_engine_work_J, max_share):
+    """Share of the engine's positive work the e-machine supplies from recovered energy
+    (charge sustaining over the cycle), at most ``max_share``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(positive_engine_work_J > 0, recovered_J / positive_engine_work_J, 0.0)
+    return np.clip(share, 0.0, max_share)

@@ -1,0 +1,303 @@
+"""Light-duty fuel economy with the information that exists, on the EPA 2022 Test Car List,
+held out by manufacturer (docs/validation-epa.md "Technology, one measured number, bias"):
+
+    PYTHONPATH=. python validation/epa_technology.py [--write] [--subset N]
+
+Side by side, on the same vehicles (those that join to EPA's OMEGA vehicles and those that
+do not; fleetrun/epa/technology.py):
+
+1. physics only: every vehicle simulated without its technology classes, the fuel-equation
+   constants fitted held out (validation/epa_fuel_economy.py);
+2. physics + technology: the classes of the join as physics (fleetrun/simulation/technology.py),
+   the constants and the start-stop stop power fitted held out;
+3. drive-mode pairs: configurations of one test vehicle with identical rows are one vehicle
+   driven in two modes; its measured value per test is their label-style (harmonic) mean;
+4. + one measured number: each vehicle's measured FTP composite calibrates its efficiency
+   (FTP exact), and the share ``transfer_share`` of that correction (in log) carries to the
+   other cycles: one global constant, fitted with manufacturers held out;
+5. the fleet-level bias in total gallons (55 % FTP / 45 % HWFET per vehicle, equal miles),
+   estimated without each manufacturer and removed from its predictions; random
+   100-vehicle fleets.
+
+``--write``: models/technology.toml [fitted] transfer_share (the stop power: epa_fuel_economy.py --write) and
+models/fuel_economy_bias.toml.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import epa_fuel_economy as efe  # noqa: E402
+from epa_alpha import alpha_table  # noqa: E402
+from epa_table import epa_fleet  # noqa: E402
+
+from fleetrun.epa.technology import match_configuration  # noqa: E402
+
+TESTS = ("FTP", "HWFET", "US06")
+STOP_COLUMN = "X_stop_off_time"
+CITY_SHARE = 0.55          # EPA's city / highway weighting of the combined figure (40 CFR 600.210)
+FLEET_SIZE, FLEET_DRAWS = 100, 2000
+
+
+def test_vehicle_of(vehicle_id: str) -> str:
+    """``<Test Vehicle ID>_c<configuration>`` -> the test vehicle id."""
+    return re.sub(r"_c\d+$", "", vehicle_id)
+
+
+def drive_mode_groups(specs) -> np.ndarray:
+    """Representative index per vehicle: configurations of one test vehicle whose rows are equal
+    in everything but the id (the simulation cannot tell them apart) form one group."""
+    first: dict = {}
+    rep = np.arange(len(specs))
+    for i, v in enumerate(specs):
+        key = (test_vehicle_of(v.vehicle_id), v.physics_key())
+        rep[i] = first.setdefault(key, i)
+    return rep
+
+
+def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
+    """The table with each group's measured mpg replaced by the harmonic mean of its members'
+    (the label-style average: mean fuel per mile), rows of non-representatives kept (dropped later)."""
+    out = table.copy()
+    tests = [c for c in table.columns if c in efe.REPORTED or c.startswith("FTP:") or c == "UDDS:hot"]
+    for t in tests:
+        gpm = (1.0 / table[t]).groupby(rep).transform("mean")   # NaN members skipped
+        out[t] = 1.0 / gpm
+    return out
+
+
+def heldout_errors(d, table, keep, extra=()):
+    """Held-out relative errors (vehicles x tests) of the vehicles ``keep``, the fits per fold."""
+    d = d[d.vehicle.isin(np.flatnonzero(keep))]
+    pred, folds = efe.held_out(d, table.iloc[np.flatnonzero(keep)].set_index(pd.Index(np.flatnonzero(keep))),
+                               extra=extra)
+    err = pd.DataFrame({t: pred[t] / table[t].to_numpy()[pred.index] - 1.0 for t in pred.columns})
+    return err, pred, folds
+
+
+def fit_transfer_share(err, manufacturer):
+    """Per held-out manufacturer: sigma fitted on the others, log(1 + e_t) ~ sigma log(1 + e_FTP)
+    over HWFET and US06; returns sigma per vehicle (its fold's) and the fold values."""
+    a = np.log1p(err[["HWFET", "US06"]].to_numpy())
+    b = np.log1p(err["FTP"].to_numpy())[:, None] * np.ones((1, 2))
+    ok = np.isfinite(a) & np.isfinite(b)
+    sigma, folds = np.full(len(err), np.nan), {}
+    for g in np.unique(manufacturer):
+        other = (manufacturer != g)[:, None] & ok
+        folds[g] = float((a * b)[other].sum() / (b * b)[other].sum())
+        sigma[manufacturer == g] = folds[g]
+    return sigma, folds
+
+
+def transfer_share_all(err) -> float:
+    """sigma fitted on every vehicle (the value stored in models/technology.toml)."""
+    a = np.log1p(err[["HWFET", "US06"]].to_numpy())
+    b = np.log1p(err["FTP"].to_numpy())[:, None] * np.ones((1, 2))
+    ok = np.isfinite(a) & np.isfinite(b)
+    return float((a * b)[ok].sum() / (b * b)[ok].sum())
+
+
+def one_number(err, sigma):
+    """Errors after calibrating each vehicle on its measured FTP: FTP exact, the other tests'
+    mpg divided by (1 + e_FTP)^sigma."""
+    out = err.copy()
+    scale = (1.0 + err["FTP"]) ** sigma
+    for t in err.columns:
+        out[t] = 0.0 if t == "FTP" else (1.0 + err[t]) / scale - 1.0
+    out.loc[err["FTP"].isna(), :] = np.nan
+    return out
+
+
+def gallons(err, table, index):
+    """Predicted and measured gallons per mile (55 % FTP, 45 % HWFET) of the vehicles ``index``
+    that have both."""
+    meas = CITY_SHARE / table["FTP"].to_numpy()[index] + (1 - CITY_SHARE) / table["HWFET"].to_numpy()[index]
+    pred = (CITY_SHARE / (table["FTP"].to_numpy()[index] * (1 + err["FTP"].to_numpy()))
+            + (1 - CITY_SHARE) / (table["HWFET"].to_numpy()[index] * (1 + err["HWFET"].to_numpy())))
+    ok = np.isfinite(meas) & np.isfinite(pred)
+    return pred[ok], meas[ok], np.asarray(index)[ok]
+
+
+def bias_report(err, table, seed=20221):
+    """Total gallons error of the whole list, the same with the bias estimated without each
+    manufacturer removed, and the 5-95 % range of random 100-vehicle fleets (both)."""
+    pred, meas, idx = gallons(err, table, err.index.to_numpy())
+    mf = table.manufacturer.to_numpy()[idx]
+    corrected = pred.copy()
+    factors = {}
+    for g in np.unique(mf):
+        o = mf != g
+        factors[g] = meas[o].sum() / pred[o].sum()
+        corrected[mf == g] *= factors[g]
+    rng = np.random.default_rng(seed)
+    draws = np.array([rng.choice(len(pred), FLEET_SIZE, replace=False) for _ in range(FLEET_DRAWS)])
+    fleets = pred[draws].sum(1) / meas[draws].sum(1) - 1.0
+    fleets_c = corrected[draws].sum(1) / meas[draws].sum(1) - 1.0
+    return dict(n=len(pred), total=pred.sum() / meas.sum() - 1.0, total_corrected=corrected.sum() / meas.sum() - 1.0,
+                bias_all=pred.sum() / meas.sum() - 1.0, fold_factors=factors,
+                fleets=(np.quantile(fleets, 0.05), np.quantile(fleets, 0.95)),
+                fleets_corrected=(np.quantile(fleets_c, 0.05), np.quantile(fleets_c, 0.95)))
+
+
+def line(label, err, rows=None):
+    e = err if rows is None else err.loc[err.index.intersection(rows)]
+    cells = []
+    for t in TESTS:
+        x = e[t].dropna().to_numpy()
+        cells.append(f"{t} n={x.size} mean {x.mean():+.1%} med|e| {np.median(np.abs(x)):.1%} "
+                     f"within 5 % {np.mean(np.abs(x) <= 0.05):.1%}" if x.size else f"{t} n=0")
+    return f"{label:44s} | " + " | ".join(cells)
+
+
+def datasets(specs, table):
+    """(physics only, physics + technology) datasets (validation/epa_fuel_economy.build_dataset)."""
+    bare = [dataclasses.replace(v, technology=None) for v in specs]
+    return efe.build_dataset(bare, table), efe.build_dataset(specs, table)
+
+
+def omega_classes(specs) -> list[str]:
+    """Each vehicle's OMEGA class by the import's join ('' when it does not join)."""
+    return [match_configuration(v.manufacturer, v.engine_displacement_L, v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph,
+                                v.coastdown_C_lbf_per_mph2).cost_curve_class for v in specs]
+
+
+def alpha_errors(specs, table, index):
+    """ALPHA's errors (vehicles ``index`` x tests) as published, and with its mean log error per
+    test estimated without each manufacturer removed (its CO2-to-mpg conversion and test-fuel
+    differences are one constant per test)."""
+    a = alpha_table([specs[i] for i in index], omega_classes([specs[i] for i in index]))
+    raw = pd.DataFrame({t: a[t].to_numpy() / table[t].to_numpy()[index] - 1.0 for t in TESTS}, index=index)
+    mf = table.manufacturer.to_numpy()[index]
+    scaled = raw.copy()
+    for t in TESTS:
+        log = np.log1p(raw[t].to_numpy())
+        for g in np.unique(mf):
+            other = (mf != g) & np.isfinite(log)
+            scaled.loc[mf == g, t] = np.expm1(log[mf == g] - log[other].mean())
+    return raw, scaled
+
+
+def blend(err_a, err_b):
+    """Geometric mean of two predictions' mpg (equal weights, nothing fitted)."""
+    common = err_a.index.intersection(err_b.index)
+    return pd.DataFrame({t: np.expm1(0.5 * (np.log1p(err_a.loc[common, t]) + np.log1p(err_b.loc[common, t])))
+                         for t in TESTS}, index=common)
+
+
+def run(specs, table):
+    joined = np.array([v.technology is not None for v in specs])
+    rep = drive_mode_groups(specs)
+    everyone = np.ones(len(specs), bool)
+    single = rep == np.arange(len(specs))
+    paired = pair_targets(table, rep)
+    d0, d1 = datasets(specs, table)
+    r = {}
+    r["physics"], _, _ = heldout_errors(d0, table, everyone)
+    r["technology"], _, r["folds"] = heldout_errors(d1, table, everyone, extra=(STOP_COLUMN,))
+    d1p = d1.copy()
+    d1p["measured_mpg"] = [paired[t].to_numpy()[v] for t, v in zip(d1p.test, d1p.vehicle)]
+    d1p["measured_fuel_g"] = d1p.miles / d1p.measured_mpg * efe.GAL_L * d1p.rho * 1000.0
+    r["pairs"], _, r["folds_pairs"] = heldout_errors(d1p, paired, single, extra=(STOP_COLUMN,))
+    d0p = d0.assign(measured_mpg=d1p.measured_mpg.to_numpy(), measured_fuel_g=d1p.measured_fuel_g.to_numpy())
+    r["physics_pairs"], _, _ = heldout_errors(d0p, paired, single)
+    mf = table.manufacturer.to_numpy()
+    sigma, r["sigma_folds"] = fit_transfer_share(r["pairs"], mf[r["pairs"].index])
+    r["one_number"] = one_number(r["pairs"], sigma)
+    r["sigma_all"] = transfer_share_all(r["pairs"])
+    r["full_transfer"] = one_number(r["pairs"], np.ones(len(r["pairs"])))
+    r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=(STOP_COLUMN,))
+    r.update(joined=np.flatnonzero(joined), unjoined=np.flatnonzero(~joined), paired_table=paired, single=single)
+    alpha_rows = r["pairs"].index.intersection(r["joined"])
+    r["alpha"], r["alpha_scaled"] = alpha_errors(specs, paired, alpha_rows.to_numpy())
+    r["blend"] = blend(r["pairs"], r["alpha_scaled"])
+    s_b, _ = fit_transfer_share(r["blend"], mf[r["blend"].index])
+    r["blend_one_number"] = one_number(r["blend"], s_b)
+    return r
+
+
+def report(r, table):
+    lines = []
+    for name, key in (("physics only", "physics"), ("physics + technology", "technology"),
+                      ("physics only, drive-mode pairs", "physics_pairs"),
+                      ("physics + technology, drive-mode pairs", "pairs"),
+                      ("+ one measured FTP (transfer share fitted)", "one_number"),
+                      ("+ one measured FTP (full transfer)", "full_transfer")):
+        for rows_name in ("joined", "unjoined", None):
+            rows = None if rows_name is None else r[rows_name]
+            lines.append(line(f"{name} [{rows_name or 'all'}]", r[key], rows))
+    for name, key in (("ALPHA surfaces as published", "alpha"), ("ALPHA, mean error removed held out", "alpha_scaled"),
+                      ("fleetrun + ALPHA geometric mean", "blend"), ("  + one measured FTP", "blend_one_number")):
+        lines.append(line(f"{name} [joined]", r[key]))
+    a, f = r["alpha_scaled"], r["pairs"].loc[r["alpha_scaled"].index]
+    lines.append("correlation of fleetrun and ALPHA errors (joined): " + ", ".join(
+        f"{t} {np.corrcoef(*[x[t].to_numpy()[np.isfinite(x[t]) & np.isfinite(y[t])] for x, y in ((a, f), (f, a))])[0, 1]:.2f}"
+        for t in TESTS))
+    s = np.array(list(r["sigma_folds"].values()))
+    lines.append(f"transfer share: all {r['sigma_all']:.3f}; folds {s.min():.3f}-{s.max():.3f}")
+    stop = [f["gasoline"][-1] for f in r["folds"].values()]
+    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][-1]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
+    for key in ("physics_pairs", "pairs", "one_number"):
+        b = bias_report(r[key], r["paired_table"])
+        lines.append(f"gallons [{key}]: n={b['n']} whole list {b['total']:+.2%}, bias removed held out "
+                     f"{b['total_corrected']:+.2%}; 100-vehicle fleets 5-95 % {b['fleets'][0]:+.2%}..{b['fleets'][1]:+.2%}, "
+                     f"bias removed {b['fleets_corrected'][0]:+.2%}..{b['fleets_corrected'][1]:+.2%}")
+        r[f"bias_{key}"] = b
+    return lines
+
+
+def write_models(r):
+    """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
+    and models/fuel_economy_bias.toml."""
+    path = ROOT / "models" / "technology.toml"
+    path.write_text(re.sub(r"transfer_share = [0-9.eE+-]+", f"transfer_share = {r['sigma_all']:.3f}", path.read_text()))
+    b = r["bias_pairs"]
+    f = np.array([v - 1.0 for v in b["fold_factors"].values()])
+    (ROOT / "models" / "fuel_economy_bias.toml").write_text("\n".join([
+        "# Fleet-level bias of the light-duty fuel model (physics + technology), total gallons of the EPA 2022",
+        "# Test Car List (55 % FTP / 45 % HWFET per vehicle, equal miles), manufacturers held out.",
+        "# Written by validation/epa_technology.py --write; docs/validation-epa.md. The budget's error model",
+        "# reads `gallons_bias`: predicted / measured total gallons - 1 (remove: divide by 1 + gallons_bias).",
+        'source = "validation/epa_technology.py: EPA 2022 Test Car List, held out by manufacturer"',
+        f'measured_on = "{datetime.date.today().isoformat()}"',
+        f"n_vehicles = {b['n']}",
+        f"gallons_bias = {b['bias_all']:.5f}",
+        f"fold_correction_min = {f.min():.5f}",
+        f"fold_correction_max = {f.max():.5f}",
+        f"after_removal_whole_list = {b['total_corrected']:.5f}",
+        f"fleets_100_p05 = {b['fleets_corrected'][0]:.5f}",
+        f"fleets_100_p95 = {b['fleets_corrected'][1]:.5f}", ""]))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
+    ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
+    args = ap.parse_args(argv)
+    specs, table = epa_fleet()
+    if args.subset:
+        keep = np.arange(0, len(specs), args.subset)
+        specs, table = [specs[i] for i in keep], table.iloc[keep].reset_index(drop=True)
+    r = run(specs, table)
+    print(f"{len(specs)} vehicles, {len(r['joined'])} joined to OMEGA; {int((~r['single']).sum())} drive-mode "
+          f"duplicates merged into their pair", flush=True)
+    for text in report(r, table):
+        print(text, flush=True)
+    if args.write:
+        write_models(r)
+    return r
+
+
+if __name__ == "__main__":
+    main()
