@@ -34,8 +34,10 @@ def test_stored_constants_are_the_fit_of_the_stored_errors(heldout):
     fitted = fit_constants(heldout)
     for key in ("bias", "tau", "sigma"):
         assert stored[key] == pytest.approx(fitted[key], abs=1e-5), key
-    # the whole list's total gallons: +1.3 % (measured / predicted - 1), the known bias
-    assert 0.010 < fitted["bias"] < 0.015
+    # the whole list's total gallons (measured / predicted - 1), the known bias: +0.4 % with the
+    # technology classes (+1.3 % before them); the light-duty work's own held-out figure,
+    # models/fuel_economy_bias.toml, is +0.34 % (gallons_bias -0.341 %)
+    assert 0.002 < fitted["bias"] < 0.007
 
 
 def test_ranges_cover_85_to_95_percent_of_random_fleets(table):
