@@ -181,6 +181,7 @@ def test_heavy_duty_error_file_of_per_test_distributions(tmp_path, monkeypatch):
     """models/heavy_duty/fuel_economy_error.toml in the heavy-duty validation's format: no
     centre correction, one shared sd = RMS over tests of sqrt(mean^2 + ((p95 - p05)/3.29)^2)."""
     import shutil
+    import tomllib
 
     from fleetrun.budget import uncertainty
 
@@ -197,4 +198,6 @@ def test_heavy_duty_error_file_of_per_test_distributions(tmp_path, monkeypatch):
     sd_b = math.hypot(0.01, 0.08 / 3.2897072539029444)
     assert heavy.bias == 0.0 and heavy.tau == pytest.approx(math.sqrt((sd_a ** 2 + sd_b ** 2) / 2), rel=1e-12)
     assert heavy.relative_sd([1.0, 1.0]) == pytest.approx(heavy.tau, rel=1e-12)    # shared: no averaging
-    assert model.for_duty("LD").tau == pytest.approx(0.0347, abs=1e-3) and not model.warnings
+    # light duty keeps its own constants (models/fleet_error.toml); no fallback warning
+    light = tomllib.loads((models / "fleet_error.toml").read_text())["LD"]
+    assert model.for_duty("LD").tau == light["tau"] and not model.warnings
