@@ -110,7 +110,7 @@ SCENARIOS = [
     ("baseline", "Average year: mixed urban, highway and aggressive driving at 20 C", 20,
      "UDDS:0.43,HWFET:0.42,US06:0.10,NYCC:0.05",
      "HD-UDDS:0.5,NYCC:0.1,HWFET:0.4", "HD-UDDS:0.55,HWFET:0.45"),
-    ("hot_summer", "Hot summer: 38 C ambient (warmer axle oil; A/C load not modelled), more highway driving", 38,
+    ("hot_summer", "Hot summer: 38 C ambient (A/C load, warmer axle oil), more highway driving", 38,
      "UDDS:0.38,HWFET:0.44,US06:0.13,NYCC:0.05",
      "HD-UDDS:0.45,NYCC:0.1,HWFET:0.45", "HD-UDDS:0.5,HWFET:0.5"),
     ("congested_urban", "Congested urban growth: more stop-and-go", 25,

@@ -17,6 +17,7 @@ ADDITIVE = {"miles": "miles_total", "fuel_gal": "fuel_gal_total", "fuel_gal_low"
             "fuel_gal_high": "fuel_gal_high_total", "state_tax_usd": "state_tax_usd",
             "federal_tax_usd": "federal_tax_usd"}
 CO2_G_PER_GAL = {"gasoline": 8887.0, "diesel": 10180.0}   # EPA-420-F-11-041 (2011)
+FIXTURE_BIAS = 0.02     # tests/data/fleet_error_fixture.toml: the centre is model x (1 + bias)
 
 
 def run_to(tmp_path, path, **injected):
@@ -58,7 +59,8 @@ def test_first_fiscal_year_labels_the_years_and_growth_splits_them(tmp_path):
 def test_onroad_none_and_factor(tmp_path, setting, factor):
     path = write_fleet(tmp_path / "f.xlsx", [vehicle("A")], [scenario("s", onroad_adjustment=setting)])
     row = read_csv(run_to(tmp_path, path) / "results.csv").iloc[0]
-    assert row.fuel_gal_total == pytest.approx(factor * row.fuel_gal_cycle_total, rel=1e-14)
+    # the known fleet bias is corrected in the centre: x (1 + bias) on top of the setting
+    assert row.fuel_gal_total == pytest.approx(factor * (1 + FIXTURE_BIAS) * row.fuel_gal_cycle_total, rel=1e-14)
 
 
 def test_epa_label_leaves_heavy_trucks_at_cycle_fuel(tmp_path):
@@ -66,32 +68,46 @@ def test_epa_label_leaves_heavy_trucks_at_cycle_fuel(tmp_path):
     results = read_csv(out / "results.csv")
     hd = results[results.duty_class == "HD"]
     ld = results[(results.duty_class == "LD") & (results.miles_total > 0)]
-    assert (hd.fuel_gal_total == hd.fuel_gal_cycle_total).all()
+    # no label formula for heavy trucks: cycle fuel, with only the bias correction (the fixture
+    # has no heavy-duty constants, so the light-duty ones stand in)
+    assert hd.fuel_gal_total.to_numpy() == pytest.approx((1 + FIXTURE_BIAS) * hd.fuel_gal_cycle_total.to_numpy(),
+                                                         rel=1e-14)
     # light duty: 1.18-1.35 x cycle fuel plus the intercept, so always more than the cycle
     assert (ld.fuel_gal_total > 1.18 * ld.fuel_gal_cycle_total).all()
 
 
-def test_calibration_to_collections(tmp_path):
+def _calibration_fleet(tmp_path, observed, first_says="yes", second=None):
     fleet = [vehicle("CAR", count=1000), vehicle("TRUCK", vehicle_class="Truck", fuel="diesel", count=50)]
-    observed = {"gasoline": 700_000.0, "diesel": 45_000.0}
-    path = write_fleet(tmp_path / "f.xlsx", fleet, [
-        scenario("raw", first_fiscal_year=2027, observed_base_gallons_gasoline=observed["gasoline"],
-                 observed_base_gallons_diesel=observed["diesel"], calibrate_to_observed="no"),
-        scenario("calibrated", first_fiscal_year=2027, observed_base_gallons_gasoline=observed["gasoline"],
-                 observed_base_gallons_diesel=observed["diesel"], calibrate_to_observed="yes")])
-    out = run_to(tmp_path, path)
-    fiscal = read_csv(out / "fiscal_summary.csv")
+    gallons = {"observed_base_gallons_gasoline": observed["gasoline"],
+               "observed_base_gallons_diesel": observed["diesel"]}
+    return write_fleet(tmp_path / "f.xlsx", fleet, [
+        scenario("base", first_fiscal_year=2027, calibrate_to_observed=first_says, **gallons),
+        scenario("hot", first_fiscal_year=2027, ambient_temp_C=38, **(second or {})),
+        scenario("urban", first_fiscal_year=2027, cycle_mix="UDDS:1", vmt_growth_pct_per_year=3)])
+
+
+def _totals(out):
     results = read_csv(out / "results.csv")
+    return {(s, f): math.fsum(g.fuel_gal_total) for (s, f), g in results.groupby(["scenario_id", "fuel"])}
+
+
+def test_calibration_is_one_factor_that_keeps_scenarios_apart(tmp_path):
+    observed = {"gasoline": 700_000.0, "diesel": 45_000.0}
+    raw = _totals(run_to(tmp_path / "raw", _calibration_fleet(tmp_path / "raw", observed, "no")))
+    out = run_to(tmp_path / "cal", _calibration_fleet(tmp_path / "cal", observed, "yes"))
+    calibrated = _totals(out)
+    fiscal = read_csv(out / "fiscal_summary.csv")
     for fuel, gallons in observed.items():
-        base = fiscal[(fiscal.scenario_id == "calibrated") & (fiscal.fuel == fuel) & (fiscal.fiscal_year == 2027)]
-        # the calibrated first fiscal year equals the collections (to floating-point rounding)
+        base = fiscal[(fiscal.scenario_id == "base") & (fiscal.fuel == fuel) & (fiscal.fiscal_year == 2027)]
+        # the base scenario's first fiscal year equals the collections (to floating-point rounding)
         assert math.fsum(base.fuel_gal) == pytest.approx(gallons, rel=1e-12)
-        raw = fiscal[(fiscal.scenario_id == "raw") & (fiscal.fuel == fuel) & (fiscal.fiscal_year == 2027)]
-        assert math.fsum(raw.fuel_gal) != pytest.approx(gallons, rel=1e-3)
-        # the raw (uncalibrated) gallons are still in results.csv, equal to the raw scenario's
-        calibrated_rows = results[(results.scenario_id == "calibrated") & (results.fuel == fuel)]
-        raw_rows = results[(results.scenario_id == "raw") & (results.fuel == fuel)]
-        assert list(calibrated_rows.fuel_gal_uncalibrated_total) == list(raw_rows.fuel_gal_total)
+        for other in ("hot", "urban"):
+            # one factor for every scenario: the scenario-to-baseline ratio is the model's
+            assert calibrated[(other, fuel)] / calibrated[("base", fuel)] == pytest.approx(
+                raw[(other, fuel)] / raw[("base", fuel)], rel=1e-12)
+            assert calibrated[(other, fuel)] != pytest.approx(gallons * 2, rel=1e-3)
+    results = read_csv(out / "results.csv")
+    assert (results.fuel_gal_low_total < results.fuel_gal_total).all()     # a calibrated total has a range
     import openpyxl
 
     ws = openpyxl.load_workbook(out / "report.xlsx")["Fiscal years"]
@@ -99,22 +115,53 @@ def test_calibration_to_collections(tmp_path):
     assert any(t.startswith("Calibration to collections") for t in texts)
 
 
-def test_ranges_follow_the_error_distribution(tmp_path):
-    # one UDDS-only car without the on-road adjustment: the fixture's FTP 5-95 % error is
-    # -12 % to +10 %, and gallons go as 1/mpg: measured = predicted x (1 + e)
-    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A")], [scenario("s", cycle_mix="UDDS:1", onroad_adjustment="none")])
-    row = read_csv(run_to(tmp_path, path) / "results.csv").iloc[0]
-    assert row.fuel_gal_low_total == pytest.approx(0.88 * row.fuel_gal_total, rel=1e-12)
-    assert row.fuel_gal_high_total == pytest.approx(1.10 * row.fuel_gal_total, rel=1e-12)
+def test_calibrated_range_is_year_two_uncertainty(tmp_path):
+    observed = {"gasoline": 700_000.0, "diesel": 45_000.0}
+    fiscal = read_csv(run_to(tmp_path, _calibration_fleet(tmp_path, observed)) / "fiscal_summary.csv")
+    base = fiscal[fiscal.scenario_id == "base"].groupby("fiscal_year")[["fuel_gal", "fuel_gal_low", "fuel_gal_high"]].sum()
+    width = (base.fuel_gal_high - base.fuel_gal_low) / base.fuel_gal
+    # year 1 is observed: only the 1 % sd of the collections (90 %: +-1.645 %); year 2 adds
+    # growth and price (models/budget.toml), so it is wider
+    assert width[2027] == pytest.approx(2 * 1.645 * 0.01, rel=0.1)
+    assert width[2028] > 1.5 * width[2027]
 
 
-def test_without_an_error_file_totals_say_they_have_no_range(tmp_path):
+def test_an_implausible_calibration_ratio_warns(tmp_path):
+    import json
+
+    observed = {"gasoline": 70_000.0, "diesel": 45_000.0}     # the model burns ~10x this
+    out = run_to(tmp_path, _calibration_fleet(tmp_path, observed))
+    warnings = json.loads((out / "manifest.json").read_text())["warnings"]
+    assert any("calibration: the model's gasoline gallons are" in w and "plausible 80%-125%" in w for w in warnings)
+
+
+def test_ranges_shrink_with_fleet_size_and_centre_on_the_bias(tmp_path):
+    # fixture: tau 0.03 between manufacturers, sigma 0.08 per vehicle type; one light-duty
+    # fuel, growth 0, no price path. Model part of the 90 % range for n equal unknown-make
+    # types: 1.645 x sqrt((tau^2 (1 - HHI) + sigma^2) / n), HHI = 0.6^2 + 0.4^2 = 0.52.
+    widths = {}
+    for n in (1, 25):
+        path = write_fleet(tmp_path / f"f{n}.xlsx", [vehicle(f"V{i}") for i in range(n)],
+                           [scenario("s", cycle_mix="UDDS:1", budget_years=1, vmt_growth_pct_per_year=0)])
+        results = read_csv(run_to(tmp_path / str(n), path) / "results.csv")
+        total = math.fsum(results.fuel_gal_total)
+        widths[n] = (math.fsum(results.fuel_gal_high_total) - math.fsum(results.fuel_gal_low_total)) / total / 2
+    model = {n: 1.645 * math.sqrt((0.03 ** 2 * 0.48 + 0.08 ** 2) / n) for n in (1, 25)}
+    # year 1: price sd 0.15 x short-run -0.09 and mix sd 0.02 add in quadrature
+    other = 1.645 * math.hypot(0.15 * 0.09, 0.02)
+    for n in (1, 25):
+        expected = math.sqrt(model[n] ** 2 + other ** 2)
+        assert widths[n] == pytest.approx(expected, rel=0.06), n   # Monte Carlo, 4000 draws
+
+
+def test_without_an_error_file_ranges_hold_the_drivers_only(tmp_path):
     import json
 
     path = write_fleet(tmp_path / "f.xlsx", [vehicle("A")], [scenario("s")])
     out = run_to(tmp_path, path, error_model=None)
-    assert read_csv(out / "results.csv").fuel_gal_low_total.isna().all()
-    assert any("no range" in w for w in json.loads((out / "manifest.json").read_text())["warnings"])
+    results = read_csv(out / "results.csv")
+    assert (results.fuel_gal_low_total < results.fuel_gal_total).all()
+    assert any("drivers only" in w for w in json.loads((out / "manifest.json").read_text())["warnings"])
 
 
 @pytest.mark.parametrize("overrides, message", [
@@ -128,3 +175,29 @@ def test_budget_column_errors(tmp_path, overrides, message):
     result = fakes.invoke_run(path, "--out", tmp_path / "o", "--no-cache", "-q")
     assert result.exit_code == 1
     assert message in result.stderr
+
+
+def test_heavy_duty_error_file_of_per_test_distributions(tmp_path, monkeypatch):
+    """models/heavy_duty/fuel_economy_error.toml in the heavy-duty validation's format: no
+    centre correction, one shared sd = RMS over tests of sqrt(mean^2 + ((p95 - p05)/3.29)^2)."""
+    import shutil
+    import tomllib
+
+    from fleetrun.budget import uncertainty
+
+    models = tmp_path / "models"
+    shutil.copytree(uncertainty.models_dir(), models)
+    (models / "heavy_duty").mkdir(exist_ok=True)
+    (models / "heavy_duty" / "fuel_economy_error.toml").write_text(
+        'source = "fixture"\n[tests.A]\nmean = 0.03\np05 = -0.02\np95 = 0.08\n'
+        '[tests.B]\nmean = -0.01\np05 = -0.05\np95 = 0.03\n')
+    monkeypatch.setattr(uncertainty, "models_dir", lambda: models)
+    model = uncertainty.read_error_model()
+    heavy = model.for_duty("HD")
+    sd_a = math.hypot(0.03, 0.10 / 3.2897072539029444)
+    sd_b = math.hypot(0.01, 0.08 / 3.2897072539029444)
+    assert heavy.bias == 0.0 and heavy.tau == pytest.approx(math.sqrt((sd_a ** 2 + sd_b ** 2) / 2), rel=1e-12)
+    assert heavy.relative_sd([1.0, 1.0]) == pytest.approx(heavy.tau, rel=1e-12)    # shared: no averaging
+    # light duty keeps its own constants (models/fleet_error.toml); no fallback warning
+    light = tomllib.loads((models / "fleet_error.toml").read_text())["LD"]
+    assert model.for_duty("LD").tau == light["tau"] and not model.warnings

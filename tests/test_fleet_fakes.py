@@ -114,7 +114,7 @@ def read_csv(path, **kwargs):
     return pd.read_csv(path, **kwargs)
 
 
-ERROR_FIXTURE = Path(__file__).parent / "data" / "fuel_economy_error_fixture.toml"
+ERROR_FIXTURE = Path(__file__).parent / "data" / "fleet_error_fixture.toml"
 
 
 def injected(simulate=fake_simulate, error_model=ERROR_FIXTURE) -> dict:

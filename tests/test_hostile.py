@@ -26,7 +26,8 @@ from fleetrun.cli import cli
 from test_fleet_fakes import scenario, small_fleet, vehicle, write_fleet
 
 ROOT = Path(__file__).resolve().parents[1]
-OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "manifest.json"}
+OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "class_summary.csv", "fiscal_summary.csv", "revenue_memo.csv",
+           "fiscal_periods.csv", "manifest.json"}
 
 
 def invoke(*args):

@@ -17,8 +17,8 @@ from fleetrun.cli import cli
 from fleetrun.run import runner
 from test_fleet_fakes import read_csv, scenario, vehicle, write_fleet
 
-SHEETS = ["Summary", "Assumptions", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years", "Efficiency maps", "Inputs",
-          "RunInfo", "What changed"]
+SHEETS = ["Summary", "Revenue memo", "Assumptions", "ByClass", "ByVehicle", "Scenario comparison", "Fiscal years",
+          "Fiscal periods", "Efficiency maps", "Inputs", "RunInfo", "What changed"]
 
 
 @pytest.fixture(scope="module")
@@ -65,6 +65,7 @@ def test_report_sheets_and_charts(outputs):
     assert wb.sheetnames == SHEETS
     charts = charts_per_sheet(outputs / "report.xlsx")
     assert charts["Summary"] == 1 and charts["ByClass"] == 1 and charts["Scenario comparison"] == 1
+    assert charts["Revenue memo"] == 1      # the tornado of state revenue per driver
     assert charts["Efficiency maps"] >= 1
     assert wb["ByVehicle"].freeze_panes == "C2" and wb["ByClass"].freeze_panes == "C2"
     assert wb["ByClass"]["F2"].number_format == "0.00"
@@ -94,7 +95,12 @@ def test_report_totals_equal_csvs(outputs):
         fuel, miles = math.fsum(group.fuel_gal_total), math.fsum(group.miles_total)
         assert row.fuel_gal_total == pytest.approx(fuel, rel=XLSX_RTOL, abs=0)
         assert row.state_tax_usd == pytest.approx(math.fsum(group.state_tax_usd), rel=XLSX_RTOL, abs=0)
-        assert row.mpg == pytest.approx(miles / fuel, rel=XLSX_RTOL, abs=0)
+        # mpg per fuel, never gasoline and diesel mixed
+        for fuel_name in ("gasoline", "diesel"):
+            rows = results[(results.scenario_id == row.scenario_id) & (results.fuel == fuel_name)]
+            expected = math.fsum(rows.miles_total) / math.fsum(rows.fuel_gal_total)
+            assert getattr(row, f"mpg_{fuel_name}") == pytest.approx(expected, rel=XLSX_RTOL, abs=0)
+        assert "mpg" not in summary.columns and miles > 0
     assert list(summary.scenario_id) == ["baseline", "hot", "urban"]
 
 
@@ -103,7 +109,7 @@ def test_report_numbers_are_16_significant_digits_of_the_csv_values(outputs):
     written with "%.16G", not a value rounded further (15 digits) nor a different number."""
     results = read_csv(outputs / "results.csv")
     with zipfile.ZipFile(outputs / "report.xlsx") as z:
-        sheet = next(n for n in z.namelist() if n.startswith("xl/worksheets/sheet4"))
+        sheet = next(n for n in z.namelist() if n.startswith(f"xl/worksheets/sheet{SHEETS.index('ByVehicle') + 1}."))
         stored = re.findall(r"<v>([^<]+)</v>", z.read(sheet).decode())
     expected = [f"{v:.16G}" for row in results.itertuples(index=False) for v in row
                 if isinstance(v, float) and math.isfinite(v)]
@@ -262,11 +268,19 @@ def test_every_chart_has_axis_titles_a_zero_based_value_axis_and_human_legends(o
         for chart in ws._charts:
             seen += 1
             assert chart.x_axis.title is not None and chart.y_axis.title is not None, ws.title
-            assert chart.y_axis.scaling.min == 0, ws.title
+            if ws.title == "Revenue memo":
+                # the tornado: changes from the central value, a value axis centred on zero
+                assert "change" in _text(chart.y_axis.title).lower()
+            else:
+                assert chart.y_axis.scaling.min == 0, ws.title
             for series in chart.series:
                 label = (series.tx.v if series.tx.v is not None else _cell(wb, series.tx.strRef.f).value)
                 assert "_" not in label, (ws.title, label)   # no field names such as state_tax_usd
-    assert seen == 7
+    assert seen == 8
+
+
+def _text(title) -> str:
+    return "".join(r.t for p in title.tx.rich.p for r in (p.r or []))
 
 
 def test_every_sheet_has_a_page_setup(outputs):
@@ -309,3 +323,23 @@ def test_report_prints_through_libreoffice(outputs, tmp_path):
         assert "efficiency \\ torque fraction" in page and "loss \\ torque fraction" in page
         assert page.count("4000 rpm") >= 3   # both tables' headers and the chart legend
     assert len(pages) <= 16
+
+
+def test_chart_labels_and_legend_fit_inside_the_chart():
+    """The class chart's labels and legend (the long class names and scenario ids that were
+    clipped at 390 and 1366 px) lie inside the SVG's box: a label's right end at the label
+    column, its left end (at 6.6 px per character of the 11 px font, a generous width) not
+    before 0; legend items wrap before the right edge."""
+    from fleetrun.reports import charts
+
+    classes = ["Tractor-trailer (class 8)", "Medium truck (class 6)", "Bus"]
+    scenarios = ["baseline", "hot_summer_with_a_long_identifier", "congested_urban", "ev_adoption_2030"]
+    chart = charts.grouped_bars(classes, scenarios, {(c, s): 1e9 for c in classes for s in scenarios})
+    for group in chart["groups"]:
+        assert chart["label_width"] - 6 - 6.6 * len(group["label"]) >= 0
+    for item in chart["legend"]:
+        assert item["x"] >= 0 and item["x"] + 14 + 6.6 * len(item["name"]) <= chart["width"]
+    assert len({item["y"] for item in chart["legend"]}) > 1          # it wrapped
+    for group in chart["groups"]:
+        for bar in group["bars"]:   # the value text after the longest bar stays inside
+            assert chart["label_width"] + bar["length"] + 4 + 6.6 * len(bar["text"]) <= chart["width"]

@@ -277,3 +277,38 @@ def test_hostile_labels_stay_text_in_the_browser(browser, tmp_path, monkeypatch)
     assert browser.evaluate("document.querySelectorAll('img, script').length") == 0
     cells = json.loads(browser.evaluate(CLASS_TABLE_JS))
     assert cells[0]["vehicle_class"][1] == label
+
+
+CLIPPED_JS = """JSON.stringify([...document.querySelectorAll('svg')].flatMap(svg => {
+  const box = svg.getBoundingClientRect();
+  return [...svg.querySelectorAll('text')].map(t => [t.textContent, t.getBoundingClientRect()]).filter(
+    ([_, r]) => r.width > 0 && (r.left < box.left - 1 || r.right > box.right + 1 || r.top < box.top - 1
+                                || r.bottom > box.bottom + 1)).map(([text, r]) => `${text} ${r.left}-${r.right} of ${box.left}-${box.right}`);
+}))"""
+
+
+@pytest.fixture(scope="module")
+def long_labels_run(tmp_path_factory):
+    """Class names and scenario ids as long as a state's (the labels that were clipped)."""
+    tmp = tmp_path_factory.mktemp("labels")
+    path = write_fleet(tmp / "fleet.xlsx",
+                       [vehicle("A", vehicle_class="Tractor-trailer (class 8)", fuel="diesel", count=500),
+                        vehicle("B", vehicle_class="SUV / crossover", count=2000)],
+                       [scenario("baseline"), scenario("hot_summer_heat_wave", ambient_temp_C=38),
+                        scenario("congested_urban_growth", cycle_mix="UDDS:1")])
+    out = tmp / "out"
+    result = fakes.invoke_run(path, "--out", out, "--no-cache", "-q")
+    assert result.exit_code == 0, result.stderr
+    return out
+
+
+@pytest.mark.parametrize("width, mobile", [(390, True), (1366, False)])
+def test_no_chart_text_is_clipped_and_the_memo_table_shows(browser, long_labels_run, width, mobile):
+    browser.send("Emulation.setDeviceMetricsOverride", width=width, height=900, deviceScaleFactor=1,
+                 mobile=mobile)
+    open_page(browser, long_labels_run / "summary.html")
+    assert json.loads(browser.evaluate(CLIPPED_JS)) == []
+    memo = pd.read_csv(long_labels_run / "revenue_memo.csv")
+    assert browser.evaluate("document.querySelectorAll('table.memo tbody tr').length") == len(memo)
+    assert browser.evaluate("document.querySelectorAll('svg.tornado').length") == 1
+    assert json.loads(browser.evaluate(OVERFLOW_JS)) == []

@@ -15,7 +15,7 @@ from test_fleet_fakes import read_csv
 pytest.importorskip("fleetrun.simulation")
 EXAMPLE = inputs_dir() / "example_fleet.xlsx"
 OUTPUTS = {"report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv", "fiscal_summary.csv",
-           "manifest.json"}
+           "revenue_memo.csv", "fiscal_periods.csv", "manifest.json"}
 
 
 @pytest.fixture(scope="module")

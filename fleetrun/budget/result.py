@@ -12,13 +12,14 @@ from dataclasses import asdict, dataclass, field
 
 import pandas as pd
 
+from fleetrun.budget.ranges import PeriodRange, YearRange
 from fleetrun.budget.uncertainty import ErrorModel
 from fleetrun.effects.base import AppliedEffect
 from fleetrun.fileio import JsonDocument
 from fleetrun.workbook.reader import Fleet, Scenario
 
 __all__ = ["RunResult", "CycleInfo", "EfficiencyMap", "EngineInfo", "AppliedEffect", "RunChanges",
-           "InputChange", "TotalChange"]
+           "InputChange", "TotalChange", "ChangeCause"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,18 @@ class TotalChange:
 
 
 @dataclass(frozen=True)
+class ChangeCause:
+    """The part of one scenario total's change due to one cause (``vehicles``, ``scenario``,
+    ``model version``, ``calibration``, ``tax rates``, or several inputs together), in the
+    total's unit."""
+
+    scenario_id: str
+    total: str
+    cause: str
+    amount: float
+
+
+@dataclass(frozen=True)
 class RunChanges:
     """What changed since the run that was in the output folder (:mod:`fleetrun.reports.changes`)."""
 
@@ -91,9 +104,11 @@ class RunChanges:
     earlier_version: str
     inputs: tuple[InputChange, ...]
     totals: tuple[TotalChange, ...]
+    causes: tuple[ChangeCause, ...] = ()
 
     def as_json(self) -> JsonDocument:
-        return asdict(self) | {"inputs": [asdict(i) for i in self.inputs], "totals": [asdict(t) for t in self.totals]}
+        return asdict(self) | {"inputs": [asdict(i) for i in self.inputs], "totals": [asdict(t) for t in self.totals],
+                               "causes": [asdict(c) for c in self.causes]}
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,6 +131,11 @@ class RunResult:
     distinct_vehicles: int = 0                 # physically distinct vehicles simulated
     calibration: pd.DataFrame | None = None    # model vs observed base-year gallons per fuel
     error_model: ErrorModel | None = None      # the measured error behind the ranges (None: none)
+    tornado: pd.DataFrame | None = None        # state revenue per driver at its 5th / 95th percentile
+    memo: pd.DataFrame | None = None           # revenue_memo.csv: fiscal year x fuel with ranges
+    periods: pd.DataFrame | None = None        # fiscal_periods.csv: quarters and months
+    ranges: dict[tuple[str, str], YearRange] = field(default_factory=dict)  # (scenario, fuel or "all")
+    period_ranges: dict[str, PeriodRange] = field(default_factory=dict)  # scenario -> budget-period range
     changes: RunChanges | None = None          # vs the run already in the folder
     registrations: pd.DataFrame | None = None  # registration rows: vehicle chosen, matched on, assumed
     turnover: pd.DataFrame | None = None       # year-on-year gallons change: VMT vs gallons per mile

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,6 +31,7 @@ import pandas as pd
 
 from fleetrun.budget import arithmetic as budget
 from fleetrun.cycles import load_cycle
+from fleetrun.budget import drivers
 from fleetrun.units import METERS_PER_MILE
 from fleetrun.workbook.schema import DUTY_CLASSES
 
@@ -60,7 +62,20 @@ FISCAL_SOURCES = {"miles": "miles_total", "fuel_gal": "fuel_gal_total", "fuel_ga
                   "ev_fee_usd": "ev_fee_usd"}
 ELECTRIC = "electric"
 CALIBRATION_COLUMNS = ["scenario_id", "fuel", "fiscal_year", "model_gallons", "observed_gallons",
-                       "model_to_observed", "calibrated", "scale"]
+                       "model_to_observed", "calibrated", "scale", "fitted_on"]
+TORNADO_COLUMNS = ["scenario_id", "driver", "low_usd", "high_usd", "central_usd"]
+
+
+@dataclass
+class BudgetTables:
+    """What the budget arithmetic hands the runner."""
+    results: pd.DataFrame
+    yearly: dict            # scenario_id -> {column: rows x budget years}
+    calibration: pd.DataFrame
+    ranges: dict            # (scenario_id, fuel or "all") -> ranges.YearRange
+    tornado: pd.DataFrame
+    warnings: list
+    period_ranges: dict     # scenario_id -> ranges.PeriodRange
 
 
 @lru_cache(maxsize=64)
@@ -77,15 +92,15 @@ def _cycle_kind(cycle: str) -> str:
 
 
 def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
-                 error_model=None, fuel_factor: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, the range's
-    gallons per mile, on-road kWh per mile (electric rows) and the energies per mile.
-    ``fuel_factor``: each row's cycle fuel per mile relative to its simulated vehicle (a
-    registration cohort's model year, docs/registrations.md); None: 1."""
+                 fuel_factor: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, on-road kWh per
+    mile (electric rows) and the energies per mile. ``fuel_factor``: each row's cycle fuel per
+    mile relative to its simulated vehicle (a registration cohort's model year,
+    docs/registrations.md); None: 1."""
     n = len(duty_of)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
-    names = ("fuel_gal_cycle", "fuel_gal", "fuel_gal_low", "fuel_gal_high", "kwh") + ENERGY_FIELDS
+    names = ("fuel_gal_cycle", "fuel_gal", "kwh") + ENERGY_FIELDS
     per_mile = {name: np.zeros(n) for name in names}
     for duty in DUTY_CLASSES:
         rows = duty_of == duty
@@ -98,40 +113,89 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
             if fuel_factor is not None:
                 cycle_gpm = cycle_gpm * fuel_factor[rows]
             kind = _cycle_kind(cycle)
-            low, high = error_model.relative_range(cycle, kind) if error_model else (math.nan, math.nan)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
-            # central value and the range's ends: cycle gallons x (1 + e), then on the road
-            for name, factor in (("fuel_gal", 1.0), ("fuel_gal_low", 1.0 + low), ("fuel_gal_high", 1.0 + high)):
-                onroad = budget.onroad_gal_per_mile(cycle_gpm * factor, s.onroad_adjustment, kind, adjusted[rows])
-                per_mile[name][rows] += share * onroad
+            per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(cycle_gpm, s.onroad_adjustment, kind,
+                                                                            adjusted[rows])
             per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)
     return per_mile
 
 
-def calibration(s, fuel: np.ndarray, gallons: np.ndarray, first_share=None) -> tuple[dict[str, float], list[dict]]:
-    """Scale per fuel (1 unless calibrated) and one row per fuel with observed gallons:
-    the first fiscal year's modelled gallons, the observed ones and their ratio.
-    ``first_share``: each row's first-year share of its miles (None: the scenario's)."""
-    share = budget.year_shares(s)[0] if first_share is None else first_share
-    first_year = budget.fiscal_years(s)[0]
+def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarray:
+    """1 + the model's known fleet-level bias per row (measured / predicted gallons), the
+    centre's correction (docs/budget.md); 1 for electric rows and without an error model."""
+    if error_model is None:
+        return np.ones(len(duty_of))
+    bias = np.zeros(len(duty_of))
+    for duty in set(duty_of.tolist()):
+        bias[duty_of == duty] = error_model.for_duty(duty).bias
+    return np.where(fuel == ELECTRIC, 1.0, 1.0 + bias)
+
+
+class _Scenario:
+    """One scenario's per-vehicle, per-budget-year arrays before calibration (rows x years)."""
+
+    def __init__(self, s, vehicles, per_condition: dict, error_model, years=None):
+        """``years``: per-row miles by budget year and fuel factors (registration turnover,
+        fleetrun.registrations); None: count x annual_miles x (1 + g)^(y - 1) for every row."""
+        self.s = s
+        self.count = np.array([v.count for v in vehicles], dtype=float)
+        annual = np.array([v.annual_miles for v in vehicles], dtype=float)
+        self.fuel = np.array([v.fuel for v in vehicles], dtype=object)
+        self.duty = np.array([v.duty_class for v in vehicles], dtype=object)
+        self.model_year = pd.array([v.model_year for v in vehicles], dtype="Int64")
+        self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition,
+                                     None if years is None else years.fuel_factor(s))
+        g = s.vmt_growth_pct_per_year / 100.0
+        self.years = np.arange(s.budget_years)
+        if years is None:
+            self.miles = (self.count * annual)[:, None] * ((1.0 + g) ** self.years)[None, :]
+        else:
+            self.miles = np.asarray(years.year_miles(s), dtype=float)[:, :s.budget_years]
+        factor = np.ones((len(self.fuel), len(self.years)))
+        for name in drivers.FUELS:
+            factor[self.fuel == name] = drivers.price_factor(s, name)[None, :]
+        self.gpm = self.per_mile["fuel_gal"] * bias_factor(self.duty, self.fuel, error_model)
+        self.raw = self.miles * self.gpm[:, None] * factor      # on-road, bias-corrected, priced
+
+    def base_year_gallons(self, fuel: str) -> float:
+        return math.fsum(self.raw[self.fuel == fuel, 0])
+
+
+def fit_calibration(prepared: list, warnings: list) -> tuple[dict[str, float], pd.DataFrame]:
+    """One factor per fuel: observed / modelled gallons of the base fiscal year of the first
+    scenario that gives observed gallons and says calibrate_to_observed = yes; and one row per
+    scenario x fuel with observed gallons (the ratio reported, a warning outside the band)."""
+    band = budget.constants()["calibration"]["plausible_model_to_observed"]
     scales: dict[str, float] = {}
+    fitted_on: dict[str, str] = {}
     rows = []
-    for name in ("gasoline", "diesel"):
-        observed = s.observed_base_gallons(name)
-        if observed is None:
-            continue
-        model = math.fsum((gallons * share)[fuel == name]) if first_share is not None else \
-            math.fsum(gallons[fuel == name]) * share
-        ratio = model / observed
-        scale = observed / model if (s.calibrate_to_observed and model > 0) else 1.0
-        scales[name] = scale
-        rows.append({"scenario_id": s.scenario_id, "fuel": name, "fiscal_year": first_year,
-                     "model_gallons": model, "observed_gallons": observed, "model_to_observed": ratio,
-                     "calibrated": "yes" if scale != 1.0 or s.calibrate_to_observed else "no",
-                     "scale": scale})
-    return scales, rows
+    for p in prepared:
+        s = p.s
+        for name in drivers.FUELS:
+            observed = s.observed_base_gallons(name)
+            if observed is None:
+                continue
+            model = p.base_year_gallons(name)
+            ratio = model / observed
+            if s.calibrate_to_observed and name not in scales and model > 0:
+                scales[name], fitted_on[name] = observed / model, s.scenario_id
+                if not band[0] <= ratio <= band[1]:
+                    warnings.append(f"calibration: the model's {name} gallons are {ratio:.0%} of the observed "
+                                    f"{observed:,.0f} gal (scenario {s.scenario_id}, base fiscal year "
+                                    f"{budget.fiscal_years(s)[0]}); outside the plausible {band[0]:.0%}-"
+                                    f"{band[1]:.0%}: check the vehicles, miles and the year of the collections")
+            elif s.calibrate_to_observed and fitted_on.get(name) not in (None, s.scenario_id):
+                warnings.append(f"calibration: scenario {s.scenario_id}'s observed {name} gallons are not used; "
+                                f"the factor is fitted once, on scenario {fitted_on[name]}, and applies to all")
+            rows.append({"scenario_id": s.scenario_id, "fuel": name, "fiscal_year": budget.fiscal_years(s)[0],
+                         "model_gallons": model, "observed_gallons": observed, "model_to_observed": ratio})
+    table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
+    table["calibrated"] = ["yes" if f in scales else "no" for f in table.fuel]
+    table["scale"] = [scales.get(f, 1.0) for f in table.fuel]
+    table["fitted_on"] = [fitted_on.get(f, "") for f in table.fuel]
+    return scales, table
 
 
 def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy: dict) -> dict:
@@ -148,61 +212,120 @@ def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy
         }
 
 
-def scenario_frame(s, vehicles, per_condition: dict, error_model=None, years=None) -> tuple[pd.DataFrame, list[dict]]:
-    """One row per vehicle for scenario ``s`` and its calibration rows. ``years``: per-row
-    miles by budget year and fuel factors (registration turnover, :func:`row_years`); None:
-    ``count x annual_miles x (1 + g)^(y - 1)`` for every row."""
-    count = np.array([v.count for v in vehicles], dtype=float)
-    annual = np.array([v.annual_miles for v in vehicles], dtype=float)
-    fuel = np.array([v.fuel for v in vehicles], dtype=object)
-    duty_of = np.array([v.duty_class for v in vehicles], dtype=object)
-    year_miles, factor = (None, None) if years is None else (years.year_miles(s), years.fuel_factor(s))
-    per_mile = mix_per_mile(s, duty_of, fuel, per_condition, error_model, factor)
-    miles_total = count * annual * s.mile_factor() if year_miles is None else year_miles.sum(axis=1)
-    raw = miles_total * per_mile["fuel_gal"]
-    first_share = None
-    if year_miles is not None:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            first_share = np.where(miles_total > 0, year_miles[:, 0] / miles_total, 0.0)
-    scales, calibration_rows = calibration(s, fuel, raw, first_share)
+def _yearly(p: _Scenario, vehicles, scales: dict, ratios: dict) -> dict[str, np.ndarray]:
+    """Per vehicle and budget year: miles, gallons, range, kWh, taxes, fees (rows x years)."""
+    s, fuel = p.s, p.fuel
     scale = np.array([scales.get(f, 1.0) for f in fuel])
-    gallons = raw * scale
-    calibrated = scale != 1.0
-    low = np.where(calibrated, gallons, miles_total * per_mile["fuel_gal_low"])
-    high = np.where(calibrated, gallons, miles_total * per_mile["fuel_gal_high"])
-    energy = {name: miles_total * per_mile[name] for name in ENERGY_FIELDS}
-    state_rate, federal_rate = budget.tax_rates(s, fuel)
+    gallons = p.raw * scale[:, None]
+    low, high = gallons.copy(), gallons.copy()       # rows without gallons (electric): 0
+    for name, found in ratios.items():
+        rows = fuel == name
+        low[rows], high[rows] = gallons[rows] * found.low[None, :], gallons[rows] * found.high[None, :]
+    state = np.zeros_like(gallons)
+    federal = np.zeros_like(gallons)
+    for name in drivers.FUELS:
+        rows = fuel == name
+        state[rows] = gallons[rows] * drivers.state_rates(s, name)[None, :]
+        federal[rows] = gallons[rows] * drivers.federal_rates(s, name)[None, :]
+    fee = np.where(fuel == ELECTRIC, p.count * s.ev_fee_usd_per_vehicle_year, 0.0)
+    return {"miles": p.miles, "fuel_gal": gallons, "fuel_gal_low": low, "fuel_gal_high": high,
+            "kwh": p.miles * p.per_mile["kwh"][:, None], "state_tax_usd": state, "federal_tax_usd": federal,
+            "ev_fee_usd": np.repeat(fee[:, None], len(p.years), axis=1)}
+
+
+def _total(values: np.ndarray) -> np.ndarray:
+    """Row sums over the budget years (the fiscal rows are reconciled to these sums to the
+    last bit by :func:`fleetrun.budget.arithmetic.exact_parts`)."""
+    return values.sum(axis=1) if values.size else np.zeros(len(values))
+
+
+def _tax_total(gallons: np.ndarray, yearly: np.ndarray, fuel: np.ndarray, rates, s) -> np.ndarray:
+    """Tax over the budget years: gallons x the rate where the rate is one for all years (so
+    that tax = gallons x rate exactly), else the exact sum of the years."""
+    out = _total(yearly)
+    for name in drivers.FUELS:
+        per_year = rates(s, name)
+        if np.all(per_year == per_year[0]):
+            rows = fuel == name
+            out[rows] = gallons[rows] * per_year[0]
+    return out
+
+
+def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[pd.DataFrame, dict]:
+    """One row per vehicle for a prepared scenario, and its per-year arrays."""
+    s, fuel, count = p.s, p.fuel, p.count
+    yearly = _yearly(p, vehicles, scales, ratios)
+    miles_total = _total(p.miles)
+    gallons = _total(yearly["fuel_gal"])
+    energy = {name: miles_total * p.per_mile[name] for name in ENERGY_FIELDS}
     frame = pd.DataFrame({
         "scenario_id": s.scenario_id, "vehicle_id": [v.vehicle_id for v in vehicles],
         "vehicle_class": [v.vehicle_class for v in vehicles],
         "configuration": [v.configuration for v in vehicles], "fuel": fuel.astype(str),
         "count": _whole_if_possible(count), "miles_total": miles_total, "fuel_gal_total": gallons,
-        **_ratios(per_mile, miles_total, gallons, energy),
-        "state_tax_usd": gallons * state_rate, "federal_tax_usd": gallons * federal_rate, **energy,
-        "duty_class": duty_of.astype(str), "fuel_gal_cycle_total": miles_total * per_mile["fuel_gal_cycle"],
-        "fuel_gal_uncalibrated_total": raw, "fuel_gal_low_total": low, "fuel_gal_high_total": high,
-        "kwh_total": miles_total * per_mile["kwh"],
-        "ev_fee_usd": np.where(fuel == ELECTRIC, count * s.ev_fee_usd_per_vehicle_year * s.budget_years, 0.0),
-        "model_year": pd.array([v.model_year for v in vehicles], dtype="Int64"),
+        **_ratios(p.per_mile, miles_total, gallons, energy),
+        "state_tax_usd": _tax_total(gallons, yearly["state_tax_usd"], fuel, drivers.state_rates, s),
+        "federal_tax_usd": _tax_total(gallons, yearly["federal_tax_usd"], fuel, drivers.federal_rates, s),
+        **energy, "duty_class": p.duty.astype(str), "fuel_gal_cycle_total": miles_total * p.per_mile["fuel_gal_cycle"],
+        "fuel_gal_uncalibrated_total": _total(p.raw), "fuel_gal_low_total": _total(yearly["fuel_gal_low"]),
+        "fuel_gal_high_total": _total(yearly["fuel_gal_high"]), "kwh_total": _total(yearly["kwh"]),
+        "ev_fee_usd": _total(yearly["ev_fee_usd"]), "model_year": p.model_year,
     })
     frame.loc[fuel == ELECTRIC, "mpg"] = np.nan   # no gallons: kwh_total instead
-    return frame, calibration_rows
+    return frame, yearly
+
+
+def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: list) -> tuple[dict, dict]:
+    """The Monte Carlo's central gallons per (fuel, duty) and year, and its settings."""
+    from fleetrun.budget.ranges import DUTIES
+
+    scale = np.array([scales.get(f, 1.0) for f in p.fuel])
+    gallons = p.raw * scale[:, None]
+    makers = np.array([v.manufacturer or v.make for v in vehicles], dtype=object)
+    central, sd = {}, {}
+    for fuel in drivers.FUELS:
+        for duty in DUTIES:
+            rows = (p.fuel == fuel) & ((p.duty == "LD") if duty == "LD" else (p.duty != "LD"))
+            if not rows.any():
+                continue
+            central[(fuel, duty)] = gallons[rows].sum(axis=0)
+            model = error_model.for_duty(duty) if error_model is not None else None
+            sd[(fuel, duty)] = model.relative_sd(gallons[rows].sum(axis=1), makers[rows]) if model else 0.0
+    short, long = drivers.elasticities(p.s)
+    spec = {"u": drivers.uncertainty(), "years": len(p.years), "growth": p.s.vmt_growth_pct_per_year / 100.0,
+            "short": short, "long": long, "calibrated": set(scales), "sd_model": sd,
+            "observed_sd": budget.constants()["calibration"]["observed_relative_sd"]}
+    return central, spec
 
 
 def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: dict,
-                       error_model=None, years=None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget
-    years), and the calibration table (one row per scenario x fuel with observed gallons).
-    ``years``: see :func:`scenario_frame`."""
-    frames, rows = [], []
-    for s in scenarios:
-        frame, calibration_rows = scenario_frame(s, vehicles, per_condition, error_model, years)
+                       error_model=None, years=None) -> "BudgetTables":
+    """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget years),
+    the per-year arrays, the calibration table, the ranges and the tornado rows."""
+    from fleetrun.budget import ranges
+
+    warnings: list[str] = []
+    prepared = [_Scenario(s, vehicles, per_condition, error_model, years) for s in scenarios]
+    scales, calibration_table = fit_calibration(prepared, warnings)
+    u = drivers.uncertainty()
+    z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
+    frames, yearly, fuel_ranges, tornado, period = [], {}, {}, [], {}
+    for p in prepared:
+        central, spec = _range_spec(p, vehicles, error_model, scales, warnings)
+        found = ranges.fuel_ranges(central, z, spec)
+        fuel_ranges.update({(p.s.scenario_id, name): r for name, r in found.items()})
+        frame, yearly[p.s.scenario_id] = scenario_frame(p, vehicles, scales,
+                                                        {k: v for k, v in found.items() if k != "all"})
         frames.append(frame)
-        rows += calibration_rows
-    calibration_table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
-    if not frames:
-        return pd.DataFrame(columns=RESULTS_COLUMNS), calibration_table
-    return pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS], calibration_table
+        rates = {f: drivers.state_rates(p.s, f) for f in drivers.FUELS}
+        period[p.s.scenario_id] = ranges.period_range(central, z, spec, rates,
+                                                      {f: drivers.federal_rates(p.s, f) for f in drivers.FUELS})
+        tornado += [{"scenario_id": p.s.scenario_id, **row} for row in ranges.tornado(central, spec, rates)]
+    if error_model is not None and any(d != "LD" for d in (v.duty_class for v in vehicles)):
+        warnings += list(error_model.warnings)
+    results = pd.concat(frames, ignore_index=True)[RESULTS_COLUMNS] if frames else pd.DataFrame(columns=RESULTS_COLUMNS)
+    return BudgetTables(results=results, yearly=yearly, calibration=calibration_table, ranges=fuel_ranges, period_ranges=period,
+                        tornado=pd.DataFrame(tornado, columns=TORNADO_COLUMNS), warnings=warnings)
 
 
 def _whole_if_possible(values: np.ndarray) -> np.ndarray:
@@ -218,8 +341,8 @@ def _ratio(numerator: float, denominator: float) -> float:
 
 def _fsum(values) -> float:
     """fsum that stays NaN when any value is NaN (a range that was not measured)."""
-    values = np.asarray(values, dtype=float)
-    return math.nan if np.isnan(values).any() else math.fsum(values.tolist())
+    array = np.asarray(values, dtype=float)
+    return math.nan if np.isnan(array).any() else math.fsum(array.tolist())
 
 
 def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
@@ -269,24 +392,17 @@ def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=SCENARIO_TOTAL_COLUMNS)
 
 
-def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, row_shares=None) -> list[dict]:
-    """The fiscal-year rows of one scenario x fuel x class: shares of the group's totals
-    (``row_shares``: each row's own shares of its miles by year, registration turnover)."""
+def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, yearly: dict) -> list[dict]:
+    """The fiscal-year rows of one scenario x fuel x class: the group's per-year sums, the last
+    year moved by a few units in the last place so that they add up to the results exactly."""
     years = budget.fiscal_years(s)
-    shares = budget.year_shares(s)
     rows = [{"scenario_id": s.scenario_id, "fiscal_year": year, "fuel": fuel, "vehicle_class": vehicle_class}
             for year in years]
+    positions = group["_position"].to_numpy()
     for column, source in FISCAL_SOURCES.items():
         total = _fsum(group[source]) if source in group else 0.0
-        # fees are per vehicle-year (even over the years); everything else follows the miles
-        weights = np.full(len(years), 1.0 / len(years)) if column == "ev_fee_usd" else shares
-        if row_shares is not None and column != "ev_fee_usd" and source in group and math.isfinite(total):
-            mine = row_shares[group.index.to_numpy()][:, :len(years)]
-            parts = budget.exact_parts(group[source].to_numpy(dtype=float) @ mine, total)
-        elif math.isfinite(total):
-            parts = budget.exact_parts(total * weights, total)
-        else:
-            parts = [math.nan] * len(years)
+        per_year = [_fsum(yearly[column][positions, y]) for y in range(len(years))]
+        parts = budget.exact_parts(per_year, total) if math.isfinite(total) else [math.nan] * len(years)
         for row, value in zip(rows, parts):
             row[column] = value
     for row in rows:
@@ -294,34 +410,18 @@ def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, row_sha
     return rows
 
 
-def row_year_shares(results: pd.DataFrame, scenarios: Sequence, vehicles, years) -> np.ndarray | None:
-    """Per results row, its miles' shares by budget year (registration turnover), aligned
-    with ``results``' index; None without ``years``."""
-    if years is None:
-        return None
-    width = max(s.budget_years for s in scenarios)
-    out = np.zeros((len(results), width))
-    for k, s in enumerate(scenarios):
-        year_miles = years.year_miles(s)
-        total = year_miles.sum(axis=1, keepdims=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            shares = np.where(total > 0, year_miles / total, budget.year_shares(s)[None, :])
-        out[k * len(vehicles):(k + 1) * len(vehicles), :s.budget_years] = shares
-    return out
-
-
-def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, row_shares=None) -> pd.DataFrame:
-    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv).
-    ``row_shares``: :func:`row_year_shares` (None: every row follows the scenario's years)."""
+def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, yearly: dict) -> pd.DataFrame:
+    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv)."""
     rows = []
-    by_id = {s.scenario_id: s for s in scenarios}
-    for (scenario_id, fuel, vehicle_class), group in results.groupby(
-            ["scenario_id", "fuel", "vehicle_class"], sort=False):
-        rows += _fiscal_group(by_id[scenario_id], fuel, vehicle_class, group, row_shares)
+    for s in scenarios:
+        own = results[results.scenario_id == s.scenario_id]
+        own = own.assign(_position=np.arange(len(own)))
+        for (fuel, vehicle_class), group in own.groupby(["fuel", "vehicle_class"], sort=False):
+            rows += _fiscal_group(s, fuel, vehicle_class, group, yearly[s.scenario_id])
     frame = pd.DataFrame(rows, columns=FISCAL_COLUMNS)
-    order = {s.scenario_id: i for i, s in enumerate(scenarios)}
-    frame["_order"] = frame["scenario_id"].map(order)
-    return frame.sort_values(["_order", "fiscal_year"], kind="stable").drop(columns="_order").reset_index(drop=True)
+    return frame.sort_values(["fiscal_year"], kind="stable").pipe(
+        lambda f: f.iloc[np.argsort(f.scenario_id.map({s.scenario_id: i for i, s in enumerate(scenarios)}).to_numpy(),
+                                    kind="stable")]).reset_index(drop=True)
 
 
 def yearly_totals(fiscal: pd.DataFrame) -> pd.DataFrame:

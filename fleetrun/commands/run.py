@@ -20,6 +20,8 @@ from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import refuse_replacing_inputs
 from fleetrun.run import batch
 from fleetrun.run.batch import read_config
+from fleetrun.run.outputs import OUTPUT_FILES
+
 from fleetrun.run.engines import ENGINES
 from fleetrun.simulation.diffmodes import default_cache_dir
 
@@ -122,8 +124,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         for item in written:
             note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
                     if item["warnings"] else "")
-            click.echo(f"Wrote {item['out']}/: report.xlsx, summary.html, results.csv, results.parquet, "
-                       f"class_summary.csv, fiscal_summary.csv, manifest.json{note}")
+            click.echo(f"Wrote {item['out']}/: {', '.join(OUTPUT_FILES)}{note}")
     if code == batch.EXIT_OK:
         return
     if len(errors) == 1 and len(plan.inputs) == 1:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from fleetrun.budget.result import InputChange, RunChanges, TotalChange
+from fleetrun.budget.result import ChangeCause, InputChange, RunChanges, TotalChange
 
 EARLIER_DIR = "earlier-runs"
 TOTAL_COLUMNS = ("fuel_gal_total", "state_tax_usd", "federal_tax_usd", "kwh_total", "ev_fee_usd")
@@ -28,6 +28,118 @@ def scenario_totals_dict(classes: pd.DataFrame) -> dict[str, dict[str, float]]:
     for scenario_id, group in classes.groupby("scenario_id", sort=False):
         out[str(scenario_id)] = {c: math.fsum(group[c]) for c in TOTAL_COLUMNS if c in group}
     return out
+
+
+BY_FUEL = ("raw_gal", "fuel_gal", "state_tax_usd", "federal_tax_usd")
+TAX_FIELDS = ("state_tax", "federal_tax")
+CALIBRATION_FIELDS = ("observed_base_gallons", "calibrate_to_observed")
+
+
+def model_files() -> list[dict]:
+    """Every file of the models folder the package reads its constants from (models/**), with
+    its sha256: the numbers of a run come from these and the code."""
+    import hashlib
+
+    from fleetrun.resources import models_dir
+
+    root = models_dir()
+    out = []
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        out.append({"path": path.relative_to(root).as_posix(), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    return out
+
+
+def _sha(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def fingerprints(result) -> dict:
+    """What each total depends on, as sha256 of its inputs: the vehicles (every Vehicles row),
+    each scenario without its tax and calibration columns (those are attributed apart), the
+    model files and the fleetrun version."""
+    from dataclasses import fields
+
+    from fleetrun import __version__
+
+    vehicles = _sha(repr(sorted(repr(v) for v in result.fleet.vehicles)))
+    scenarios = {}
+    for s in result.scenarios:
+        kept = {f.name: getattr(s, f.name) for f in fields(s) if f.name not in ("scenario_id", "description", "extra")
+                and not f.name.startswith(TAX_FIELDS + CALIBRATION_FIELDS)}
+        scenarios[s.scenario_id] = _sha(repr(sorted(kept.items(), key=lambda kv: kv[0])))
+    models = _sha(repr(sorted((m["path"], m["sha256"]) for m in model_files())) + __version__)
+    return {"vehicles": vehicles, "scenarios": scenarios, "model version": models}
+
+
+def attribution_inputs(result) -> dict:
+    """Per scenario and fuel the factors of each total: model gallons (before calibration),
+    calibrated gallons and the taxes; and the fingerprints (stored in manifest.json)."""
+    by_fuel: dict = {}
+    frame = result.results
+    for (scenario_id, fuel), group in frame.groupby(["scenario_id", "fuel"], sort=False):
+        by_fuel.setdefault(str(scenario_id), {})[str(fuel)] = {
+            "raw_gal": math.fsum(group["fuel_gal_uncalibrated_total"]), "fuel_gal": math.fsum(group["fuel_gal_total"]),
+            "state_tax_usd": math.fsum(group["state_tax_usd"]), "federal_tax_usd": math.fsum(group["federal_tax_usd"])}
+    return {"by_fuel": by_fuel, "fingerprints": fingerprints(result)}
+
+
+def _factor_logs(old: dict, new: dict, total: str) -> dict[str, float] | None:
+    """ln of each factor's ratio, new / old, for one fuel: total = raw x calibration [x rate]."""
+    values = [old.get(k) for k in BY_FUEL] + [new.get(k) for k in BY_FUEL]
+    if any(not isinstance(v, (int, float)) or v <= 0 for v in values):
+        return None
+    logs = {"raw": math.log(new["raw_gal"] / old["raw_gal"]),
+            "calibration": math.log((new["fuel_gal"] / new["raw_gal"]) / (old["fuel_gal"] / old["raw_gal"]))}
+    if total != "fuel_gal_total":
+        logs["tax rates"] = math.log((new[total] / new["fuel_gal"]) / (old[total] / old["fuel_gal"]))
+    return logs
+
+
+def _raw_cause(earlier: dict, now: dict, scenario_id: str) -> str:
+    """Which input moved the model's gallons: the fingerprints that differ."""
+    a, b = earlier.get("fingerprints") or {}, now.get("fingerprints") or {}
+    if not a:
+        return "inputs or model (the earlier run recorded no fingerprints)"
+    moved = [name for name in ("vehicles", "model version") if a.get(name) != b.get(name)]
+    if (a.get("scenarios") or {}).get(scenario_id) != (b.get("scenarios") or {}).get(scenario_id):
+        moved.insert(1 if moved[:1] == ["vehicles"] else 0, "scenario")
+    if not moved:
+        return "other (same inputs and model)"
+    return " + ".join(moved) + (" (together)" if len(moved) > 1 else "")
+
+
+def attribute(earlier: dict, now: dict) -> tuple[ChangeCause, ...]:
+    """Each scenario total's change split into its causes: per fuel, total = model gallons x
+    calibration factor (x tax rate), so ln(change) is the sum of the factors' ln ratios; the
+    change in US$ or gallons is shared in proportion to them and added over fuels. The model
+    gallons' part goes to the inputs whose fingerprint changed (vehicles, scenario, model
+    version; several at once are named together, not split)."""
+    old_all, new_all = (earlier.get("attribution") or {}).get("by_fuel") or {}, now.get("by_fuel") or {}
+    causes = []
+    for scenario_id in new_all:
+        if scenario_id not in old_all:
+            continue
+        for total in ("fuel_gal_total", "state_tax_usd", "federal_tax_usd"):
+            key = "fuel_gal" if total == "fuel_gal_total" else total
+            amounts: dict[str, float] = {}
+            for fuel in set(old_all[scenario_id]) | set(new_all[scenario_id]):
+                old, new = old_all[scenario_id].get(fuel, {}), new_all[scenario_id].get(fuel, {})
+                change = new.get(key, 0.0) - old.get(key, 0.0)
+                logs = _factor_logs(old, new, key)
+                if not change:
+                    continue
+                if logs is None or not sum(logs.values()):
+                    amounts["vehicles (fuel added or removed)"] = amounts.get("vehicles (fuel added or removed)", 0) + change
+                    continue
+                whole = sum(logs.values())
+                for factor, value in logs.items():
+                    name = _raw_cause(earlier.get("attribution") or {}, now, scenario_id) if factor == "raw" else factor
+                    amounts[name] = amounts.get(name, 0.0) + change * value / whole
+            causes += [ChangeCause(scenario_id, total, name, amount) for name, amount in amounts.items()
+                       if abs(amount) > 1e-9]
+    return tuple(causes)
 
 
 def read_earlier(out_dir: Path) -> dict | None:
@@ -51,16 +163,39 @@ def read_earlier(out_dir: Path) -> dict | None:
     return data
 
 
-def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float]]) -> RunChanges:
-    """Inputs added, removed or changed (by sha256) and totals by scenario, earlier vs now."""
-    before = {item.get("path"): item.get("sha256") for item in earlier.get("inputs", []) if isinstance(item, dict)}
+WORKBOOK_ROLE = "fleet workbook"
+
+
+def _compare_inputs(earlier_inputs: list, inputs: list[dict]) -> list[InputChange]:
+    """Inputs added, removed, changed or the same (by sha256); the fleet workbook is followed
+    by its role, so a renamed workbook is ``renamed`` (or ``renamed and changed``), not
+    removed + added."""
+    earlier_inputs = [item for item in earlier_inputs if isinstance(item, dict)]
+    old_book = next((i for i in earlier_inputs if i.get("role") == WORKBOOK_ROLE), None)
+    new_book = next((i for i in inputs if i.get("role") == WORKBOOK_ROLE), None)
+    out = []
+    if old_book and new_book and old_book.get("path") != new_book["path"]:
+        same = old_book.get("sha256") == new_book["sha256"]
+        out.append(InputChange(path=f"{old_book.get('path')} -> {new_book['path']}",
+                               status="renamed" if same else "renamed and changed",
+                               earlier_sha256=old_book.get("sha256"), sha256=new_book["sha256"]))
+        earlier_inputs = [i for i in earlier_inputs if i is not old_book]
+        inputs = [i for i in inputs if i is not new_book]
+    before = {item.get("path"): item.get("sha256") for item in earlier_inputs}
     now = {item["path"]: item["sha256"] for item in inputs}
-    changed_inputs = []
     for path in sorted(set(before) | set(now), key=str):
         status = ("added" if path not in before else "removed" if path not in now
                   else "changed" if before[path] != now[path] else "same")
-        changed_inputs.append(InputChange(path=path, status=status, earlier_sha256=before.get(path),
-                                          sha256=now.get(path)))
+        out.append(InputChange(path=path, status=status, earlier_sha256=before.get(path), sha256=now.get(path)))
+    return out
+
+
+def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float]],
+            attribution: dict | None = None) -> RunChanges:
+    """Inputs added, removed, renamed or changed (by sha256), totals by scenario earlier vs now,
+    and each total's change attributed to its causes (``attribution``: this run's
+    :func:`attribution_inputs`)."""
+    changed_inputs = _compare_inputs(earlier.get("inputs", []), inputs)
     rows = []
     earlier_totals = earlier.get("totals") or {}
     for scenario_id in list(totals) + [s for s in earlier_totals if s not in totals]:
@@ -73,7 +208,7 @@ def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float
             rows.append(TotalChange(scenario_id=scenario_id, total=column, earlier=old, now=new, change_pct=change))
     return RunChanges(earlier_created_utc=earlier.get("created_utc", ""),
                       earlier_version=earlier.get("fleetrun_version", ""), inputs=tuple(changed_inputs),
-                      totals=tuple(rows))
+                      totals=tuple(rows), causes=attribute(earlier, attribution or {}))
 
 
 def describe(changes: RunChanges) -> list[str]:
@@ -91,6 +226,10 @@ def describe(changes: RunChanges) -> list[str]:
         elif row.earlier != row.now:
             change = f" ({row.change_pct:+.2%})" if row.change_pct is not None else ""
             lines.append(f"{row.scenario_id} {row.total}: {row.earlier:,.0f} -> {row.now:,.0f}{change}")
+            parts = [f"{c.cause} {c.amount:+,.0f}" for c in changes.causes
+                     if c.scenario_id == row.scenario_id and c.total == row.total]
+            if parts:
+                lines.append(f"  of which: " + "; ".join(parts))
     return lines
 
 

@@ -35,12 +35,40 @@ def short_number(value: float, prefix: str = "") -> str:
     return f"{prefix}{value:.3g}"
 
 
+CHAR_PX = 6.6     # width of a character of the 11 px chart font, generously (system-ui, Arial)
+
+
+def text_px(text: str) -> float:
+    """An upper estimate of ``text``'s width at the charts' 11 px font [px]."""
+    return CHAR_PX * len(str(text))
+
+
+def _legend(series: list[str], left: float, width: float) -> tuple[list[dict], float]:
+    """Legend items laid out in rows that fit ``width`` (never past the right edge); the
+    height they take [px]."""
+    items, x, y = [], left, 2
+    for i, name in enumerate(series):
+        span = 14 + text_px(name) + 12
+        if x > left and x + span > width:
+            x, y = left, y + 16
+        items.append({"name": name, "color": PALETTE[i % len(PALETTE)], "x": x, "y": y})
+        x += span
+    return items, y + 16
+
+
 def grouped_bars(categories: list[str], series: list[str], values: dict[tuple[str, str], float], *,
-                 prefix: str = "", width: int = 420, bar_height: int = 14, label_width: int = 110) -> dict:
-    """Horizontal bars: one group per category, one bar per series in each group."""
+                 prefix: str = "", width: int = 420, bar_height: int = 14, label_width: int | None = None) -> dict:
+    """Horizontal bars: one group per category, one bar per series in each group. The label
+    column is as wide as the longest label and the chart widens with it, and the legend wraps,
+    so no text is clipped (the SVG scales to the screen as a whole)."""
     gap = 10
-    plot_width = width - label_width - 70
-    top = 10 + (18 if len(series) > 1 else 0)
+    if label_width is None:
+        label_width = int(max(60, max((text_px(c) for c in categories), default=0) + 12))
+    width = int(max(width, label_width + 300))
+    value_room = max(70, text_px(short_number(1.23e9, prefix)) + 10)
+    plot_width = width - label_width - value_room
+    legend, legend_height = _legend(series, 4, width - 4) if len(series) > 1 else ([], 0)
+    top = 10 + legend_height
     vmax = nice_max(max([v for v in values.values() if v is not None and math.isfinite(v)] or [0.0]))
     groups = []
     y = top
@@ -57,12 +85,42 @@ def grouped_bars(categories: list[str], series: list[str], values: dict[tuple[st
         y += gap
     ticks = [{"x": label_width + plot_width * f, "text": short_number(vmax * f, prefix)}
              for f in (0, 0.25, 0.5, 0.75, 1.0)]
-    spacing = min(120.0, (width - label_width) / max(1, len(series)))
-    legend = [{"name": name, "color": PALETTE[i % len(PALETTE)], "x": label_width + i * spacing}
-              for i, name in enumerate(series)] if len(series) > 1 else []
     return {"width": width, "height": y + 20, "label_width": label_width, "plot_width": plot_width,
             "bar_height": bar_height, "groups": groups, "ticks": ticks, "axis_y": y,
-            "legend": legend}
+            "legend": legend, "grid_top": top - 4}
+
+
+def tornado(rows, *, prefix: str = "$", width: int = 460, bar_height: int = 16) -> dict:
+    """Sensitivity bars: per driver a bar from its low to its high value around the central
+    line (``rows``: dicts with driver, low_usd, high_usd, central_usd; widest first)."""
+    rows = list(rows)
+    label_width = int(max(60, max((text_px(r["driver"]) for r in rows), default=0) + 12))
+    width = int(max(width, label_width + 320))
+    plot_left, plot_width = label_width + 50, width - label_width - 100
+    lows = [r["low_usd"] for r in rows] + [r["central_usd"] for r in rows]
+    highs = [r["high_usd"] for r in rows] + [r["central_usd"] for r in rows]
+    lo, hi = (min(lows), max(highs)) if rows else (0.0, 1.0)
+    span = (hi - lo) or 1.0
+
+    def x(value):
+        return plot_left + plot_width * (value - lo) / span
+
+    scale, word = next(((t, w) for t, w in ((1e12, "T"), (1e9, "B"), (1e6, "M"), (1e3, "k"))
+                        if abs(hi) >= t), (1.0, ""))
+    digits = max(0, min(4, -math.floor(math.log10(max(span / scale / 10, 1e-9)))))
+
+    def label(value):       # one number of decimals for every label, enough to tell them apart
+        return f"{prefix}{value / scale:,.{digits}f}{word}"
+
+    bars, y = [], 24
+    for r in rows:
+        bars.append({"label": r["driver"], "y": y, "x": x(r["low_usd"]), "w": max(1.0, x(r["high_usd"]) - x(r["low_usd"])),
+                     "low": label(r["low_usd"]), "high": label(r["high_usd"]),
+                     "low_x": x(r["low_usd"]) - 4, "high_x": x(r["high_usd"]) + 4})
+        y += bar_height + 8
+    centre = x(rows[0]["central_usd"]) if rows else plot_left
+    return {"width": width, "height": y + 24, "label_width": label_width, "bars": bars, "bar_height": bar_height,
+            "centre_x": centre, "axis_y": y, "centre_text": label(rows[0]["central_usd"]) if rows else ""}
 
 
 def _efficiency_color(value: float, low: float, high: float) -> str:
@@ -83,12 +141,13 @@ def efficiency_scale(maps) -> tuple[float, float]:
 
 
 def scale_legend(low: float, high: float, *, width: int = 300) -> dict:
-    """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``."""
-    steps = 24
-    stops = [{"x": 10 + width * k / steps, "w": width / steps + 0.5,
+    """The one colour scale of all heat maps: a gradient bar from ``low`` to ``high``, with a
+    margin either side for the end labels (centred on the bar's ends, they would be cut)."""
+    steps, margin = 24, 28
+    stops = [{"x": margin + width * k / steps, "w": width / steps + 0.5,
               "fill": _efficiency_color(low + (high - low) * k / steps, low, high)} for k in range(steps + 1)]
-    ticks = [{"x": 10 + width * f, "text": f"{low + (high - low) * f:.1%}"} for f in (0.0, 0.5, 1.0)]
-    return {"width": width + 20 + width / steps, "stops": stops, "ticks": ticks}
+    ticks = [{"x": margin + width * f, "text": f"{low + (high - low) * f:.1%}"} for f in (0.0, 0.5, 1.0)]
+    return {"width": width + 2 * margin + width / steps, "stops": stops, "ticks": ticks}
 
 
 def heatmap(effmap: EfficiencyMap, *, low: float, high: float, cell_width: int = 40, cell_height: int = 20) -> dict:

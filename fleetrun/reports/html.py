@@ -31,6 +31,7 @@ TEXT_FORMATS = {
     "gal_per_mile": "{:.5f}", "change_gal": "{:+,.0f}", "change_from_vmt_gal": "{:+,.0f}",
     "change_from_gal_per_mile_gal": "{:+,.0f}",
 }
+MEMO_LABELS = {"fuel_gal": "Gallons", "state_tax_usd": "State revenue", "federal_tax_usd": "Federal revenue"}
 
 
 def _environment() -> jinja2.Environment:
@@ -57,7 +58,8 @@ def _raw(value) -> str:
 def _cards(result: RunResult, totals) -> list[dict]:
     """One card per scenario: totals rounded to their range, state and federal apart, and
     each one's change against the first scenario."""
-    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
+    mpg = report_text.fuel_mpg(result.results)
     described = {s.scenario_id: s for s in result.scenarios}
     cards, base = [], None
     for row in totals.itertuples(index=False):
@@ -73,7 +75,8 @@ def _cards(result: RunResult, totals) -> list[dict]:
             changes = [f"vs {base.scenario_id}: " + ", ".join(changes)] if changes else []
         items = report_text.headline(s, ranges[s.scenario_id])
         items.insert(1, ("Miles", report_text.short(row.miles_total)))
-        items.insert(2, ("Fleet mpg", _fmt("mpg", row.mpg)))
+        for k, fuel in enumerate(f for sid, f in mpg if sid == row.scenario_id):
+            items.insert(2 + k, (f"mpg, {fuel}", _fmt("mpg", mpg[(row.scenario_id, fuel)])))
         if row.kwh_total:
             items.append(("Electricity", f"{report_text.short(row.kwh_total)} kWh"))
         if row.ev_fee_usd:
@@ -96,6 +99,38 @@ def _fiscal_groups(result: RunResult) -> list[dict]:
         rows = result.fiscal[result.fiscal["scenario_id"] == s.scenario_id]
         groups.append({"scenario_id": s.scenario_id, "rows": _table_rows(rows, FISCAL_TABLE_COLUMNS)})
     return groups
+
+
+def _memo_groups(result: RunResult) -> list[dict]:
+    """The memo table per scenario: fiscal year x fuel, each value with its 90 % range, rounded
+    to the digit the range supports (the same rule as the headline)."""
+    memo = result.memo
+    groups = []
+    for s in result.scenarios:
+        rows = []
+        for r in memo[memo.scenario_id == s.scenario_id].itertuples(index=False):
+            cells = []
+            for column, label in MEMO_LABELS.items():
+                prefix, stem = ("", "fuel_gal") if column == "fuel_gal" else ("$", column[:-4])
+                value, low, high = getattr(r, column), getattr(r, f"{stem}_low" + ("" if not prefix else "_usd")), \
+                    getattr(r, f"{stem}_high" + ("" if not prefix else "_usd"))
+                cells.append({"label": label, "raw": _raw(value), "column": column,
+                              "text": report_text.short(value, prefix, low, high),
+                              "range": f"{report_text.short(low, prefix, low, high)} to "
+                                       f"{report_text.short(high, prefix, low, high)}"})
+            rows.append({"fiscal_year": r.fiscal_year, "fuel": r.fuel, "cells": cells})
+        groups.append({"scenario_id": s.scenario_id, "rows": rows})
+    return groups
+
+
+def _tornado(result: RunResult) -> dict | None:
+    """The tornado chart of the first scenario (state revenue per driver)."""
+    frame = result.tornado
+    if frame is None or not len(frame) or not result.scenarios:
+        return None
+    first = result.scenarios[0].scenario_id
+    rows = frame[frame.scenario_id == first].to_dict("records")
+    return {"scenario_id": first, "chart": charts.tornado(rows)} if rows else None
 
 
 def _maps(result: RunResult) -> tuple[list[dict], dict]:
@@ -131,7 +166,8 @@ def render_summary(result: RunResult) -> str:
     return _environment().get_template("summary.html.j2").render(
         version=__version__, fleet_name=fleet.path.name, **_fleet_size(result), created_utc=result.created_utc,
         physics=physics_label(info), mode=result.mode, engine=engine, fingerprint=fleet.sha256,
-        scenarios=_cards(result, totals), revenue_chart=revenue_chart, class_columns=CLASS_TABLE_COLUMNS,
+        scenarios=_cards(result, totals), revenue_chart=revenue_chart, memo_groups=_memo_groups(result),
+        memo_labels=list(MEMO_LABELS.values()), tornado=_tornado(result), class_columns=CLASS_TABLE_COLUMNS,
         class_rows=_table_rows(result.classes, CLASS_TABLE_COLUMNS), fuel_chart=fuel_chart, maps=maps,
         scale=scale, warnings=result.warnings, inputs=info["inputs"],
         assumptions=_assumption_rows(result), scenario_ids=scenario_ids,

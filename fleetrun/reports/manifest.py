@@ -7,7 +7,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from fleetrun import __version__
-from fleetrun.reports.changes import scenario_totals_dict
+from fleetrun.reports.changes import attribution_inputs, model_files, scenario_totals_dict
 
 SCHEMA = "fleetrun.run/1"
 
@@ -32,7 +32,9 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "cycles": {name: info.as_json() for name, info in result.cycles.items()},
         "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
         "warnings": list(result.warnings),
+        "model_files": model_files(),                             # models/**: constants the numbers come from
         "totals": scenario_totals_dict(result.classes),          # what the next run compares with
+        "attribution": attribution_inputs(result),                # per fuel factors + input fingerprints
         "changes": result.changes.as_json() if result.changes else None,   # vs the run that was in the folder
         "outputs": outputs or {},
     }

@@ -50,26 +50,43 @@ def with_range(value: float, low: float, high: float, prefix: str = "", unit: st
             f"({short(low, prefix, low, high)} to {short(high, prefix, low, high)})")
 
 
-def scenario_ranges(fiscal: pd.DataFrame, scenarios) -> dict[str, dict[str, float]]:
-    """Per scenario: fuel, state and federal tax with their low and high ends (the taxes'
-    range is each fuel's gallon range x that fuel's rate)."""
+def scenario_ranges(fiscal: pd.DataFrame, scenarios, period_ranges=None) -> dict[str, dict[str, float]]:
+    """Per scenario: fuel, state and federal tax over the budget period with their 90 % range
+    (the Monte Carlo's percentiles of the period totals, ``RunResult.period_ranges``; without
+    them, no range)."""
     out = {}
     for s in scenarios:
-        rows = fiscal[fiscal["scenario_id"] == s.scenario_id]
-        entry = {key: 0.0 for key in ("fuel", "fuel_low", "fuel_high", "state", "state_low", "state_high",
-                                      "federal", "federal_low", "federal_high")}
-        for fuel, group in rows.groupby("fuel", sort=False):
-            gallons = [math.fsum(group[c]) if group[c].notna().all() else math.nan
-                       for c in ("fuel_gal", "fuel_gal_low", "fuel_gal_high")]
-            for key, rate in (("state", s.state_tax_usd_per_gal(fuel)), ("federal", s.federal_tax_usd_per_gal(fuel))):
-                entry[key] += math.fsum(group[f"{key}_tax_usd"])
-                entry[f"{key}_low"] += gallons[1] * rate
-                entry[f"{key}_high"] += gallons[2] * rate
-            entry["fuel"] += gallons[0]
-            entry["fuel_low"] += gallons[1]
-            entry["fuel_high"] += gallons[2]
+        rows = fiscal[(fiscal["scenario_id"] == s.scenario_id) & (fiscal["fuel"] != "electric")]
+        found = (period_ranges or {}).get(s.scenario_id)
+        entry = {"fuel": math.fsum(rows["fuel_gal"]), "state": math.fsum(rows["state_tax_usd"]),
+                 "federal": math.fsum(rows["federal_tax_usd"])}
+        for key in ("fuel", "state", "federal"):
+            low, high = (getattr(found, f"{key}_low"), getattr(found, f"{key}_high")) if found else (math.nan, math.nan)
+            entry[f"{key}_low"], entry[f"{key}_high"] = entry[key] * low, entry[key] * high
         out[s.scenario_id] = entry
     return out
+
+
+def fuel_mpg(results: pd.DataFrame) -> dict[tuple[str, str], float]:
+    """(scenario, fuel) -> miles / gallons of that fuel's vehicles (never gasoline and diesel
+    mixed: their gallons differ in energy and tax)."""
+    out = {}
+    for (scenario_id, fuel), group in results.groupby(["scenario_id", "fuel"], sort=False):
+        gallons = math.fsum(group["fuel_gal_total"])
+        if fuel != "electric" and gallons > 0:
+            out[(scenario_id, fuel)] = math.fsum(group["miles_total"]) / gallons
+    return out
+
+
+def totals_with_fuel_mpg(totals: pd.DataFrame, results: pd.DataFrame) -> pd.DataFrame:
+    """The scenario totals with ``mpg_<fuel>`` per fuel in place of one mixed fleet mpg."""
+    mpg = fuel_mpg(results)
+    fuels = list(dict.fromkeys(f for _, f in mpg))
+    frame = totals.drop(columns=["mpg"])
+    position = list(totals.columns).index("mpg")
+    for k, fuel in enumerate(fuels):
+        frame.insert(position + k, f"mpg_{fuel}", [mpg.get((s, fuel), math.nan) for s in frame["scenario_id"]])
+    return frame
 
 
 def headline(s, entry: dict) -> list[tuple[str, str]]:
@@ -102,6 +119,7 @@ def assumptions(s) -> list[tuple[str, str]]:
             ("On-road fuel", budget.onroad_label(s.onroad_adjustment)),
             ("Fiscal years", ", ".join(str(y) for y in budget.fiscal_years(s))
              if s.first_fiscal_year else f"{s.budget_years} budget year(s), numbered from 1")]
+    rows += driver_rows(s)
     if s.ev_fee_usd_per_vehicle_year:
         rows.append(("Electric-vehicle fee", f"${s.ev_fee_usd_per_vehicle_year:,.2f} per vehicle per year"))
     observed = [f"{fuel} {s.observed_base_gallons(fuel):,.0f} gal" for fuel in ("gasoline", "diesel")
@@ -112,13 +130,47 @@ def assumptions(s) -> list[tuple[str, str]]:
     return rows
 
 
+def _schedule_text(value, unit: str = "$/gal") -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{year}: ${rate:.3f}" for year, rate in sorted(value.items())) + f" ({unit})"
+    return f"${float(value):.3f} {unit}"
+
+
+def driver_rows(s) -> list[tuple[str, str]]:
+    """The drivers of one scenario (docs/budget.md): fiscal year start, fuel price and price
+    response, state tax per year."""
+    from fleetrun.budget import drivers
+
+    import calendar
+
+    rows = [("Fiscal year starts", calendar.month_name[drivers.start_month(s)])]
+    prices = [f"{fuel} {_schedule_text(p)}" for fuel, p in (("gasoline", s.fuel_price_gasoline_usd_per_gal),
+                                                            ("diesel", s.fuel_price_diesel_usd_per_gal)) if p is not None]
+    short, long = drivers.elasticities(s)
+    rows.append(("Fuel price", "; ".join(prices) if prices else "not given (no price response; price uncertainty "
+                                                                  "in the range)"))
+    rows.append(("Price elasticity of gallons", f"short run {short:g}, long run {long:g}"))
+    schedules = [f"{fuel} {_schedule_text(v)}" for fuel, v in (("gasoline", s.state_tax_schedule_gasoline_usd_per_gal),
+                                                               ("diesel", s.state_tax_schedule_diesel_usd_per_gal)) if v]
+    if schedules:
+        rows.append(("State tax per fiscal year", "; ".join(schedules)))
+    elif s.state_tax_index_pct_per_year:
+        rows.append(("State tax index", f"{s.state_tax_index_pct_per_year:g} % per year"))
+    return rows
+
+
 def range_source_lines(error_model) -> list[str]:
-    """Where the ranges come from, in short lines."""
+    """Where the ranges come from, in short lines (docs/budget.md, "Ranges")."""
+    from fleetrun.budget import drivers
+
+    u = drivers.uncertainty()
+    lines = ["Ranges: 5th to 95th percentile of a Monte Carlo over the model's fleet-level error and the "
+             "drivers (VMT growth, fuel price through the price elasticity, fleet mix); a fuel calibrated to "
+             "collections keeps the uncertainty of the observed gallons and of the years after them.",
+             f"Drivers: VMT growth sd {u['vmt_growth_sd_pct_points']:g} points a year; fuel price sd "
+             f"{u['fuel_price_log_sd_per_year']:.0%} a year (log); each fuel's share of the miles sd "
+             f"{u['fleet_mix_relative_sd']:.0%} (models/budget.toml)."]
     if error_model is None:
-        return ["No range: no measured fuel-economy error in this installation (models/fuel_economy_error.toml)."]
-    lines = ["Ranges: the model's measured fuel-economy error (predicted / measured mpg - 1), 5th to 95th "
-             "percentile, added over vehicles (one model: fully correlated).",
-             f"Measured: {error_model.source} ({error_model.measured_on})."]
-    lines += [f"{test}: {e['p05']:+.1%} to {e['p95']:+.1%} (n = {e.get('n', '?')})"
-              for test, e in sorted(error_model.tests.items())]
-    return lines
+        return lines + ["No model error in these ranges: no measured fleet error in this installation "
+                        "(models/fleet_error.toml)."]
+    return lines + [f"Model error: {error_model.describe()}."]

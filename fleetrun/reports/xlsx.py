@@ -1,7 +1,7 @@
 """``report.xlsx``: the run as a workbook an analyst can hand on.
 
-Sheets: Summary, Assumptions, ByClass, ByVehicle, Scenario comparison, Fiscal years,
-Efficiency maps, Inputs, RunInfo, What changed. Native Excel charts, number formats, frozen
+Sheets: Summary, Revenue memo, Assumptions, ByClass, ByVehicle, Scenario comparison, Fiscal
+years, Fiscal periods, Efficiency maps, Inputs, RunInfo, What changed. Native Excel charts, number formats, frozen
 headers, a page setup on every sheet. Written with XlsxWriter in its ``constant_memory``
 mode: each sheet is streamed row by row to a temporary file. The workbook stays a document a
 person opens: per-vehicle tables beyond :data:`DETAIL_ROWS` rows (the Vehicles echoed in Inputs:
@@ -56,6 +56,10 @@ FORMATS = {
     "fuel_gal_low_total": "#,##0", "fuel_gal_high_total": "#,##0", "fuel_gal_cycle_total": "#,##0",
     "fuel_gal_uncalibrated_total": "#,##0", "co2_t": "#,##0", "kwh": "#,##0", "kwh_total": "#,##0", "ev_fee_usd": '"$"#,##0',
     "model_gallons": "#,##0", "observed_gallons": "#,##0", "model_to_observed": "0.0%", "scale": "0.0000",
+    "mpg_gasoline": "0.00", "mpg_diesel": "0.00", "state_tax_low_usd": '"$"#,##0', "state_tax_high_usd": '"$"#,##0',
+    "federal_tax_low_usd": '"$"#,##0', "federal_tax_high_usd": '"$"#,##0', "low_usd": '"$"#,##0',
+    "high_usd": '"$"#,##0', "central_usd": '"$"#,##0', "share": "0.0%", "low_change_usd": '"$"#,##0',
+    "high_change_usd": '"$"#,##0',
 }
 
 WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "strings_to_urls": False,
@@ -174,6 +178,47 @@ def _widths(sheet: Sheet, names, minimum=10, maximum=40):
         sheet.ws.set_column(i, i, max(minimum, min(maximum, len(name) + 2)))
 
 
+def printed_width(values, number_format: str | None) -> int:
+    """Characters the widest of ``values`` takes in ``number_format`` (so that no column prints
+    ``###``: a number wider than its column shows as hashes in Excel and LibreOffice)."""
+    numbers = [float(v) for v in values if isinstance(v, (int, float, np.integer, np.floating))
+               and not isinstance(v, bool) and math.isfinite(float(v))]
+    texts = [str(v) for v in values if isinstance(v, str)]
+    widest = max((len(t) for t in texts), default=0)
+    if not numbers:
+        return widest
+    big = max(numbers, key=abs)
+    fmt = number_format or ""
+    if "E+" in fmt:
+        shown = f"{big:.3E}"
+    elif fmt.endswith("%"):
+        decimals = len(fmt.split(".")[1].rstrip("%")) if "." in fmt else 0
+        shown = f"{big * 100:,.{decimals}f}%" if "," in fmt else f"{big * 100:.{decimals}f}%"
+    elif "#,##0" in fmt:
+        decimals = len(fmt.split(".")[1]) if "." in fmt.split(";")[0] else 0
+        shown = ('$' if '"$"' in fmt else '') + f"{big:,.{decimals}f}"
+    elif fmt.startswith("0."):
+        shown = f"{big:.{len(fmt) - 2}f}"
+    else:
+        shown = repr(big) if not float(big).is_integer() else f"{big:.0f}"
+    return max(widest, len(shown) + (1 if big < 0 else 0))
+
+
+def fit_frame(sheet: Sheet, frames, minimum: int = 10, maximum: int = 60, formats: dict | None = None) -> None:
+    """Column widths for one or more tables written in the same columns (the k-th column of
+    each frame lands in sheet column k): the widest header or printed value + 3 characters of
+    margin (proportional fonts, the filter button). ``formats``: number format per column
+    index where a column's name is not a FORMATS key (a pivot's scenario columns)."""
+    widths: dict[int, int] = {}
+    for frame in frames:
+        for k, name in enumerate(frame.columns):
+            fmt = FORMATS.get(str(name)) or (formats or {}).get(k)
+            width = max(len(str(name)), printed_width(frame[name].tolist(), fmt)) + 3
+            widths[k] = max(widths.get(k, 0), width)
+    for k, width in widths.items():
+        sheet.ws.set_column(k, k, max(minimum, min(maximum, width)))
+
+
 def _table(sheet: Sheet, frame: pd.DataFrame, styled: bool = True, widths: bool = True) -> None:
     names = [str(n) for n in frame.columns]
     if widths:
@@ -195,11 +240,13 @@ def write_report_xlsx(result: RunResult, path: Path, detail_rows: int | None = N
     book = Book(path, cells)
     totals = scenario_totals(result.classes)
     _summary(book, result, totals)
+    _memo(book, result)
     _assumptions(book, result)
     _by_class(book, result)
     _by_vehicle(book, result, detail_rows)
     _comparison(book, result)
     _fiscal(book, result)
+    _periods(book, result)
     _registrations(book, result)
     _maps(book, result)
     _inputs(book, result, input_rows)
@@ -261,24 +308,29 @@ def _scenario_bars(sheet: Sheet, pivot: pd.DataFrame, header_row: int, kind: str
 
 
 def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
+    from fleetrun.reports import text as report_text
+
     sheet = Sheet(book, "Summary")
     header_row = 6
     sheet.ws.freeze_panes(f"A{header_row + 1}")
     page_setup(sheet, title_row=None, one_page=True)
-    names = ["scenario_id", "description", "budget_years"] + list(totals.columns[1:])
-    _widths(sheet, names, minimum=12)
-    sheet.ws.set_column("B:B", 30)
     descriptions = {s.scenario_id: s.description for s in result.scenarios}
     years = {s.scenario_id: s.budget_years for s in result.scenarios}
+    frame = report_text.totals_with_fuel_mpg(totals, result.results)
+    frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
+    frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
+    fit_frame(sheet, [frame], minimum=12)
+    sheet.ws.set_column("B:B", 34, book.style("wrap"))
     sheet.append(["Fleet fuel and fuel-tax forecast"], "title")
     sheet.append(["Fleet workbook", result.fleet.path.name])
     sheet.append(["sha256", result.fleet.sha256])
     sheet.append(["Warnings", len(result.warnings)])
     sheet.append([])
-    frame = totals.copy()
-    frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
-    frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
-    _table(sheet, frame, widths=False)
+    sheet.append([str(n) for n in frame.columns], "header")
+    for values in frame.itertuples(index=False):
+        lines = max(1, math.ceil(len(str(values[1])) / 32))
+        sheet.append(list(values), [None, "wrap"] + [FORMATS.get(str(n)) for n in frame.columns[2:]],
+                     height=15 * lines if lines > 1 else None)
     n = len(frame)
     row = _summary_words(sheet, result)
     if n:
@@ -292,13 +344,15 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
 
 def _summary_words(sheet: Sheet, result: RunResult) -> int:
     """The headline of each scenario (rounded to its range; state and federal apart) and
-    where the ranges come from; the last row written."""
-    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios)
+    where the ranges come from; the last row written. The heading has a row of its own, so
+    no label is cut by the next cell."""
+    ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
-    heads = ["Headline (rounded to its range)"] + [None] * 12
+    sheet.append([])
+    sheet.append(["Headline: totals over the budget period, rounded to the digit their 90 % range supports"], "bold")
+    heads = ["scenario_id"] + [None] * 12
     for column, label in labels:
         heads[column] = label
-    sheet.append([])
     sheet.append(heads, "bold")
     for s in result.scenarios:
         texts = dict(report_text.headline(s, ranges[s.scenario_id]))
@@ -307,10 +361,61 @@ def _summary_words(sheet: Sheet, result: RunResult) -> int:
             line[column] = texts[label]
         sheet.append(line)
     sentences = report_text.range_source_lines(result.error_model) + [
-        "Rates, mixes, growth, temperature and on-road fuel of each scenario: see the Assumptions sheet."]
+        "Rates, mixes, growth, temperature and on-road fuel of each scenario: see the Assumptions sheet; "
+        "fiscal year x fuel with ranges: the Revenue memo sheet."]
     for sentence in sentences:
-        sheet.append([None, sentence])
+        sheet.append([sentence])
     return sheet.row
+
+
+def _memo(book: Book, result: RunResult):
+    """Revenue memo: fiscal year x fuel (and all fuels) with gallons, state and federal revenue
+    and their 90 % ranges (revenue_memo.csv), and the tornado of state revenue per driver."""
+    from fleetrun.reports import text as report_text
+
+    sheet = Sheet(book, "Revenue memo")
+    page_setup(sheet, title_row=3)
+    memo = result.memo if result.memo is not None else pd.DataFrame()
+    tornado = result.tornado if result.tornado is not None else pd.DataFrame()
+    if len(tornado):
+        tornado = tornado.assign(low_change_usd=tornado.low_usd - tornado.central_usd,
+                                 high_change_usd=tornado.high_usd - tornado.central_usd)
+    fit_frame(sheet, [memo, tornado], minimum=12)
+    sheet.ws.freeze_panes("D4")
+    sheet.append(["Revenue by fiscal year and fuel, with 90 % ranges"], "title")
+    sheet.append([report_text.range_source_lines(result.error_model)[0]])
+    _table(sheet, memo, widths=False)
+    if not len(tornado):
+        return
+    sheet.append([])
+    sheet.append(["Sensitivity: state revenue over the budget period with one driver at its 5th or 95th "
+                  "percentile, the others central"], "bold")
+    header = sheet.append(list(tornado.columns), "header")
+    sheet.rows([tornado[c].tolist() for c in tornado.columns], [FORMATS.get(c) for c in tornado.columns])
+    first = result.scenarios[0].scenario_id
+    rows = [header + 1 + k for k, sid in enumerate(tornado["scenario_id"]) if sid == first]
+    if not rows:
+        return
+    chart = book.workbook.add_chart({"type": "bar", "subtype": "stacked"})
+    chart.set_title({"name": f"State revenue by driver, scenario {first}: change from the central value"})
+    for column, name in ((6, "Driver at its low end"), (7, "Driver at its high end")):
+        chart.add_series({"name": name, "categories": [sheet.name, rows[0] - 1, 1, rows[-1] - 1, 1],
+                          "values": [sheet.name, rows[0] - 1, column - 1, rows[-1] - 1, column - 1]})
+    chart.set_x_axis({"name": "Change of state revenue over the budget period (US$)", "num_format": '"$"#,##0'})
+    chart.set_y_axis({"name": "Driver", "reverse": True, "label_position": "low"})
+    chart.set_legend({"position": "bottom"})
+    chart.set_size({"width": round(18 * CM_TO_PIXELS), "height": round(max(7.5, 1.2 * len(rows)) * CM_TO_PIXELS)})
+    sheet.ws.insert_chart(f"A{sheet.row + 2}", chart)
+
+
+def _periods(book: Book, result: RunResult):
+    """Quarters and months of each fiscal year (fiscal_periods.csv)."""
+    sheet = Sheet(book, "Fiscal periods")
+    page_setup(sheet)
+    frame = result.periods if result.periods is not None else pd.DataFrame()
+    fit_frame(sheet, [frame], minimum=10)
+    sheet.ws.freeze_panes("E2")
+    _table(sheet, frame, widths=False)
 
 
 ASSUMPTION_WIDTH = 48   # characters per scenario column of the Assumptions sheet
@@ -339,15 +444,15 @@ def _by_class(book: Book, result: RunResult):
     frame = result.classes
     sheet.ws.freeze_panes("C2")
     page_setup(sheet)
-    _widths(sheet, list(frame.columns))
-    sheet.ws.set_column("B:B", 28)
+    # One chart: gallons by class, one series per scenario (classes x scenarios pivot below).
+    pivot = frame.pivot_table(index="vehicle_class", columns="scenario_id", values="fuel_gal_total",
+                              aggfunc="sum", sort=False) if len(frame) else pd.DataFrame()
+    chart_data = pivot.reset_index()
+    fit_frame(sheet, [frame, chart_data], formats={k: "#,##0" for k in range(1, len(chart_data.columns))})
     _table(sheet, frame, widths=False)
     n = len(frame)
     if not n:
         return
-    # One chart: gallons by class, one series per scenario (classes x scenarios pivot below).
-    pivot = frame.pivot_table(index="vehicle_class", columns="scenario_id", values="fuel_gal_total",
-                              aggfunc="sum", sort=False)
     start = n + 4
     sheet.row = start - 1   # two empty rows under the table
     sheet.append(["Fuel over the budget period [gal] by class and scenario"])
@@ -378,30 +483,41 @@ def _by_vehicle(book: Book, result: RunResult, detail_rows: int):
     _table(sheet, frame)
 
 
-def _comparison(book: Book, result: RunResult):
-    sheet = Sheet(book, "Scenario comparison")
-    page_setup(sheet, title_row=2)
+def _comparison_frame(result: RunResult) -> pd.DataFrame:
+    """Per class and scenario: fuel, mpg, taxes and the change against the first scenario."""
     classes = result.classes
-    scenario_ids = [s.scenario_id for s in result.scenarios]
-    base = scenario_ids[0] if scenario_ids else None
-    names = ["vehicle_class", "scenario_id", "fuel_gal_total", "mpg", "state_tax_usd",
-             "federal_tax_usd", "fuel_change_pct", "state_tax_change_pct"]
-    _widths(sheet, names, minimum=14)
-    sheet.ws.set_column("A:A", 28)
-    sheet.ws.freeze_panes("C3")
-    sheet.append([f"Change against the first scenario ({base})"], "title")
-    sheet.append(names, "header")
+    base = result.scenarios[0].scenario_id if result.scenarios else None
     baseline = classes[classes["scenario_id"] == base].set_index("vehicle_class")
-    styles = [None, None] + [FORMATS[n] for n in ("fuel_gal_total", "mpg", "state_tax_usd", "federal_tax_usd")] \
-        + [FORMATS["change_pct"]] * 2
+    rows = []
     for _, row in classes.iterrows():
         ref = baseline.loc[row["vehicle_class"]] if row["vehicle_class"] in baseline.index else None
         fuel_change = (row["fuel_gal_total"] / ref["fuel_gal_total"] - 1.0
                        if ref is not None and ref["fuel_gal_total"] else None)
         tax_change = (row["state_tax_usd"] / ref["state_tax_usd"] - 1.0
                       if ref is not None and ref["state_tax_usd"] else None)
-        sheet.append([row["vehicle_class"], row["scenario_id"], row["fuel_gal_total"], row["mpg"],
-                      row["state_tax_usd"], row["federal_tax_usd"], fuel_change, tax_change], styles)
+        rows.append([row["vehicle_class"], row["scenario_id"], row["fuel_gal_total"], row["mpg"],
+                     row["state_tax_usd"], row["federal_tax_usd"], fuel_change, tax_change])
+    return pd.DataFrame(rows, columns=["vehicle_class", "scenario_id", "fuel_gal_total", "mpg", "state_tax_usd",
+                                       "federal_tax_usd", "fuel_change_pct", "state_tax_change_pct"])
+
+
+def _comparison(book: Book, result: RunResult):
+    sheet = Sheet(book, "Scenario comparison")
+    page_setup(sheet, title_row=2)
+    base = result.scenarios[0].scenario_id if result.scenarios else None
+    frame = _comparison_frame(result)
+    years = yearly_totals(result.fiscal)
+    pivot = years.pivot_table(index="fiscal_year", columns="scenario_id", values="state_tax_usd",
+                              aggfunc="sum", sort=False).reset_index() if len(years) else pd.DataFrame()
+    fit_frame(sheet, [frame, years, pivot], minimum=12,
+              formats={6: FORMATS["change_pct"], 7: FORMATS["change_pct"]}
+              | {k: FORMATS["state_tax_usd"] for k in range(1, len(pivot.columns))})
+    sheet.ws.freeze_panes("C3")
+    sheet.append([f"Change against the first scenario ({base})"], "title")
+    sheet.append(list(frame.columns), "header")
+    styles = [None, None] + [FORMATS[n] for n in ("fuel_gal_total", "mpg", "state_tax_usd", "federal_tax_usd")] \
+        + [FORMATS["change_pct"]] * 2
+    sheet.rows([frame[c].tolist() for c in frame.columns], styles)
     sheet.append([])
     _by_fiscal_year(sheet, result)
 
@@ -430,10 +546,10 @@ def _fiscal(book: Book, result: RunResult):
     sheet = Sheet(book, "Fiscal years")
     page_setup(sheet)
     frame = result.fiscal
-    _widths(sheet, list(frame.columns), minimum=12)
+    calibration = result.calibration
+    fit_frame(sheet, [frame] + ([calibration] if calibration is not None and len(calibration) else []), minimum=12)
     sheet.ws.freeze_panes("E2")
     _table(sheet, frame, widths=False)
-    calibration = result.calibration
     if calibration is not None and len(calibration):
         sheet.append([])
         sheet.append(["Calibration to collections: model vs observed taxable gallons, first fiscal year"], "bold")
@@ -584,7 +700,7 @@ def _what_changed(book: Book, result: RunResult):
     """The comparison with the run that was in the output folder (fleetrun.reports.changes)."""
     sheet = Sheet(book, "What changed")
     page_setup(sheet, title_row=None)
-    for column, width in enumerate((40, 18, 20, 20, 14)):
+    for column, width in enumerate((40, 18, 30, 20, 14)):
         sheet.ws.set_column(column, column, width)
     changes = result.changes
     sheet.append(["What changed since the earlier run in this output folder"], "title")
@@ -601,3 +717,8 @@ def _what_changed(book: Book, result: RunResult):
     for row in changes.totals:
         sheet.append([row.scenario_id, row.total, row.earlier, row.now, row.change_pct],
                      [None, None, "#,##0", "#,##0", FORMATS["change_pct"]])
+    if changes.causes:
+        sheet.append([])
+        sheet.append(["scenario_id", "total", "cause", "change"], "header")
+        for c in changes.causes:
+            sheet.append([c.scenario_id, c.total, c.cause, c.amount], [None, None, None, "#,##0"])

@@ -288,8 +288,9 @@ def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[R
     earlier = read_earlier(out_dir)
     if earlier is None:
         return result, None
-    result = replace(result, changes=compare(earlier, manifest_dict(result)["inputs"],
-                                             scenario_totals_dict(result.classes)))
+    now = manifest_dict(result)
+    result = replace(result, changes=compare(earlier, now["inputs"], scenario_totals_dict(result.classes),
+                                             now["attribution"]))
     for line in describe(result.changes):
         log.info("%s: %s", fleet_path.name, line)
     return result, earlier

@@ -26,7 +26,8 @@ from fleetrun.workbook.reader import file_sha256
 from fleetrun.workbook.text_cells import neutralised
 
 OUTPUT_FILES = ("report.xlsx", "summary.html", "results.csv", "results.parquet", "class_summary.csv",
-                "fiscal_summary.csv", "manifest.json")   # manifest.json last: it lists the others' sha256
+                "fiscal_summary.csv", "revenue_memo.csv", "fiscal_periods.csv",
+                "manifest.json")   # manifest.json last: it lists the others' sha256
 # written when the fleet has Registrations (docs/registrations.md); an older run's are replaced
 REGISTRATION_FILES = ("registrations.csv", "turnover.csv")
 
@@ -146,7 +147,7 @@ def refuse_foreign_outputs(out_dir: Path) -> None:
 
 
 def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
-    """Write the seven outputs of a run into ``out_dir``, all or nothing: the folder changes as
+    """Write the outputs (docs/report.md) of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
     the run already there, whose files are then kept in ``earlier-runs/``
     (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
@@ -160,6 +161,8 @@ def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dic
         write_parquet(result.results, staging / "results.parquet")
         write_csv(result.classes, staging / "class_summary.csv")
         write_csv(result.fiscal, staging / "fiscal_summary.csv")
+        write_csv(result.memo, staging / "revenue_memo.csv")
+        write_csv(result.periods, staging / "fiscal_periods.csv")
         if result.registrations is not None:
             write_csv(result.registrations, staging / "registrations.csv")
             write_csv(result.turnover, staging / "turnover.csv")

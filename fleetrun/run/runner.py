@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from fleetrun.budget import periods
 from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
 from fleetrun.budget.totals import (CLASS_COLUMNS, ENERGY_FIELDS, RESULTS_COLUMNS, aggregate_classes,
-                                   aggregate_vehicles, change_decomposition, fiscal_summary, row_year_shares)
+                                   aggregate_vehicles, change_decomposition, fiscal_summary)
 from fleetrun.budget.uncertainty import read_error_model
 from fleetrun.cycles import load_cycle
 from fleetrun.differential import efficiency
@@ -136,17 +137,21 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     if error_model == "default":
         error_model = read_error_model()
     if error_model is None:
-        warnings.append("totals carry no range: no measured fuel-economy error "
-                        "(models/fuel_economy_error.toml) in this installation")
-    results, calibration = aggregate_vehicles(vehicles, scenarios, per_condition, error_model, years)
+        warnings.append("ranges hold the drivers only, no model error: no measured fleet error "
+                        "(models/fleet_error.toml) in this installation")
+    budget = aggregate_vehicles(vehicles, scenarios, per_condition, error_model, years)
+    results, calibration = budget.results, budget.calibration
+    warnings += budget.warnings
     classes = aggregate_classes(results)
-    fiscal = fiscal_summary(results, scenarios, row_year_shares(results, scenarios, vehicles, years))
+    fiscal = fiscal_summary(results, scenarios, budget.yearly)
+    memo = periods.memo_table(fiscal, budget.ranges)
     maps, map_warnings = efficiency_maps(vehicles, physics, effect_pairs)
     warnings += map_warnings
     finished = time.perf_counter()
     return RunResult(
         fleet=fleet, scenarios=scenarios, results=results, classes=classes, fiscal=fiscal,
-        calibration=calibration, error_model=error_model,
+        calibration=calibration, error_model=error_model, tornado=budget.tornado, ranges=budget.ranges, period_ranges=budget.period_ranges,
+        memo=memo, periods=periods.period_rows(memo, scenarios),
         cycles=cycles, maps=maps, warnings=warnings,
         timings_s={"simulate": simulated - started, "aggregate": finished - simulated},
         distinct_vehicles=len(distinct),

@@ -15,7 +15,7 @@ from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
-                                      standstill_fuel_rate_g_per_s,
+                                      standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
@@ -288,10 +288,10 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
             standstill_s = dt_all.sum() - dt_all[columns].sum()
             if has_technology(va):   # start-stop: engine off at the warm stops
                 still = _still(N, columns)
-                fuel_g = fuel_g + (standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])[0]
-                                   * dt_all[still]).sum(axis=1)
+                rate = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])[0]
+                fuel_g = fuel_g + (with_climate_load(va, solver.ambient, rate) * dt_all[still]).sum(axis=1)
             else:
-                fuel_g = fuel_g + idle_fuel_rate_g_per_s(va) * standstill_s
+                fuel_g = fuel_g + idle_fuel_at_ambient_g_per_s(va, solver.ambient) * standstill_s
             if effects.vehicle:  # the skipped steps idle: the vehicle-level effects' fuel at rest
                 fuel_g = fuel_g + (_still_effects_fuel(va, t, columns, effects) * dt_all[_still(N, columns)]).sum(axis=1)
         phase_fuel_g, phase_miles = fuel_g[:, None], (distance_m / METERS_PER_MILE)[:, None]
@@ -389,11 +389,12 @@ def _every_step(va, t, columns, out, effects, plan):
         out.fuel_rate_g_per_s[:, off] = 0.0
         out.engine_speed_rpm[:, off] = 0.0
         return out.fuel_rate_g_per_s.copy(), out.engine_speed_rpm.copy()
-    rate = np.repeat(idle_fuel_rate_g_per_s(va)[:, None], N, axis=1)
+    rate = np.repeat(idle_fuel_at_ambient_g_per_s(va, plan.ambient_temp_C)[:, None], N, axis=1)
     rpm = np.repeat(va.n_idle[:, None], N, axis=1)
     if has_technology(va):   # start-stop: engine off at the warm stops
         still = _still(N, columns)
-        rate[:, still], off_still = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])
+        at_stop, off_still = standstill_fuel_rate_g_per_s(va, step_time_since_start_s(t)[still])
+        rate[:, still] = with_climate_load(va, plan.ambient_temp_C, at_stop)
         rpm[:, still] = np.where(off_still, 0.0, rpm[:, still])
     if effects.vehicle:
         rate[:, _still(N, columns)] += _still_effects_fuel(va, t, columns, effects)

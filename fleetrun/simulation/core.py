@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from fleetrun.simulation import diffmodes
+from fleetrun.simulation import climate, diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
@@ -510,6 +510,29 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     return t_max, infeasible, engine_torque, fuel, off
 
 
+def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
+    """``fuel`` plus the A/C or cold-weather accessory load at the ambient temperature
+    (fleetrun/simulation/climate.py) while the engine burns fuel; electric rows keep theirs."""
+    power = climate.accessory_power_W(float(ambient_temp_C))
+    if power == 0.0:
+        return fuel
+    from fleetrun.simulation.params import willans_slope
+
+    return fuel + climate.extra_fuel_g_per_s(power, willans_slope(va), va.lhv, fuel > 0)
+
+
+def idle_fuel_at_ambient_g_per_s(va: VehicleArrays, ambient_temp_C) -> np.ndarray:
+    """Idle fuel (V,) [g/s] with the climate accessory load at ``ambient_temp_C``: the rate of
+    the standstill steps a run without a trace does not simulate one by one."""
+    idle = idle_fuel_rate_g_per_s(va)
+    power = climate.accessory_power_W(float(ambient_temp_C))
+    if power == 0.0:
+        return idle
+    from fleetrun.simulation.params import willans_slope
+
+    return idle + climate.per_vehicle_fuel_g_per_s(power, willans_slope(va), va.lhv)
+
+
 def _shaft_power_W(torque_Nm, speed_rpm):
     power = torque_Nm * speed_rpm
     power /= RPM_PER_RAD_S
@@ -539,6 +562,7 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                                                          unlocked & ~drive, wheel_power, drive)
     if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
         engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
+    fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}
     if losses:

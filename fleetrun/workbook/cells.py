@@ -143,6 +143,30 @@ def parse_onroad(value):
     return factor
 
 
+def parse_schedule(value):
+    """A number, or ``YEAR:value`` pairs (``2027:3.40, 2028:3.55``) -> {year: value}."""
+    if not isinstance(value, str) or ":" not in value:
+        try:
+            return parse_number(value)
+        except CellProblem:
+            raise CellProblem(f"{show(value)} is not a number or a YEAR:value list such as 2027:3.40, 2028:3.55") from None
+    schedule = {}
+    for part in re.split(r"[,;]\s*", value.strip()):
+        if not part.strip():
+            continue
+        year, _, number = part.partition(":")
+        try:
+            key = int(year.strip())
+        except ValueError:
+            raise CellProblem(f"{show(value)}: {show(part)} is not YEAR:value (e.g. 2027:3.40)") from None
+        if key in schedule:
+            raise CellProblem(f"{show(value)} gives fiscal year {key} twice")
+        schedule[key] = parse_number(number.strip())
+    if not schedule:
+        raise CellProblem(f"{show(value)} is not a number or YEAR:value list")
+    return schedule
+
+
 _RATIO_SPLIT = re.compile(r"[,;\s]+")
 
 

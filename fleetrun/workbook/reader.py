@@ -65,6 +65,16 @@ class Scenario:
     observed_base_gallons_diesel: float | None = None
     calibrate_to_observed: bool = False
     ev_fee_usd_per_vehicle_year: float = 0.0
+    # drivers (docs/budget.md): fiscal periods, fuel price (a number or {fiscal year: $/gal}),
+    # price elasticities (None: models/budget.toml), state tax per fiscal year
+    fiscal_year_start_month: int | None = None
+    fuel_price_gasoline_usd_per_gal: float | dict | None = None
+    fuel_price_diesel_usd_per_gal: float | dict | None = None
+    price_elasticity_short_run: float | None = None
+    price_elasticity_long_run: float | None = None
+    state_tax_schedule_gasoline_usd_per_gal: dict | float | None = None
+    state_tax_schedule_diesel_usd_per_gal: dict | float | None = None
+    state_tax_index_pct_per_year: float | None = None
     base_year_vmt_million: float | None = None          # registrations: base fiscal year's VMT
     new_vehicle_mpg_change_pct_per_year: float | None = None   # None: the published trend's
     extra: dict = field(default_factory=dict, compare=False)
@@ -74,10 +84,23 @@ class Scenario:
         own = {"MD": self.cycle_mix_MD, "HD": self.cycle_mix_HD}.get(duty_class)
         return own or self.cycle_mix
 
-    def state_tax_usd_per_gal(self, fuel: str) -> float:
-        """The state fuel-tax rate of ``fuel`` (0 for electric: no gallons)."""
-        return {"gasoline": self.state_tax_gasoline_usd_per_gal,
+    def state_tax_usd_per_gal(self, fuel: str, year: int = 1) -> float:
+        """The state fuel-tax rate of ``fuel`` in budget year ``year`` (1 = the first; 0 for
+        electric: no gallons): the schedule's rate of that fiscal year (a year it does not list:
+        the latest listed year before it, else the base rate), else the base rate indexed by
+        ``state_tax_index_pct_per_year``."""
+        base = {"gasoline": self.state_tax_gasoline_usd_per_gal,
                 "diesel": self.state_tax_diesel_usd_per_gal}.get(fuel, 0.0)
+        schedule = {"gasoline": self.state_tax_schedule_gasoline_usd_per_gal,
+                    "diesel": self.state_tax_schedule_diesel_usd_per_gal}.get(fuel)
+        if isinstance(schedule, (int, float)):
+            return float(schedule)
+        if schedule:
+            fiscal_year = (self.first_fiscal_year or 1) + year - 1
+            earlier = [y for y in schedule if y <= fiscal_year]
+            return float(schedule[max(earlier)]) if earlier else base
+        index = (self.state_tax_index_pct_per_year or 0.0) / 100.0
+        return base * (1.0 + index) ** (year - 1)
 
     def federal_tax_usd_per_gal(self, fuel: str) -> float:
         """The federal fuel-tax rate of ``fuel`` (0 for electric)."""

@@ -74,6 +74,8 @@ def _parse(column: Column, raw):
         return cells.parse_cycle_mix(raw)
     if kind == "onroad":
         return cells.parse_onroad(raw)
+    if kind == "schedule":
+        return cells.parse_schedule(raw)
     if column.name == "tire_size":
         return cells.parse_tire_size(raw)
     if column.name == "lubricant":
@@ -99,7 +101,8 @@ def check_range(column: Column, value, raw) -> None:
     physical range (schema.py)."""
     if not column.numeric or isinstance(value, str):
         return
-    for number in (value if isinstance(value, tuple) else (value,)):
+    numbers = tuple(value.values()) if isinstance(value, dict) else value
+    for number in (numbers if isinstance(numbers, tuple) else (numbers,)):
         problem = _out_of_range(column, number)
         if problem:
             shown = cells.show(raw) if number == value else f"{cells.show(raw)}: {number:g}"

@@ -49,7 +49,7 @@ class Column:
     @property
     def numeric(self) -> bool:
         """Whether the column holds numbers (for ratios and the on-road factor: each number)."""
-        return self.kind in ("number", "integer", "ratios", "onroad")
+        return self.kind in ("number", "integer", "ratios", "onroad", "schedule")
 
     def range_text(self) -> str:
         """The physical range as the template and the docs show it, e.g. ``> 0 to 10,000``."""
@@ -174,6 +174,24 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            "fiscal year equals the observed gallons (default no)", choices=YES_NO),
     Column("ev_fee_usd_per_vehicle_year", "number", False, "annual fee per electric vehicle [$] "
            "(default 0)", minimum=0, maximum=100_000, plausible=(0.0, 1000.0)),
+    # Drivers (forecast issue, docs/budget.md): fiscal periods, fuel price and its response, tax per year.
+    Column("fiscal_year_start_month", "integer", False, "first month of the fiscal year, 1-12 "
+           "(7 = July to June, the default; 9 = September to August)", minimum=1, maximum=12),
+    Column("fuel_price_gasoline_usd_per_gal", "schedule", False, "retail gasoline price [$/gal]: one number, "
+           "or per fiscal year 2027:3.40,2028:3.55 (gallons respond by the price elasticity)",
+           minimum=0.01, maximum=50),
+    Column("fuel_price_diesel_usd_per_gal", "schedule", False, "retail diesel price [$/gal]: one number "
+           "or per fiscal year", minimum=0.01, maximum=50),
+    Column("price_elasticity_short_run", "number", False, "gallons per price, first year (default "
+           "models/budget.toml)", minimum=-3, maximum=0),
+    Column("price_elasticity_long_run", "number", False, "gallons per price, long run (default "
+           "models/budget.toml)", minimum=-3, maximum=0),
+    Column("state_tax_schedule_gasoline_usd_per_gal", "schedule", False, "state gasoline tax per fiscal year, "
+           "2027:0.30,2028:0.31 (years not listed: the last listed year's rate)", minimum=0, maximum=20),
+    Column("state_tax_schedule_diesel_usd_per_gal", "schedule", False, "state diesel tax per fiscal year",
+           minimum=0, maximum=20),
+    Column("state_tax_index_pct_per_year", "number", False, "state rates indexed: rate of year y = "
+           "rate x (1 + i)^(y - 1) [% per year]", minimum=-50, maximum=50, plausible=(-5.0, 10.0)),
     # Registrations columns (docs/registrations.md)
     Column("base_year_vmt_million", "number", False, "the base fiscal year's vehicle-miles in millions "
            "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7),
