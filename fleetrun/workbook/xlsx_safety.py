@@ -344,9 +344,14 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path,
     width = max(max_col, unreferenced)
     height = max(max_row, rows)
     if SPARSE_FLOOR_CELLS < width * height <= MAX_SHEET_CELLS and total_cells < MIN_FILL * width * height:
-        raise InputError(f"{sheet}!{_farthest(archive, part)}: a cell far from the table, which the "
-                         f"sheet's {total_cells:,} cells do not fill", file=path,
-                         hint="Delete the stray cells far from the table (Ctrl+End in Excel shows the last one)")
+        # width and height are upper bounds (cheap to find): measure the reach before refusing,
+        # or a 10,000-row table would count as 99,999 rows deep and as mostly empty
+        row, column, reference = _farthest_cell(archive, part)
+        reach = max(row, rows) * max(column, unreferenced)
+        if reach > SPARSE_FLOOR_CELLS and total_cells < MIN_FILL * reach:
+            raise InputError(f"{sheet}!{reference or '?'}: a cell far from the table, which the "
+                             f"sheet's {total_cells:,} cells do not fill", file=path,
+                             hint="Delete the stray cells far from the table (Ctrl+End in Excel shows the last one)")
     if width * height > MAX_SHEET_CELLS:
         raise InputError(f"sheet {sheet} spans {height:,} rows x {width:,} columns (its last row {max_row:,}, "
                          f"its last column {max_col:,}); fleetrun reads at most {MAX_SHEET_CELLS:,} cells per sheet",
@@ -360,8 +365,13 @@ _REFERENCE = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]{1,3})([0-9]{1,7})"'
 
 
 def _farthest(archive: zipfile.ZipFile, part: str) -> str:
-    """The reference of the cell farthest down (then right) in a sheet part: a second pass,
-    only to name it in an error."""
+    """The reference of the cell farthest down (then right) in a sheet part, "?" if none."""
+    return _farthest_cell(archive, part)[2] or "?"
+
+
+def _farthest_cell(archive: zipfile.ZipFile, part: str) -> tuple[int, int, str]:
+    """(row, column, reference) of the cell farthest down (then right) in a sheet part: a
+    second pass, only where the first pass's bounds suggest a problem."""
     best = (0, 0, "")
     carry = b""
     with archive.open(part) as stream:
@@ -375,7 +385,7 @@ def _farthest(archive: zipfile.ZipFile, part: str) -> str:
                     best = (*key, (letters + digits).decode("ascii"))
             carry = data[cut:][-MAX_TAG_BYTES:]
             if not block:
-                return best[2] or "?"
+                return best
 
 
 def _beyond(path: Path, sheet: str, ref: str, limit: str) -> None:
