@@ -422,16 +422,6 @@ def _open_world(s: _Search) -> tuple[list, np.ndarray, "Unexplained", list]:
     return findings, fitted, left, descriptions
 
 
-def _drift_status(left) -> dict:
-    """The ``sensor_drift`` entry of ``candidates``: a calibration check, never a finding."""
-    d = left.drift
-    return {"effect": "sensor_drift", "status": "accepted" if d.significant else "rejected",
-            "kind": "calibration", "heldout_gain": round(d.heldout_gain, 5),
-            "parameters": {"gain_change": round(d.gain_change, 6),
-                           "offset_change": round(d.offset_change, 6),
-                           "start_s": round(d.start_s, 3), "end_s": round(d.end_s, 3)}}
-
-
 def _search(problem: Problem, st: Settings) -> tuple[_Search, list, np.ndarray, Unexplained, list]:
     """Forward selection, rival check and the open-world step on ``problem``."""
     n = len(problem.residual)
@@ -485,7 +475,9 @@ def select(problem: Problem, settings: Settings | None = None) -> Selection:
             if cid in s.statuses:
                 s.statuses[cid]["heldout_gain_vs_baseline"] = round(float(g), 5)
     order = [c.id for c in problem.candidates] + list(problem.untestable)
-    candidates = [s.statuses[cid] for cid in order if cid in s.statuses] + [_drift_status(left)]
+    # the sensor-drift check is reported under unexplained.drift, not as a candidate effect:
+    # a candidate `accepted` is physics in the model (docs/interface.md)
+    candidates = [s.statuses[cid] for cid in order if cid in s.statuses]
     return Selection(tuple(findings), candidates, s.ambiguities, descriptions, left,
                      s.significant or bool(s.ambiguities) or left.significant, s.first_threshold,
                      s.rounds, fitted, baseline_heldout, tuple(s.accepted), tuple(s.initial_coefficients))
