@@ -13,33 +13,18 @@ real cost on a light-duty cycle); HWFET and HD-UDDS both duty classes can follow
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import sys
 import tempfile
 
-import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_simulate import best_of  # noqa: E402
+from bench_simulate import best_of, varied as fleet_of  # noqa: E402
 
 from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.resources import inputs_dir  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.workbook.reader import read_fleet  # noqa: E402
-
-
-def fleet_of(types, n: int, seed: int = 0):
-    rng = np.random.default_rng(seed)
-    out = []
-    for i in range(n):
-        v = types[i % len(types)]
-        f = rng.uniform(0.9, 1.1, 4)
-        out.append(dataclasses.replace(
-            v, vehicle_id=f"{v.vehicle_id}-{i}", test_weight_kg=v.test_weight_kg * f[0],
-            coastdown_A_lbf=v.coastdown_A_lbf * f[1], coastdown_B_lbf_per_mph=v.coastdown_B_lbf_per_mph * f[2],
-            coastdown_C_lbf_per_mph2=v.coastdown_C_lbf_per_mph2 * f[3]))
-    return out
 
 
 def main(argv=None):

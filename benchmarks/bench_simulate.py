@@ -46,6 +46,12 @@ def make_fleet(n: int, seed: int = 0, kind: str = "example"):
         types = [F150, CAMRY, CIVIC, AWD]
     else:
         types = read_fleet(inputs_dir() / "example_fleet.xlsx").vehicles
+    return varied(types, n, seed)
+
+
+def varied(types, n: int, seed: int = 0):
+    """``n`` vehicles cycling through ``types``, each with its weight and road-load
+    coefficients scaled by its own factor in 0.9-1.1 (physically distinct vehicles)."""
     rng = np.random.default_rng(seed)
     fleet = []
     for i in range(n):

@@ -39,6 +39,7 @@ import pandas as pd
 
 from fleetrun import plausible
 from fleetrun.errors import FleetrunError, InputError, unknown_name_error
+from fleetrun.fileio import refuse_unreadable_size
 from fleetrun.resources import inputs_dir
 from fleetrun.plausible import MAX_CYCLE_BYTES, MAX_CYCLE_ROWS
 from fleetrun.units import METERS_PER_MILE
@@ -428,20 +429,14 @@ def _check_plausible(path: Path, t, v, g, rows, speed_col: str) -> None:
     plausible.check_grade(g, file=path, column=GRADE_COLUMN, rows=rows)
     plausible.check_time_steps(t, file=path, column=TIME_COLUMN, rows=rows)
     if not np.any(v > 0):
-        raise InputError(f"every speed is 0: the cycle never moves, so it has no miles to give fuel "
+        raise InputError("every speed is 0: the cycle never moves, so it has no miles to give fuel "
                          "per mile for", file=path, column=speed_col,
                          hint="Give a cycle that drives (or leave it out of the cycle mix)")
 
 
 def _check_size(path: Path) -> None:
-    if not path.is_file():
-        raise InputError("is not a regular file (a device, pipe or socket)", file=path,
-                         hint="Give the path of a .csv file")
-    size = path.stat().st_size
-    if size > MAX_CYCLE_BYTES:
-        raise InputError(f"is {size / 1e6:,.0f} MB; fleetrun reads drive cycles up to "
-                         f"{MAX_CYCLE_BYTES / 1e6:,.0f} MB", file=path,
-                         hint="Resample the cycle to 1 Hz or split it")
+    refuse_unreadable_size(path, MAX_CYCLE_BYTES, "drive cycles", "Give the path of a .csv file",
+                           "Resample the cycle to 1 Hz or split it")
 
 
 def _read_csv_cells(path: Path):

@@ -114,3 +114,16 @@ def write_error_log(text: str, log_file: Path | None = None) -> Path:
     with open(log_file, "a", encoding="utf-8") as fh:
         fh.write(text if text.endswith("\n") else text + "\n")
     return log_file
+
+
+def refuse_unreadable_size(path: Path, max_bytes: int, kind: str, path_hint: str,
+                           too_large_hint: str) -> None:
+    """InputError unless ``path`` is a regular file (not a device, pipe or socket such as
+    ``/dev/zero``) of at most ``max_bytes``: checked before any reader opens it. ``kind``: what
+    such files are called in the message ("drive cycles", "workbooks")."""
+    if not path.is_file():
+        raise InputError("is not a regular file (a device, pipe or socket)", file=path, hint=path_hint)
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise InputError(f"is {size / 1e6:,.0f} MB; fleetrun reads {kind} up to "
+                         f"{max_bytes / 1e6:,.0f} MB", file=path, hint=too_large_hint)

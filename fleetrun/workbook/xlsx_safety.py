@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from fleetrun.errors import InputError
+from fleetrun.fileio import refuse_unreadable_size
 
 from defusedxml.ElementTree import fromstring
 
@@ -47,14 +48,8 @@ def check_xlsx(path: Path) -> None:
         raise InputError("is a folder, not a workbook", file=path, hint="Give the .xlsx file.")
     if path.suffix.lower() == ".xls":
         raise InputError("old-style .xls workbooks are not supported", file=path, hint=HINT)
-    if not path.is_file():
-        raise InputError("is not a regular file (a device, pipe or socket)", file=path,
-                         hint="Give the path of an .xlsx workbook")
-    size = path.stat().st_size
-    if size > MAX_FILE_BYTES:
-        raise InputError(f"is {size / 1e6:,.0f} MB; fleetrun reads workbooks up to "
-                         f"{MAX_FILE_BYTES / 1e6:,.0f} MB", file=path,
-                         hint="Split the fleet into smaller workbooks (fleetrun run --config batch.toml runs them together)")
+    refuse_unreadable_size(path, MAX_FILE_BYTES, "workbooks", "Give the path of an .xlsx workbook",
+                           "Split the fleet into smaller workbooks (fleetrun run --config batch.toml runs them together)")
     if path.suffix.lower() in (".xlsm", ".xltm"):
         raise InputError("macro-enabled workbooks are refused", file=path, hint=HINT)
     if not zipfile.is_zipfile(path):
@@ -320,33 +315,22 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path,
                styles: frozenset = frozenset()) -> SheetScan:
     max_row = max_col = rows = unreferenced = total_cells = 0
     scan = SheetScan(percent_styles=styles)
-    carry = b""
-    with archive.open(part) as stream:
-        while True:
-            block = stream.read(SCAN_CHUNK_BYTES)
-            data = carry + block
-            cut = len(data) if not block else data.rfind(b">") + 1
-            text, carry = data[:cut], data[cut:]
-            if len(carry) > MAX_TAG_BYTES:
-                raise InputError(f"sheet {sheet} has a tag or text longer than {MAX_TAG_BYTES / 1e6:.0f} MB; "
-                                 "refusing to read it", file=path, hint=HINT)
-            max_col = max(max_col, _widest(text, path, sheet))
-            max_row = max(max_row, _deepest(text, path, sheet))
-            cells, found_rows = _count_tags(text)
-            rows += found_rows
-            total_cells += cells
-            unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
-            _notes(text, scan)
-            _cell_notes(text, scan)
-            if not block:
-                break
+    for text in _whole_tags(archive, part, sheet, path):
+        max_col = max(max_col, _widest(text, path, sheet))
+        max_row = max(max_row, _deepest(text, path, sheet))
+        cells, found_rows = _count_tags(text)
+        rows += found_rows
+        total_cells += cells
+        unreferenced += max(0, cells - text.count(b' r="') - text.count(b'\nr="'))
+        _notes(text, scan)
+        _cell_notes(text, scan)
     # cells without a reference take the next column: bound their reach by their number
     width = max(max_col, unreferenced)
     height = max(max_row, rows)
     if SPARSE_FLOOR_CELLS < width * height <= MAX_SHEET_CELLS and total_cells < MIN_FILL * width * height:
         # width and height are upper bounds (cheap to find): measure the reach before refusing,
         # or a 10,000-row table would count as 99,999 rows deep and as mostly empty
-        row, column, reference = _farthest_cell(archive, part)
+        row, column, reference = _farthest_cell(archive, part, sheet, path)
         reach = max(row, rows) * max(column, unreferenced)
         if reach > SPARSE_FLOOR_CELLS and total_cells < MIN_FILL * reach:
             raise InputError(f"{sheet}!{reference or '?'}: a cell far from the table, which the "
@@ -364,28 +348,34 @@ def _scan_part(archive: zipfile.ZipFile, part: str, sheet: str, path: Path,
 _REFERENCE = re.compile(rb'<(?:\w+:)?c\b[^>]*?\br="([A-Za-z]{1,3})([0-9]{1,7})"')
 
 
-def _farthest(archive: zipfile.ZipFile, part: str) -> str:
-    """The reference of the cell farthest down (then right) in a sheet part, "?" if none."""
-    return _farthest_cell(archive, part)[2] or "?"
-
-
-def _farthest_cell(archive: zipfile.ZipFile, part: str) -> tuple[int, int, str]:
-    """(row, column, reference) of the cell farthest down (then right) in a sheet part: a
-    second pass, only where the first pass's bounds suggest a problem."""
-    best = (0, 0, "")
+def _whole_tags(archive: zipfile.ZipFile, part: str, sheet: str, path: Path):
+    """A sheet part's bytes in chunks of about SCAN_CHUNK_BYTES, each cut after a ``>`` so no
+    tag is split; InputError for a tag or text longer than MAX_TAG_BYTES."""
     carry = b""
     with archive.open(part) as stream:
         while True:
             block = stream.read(SCAN_CHUNK_BYTES)
             data = carry + block
             cut = len(data) if not block else data.rfind(b">") + 1
-            for letters, digits in _REFERENCE.findall(data[:cut]):
-                key = (int(digits), column_number(letters.decode("ascii")))
-                if key > best[:2]:
-                    best = (*key, (letters + digits).decode("ascii"))
-            carry = data[cut:][-MAX_TAG_BYTES:]
+            text, carry = data[:cut], data[cut:]
+            if len(carry) > MAX_TAG_BYTES:
+                raise InputError(f"sheet {sheet} has a tag or text longer than {MAX_TAG_BYTES / 1e6:.0f} MB; "
+                                 "refusing to read it", file=path, hint=HINT)
+            yield text
             if not block:
-                return best
+                return
+
+
+def _farthest_cell(archive: zipfile.ZipFile, part: str, sheet: str, path: Path) -> tuple[int, int, str]:
+    """(row, column, reference) of the cell farthest down (then right) in a sheet part: a
+    second pass, only where the first pass's bounds suggest a problem."""
+    best = (0, 0, "")
+    for text in _whole_tags(archive, part, sheet, path):
+        for letters, digits in _REFERENCE.findall(text):
+            key = (int(digits), column_number(letters.decode("ascii")))
+            if key > best[:2]:
+                best = (*key, (letters + digits).decode("ascii"))
+    return best
 
 
 def _beyond(path: Path, sheet: str, ref: str, limit: str) -> None:
