@@ -101,3 +101,31 @@ def test_concealed_effects_in_the_real_camry_recording(concealed):
     assert sum(c.named and c.size_ok and c.phases_ok for c in cases) >= 3
     assert any(c.named for c in cases if c.effect == "road_grade")
     assert all(c.named for c in cases if c.effect == "aero_drag")
+
+
+@pytest.mark.slow
+def test_why_the_pair_hides_a_small_grade_or_accessory_load(concealed):
+    """Issue 16's unmet part, measured (docs/diagnose-realdata.md, "Why ... not named"): on
+    the clean pair the run-to-run difference, fitted as a grade, a drag or an accessory load
+    alone, is itself beyond noise (> 1.5 standard errors) and at least 70 % of the smaller
+    concealed effect's fuel; fitted jointly the three columns are too alike to separate (joint
+    standard errors at least 40 % of that fuel); only the cold UDDS's second bag agrees with
+    the reference within 1 % while the hot UDDS is 1.5-6 % above it, of which the two runs'
+    speed traces explain under 1 point (the simulation on each run's own trace). Bounds are
+    the measured values (41.5/28.9/32.9 g, se 13.2/8.3/18.7 alone, 35.0/17.0/29.8 jointly;
+    -0.42 %, +2.02 %, +4.75 %) with room for the run-to-run changes of the code around them."""
+    from validation.diagnose_concealed import separation
+
+    _, cases = concealed
+    sep = separation()
+    smallest = {c.effect: min(x.concealed_g for x in cases if x.effect == c.effect) for c in cases}
+    for e in sep.effects:
+        assert e.clean_alone_g > 1.5 * e.alone_se_g, e
+        assert e.clean_alone_g > 0.7 * smallest[e.effect], e
+        assert e.joint_se_g > 0.4 * smallest[e.effect], e
+    cos = {(a, b): c for a, b, c in sep.cosines}
+    assert cos[("road_grade", "aero_drag")] > 0.8
+    bags = {b.label: b for b in sep.bags}
+    assert abs(bags["cold UDDS bag 2"].measured_pct) < 1.0
+    assert all(1.5 < bags[k].measured_pct < 6.0 for k in ("hot UDDS bag 1", "hot UDDS bag 2"))
+    assert all(abs(b.trace_pct) < 1.0 for b in sep.bags)
