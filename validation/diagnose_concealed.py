@@ -40,7 +40,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fleetrun.cycles import DriveCycle, ftp_bag1_end_s  # noqa: E402
-from fleetrun.diagnose import diagnosis  # noqa: E402
+from fleetrun.diagnose import Settings, diagnosis  # noqa: E402
 from fleetrun.diagnose import build  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
 from fleetrun.diagnose.vehicle import engine_on, same_trace, simulated  # noqa: E402
@@ -54,6 +54,9 @@ REFERENCE = "camry2018_udds_hot"
 #: Concealed sizes: grade g0 [%], switched accessory power [W], share added to coastdown C.
 #: Chosen so that each adds 1-5 % of the recording's fuel (the table prints the share).
 SIZES = {"road_grade": (0.25, 0.35), "accessory_load": (800.0, 1100.0), "aero_drag": (0.4, 0.6)}
+#: ``--scan``: the same effects over a wider range of sizes (is the outcome monotone in size?)
+SCAN_SIZES = {"road_grade": (0.25, 0.35, 0.45, 0.6), "accessory_load": (800.0, 1100.0, 2000.0, 3000.0),
+              "aero_drag": (0.4, 0.6)}
 #: Issue 16's tolerance on the size of a named effect.
 SIZE_TOLERANCE = 0.25
 
@@ -138,9 +141,10 @@ def _effect_fuel(d, effect: str, findings_only: bool = True) -> np.ndarray:
     return f["parameters"][e.linear] * col * dt
 
 
-def run(workdir=None, end_s: float | None = None) -> tuple[dict, list[Case]]:
-    """The clean diagnosis and one case per (effect, size), on the recording up to ``end_s``
-    (None: all of it)."""
+def run(workdir=None, end_s: float | None = None, sizes: dict[str, tuple[float, ...]] = SIZES,
+        settings: Settings | None = None) -> tuple[dict, list[Case]]:
+    """The clean diagnosis and one case per (effect, size) of ``sizes``, on the recording up
+    to ``end_s`` (None: all of it), with the selection's ``settings`` (None: the defaults)."""
     workdir = Path(workdir or tempfile.mkdtemp())
     dyno = inputs_dir() / "dyno"
     rec = load_recording(dyno / f"{TARGET}.csv")
@@ -149,17 +153,18 @@ def run(workdir=None, end_s: float | None = None) -> tuple[dict, list[Case]]:
     meta_text = (dyno / f"{TARGET}.toml").read_text()
     spec = read_vehicle_toml(dyno / f"{TARGET}.toml")
     ref = dyno / f"{REFERENCE}.csv"
-    clean = diagnosis(_write(data, meta_text, workdir / "clean.csv"), calibrate_on=ref)
+    clean = diagnosis(_write(data, meta_text, workdir / "clean.csv"), calibrate_on=ref, settings=settings)
     t = data["time_s"].to_numpy()
     dt = np.gradient(t)
     total = float(np.sum(data["fuel_rate_g_per_s"].to_numpy() * dt))
     cases, background = [], {}
-    for effect, sizes in SIZES.items():
-        for size in sizes:
+    for effect, these in sizes.items():
+        for size in these:
             extra, param = concealed_fuel(effect, size, data, spec)
             hidden = data.copy()
             hidden["fuel_rate_g_per_s"] = data["fuel_rate_g_per_s"] + extra
-            d = diagnosis(_write(hidden, meta_text, workdir / f"{effect}_{size:g}.csv"), calibrate_on=ref)
+            d = diagnosis(_write(hidden, meta_text, workdir / f"{effect}_{size:g}.csv"), calibrate_on=ref,
+                          settings=settings)
             names = tuple(f["effect"] for f in d.result["findings"])
             params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
             if effect not in background:
@@ -364,8 +369,12 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="folder for the recordings written")
     ap.add_argument("--why", action="store_true",
                     help="also measure why the clean pair's own difference hides some effects")
+    ap.add_argument("--scan", action="store_true", help="sizes over a wider range (SCAN_SIZES)")
+    ap.add_argument("--block-s", type=float, default=None,
+                    help="the cross-validation block length [s] (default: the selection's, 120)")
     args = ap.parse_args(argv)
-    clean, cases = run(args.out)
+    settings = Settings(block_s=args.block_s) if args.block_s else None
+    clean, cases = run(args.out, sizes=SCAN_SIZES if args.scan else SIZES, settings=settings)
     print(table(clean, cases))
     if args.why:
         print()
