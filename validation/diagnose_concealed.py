@@ -1,6 +1,9 @@
 """Real Argonne Camry recordings with physics concealed in them: does diagnose name it?
 
-    python validation/diagnose_concealed.py [--out DIR]
+    python validation/diagnose_concealed.py [--out DIR] [--why] [--scan] [--block-s S]
+
+(``--why``: why some concealed effects are not named, measured on the clean pair;
+``--scan``: a wider range of sizes; ``--block-s``: another cross-validation block length.)
 
 The recording is the real cold-start UDDS of the 2018 Camry (inputs/dyno, Argonne test
 61811011), diagnosed against the real hot-start UDDS (61811012) with ``--calibrate-on``: the
