@@ -58,6 +58,7 @@ import sys  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fleetrun.resources import model_file  # noqa: E402
+from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.heavy_duty_engine import (bsfc_map_g_per_kWh, heavy_duty_constants,  # noqa: E402
                                                    reference_engine, set_co2_g_per_hp_hr, standard_for)
@@ -130,17 +131,80 @@ def reference_rows():
     return hd_validation.check_reference_vehicles()
 
 
-def test_phase2_reference_tractors_within_6pct_of_their_standards(reference_rows):
-    """Phase 2 reference tractors on GEM's cycles and weighting against the 40 CFR 1037.106
-    standard they are set at. Issue 21's done-when was 5 %; it held (+4.7 / +4.1 / -4.2 %) while
-    the HD-UDDS stood in for GEM's transient cycle. On GEM's own ARB transient (shipped
-    2026-11-24) the class 8 tractors give +5.3 % and +5.8 %, the class 7 -3.4 %
-    (docs/validation-heavy-duty.md): the bound is 6 %, and the class 7 tractor keeps 5 %. The
-    regulatory grade of the cruise cycles is still missing (level road)."""
-    tractors = [r for r in reference_rows if not r["gem_type"].startswith("vocational")]
-    assert tractors and all(abs(r["co2_error"]) <= 0.06 for r in tractors), tractors
-    class7 = [r for r in tractors if r["vehicle"].startswith("class7")]
+def _tractors(rows, prefix):
+    return [r for r in rows if not r["gem_type"].startswith("vocational") and r["vehicle"].startswith(prefix)]
+
+
+def test_phase2_reference_class7_tractor_within_5pct_of_its_standard(reference_rows):
+    """The class 7 day cab on GEM's cycles and weighting against its MY2021 40 CFR 1037.106
+    standard (113.5 g/ton-mile): issue 21's 5 % (measured -3.4 %)."""
+    class7 = _tractors(reference_rows, "class7")
     assert class7 and all(abs(r["co2_error"]) <= 0.05 for r in class7), class7
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "not reached: class 8 sleeper +5.3 %, day cab +5.8 % over their MY2021 standards on GEM's own "
+    "ARB transient (+4.7 / +4.1 % with the HD-UDDS standing in); the reference tractors' CdA, tyre "
+    "Crr and axle ratio are representative values, not the technology package EPA set the MY2021 "
+    "standards at (docs/validation-heavy-duty.md)"))
+def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(reference_rows):
+    """Issue 21's done-when: the Phase 2 reference tractors within 5 % of their standards."""
+    class8 = _tractors(reference_rows, "class8")
+    assert class8 and all(abs(r["co2_error"]) <= 0.05 for r in class8), class8
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "not reached: vocational reference vehicles -9 to -35 % below their MY2021 40 CFR 1037.105 "
+    "standards with GEM's idle cycles (-14 to -37 % without); their CdA, mass, gear sets and axle "
+    "ratios are estimates, not GEM's vocational defaults (docs/validation-heavy-duty.md)"))
+def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
+    vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
+    assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
+
+
+def test_vocational_idle_adds_gems_idle_cycles(reference_rows):
+    """GEM's vocational composite charges drive and parked idle (40 CFR 1037.510(c)): the
+    composite with idle is the one without plus the idle term; the term is largest for the
+    urban type (40 % of the time idling, 16.2 mph) and smallest for the regional one (25 %,
+    parked only, 38.4 mph); tractors have none. In drive an automatic's stalled converter loads
+    the engine: drive idle burns more than parked idle."""
+    without = {r["vehicle"]: r for r in hd_validation.check_reference_vehicles(with_idle=False)}
+    for r in reference_rows:
+        base = without[r["vehicle"]]["model_g_per_ton_mile"]
+        assert r["model_g_per_ton_mile"] == pytest.approx(base + r["idle_g_per_ton_mile"], abs=0.02), r
+        if r["gem_type"].startswith("vocational"):
+            assert r["drive_idle_gal_per_h"] > r["parked_idle_gal_per_h"] > 0.1, r
+        else:
+            assert r["idle_g_per_ton_mile"] == 0.0
+    for size in ("hhd", "mhd"):
+        idle = {r["gem_type"]: r["idle_g_per_ton_mile"] for r in reference_rows if r["vehicle"].startswith(size)}
+        assert idle["vocational_urban"] > idle["vocational_multipurpose"] > idle["vocational_regional"] > 0
+
+
+def test_gem_nonidle_speeds_are_the_harmonic_mean_of_the_cycles():
+    """1037.510(c)'s average speed of the non-idle cycles (38.41 / 23.18 / 16.21 mph for the
+    regional / multi-purpose / urban types, gem_cycles.toml) is the distance-weighted harmonic
+    mean of the three cycles' mean speeds: re-derived from the shipped ARB-TRANSIENT (from NREL
+    T3CO) and cruise cycles within 0.1 mph, which checks the cycle, the weights and the speeds
+    against one another."""
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix, idle_shares
+
+    def mean_mph(name):
+        c = load_cycle(name)
+        return float(np.trapezoid(c.speed_mps, c.time_s) / (c.time_s[-1] - c.time_s[0])) / 0.44704
+
+    for gem_type in ("vocational_regional", "vocational_multipurpose", "vocational_urban"):
+        hours_per_mile = sum(w / mean_mph(cycle) for cycle, w in gem_cycle_mix(gem_type).items())
+        assert 1.0 / hours_per_mile == pytest.approx(idle_shares(gem_type)[2], abs=0.1), gem_type
+
+
+def test_idle_per_mile_is_idle_time_over_the_miles_of_that_time():
+    """Shares of operating time: an hour is s_d drive idle + s_p parked idle + the rest
+    driving at v; idle fuel per mile = (s_d g_d + s_p g_p) / ((1 - s_d - s_p) v)."""
+    from fleetrun.simulation.heavy_duty_gem import idle_gallons_per_mile
+
+    assert idle_gallons_per_mile(1.2, 0.3, 0.15, 0.25, 16.21) == pytest.approx((0.18 + 0.075) / (0.6 * 16.21))
+    assert idle_gallons_per_mile(1.2, 0.3, 0.0, 0.0, float("nan")) == 0.0
 
 
 def test_heavy_duty_error_file_is_what_the_validation_measures(reference_rows):
