@@ -313,3 +313,23 @@ def test_force_table_once_per_drivetrain_is_bit_identical():
     alone = np.vstack([core.max_tractive_force_table(va.subset([i]), 0.9) for i in range(va.n)])
     assert np.array_equal(together, alone)
     assert not np.array_equal(together[0], together[4])
+
+
+def test_gem_aero_bins_are_the_1037_520_tables():
+    """40 CFR 1037.520(b)(3): a high-roof sleeper measured at 5.8 m^2 is in Bin III (5.7-6.2)
+    and runs GEM at 5.95 m^2; a day cab at 5.5 is Bin IV (5.5-5.9, input 5.70); 7.5 is Bin I
+    of either; 4.0 is the last bin; from MY2027 a high-roof tractor loses 0.3 m^2 (the
+    trailer's rear fairing, 1037.520(b)(4)), a low-roof one does not; unknown types are named."""
+    from fleetrun.errors import FleetrunError
+    from fleetrun.simulation.heavy_duty_road_load import gem_aero_bin, gem_cda_input_m2
+
+    assert gem_aero_bin("high_roof_sleeper_cab", 5.8) == ("III", 5.95)
+    assert gem_aero_bin("high_roof_day_cab", 5.5) == ("IV", 5.70)
+    assert gem_aero_bin("high_roof_day_cab", 5.46) == ("IV", 5.70)      # rounds to 5.5 first
+    assert gem_aero_bin("high_roof_sleeper_cab", 7.5)[0] == gem_aero_bin("high_roof_day_cab", 7.5)[0] == "I"
+    assert gem_aero_bin("mid_roof", 4.0) == ("VII", 4.90)
+    assert gem_cda_input_m2("high_roof_sleeper_cab", 5.8, 2027) == pytest.approx(5.65)
+    assert gem_cda_input_m2("high_roof_sleeper_cab", 5.8, 2026) == pytest.approx(5.95)
+    assert gem_cda_input_m2("low_roof", 4.6, 2027) == pytest.approx(5.15)
+    with pytest.raises(FleetrunError, match="high_roof_sleeper_cab"):
+        gem_aero_bin("sleeper", 5.8)
