@@ -9,8 +9,8 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
    6.5-7.5 / 7.8-9.0 mpg that its road load, a 0.93 driveline and a 43-45 % brake efficiency
    give (issue 21);
 2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
-   cycles and weighting: g CO2/ton-mile against the standard each is set at (40 CFR 1037.105,
-   1037.106);
+   cycles and weighting, vocational vehicles with GEM's drive- and parked-idle cycles:
+   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106);
 3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes: mpg
    against the national combination-truck range (FHWA Highway Statistics VM-1, 5.4-6.4 mpg).
 
