@@ -333,3 +333,32 @@ def test_gem_aero_bins_are_the_1037_520_tables():
     assert gem_cda_input_m2("low_roof", 4.6, 2027) == pytest.approx(5.15)
     with pytest.raises(FleetrunError, match="high_roof_sleeper_cab"):
         gem_aero_bin("sleeper", 5.8)
+
+
+APPENDIX_IV_STRETCHES = (   # (distance [m], grade [%]) runs of the table's breakpoints
+    ((2398, -0.69), (2478, -1.08), (2546, -1.53), (2698, -2.75), (2850, -1.53), (2918, -1.08)),
+    ((6638, 2.57), (6710, 3.0), (6762, 3.27), (6800, 3.69), (6890, 5.01), (6980, 3.69), (7018, 3.27)),
+    ((13738, -3.0), (13790, -3.27), (13828, -3.69), (13918, -5.01), (14008, -3.69)))
+
+
+@pytest.mark.parametrize("cycle", ["CRUISE-55-GRADE", "CRUISE-65-GRADE"])
+def test_graded_cruise_cycles_follow_appendix_iv(cycle):
+    """GEM's cruise cycles over the grade profile of Appendix IV to 40 CFR part 1037 (2016
+    text, https://ecfr.io/Title-40/Part-1037/Appendix-IV, breakpoints interpolated linearly):
+    every 1 Hz sample inside three stretches of the table (the 2.75 % dip, the 5.01 % peak,
+    the -5.01 % descent) has the table's grade at the distance driven at the set speed, within
+    0.005 points; the speed is constant, the profile is 20.04 km long and climbs as much as it
+    descends."""
+    from fleetrun.cycles import MPH_TO_MPS
+
+    c = load_cycle(cycle)
+    speed = float(cycle.split("-")[1]) * MPH_TO_MPS
+    assert np.allclose(c.speed_mps, speed, atol=1e-6)
+    distance = (c.time_s - c.time_s[0]) * speed
+    for stretch in APPENDIX_IV_STRETCHES:
+        at, grade = np.array(stretch, float).T
+        inside = (distance >= at[0]) & (distance <= at[-1])
+        assert inside.sum() >= 4
+        assert np.allclose(c.grade_pct[inside], np.interp(distance[inside], at, grade), atol=0.005), (cycle, at[0])
+    climb_m = np.sum(c.grade_pct[1:] / 100.0 * np.diff(distance))
+    assert abs(climb_m) < 1.0 and distance[-1] == pytest.approx(20040.0, abs=30.0)
