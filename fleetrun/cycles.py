@@ -11,7 +11,8 @@ their sources, unit conversions and checked durations/distances are in
 - ``NYCC``, ``HD-UDDS`` (EPA UDDSHDV) from the EPA schedules embedded in zahner_potentiostat
   1.1.2 (MIT), converted from mph.
 - ``ARB-TRANSIENT`` (GEM's transient cycle, CARB HHDDT transient mode) from NREL T3CO
-  (BSD-3-Clause); ``CRUISE-55``, ``CRUISE-65`` written by ``make_cruise.py``.
+  (BSD-3-Clause), as are ``CRUISE-55-GRADE``, ``CRUISE-65-GRADE`` (GEM's cruise cycles over
+  the regulatory grade profile); ``CRUISE-55``, ``CRUISE-65`` (level) written by ``make_cruise.py``.
 
 A *composed* cycle (``inputs/cycles/<NAME>.toml``; ``FTP``) joins parts of shipped schedules
 into named phases with engine-off soaks between them (:class:`CyclePhase`); its fuel economy

@@ -58,6 +58,7 @@ import sys  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fleetrun.resources import model_file  # noqa: E402
+from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.heavy_duty_engine import (bsfc_map_g_per_kWh, heavy_duty_constants,  # noqa: E402
                                                    reference_engine, set_co2_g_per_hp_hr, standard_for)
@@ -130,17 +131,81 @@ def reference_rows():
     return hd_validation.check_reference_vehicles()
 
 
-def test_phase2_reference_tractors_within_6pct_of_their_standards(reference_rows):
-    """Phase 2 reference tractors on GEM's cycles and weighting against the 40 CFR 1037.106
-    standard they are set at. Issue 21's done-when was 5 %; it held (+4.7 / +4.1 / -4.2 %) while
-    the HD-UDDS stood in for GEM's transient cycle. On GEM's own ARB transient (shipped
-    2026-11-24) the class 8 tractors give +5.3 % and +5.8 %, the class 7 -3.4 %
-    (docs/validation-heavy-duty.md): the bound is 6 %, and the class 7 tractor keeps 5 %. The
-    regulatory grade of the cruise cycles is still missing (level road)."""
-    tractors = [r for r in reference_rows if not r["gem_type"].startswith("vocational")]
-    assert tractors and all(abs(r["co2_error"]) <= 0.06 for r in tractors), tractors
-    class7 = [r for r in tractors if r["vehicle"].startswith("class7")]
+def _tractors(rows, prefix):
+    return [r for r in rows if not r["gem_type"].startswith("vocational") and r["vehicle"].startswith(prefix)]
+
+
+def test_phase2_reference_class7_tractor_within_5pct_of_its_standard(reference_rows):
+    """The class 7 day cab on GEM's cycles and weighting against its MY2021 40 CFR 1037.106
+    standard (113.5 g/ton-mile): issue 21's 5 % (measured -1.0 % with the graded cruise
+    cycles, -3.4 % on level ones)."""
+    class7 = _tractors(reference_rows, "class7")
     assert class7 and all(abs(r["co2_error"]) <= 0.05 for r in class7), class7
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "not reached: class 8 sleeper +10.8 %, day cab +9.4 % over their MY2021 standards on GEM's "
+    "cycles (graded cruise; +5.3 / +5.8 % on level cruise); the reference tractors' CdA, tyre Crr "
+    "and axle ratio are representative values, not the technology package EPA set the MY2021 "
+    "standards at, and fleetrun brakes down the grade's descents (docs/validation-heavy-duty.md)"))
+def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(reference_rows):
+    """Issue 21's done-when: the Phase 2 reference tractors within 5 % of their standards."""
+    class8 = _tractors(reference_rows, "class8")
+    assert class8 and all(abs(r["co2_error"]) <= 0.05 for r in class8), class8
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "not reached: vocational reference vehicles -9 to -34 % below their MY2021 40 CFR 1037.105 "
+    "standards with GEM's idle and graded cycles (-16 to -37 % level, no idle); their CdA, mass, gear sets and axle "
+    "ratios are estimates, not GEM's vocational defaults (docs/validation-heavy-duty.md)"))
+def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
+    vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
+    assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
+
+
+def test_vocational_idle_adds_gems_idle_cycles(reference_rows):
+    """GEM's vocational composite charges drive and parked idle (40 CFR 1037.510(c)): the
+    composite with idle is the one without plus the idle term; the term is largest for the
+    urban type (40 % of the time idling, 16.2 mph) and smallest for the regional one (25 %,
+    parked only, 38.4 mph); tractors have none. In drive an automatic's stalled converter loads
+    the engine: drive idle burns more than parked idle."""
+    without = {r["vehicle"]: r for r in hd_validation.check_reference_vehicles(with_idle=False)}
+    for r in reference_rows:
+        base = without[r["vehicle"]]["model_g_per_ton_mile"]
+        assert r["model_g_per_ton_mile"] == pytest.approx(base + r["idle_g_per_ton_mile"], abs=0.02), r
+        if r["gem_type"].startswith("vocational"):
+            assert r["drive_idle_gal_per_h"] > r["parked_idle_gal_per_h"] > 0.1, r
+        else:
+            assert r["idle_g_per_ton_mile"] == 0.0
+    for size in ("hhd", "mhd"):
+        idle = {r["gem_type"]: r["idle_g_per_ton_mile"] for r in reference_rows if r["vehicle"].startswith(size)}
+        assert idle["vocational_urban"] > idle["vocational_multipurpose"] > idle["vocational_regional"] > 0
+
+
+def test_gem_nonidle_speeds_are_the_harmonic_mean_of_the_cycles():
+    """1037.510(c)'s average speed of the non-idle cycles (38.41 / 23.18 / 16.21 mph for the
+    regional / multi-purpose / urban types, gem_cycles.toml) is the distance-weighted harmonic
+    mean of the three cycles' mean speeds: re-derived from the shipped ARB-TRANSIENT (from NREL
+    T3CO) and cruise cycles within 0.1 mph, which checks the cycle, the weights and the speeds
+    against one another."""
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix, idle_shares
+
+    def mean_mph(name):
+        c = load_cycle(name)
+        return float(np.trapezoid(c.speed_mps, c.time_s) / (c.time_s[-1] - c.time_s[0])) / 0.44704
+
+    for gem_type in ("vocational_regional", "vocational_multipurpose", "vocational_urban"):
+        hours_per_mile = sum(w / mean_mph(cycle) for cycle, w in gem_cycle_mix(gem_type).items())
+        assert 1.0 / hours_per_mile == pytest.approx(idle_shares(gem_type)[2], abs=0.1), gem_type
+
+
+def test_idle_per_mile_is_idle_time_over_the_miles_of_that_time():
+    """Shares of operating time: an hour is s_d drive idle + s_p parked idle + the rest
+    driving at v; idle fuel per mile = (s_d g_d + s_p g_p) / ((1 - s_d - s_p) v)."""
+    from fleetrun.simulation.heavy_duty_gem import idle_gallons_per_mile
+
+    assert idle_gallons_per_mile(1.2, 0.3, 0.15, 0.25, 16.21) == pytest.approx((0.18 + 0.075) / (0.6 * 16.21))
+    assert idle_gallons_per_mile(1.2, 0.3, 0.0, 0.0, float("nan")) == 0.0
 
 
 def test_heavy_duty_error_file_is_what_the_validation_measures(reference_rows):
@@ -249,3 +314,52 @@ def test_force_table_once_per_drivetrain_is_bit_identical():
     alone = np.vstack([core.max_tractive_force_table(va.subset([i]), 0.9) for i in range(va.n)])
     assert np.array_equal(together, alone)
     assert not np.array_equal(together[0], together[4])
+
+
+def test_gem_aero_bins_are_the_1037_520_tables():
+    """40 CFR 1037.520(b)(3): a high-roof sleeper measured at 5.8 m^2 is in Bin III (5.7-6.2)
+    and runs GEM at 5.95 m^2; a day cab at 5.5 is Bin IV (5.5-5.9, input 5.70); 7.5 is Bin I
+    of either; 4.0 is the last bin; from MY2027 a high-roof tractor loses 0.3 m^2 (the
+    trailer's rear fairing, 1037.520(b)(4)), a low-roof one does not; unknown types are named."""
+    from fleetrun.errors import FleetrunError
+    from fleetrun.simulation.heavy_duty_road_load import gem_aero_bin, gem_cda_input_m2
+
+    assert gem_aero_bin("high_roof_sleeper_cab", 5.8) == ("III", 5.95)
+    assert gem_aero_bin("high_roof_day_cab", 5.5) == ("IV", 5.70)
+    assert gem_aero_bin("high_roof_day_cab", 5.46) == ("IV", 5.70)      # rounds to 5.5 first
+    assert gem_aero_bin("high_roof_sleeper_cab", 7.5)[0] == gem_aero_bin("high_roof_day_cab", 7.5)[0] == "I"
+    assert gem_aero_bin("mid_roof", 4.0) == ("VII", 4.90)
+    assert gem_cda_input_m2("high_roof_sleeper_cab", 5.8, 2027) == pytest.approx(5.65)
+    assert gem_cda_input_m2("high_roof_sleeper_cab", 5.8, 2026) == pytest.approx(5.95)
+    assert gem_cda_input_m2("low_roof", 4.6, 2027) == pytest.approx(5.15)
+    with pytest.raises(FleetrunError, match="high_roof_sleeper_cab"):
+        gem_aero_bin("sleeper", 5.8)
+
+
+APPENDIX_IV_STRETCHES = (   # (distance [m], grade [%]) runs of the table's breakpoints
+    ((2398, -0.69), (2478, -1.08), (2546, -1.53), (2698, -2.75), (2850, -1.53), (2918, -1.08)),
+    ((6638, 2.57), (6710, 3.0), (6762, 3.27), (6800, 3.69), (6890, 5.01), (6980, 3.69), (7018, 3.27)),
+    ((13738, -3.0), (13790, -3.27), (13828, -3.69), (13918, -5.01), (14008, -3.69)))
+
+
+@pytest.mark.parametrize("cycle", ["CRUISE-55-GRADE", "CRUISE-65-GRADE"])
+def test_graded_cruise_cycles_follow_appendix_iv(cycle):
+    """GEM's cruise cycles over the grade profile of Appendix IV to 40 CFR part 1037 (2016
+    text, https://ecfr.io/Title-40/Part-1037/Appendix-IV, breakpoints interpolated linearly):
+    every 1 Hz sample inside three stretches of the table (the 2.75 % dip, the 5.01 % peak,
+    the -5.01 % descent) has the table's grade at the distance driven at the set speed, within
+    0.005 points; the speed is constant, the profile is 20.04 km long and climbs as much as it
+    descends."""
+    from fleetrun.cycles import MPH_TO_MPS
+
+    c = load_cycle(cycle)
+    speed = float(cycle.split("-")[1]) * MPH_TO_MPS
+    assert np.allclose(c.speed_mps, speed, atol=1e-6)
+    distance = (c.time_s - c.time_s[0]) * speed
+    for stretch in APPENDIX_IV_STRETCHES:
+        at, grade = np.array(stretch, float).T
+        inside = (distance >= at[0]) & (distance <= at[-1])
+        assert inside.sum() >= 4
+        assert np.allclose(c.grade_pct[inside], np.interp(distance[inside], at, grade), atol=0.005), (cycle, at[0])
+    climb_m = np.sum(c.grade_pct[1:] / 100.0 * np.diff(distance))
+    assert abs(climb_m) < 1.0 and distance[-1] == pytest.approx(20040.0, abs=30.0)

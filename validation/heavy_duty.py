@@ -9,8 +9,8 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
    6.5-7.5 / 7.8-9.0 mpg that its road load, a 0.93 driveline and a 43-45 % brake efficiency
    give (issue 21);
 2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
-   cycles and weighting: g CO2/ton-mile against the standard each is set at (40 CFR 1037.105,
-   1037.106);
+   cycles and weighting, vocational vehicles with GEM's drive- and parked-idle cycles:
+   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106);
 3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes: mpg
    against the national combination-truck range (FHWA Highway Statistics VM-1, 5.4-6.4 mpg).
 
@@ -34,8 +34,12 @@ sys.path.insert(0, str(ROOT))
 from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.resources import models_dir  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
+from fleetrun.physics.fuels import fuel_properties  # noqa: E402
 from fleetrun.simulation.heavy_duty_gem import (composite_g_co2_per_ton_mile, gem_cycle_mix,  # noqa: E402
+                                                idle_fuel_rates_g_per_s, idle_gallons_per_mile, idle_shares,
                                                 payload_short_tons)
+from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
+from fleetrun.units import LITERS_PER_GALLON  # noqa: E402
 from fleetrun.simulation.heavy_duty_road_load import gem_coastdown_lbf  # noqa: E402
 from fleetrun.workbook import read_fleet  # noqa: E402
 from fleetrun.workbook.vehicle_file import vehicle_from_mapping  # noqa: E402
@@ -95,7 +99,16 @@ def reference_vehicles() -> tuple[dict, dict]:
     return data["defaults"], data["vehicles"]
 
 
-def check_reference_vehicles() -> list[dict]:
+def idle_gallons_per_hour(specs: list) -> tuple[np.ndarray, np.ndarray]:
+    """(drive idle, parked idle) fuel [gal/h] of each vehicle (heavy_duty_gem)."""
+    g_per_gal = fuel_properties("diesel").density_kg_per_L * LITERS_PER_GALLON * 1e3
+    drive, parked = idle_fuel_rates_g_per_s(vehicle_arrays(specs))
+    return drive * 3600.0 / g_per_gal, parked * 3600.0 / g_per_gal
+
+
+def check_reference_vehicles(with_idle: bool = True) -> list[dict]:
+    """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
+    without the vocational idle cycles (as before 2026-11-25)."""
     defaults, vehicles = reference_vehicles()
     specs = {name: vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"],
                                                      engine_model_year=defaults["standard_year"]), name), Path(name))
@@ -106,13 +119,22 @@ def check_reference_vehicles() -> list[dict]:
         r = simulate(list(specs.values()), cycle)
         for i, name in enumerate(specs):
             gal_per_mile.setdefault(name, {})[cycle] = float(r.fuel_gal[i] / r.miles[i])
+    drive_gph, parked_gph = idle_gallons_per_hour(list(specs.values()))
     rows = []
-    for name, basis in vehicles.items():
+    for i, (name, basis) in enumerate(vehicles.items()):
         mix = gem_cycle_mix(basis["gem_type"])
-        model = composite_g_co2_per_ton_mile(gal_per_mile[name], mix, payload_short_tons(basis["regulatory_class"]))
+        drive, parked, speed = idle_shares(basis["gem_type"])
+        idle = float(idle_gallons_per_mile(drive_gph[i], parked_gph[i], drive, parked, speed)) if with_idle else 0.0
+        payload = payload_short_tons(basis["regulatory_class"])
+        model = composite_g_co2_per_ton_mile(gal_per_mile[name], mix, payload, idle_gal_per_mile=idle)
         standard = basis["standard_g_per_ton_mile"]
         rows.append(dict(vehicle=name, gem_type=basis["gem_type"], standard_year=defaults["standard_year"],
                          model_g_per_ton_mile=round(model, 2), standard_g_per_ton_mile=standard,
+                         idle_g_per_ton_mile=round(composite_g_co2_per_ton_mile({}, {}, payload,
+                                                                                  idle_gal_per_mile=idle), 2),
+                         drive_idle_gal_per_h=round(float(drive_gph[i]), 3),
+                         parked_idle_gal_per_h=round(float(parked_gph[i]), 3),
+                         mpg_by_cycle={c: round(1.0 / g, 3) for c, g in gal_per_mile[name].items()},
                          co2_error=round(model / standard - 1.0, 4),
                          mpg_error=round(standard / model - 1.0, 4)))
     return rows
