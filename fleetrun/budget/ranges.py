@@ -2,8 +2,9 @@
 
 Per scenario, the central gallons of each fuel, duty class and budget year are perturbed by:
 
-- the model's fleet-level error per duty class (:mod:`fleetrun.budget.uncertainty`: normal
-  with the fleet's own sd; one draw per duty class shared by both fuels and all years);
+- the model's fleet-level error per duty class (:mod:`fleetrun.budget.uncertainty`: a
+  manufacturer part a t (t Student or normal) plus a per-vehicle part b z, with the fleet's own
+  scales a and b; one draw per duty class shared by both fuels and all years);
 - VMT growth: the growth rate + N(0, sd) -> year y's miles x ((1 + g + d) / (1 + g))^(y-1);
 - fuel price: ln(price) a random walk with sd per year, turned into gallons by the price
   response of :mod:`fleetrun.budget.drivers`;
@@ -22,8 +23,10 @@ import numpy as np
 
 from dataclasses import dataclass
 
+from scipy import special
+
 from fleetrun.budget import drivers
-from fleetrun.budget.uncertainty import Z90
+from fleetrun.budget.uncertainty import Z90, half_width
 
 DUTIES = ("LD", "HD")        # MD rows share the heavy-duty draw
 DRIVERS = ("model_LD", "model_HD", "vmt_growth", "fuel_price", "fleet_mix", "observed_gallons")
@@ -46,14 +49,15 @@ def standard_normals(samples: int, seed: int) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(seed)
     return {"model_LD": rng.standard_normal(samples), "model_HD": rng.standard_normal(samples),
             "vmt_growth": rng.standard_normal(samples), "fuel_price": rng.standard_normal((samples, MAX_YEARS)),
-            "fleet_mix": rng.standard_normal((samples, 2)), "observed_gallons": rng.standard_normal((samples, 2))}
+            "fleet_mix": rng.standard_normal((samples, 2)), "observed_gallons": rng.standard_normal((samples, 2)),
+            "maker_LD": rng.standard_normal(samples), "maker_HD": rng.standard_normal(samples)}
 
 
 def gallons_draws(central: dict, z: dict, spec: dict) -> dict[str, np.ndarray]:
     """Per fuel: gallons (samples x years) under the draws ``z``.
 
-    ``central[(fuel, duty)]``: central gallons per budget year; ``spec``: ``sd_model[(fuel,
-    duty)]``, ``growth`` (fraction), ``years``, ``short``/``long`` elasticities, ``calibrated``
+    ``central[(fuel, duty)]``: central gallons per budget year; ``spec``: ``model_error[(fuel,
+    duty)]`` = (a, b, df, DutyError) of :meth:`fleetrun.budget.uncertainty.DutyError.scales`, ``growth`` (fraction), ``years``, ``short``/``long`` elasticities, ``calibrated``
     fuels and the driver spreads ``u`` (models/budget.toml).
     """
     u, years = spec["u"], spec["years"]
@@ -73,11 +77,29 @@ def gallons_draws(central: dict, z: dict, spec: dict) -> dict[str, np.ndarray]:
             if calibrated:
                 level = 1.0 + z["observed_gallons"][:, f] * spec["observed_sd"]
             else:
-                key = "model_LD" if duty == "LD" else "model_HD"
-                level = (1.0 + z[key] * spec["sd_model"][(fuel, duty)]) * (1.0 + z["fleet_mix"][:, f] * u["fleet_mix_relative_sd"])
+                level = (1.0 + _model_error(z, duty, spec, fuel)) * (1.0 + z["fleet_mix"][:, f] * u["fleet_mix_relative_sd"])
             total += level[:, None] * np.asarray(gallons)[None, :]
         out[fuel] = total * growth * price
     return out
+
+
+def _model_error(z: dict, duty: str, spec: dict, fuel: str) -> np.ndarray:
+    """The relative model error of one fuel and duty class per draw: a t + b z (t from the
+    shared normal draw through the t quantile function when df is finite); in the tornado
+    (``spec["model_at"]``: +-1 per driver) its 5th / 95th percentile. A mixed heavy-duty error
+    (``DutyError.components``): the share from the manufacturer draw, the spread from the other."""
+    key = "model_LD" if duty == "LD" else "model_HD"
+    a, b, df, error = spec["model_error"][(fuel, duty)]
+    fixed = spec.get("model_at", {}).get(key)
+    maker = z["maker_LD" if duty == "LD" else "maker_HD"]
+    if error is not None and error.components:
+        if fixed is not None:
+            return np.full(len(z[key]), error.range90()[0 if fixed < 0 else 1])
+        return error.mixture_error(special.ndtr(maker), z[key])
+    if fixed is not None:
+        return np.full(len(z[key]), fixed * float(half_width(a, b, df)))
+    t = maker if not np.isfinite(df) else special.stdtrit(df, special.ndtr(maker))
+    return a * t + b * z[key]
 
 
 def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, YearRange]:
@@ -134,7 +156,7 @@ def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
     their centre): one row per driver that moves anything."""
     base_z = {k: np.zeros((1,) + v.shape[1:]) for k, v in standard_normals(1, 0).items()}
 
-    def revenue(z):
+    def revenue(z, spec=spec):
         draws = gallons_draws(central, z, spec)
         return float(sum((draws[f][0] * state_rates[f]).sum() for f in draws))
 
@@ -144,6 +166,9 @@ def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
         ends = []
         for sign in (-1.0, 1.0):
             z = {k: v.copy() for k, v in base_z.items()}
+            if name.startswith("model_"):
+                ends.append(revenue(z, {**spec, "model_at": {name: sign}}))
+                continue
             z[name] = z[name] + sign * Z90
             ends.append(revenue(z))
         if abs(ends[1] - ends[0]) > 1e-9 * max(abs(centre), 1.0):

@@ -290,10 +290,11 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
                 continue
             central[(fuel, duty)] = gallons[rows].sum(axis=0)
             model = error_model.for_duty(duty) if error_model is not None else None
-            sd[(fuel, duty)] = model.relative_sd(gallons[rows].sum(axis=1), makers[rows]) if model else 0.0
+            sd[(fuel, duty)] = (*model.scales(gallons[rows].sum(axis=1), makers[rows]), model.df, model) if model else (
+                0.0, 0.0, np.inf, None)
     short, long = drivers.elasticities(p.s)
     spec = {"u": drivers.uncertainty(), "years": len(p.years), "growth": p.s.vmt_growth_pct_per_year / 100.0,
-            "short": short, "long": long, "calibrated": set(scales), "sd_model": sd,
+            "short": short, "long": long, "calibrated": set(scales), "model_error": sd,
             "observed_sd": budget.constants()["calibration"]["observed_relative_sd"]}
     return central, spec
 
