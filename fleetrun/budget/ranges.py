@@ -90,14 +90,16 @@ def _model_error(z: dict, duty: str, spec: dict, fuel: str) -> np.ndarray:
     (``DutyError.components``): the share from the manufacturer draw, the spread from the other."""
     key = "model_LD" if duty == "LD" else "model_HD"
     a, b, df, error = spec["model_error"][(fuel, duty)]
-    fixed = spec.get("model_at", {}).get(key)
     maker = z["maker_LD" if duty == "LD" else "maker_HD"]
-    if error is not None and error.components:
-        if fixed is not None:
-            return np.full(len(z[key]), error.range90()[0 if fixed < 0 else 1])
+    mixed = error is not None and bool(error.components)
+    if "model_at" in spec:          # the tornado: none, or the 5th / 95th percentile
+        sign = spec["model_at"].get(key, 0.0)
+        if not sign:
+            return np.zeros(len(z[key]))
+        end = error.range90()[0 if sign < 0 else 1] if mixed else sign * float(half_width(a, b, df))
+        return np.full(len(z[key]), end)
+    if mixed:
         return error.mixture_error(special.ndtr(maker), z[key])
-    if fixed is not None:
-        return np.full(len(z[key]), fixed * float(half_width(a, b, df)))
     t = maker if not np.isfinite(df) else special.stdtrit(df, special.ndtr(maker))
     return a * t + b * z[key]
 
@@ -152,12 +154,13 @@ def _ratio(value, centre):
 
 
 def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
-    """State revenue of the budget period with each driver at -/+ 1.645 sd (the others at
-    their centre): one row per driver that moves anything."""
+    """State revenue of the budget period with each driver at its 5th / 95th percentile (-/+
+    1.645 sd; the model error's own percentiles) and the others at their centre (the model
+    error at none): one row per driver that moves anything."""
     base_z = {k: np.zeros((1,) + v.shape[1:]) for k, v in standard_normals(1, 0).items()}
 
-    def revenue(z, spec=spec):
-        draws = gallons_draws(central, z, spec)
+    def revenue(z, model_at=None):
+        draws = gallons_draws(central, z, {**spec, "model_at": model_at or {}})
         return float(sum((draws[f][0] * state_rates[f]).sum() for f in draws))
 
     centre = revenue(base_z)
@@ -167,7 +170,7 @@ def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
         for sign in (-1.0, 1.0):
             z = {k: v.copy() for k, v in base_z.items()}
             if name.startswith("model_"):
-                ends.append(revenue(z, {**spec, "model_at": {name: sign}}))
+                ends.append(revenue(z, {name: sign}))
                 continue
             z[name] = z[name] + sign * Z90
             ends.append(revenue(z))
