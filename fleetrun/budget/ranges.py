@@ -23,10 +23,8 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from scipy import special
-
 from fleetrun.budget import drivers
-from fleetrun.budget.uncertainty import Z90, half_width
+from fleetrun.budget.uncertainty import Z90, half_width, normal_cdf
 
 DUTIES = ("LD", "HD")        # MD rows share the heavy-duty draw
 DRIVERS = ("model_LD", "model_HD", "vmt_growth", "fuel_price", "fleet_mix", "observed_gallons")
@@ -99,8 +97,12 @@ def _model_error(z: dict, duty: str, spec: dict, fuel: str) -> np.ndarray:
         end = error.range90()[0 if sign < 0 else 1] if mixed else sign * float(half_width(a, b, df))
         return np.full(len(z[key]), end)
     if mixed:
-        return error.mixture_error(special.ndtr(maker), z[key])
-    t = maker if not np.isfinite(df) else special.stdtrit(df, special.ndtr(maker))
+        return error.mixture_error(normal_cdf(maker), z[key])
+    if np.isfinite(df):
+        from scipy import special      # a t effect only (the stored light-duty effect is normal)
+
+        return a * special.stdtrit(df, normal_cdf(maker)) + b * z[key]
+    t = maker
     return a * t + b * z[key]
 
 

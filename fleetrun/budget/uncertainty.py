@@ -32,13 +32,13 @@ an unknown share of each (:func:`_heavy`).
 from __future__ import annotations
 
 import math
+import statistics
 import tomllib
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy import special
 
 from fleetrun.errors import InputError
 from fleetrun.resources import models_dir
@@ -48,11 +48,19 @@ BIAS_FILE = "fuel_economy_bias.toml"
 HEAVY_FILE = Path("heavy_duty") / "fuel_economy_error.toml"
 Z90 = 1.6448536269514722     # standard normal 95th percentile: a central 90 % range
 _GRID = 2000                 # quantile points of t in the convolution (half_width_factor)
+_NORMAL = statistics.NormalDist()
+
+
+def normal_cdf(x) -> np.ndarray:
+    """The standard normal distribution function, elementwise (no scipy on the run's path)."""
+    return 0.5 * (1.0 + np.vectorize(math.erf, otypes=[float])(np.asarray(x, dtype=float) / math.sqrt(2.0)))
 
 
 @lru_cache(maxsize=64)
 def _factor_table(df: float, p: float) -> tuple[np.ndarray, np.ndarray]:
     """q(rho) on a grid of rho = a / sqrt(a^2 + b^2): the p-quantile of (a t_df + b z) / sqrt(a^2 + b^2)."""
+    from scipy import special      # only for a finite df (the stored light-duty effect is normal)
+
     t = special.stdtrit(df, (np.arange(_GRID) + 0.5) / _GRID)
     rho = np.linspace(0.0, 1.0, 201)
     q = np.empty_like(rho)
@@ -76,7 +84,7 @@ def half_width(a, b, df: float = math.inf, p: float = 0.95):
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     norm = np.hypot(a, b)
     if not math.isfinite(df):
-        return norm * float(special.ndtri(p))
+        return norm * _NORMAL.inv_cdf(p)
     rho, q = _factor_table(float(df), float(p))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(norm > 0, a / norm, 0.0)
@@ -109,7 +117,8 @@ class DutyError:
     def range90(self, gallons=(1.0,), makers=None) -> tuple[float, float]:
         """5th and 95th percentile of the relative error of a total about its centre."""
         if self.components:
-            u, z = np.meshgrid((np.arange(400) + 0.5) / 400, special.ndtri((np.arange(400) + 0.5) / 400))
+            grid = (np.arange(400) + 0.5) / 400
+            u, z = np.meshgrid(grid, [_NORMAL.inv_cdf(q) for q in grid])
             low, high = np.quantile(self.mixture_error(u.ravel(), z.ravel()), [0.05, 0.95])
             return float(low), float(high)
         h = self.half_width90(gallons, makers)
