@@ -38,12 +38,14 @@ def test_stored_constants_are_the_fit_of_the_stored_errors(heldout):
     stored = tomllib.loads((models_dir() / "fleet_error.toml").read_text())["LD"]
     fitted = fit_constants(heldout)
     for key in ("bias", "tau", "sigma", "share_exponent"):
-        assert stored[key] == pytest.approx(fitted[key], abs=1e-4), key
+        assert stored[key] == pytest.approx(fitted[key], abs=1e-4), f"{key}: run validation/fleet_error.py fit --write"
     assert stored["df"] == fitted["df"]
     # the same predictions as the light-duty work's models/fuel_economy_bias.toml (predicted /
     # measured - 1 there): one bias, two files that must agree
     other = tomllib.loads((models_dir() / "fuel_economy_bias.toml").read_text())["gallons_bias"]
-    assert fitted["bias"] == pytest.approx(1.0 / (1.0 + other) - 1.0, abs=5e-5)
+    assert fitted["bias"] == pytest.approx(1.0 / (1.0 + other) - 1.0, abs=5e-5), (
+        "the held-out errors are older than the light-duty model: run `PYTHONPATH=. python "
+        "validation/fleet_error.py heldout` and `... fit --write`, then `... coverage` / `... cv` for the docs")
 
 
 def test_half_width_of_t_plus_normal_against_direct_draws():
