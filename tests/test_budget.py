@@ -267,3 +267,12 @@ def test_per_class_calibration_needs_both_groups_and_an_agreeing_total(tmp_path)
              "observed_base_gallons_diesel_HD": 900_000.0}
     result = fakes.invoke_run(_split_fleet(tmp_path, apart), "--out", tmp_path / "o", "--no-cache", "-q")
     assert result.exit_code == 1 and "observed_base_gallons_diesel: is 1,000,000, but" in result.stderr
+
+
+def test_observed_gallons_of_a_group_without_rows_warn(tmp_path):
+    import json
+
+    path = _split_fleet(tmp_path, {"observed_base_gallons_gasoline_LD": 700_000.0,
+                                   "observed_base_gallons_gasoline_HD": 5_000.0})    # no HD gasoline rows
+    warnings = json.loads((run_to(tmp_path, path) / "manifest.json").read_text())["warnings"]
+    assert any("gasoline (medium/heavy duty) gallons (5,000), but the fleet has no such gallons" in w for w in warnings)

@@ -218,6 +218,10 @@ def _calibrate_one(p, name: str, group: str, observed: float, scales: dict, fitt
                             f"{observed:,.0f} gal (scenario {s.scenario_id}, base fiscal year "
                             f"{budget.fiscal_years(s)[0]}); outside the plausible {band[0]:.0%}-"
                             f"{band[1]:.0%}: check the vehicles, miles and the year of the collections")
+    elif s.calibrate_to_observed and model <= 0 and fitted_on.get(name, s.scenario_id) == s.scenario_id:
+        warnings.append(f"calibration: scenario {s.scenario_id} gives observed {what} gallons ({observed:,.0f}), "
+                        f"but the fleet has no such gallons; they calibrate nothing (check the fuel and duty class "
+                        f"of the vehicles, or the column)")
     elif s.calibrate_to_observed and fitted_on.get(name) not in (None, s.scenario_id):
         warnings.append(f"calibration: scenario {s.scenario_id}'s observed {what} gallons are not used; "
                         f"the factor is fitted once, on scenario {fitted_on[name]}, and applies to all")
