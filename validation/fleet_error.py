@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import optimize, stats
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -30,16 +32,20 @@ TESTS = ("FTP", "HWFET", "US06")
 
 
 def write_heldout(path: Path = HELDOUT_CSV) -> pd.DataFrame:
-    """Simulate the EPA list, fit held out by manufacturer, write the per-vehicle errors."""
-    from epa_fuel_economy import run
+    """Simulate the EPA list, fit held out by manufacturer, write the per-vehicle errors.
+
+    The predictions are validation/epa_technology.py's "physics + technology, drive-mode pairs"
+    (the model as the budget runs it; the same errors as models/fuel_economy_bias.toml): each
+    test vehicle once, its measured mpg the label-style mean of its drive modes."""
     from epa_table import epa_fleet
+    from epa_technology import run
 
     specs, table = epa_fleet()
     r = run(specs, table)
-    err = r["err"]
-    out = pd.DataFrame({"vehicle_id": table.vehicle_id, "manufacturer": table.manufacturer,
-                        "make": table.make, "fuel": table.fuel,
-                        "measured_FTP_mpg": table["FTP"], "measured_HWFET_mpg": table["HWFET"]})
+    err, paired = r["pairs"], r["paired_table"].iloc[r["pairs"].index]
+    out = pd.DataFrame({"vehicle_id": paired.vehicle_id, "manufacturer": paired.manufacturer,
+                        "make": paired.make, "fuel": paired.fuel,
+                        "measured_FTP_mpg": paired["FTP"], "measured_HWFET_mpg": paired["HWFET"]})
     for test in TESTS:
         out[f"e_{test}"] = err[test].to_numpy()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -71,48 +77,106 @@ def read_heldout(path: Path = HELDOUT_CSV) -> pd.DataFrame:
     return d
 
 
-def fit_constants(d: pd.DataFrame) -> dict:
+DF_GRID = (2.0, 4.0, 10.0, math.inf)
+SHARE_REF = 0.01      # the market share at which a manufacturer's effect has scale tau
+
+
+def manufacturer_means(d: pd.DataFrame, bias: float, sigma: float) -> pd.DataFrame:
+    """Per manufacturer: ``x`` its gallons-weighted mean r minus ``bias``, ``s2`` the sampling
+    variance of that mean from the per-vehicle scatter (sigma^2 sum g_i^2, g its types' gallon
+    shares) and ``share`` of the list's predicted gallons."""
+    groups = d.assign(gr=d.pred_gpm * d.r).groupby("manufacturer")
+    return pd.DataFrame({"x": groups.gr.sum() / groups.pred_gpm.sum() - bias,
+                         "s2": groups.pred_gpm.apply(lambda g: float(((g / g.sum()) ** 2).sum())) * sigma ** 2,
+                         "share": groups.pred_gpm.sum() / d.pred_gpm.sum()})
+
+
+def effect_nll(params, m: pd.DataFrame, df: float) -> float:
+    """Negative log likelihood of the manufacturers' means: x_m ~ t_df (normal for df = inf)
+    with scale sqrt(tau_m^2 + s2_m), tau_m = tau (share_m / SHARE_REF)^-gamma (the sum of the
+    effect and its mean's sampling error taken as one t); params = (ln tau, gamma)."""
+    tau_m = math.exp(params[0]) * (m.share.to_numpy() / SHARE_REF) ** -params[1]
+    scale = np.sqrt(tau_m ** 2 + m.s2.to_numpy())
+    z = m.x.to_numpy() / scale
+    logpdf = stats.norm.logpdf(z) if math.isinf(df) else stats.t.logpdf(z, df)
+    return float(-(logpdf - np.log(scale)).sum())
+
+
+EFFECTS = {                       # manufacturer-effect families compared by `cv --effect` (docs/budget.md)
+    "normal": ((math.inf,), False),   # one normal spread tau, every manufacturer counted once (stored)
+    "t": (DF_GRID, False),            # heavier tails: Student t, df by likelihood
+    "share": ((math.inf,), True),     # small manufacturers err more: tau (share / SHARE_REF)^-gamma
+    "t+share": (DF_GRID, True),
+}
+
+
+def fit_effect(m: pd.DataFrame, effect: str = "normal") -> tuple[float, float, float]:
+    """(tau, gamma, df) of the manufacturer effect by maximum likelihood (:func:`effect_nll`;
+    every manufacturer counts once): tau continuous, gamma in 0-2 where ``effect`` lets it vary
+    (else 0), df the best of the family's grid."""
+    grid, free_gamma = EFFECTS[effect]
+    best = (math.inf, 0.0, 0.0, math.inf)
+    for df in grid:
+        o = optimize.minimize(effect_nll, [math.log(0.03), 0.2 if free_gamma else 0.0], args=(m, df),
+                              method="L-BFGS-B", bounds=[(math.log(1e-4), math.log(0.5)),
+                                                         (0.0, 2.0 if free_gamma else 0.0)])
+        if o.fun < best[0]:
+            best = (float(o.fun), math.exp(o.x[0]), float(o.x[1]), df)
+    return best[1:]
+
+
+def fit_constants(d: pd.DataFrame, effect: str = "normal") -> dict:
     """The fleet-level error of the fuel model from per-vehicle held-out errors (docs/budget.md):
 
-    - ``bias``: the gallons-weighted mean of r over the whole list (measured / predicted total
+    - ``bias``: the gallons-weighted mean of r over the list (measured / predicted total
       gallons - 1);
     - ``sigma``: the per-vehicle-type scatter about its manufacturer's mean (pooled within
       manufacturers, gallons-weighted means);
-    - ``tau``: the spread between manufacturers' means, DerSimonian and Laird's (1986,
-      Controlled Clinical Trials 7:177) moment estimator with weights n_m / sigma^2;
+    - ``tau``, ``share_exponent`` (gamma), ``df``: the manufacturer effect, Student t of scale
+      tau (share / SHARE_REF)^-gamma, by maximum likelihood over the manufacturers' means
+      (:func:`fit_effect`; each manufacturer counts once, its mean's own sampling error added);
     - ``market_share``: each manufacturer's share of the list's predicted gallons, and the
       list's make -> manufacturer table.
     """
     g, r = d.pred_gpm.to_numpy(), d.r.to_numpy()
     bias = float((g * r).sum() / g.sum())
     groups = d.assign(gr=g * r).groupby("manufacturer")
-    n_m = groups.size().to_numpy(float)
-    mean_m = (groups.gr.sum() / groups.pred_gpm.sum()).to_numpy()
-    resid = r - d.manufacturer.map(dict(zip(groups.size().index, mean_m))).to_numpy()
-    sigma2 = float((resid ** 2).sum() / (len(r) - len(n_m)))
-    w = n_m / sigma2
-    centre = (w * mean_m).sum() / w.sum()
-    q = float((w * (mean_m - centre) ** 2).sum())
-    tau2 = max(0.0, (q - (len(n_m) - 1)) / (w.sum() - (w ** 2).sum() / w.sum()))
-    share = (groups.pred_gpm.sum() / g.sum()).to_dict()
+    mean_m = groups.gr.sum() / groups.pred_gpm.sum()
+    resid = r - d.manufacturer.map(mean_m).to_numpy()
+    sigma = float((resid ** 2).sum() / (len(r) - len(mean_m))) ** 0.5
+    tau, gamma, df = fit_effect(manufacturer_means(d, bias, sigma), effect)
     makes = {}
     for make, maker in zip(d.make.str.strip().str.upper(), d.manufacturer):
         makes.setdefault(make, maker)
-    return {"bias": bias, "sigma": sigma2 ** 0.5, "tau": tau2 ** 0.5, "n_vehicles": len(r),
-            "n_manufacturers": len(n_m), "market_share": share, "makes": makes}
+    return {"bias": bias, "sigma": sigma, "tau": tau, "share_exponent": gamma, "share_ref": SHARE_REF, "df": df,
+            "n_vehicles": len(r), "n_manufacturers": len(mean_m),
+            "market_share": (groups.pred_gpm.sum() / g.sum()).to_dict(), "makes": makes}
+
+
+def duty_error(c: dict):
+    """The budget's DutyError of fitted constants ``c``."""
+    from fleetrun.budget.uncertainty import DutyError
+
+    return DutyError(bias=c["bias"], tau=c["tau"], sigma=c["sigma"], df=c["df"],
+                     share_exponent=c["share_exponent"], share_ref=c["share_ref"],
+                     market_share=c["market_share"], makes=c["makes"])
 
 
 def write_constants(c: dict, path: Path) -> None:
     """models/fleet_error.toml, [LD]: the constants of :func:`fit_constants`."""
     lines = ["# Fleet-level error of the light-duty fuel model (fleetrun/budget/uncertainty.py, docs/budget.md).",
              "# Written by `python validation/fleet_error.py fit --write` from validation/data/epa_heldout_errors.csv",
-             "# (EPA 2022 Test Car List, each manufacturer predicted by constants fitted without it).",
+             "# (EPA 2022 Test Car List, each manufacturer predicted by constants fitted without it; drive-mode",
+             "# pairs as one vehicle, validation/epa_technology.py). Cross-validated by manufacturer: `... cv`.",
              "# r = measured / predicted gallons - 1 on 55 % FTP / 45 % HWFET miles.", "",
              "[LD]", f'source = "validation/fleet_error.py fit: EPA 2022 Test Car List, held out by manufacturer"',
              f'measured_on = "{datetime.date.today().isoformat()}"',
              f"n_vehicles = {c['n_vehicles']}", f"n_manufacturers = {c['n_manufacturers']}",
              f"bias = {c['bias']:.5f}        # gallons-weighted mean r: the centre is model x (1 + bias)",
-             f"tau = {c['tau']:.5f}         # between manufacturers (DerSimonian-Laird)",
+             f"tau = {c['tau']:.5f}         # manufacturer effect: sd (scale of a t if df is finite), max. likelihood",
+             f"share_exponent = {c['share_exponent']:.4f}  # gamma: scale tau (W / share_ref)^-gamma, W the market share",
+             f"share_ref = {c['share_ref']}",
+             f"df = {c['df']:g}             # degrees of freedom of the t (inf: normal)",
              f"sigma = {c['sigma']:.5f}       # per vehicle type, within its manufacturer", "",
              "[LD.market_share]   # share of the list's predicted gallons"]
     lines += [f'"{k}" = {v:.5f}' for k, v in sorted(c["market_share"].items())]
@@ -123,16 +187,19 @@ def write_constants(c: dict, path: Path) -> None:
 
 SIZES = (10, 30, 100, 300, 1000)
 MAKERS = (None, 1, 3, 10)       # None: drawn from the whole list; k: from k manufacturers
+FOLDS = 5
 
 
 def random_fleets(d: pd.DataFrame, error, size: int, makers, n: int, rng, by_share: bool = False):
     """``n`` fleets of ``size`` vehicle types drawn with replacement from the list (or from
     ``makers`` manufacturers, chosen uniformly or by their number of vehicles): each fleet's
-    held-out error (measured / predicted total gallons - 1) and its range's centre and sd."""
+    held-out error (measured / predicted total gallons - 1) and the half-width of its 90 % range."""
+    from fleetrun.budget.uncertainty import half_width
+
     names = d.manufacturer.unique()
     counts = d.manufacturer.value_counts().reindex(names).to_numpy(float)
     g, r, maker = d.pred_gpm.to_numpy(), d.r.to_numpy(), d.manufacturer.to_numpy()
-    out = np.empty((n, 2))
+    e, scales = np.empty(n), np.empty((n, 2))
     for k in range(n):
         pool = np.arange(len(d))
         if makers:
@@ -141,53 +208,107 @@ def random_fleets(d: pd.DataFrame, error, size: int, makers, n: int, rng, by_sha
         pick = rng.choice(pool, size, replace=True)
         types, repeats = np.unique(pick, return_counts=True)
         gallons = g[types] * repeats
-        out[k, 0] = (gallons * r[types]).sum() / gallons.sum()
-        out[k, 1] = error.relative_sd(gallons, maker[types])
-    return out
+        e[k] = (gallons * r[types]).sum() / gallons.sum()
+        scales[k] = error.scales(gallons, maker[types])
+    return e, half_width(scales[:, 0], scales[:, 1], error.df)
 
 
 def coverage(d: pd.DataFrame, error, n: int = 1000, seed: int = 20) -> pd.DataFrame:
     """Per fleet size and manufacturer draw: how often the 90 % range (bias-corrected centre
-    +- 1.645 sd) holds the held-out error, its mean width and the measured 5-95 % interval."""
-    from fleetrun.budget.uncertainty import Z90
-
+    +- its half-width) holds the held-out error, its mean width and the measured 5-95 % interval."""
     rng = np.random.default_rng(seed)
     rows = []
+    n_makers = d.manufacturer.nunique()
     for by_share in (False, True):
         for makers in MAKERS:
-            if by_share and makers is None:
+            if (by_share and makers is None) or (makers or 0) >= n_makers:
                 continue
             for size in SIZES:
-                e, sd = random_fleets(d, error, size, makers, n, rng, by_share).T
+                e, h = random_fleets(d, error, size, makers, n, rng, by_share)
                 p05, p95 = np.quantile(e, [0.05, 0.95])
                 rows.append({"size": size, "manufacturers": makers or "all",
                              "drawn": "by vehicles" if by_share else "uniform",
-                             "covered": float(np.mean(np.abs(e - error.bias) <= Z90 * sd)),
-                             "range_width": float(np.mean(2 * Z90 * sd)), "measured_p05": p05,
-                             "measured_p95": p95, "width_ratio": float(np.mean(2 * Z90 * sd) / (p95 - p05))})
+                             "covered": float(np.mean(np.abs(e - error.bias) <= h)),
+                             "range_width": float(np.mean(2 * h)), "measured_p05": p05,
+                             "measured_p95": p95, "width_ratio": float(np.mean(2 * h) / (p95 - p05))})
     return pd.DataFrame(rows)
+
+
+def folds_of(d: pd.DataFrame, k: int = FOLDS) -> dict[str, int]:
+    """Manufacturer -> fold: ranked by number of vehicles, dealt out in turn (every fold gets
+    large and small manufacturers)."""
+    ranked = d.manufacturer.value_counts().sort_index(kind="stable").sort_values(ascending=False, kind="stable")
+    return {m: i % k for i, m in enumerate(ranked.index)}
+
+
+def cross_validate(d: pd.DataFrame, k: int = FOLDS, n: int = 1000, seed: int = 20, effect: str = "normal"):
+    """Constants fitted on the manufacturers of k - 1 folds, coverage measured on random fleets
+    of the held-out fold's manufacturers (from all of them, or from 1 or 3, uniformly or by
+    size): per fold, the fitted constants and the coverage table."""
+    fold = d.manufacturer.map(folds_of(d, k)).to_numpy()
+    out = []
+    for f in range(k):
+        c = fit_constants(d[fold != f].reset_index(drop=True), effect)
+        whole = fit_constants(d)     # the market's make-up only (a fact of the list)
+        c = c | {"market_share": whole["market_share"], "makes": whole["makes"]}
+        table = coverage(d[fold == f].reset_index(drop=True), duty_error(c), n=n, seed=seed + f)
+        out.append({"fold": f, "constants": c, "held_out": sorted(d.manufacturer[fold == f].unique()),
+                    "table": table})
+    return out
+
+
+def print_cv(folds) -> pd.DataFrame:
+    """One line per fold, the pooled table; returns every fold's rows."""
+    rows = []
+    for f in folds:
+        c, t = f["constants"], f["table"]
+        one = t[t.manufacturers == 1]
+        print(f"fold {f['fold']}: held out {', '.join(f['held_out'])}")
+        print(f"  fitted on the others: bias {c['bias']:+.2%}, sigma {c['sigma']:.2%}, tau {c['tau']:.2%}, "
+              f"gamma {c['share_exponent']:.2f}, df {c['df']:g}; covered {t.covered.mean():.1%} (one manufacturer {one.covered.mean():.1%}); "
+              f">= 100 types width ratio {t[t['size'] >= 100].width_ratio.min():.2f}-"
+              f"{t[t['size'] >= 100].width_ratio.max():.2f}")
+        rows.append(t.assign(fold=f["fold"]))
+    table = pd.concat(rows, ignore_index=True)
+    summary(table, "cross-validated (5 folds by manufacturer)")
+    return table
+
+
+def summary(table: pd.DataFrame, label: str) -> None:
+    """The figures the README and docs/budget.md quote."""
+    one = table[table.manufacturers == 1]
+    whole = table[table.manufacturers == "all"]
+    large = whole[whole["size"] >= 100]
+    print(f"{label}: covered {table.covered.mean():.1%} of all fleets; whole pool {whole.covered.mean():.1%}; "
+          f"one manufacturer {one.covered.mean():.1%} (uniform {one[one.drawn == 'uniform'].covered.mean():.1%}, "
+          f"by size {one[one.drawn == 'by vehicles'].covered.mean():.1%}); cells {table.covered.min():.1%}-"
+          f"{table.covered.max():.1%}; whole pool >= 100 types: width ratio {large.width_ratio.min():.2f}-"
+          f"{large.width_ratio.max():.2f}, all >= 100 types at most {table[table['size'] >= 100].width_ratio.max():.2f}")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("step", choices=("heldout", "fit", "coverage"))
+    ap.add_argument("step", choices=("heldout", "fit", "coverage", "cv"))
     ap.add_argument("--write", action="store_true")
+    ap.add_argument("--effect", choices=tuple(EFFECTS), default="normal", help="manufacturer-effect family")
+    ap.add_argument("--fleets", type=int, default=1000, help="random fleets per cell")
     args = ap.parse_args(argv)
     if args.step == "heldout":
         out = write_heldout()
         print(f"{len(out)} vehicles -> {HELDOUT_CSV}")
     elif args.step == "fit":
-        c = fit_constants(read_heldout())
+        c = fit_constants(read_heldout(), args.effect)
         print({k: v for k, v in c.items() if k not in ("market_share", "makes")})
         if args.write:
             write_constants(c, ROOT / "models" / "fleet_error.toml")
+    elif args.step == "cv":
+        print_cv(cross_validate(read_heldout(), n=args.fleets, effect=args.effect))
     else:
         from fleetrun.budget.uncertainty import read_error_model
 
-        table = coverage(read_heldout(), read_error_model(ROOT / "models" / "fleet_error.toml").for_duty("LD"))
+        table = coverage(read_heldout(), read_error_model().for_duty("LD"), n=args.fleets)
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-        print(f"all fleets: covered {table.covered.mean():.3f}; fleets of >= 100 vehicle types: width ratio "
-              f"at most {table[table['size'] >= 100].width_ratio.max():.2f}")
+        summary(table, "stored constants, every manufacturer")
 
 
 if __name__ == "__main__":

@@ -2,8 +2,9 @@
 
 Per scenario, the central gallons of each fuel, duty class and budget year are perturbed by:
 
-- the model's fleet-level error per duty class (:mod:`fleetrun.budget.uncertainty`: normal
-  with the fleet's own sd; one draw per duty class shared by both fuels and all years);
+- the model's fleet-level error per duty class (:mod:`fleetrun.budget.uncertainty`: a
+  manufacturer part a t (t Student or normal) plus a per-vehicle part b z, with the fleet's own
+  scales a and b; one draw per duty class shared by both fuels and all years);
 - VMT growth: the growth rate + N(0, sd) -> year y's miles x ((1 + g + d) / (1 + g))^(y-1);
 - fuel price: ln(price) a random walk with sd per year, turned into gallons by the price
   response of :mod:`fleetrun.budget.drivers`;
@@ -23,7 +24,7 @@ import numpy as np
 from dataclasses import dataclass
 
 from fleetrun.budget import drivers
-from fleetrun.budget.uncertainty import Z90
+from fleetrun.budget.uncertainty import Z90, half_width, normal_cdf
 
 DUTIES = ("LD", "HD")        # MD rows share the heavy-duty draw
 DRIVERS = ("model_LD", "model_HD", "vmt_growth", "fuel_price", "fleet_mix", "observed_gallons")
@@ -46,14 +47,15 @@ def standard_normals(samples: int, seed: int) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(seed)
     return {"model_LD": rng.standard_normal(samples), "model_HD": rng.standard_normal(samples),
             "vmt_growth": rng.standard_normal(samples), "fuel_price": rng.standard_normal((samples, MAX_YEARS)),
-            "fleet_mix": rng.standard_normal((samples, 2)), "observed_gallons": rng.standard_normal((samples, 2))}
+            "fleet_mix": rng.standard_normal((samples, 2)), "observed_gallons": rng.standard_normal((samples, 2)),
+            "maker_LD": rng.standard_normal(samples), "maker_HD": rng.standard_normal(samples)}
 
 
 def gallons_draws(central: dict, z: dict, spec: dict) -> dict[str, np.ndarray]:
     """Per fuel: gallons (samples x years) under the draws ``z``.
 
-    ``central[(fuel, duty)]``: central gallons per budget year; ``spec``: ``sd_model[(fuel,
-    duty)]``, ``growth`` (fraction), ``years``, ``short``/``long`` elasticities, ``calibrated``
+    ``central[(fuel, duty)]``: central gallons per budget year; ``spec``: ``model_error[(fuel,
+    duty)]`` = (a, b, df, DutyError) of :meth:`fleetrun.budget.uncertainty.DutyError.scales`, ``growth`` (fraction), ``years``, ``short``/``long`` elasticities, ``calibrated``
     fuels and the driver spreads ``u`` (models/budget.toml).
     """
     u, years = spec["u"], spec["years"]
@@ -73,11 +75,35 @@ def gallons_draws(central: dict, z: dict, spec: dict) -> dict[str, np.ndarray]:
             if calibrated:
                 level = 1.0 + z["observed_gallons"][:, f] * spec["observed_sd"]
             else:
-                key = "model_LD" if duty == "LD" else "model_HD"
-                level = (1.0 + z[key] * spec["sd_model"][(fuel, duty)]) * (1.0 + z["fleet_mix"][:, f] * u["fleet_mix_relative_sd"])
+                level = (1.0 + _model_error(z, duty, spec, fuel)) * (1.0 + z["fleet_mix"][:, f] * u["fleet_mix_relative_sd"])
             total += level[:, None] * np.asarray(gallons)[None, :]
         out[fuel] = total * growth * price
     return out
+
+
+def _model_error(z: dict, duty: str, spec: dict, fuel: str) -> np.ndarray:
+    """The relative model error of one fuel and duty class per draw: a t + b z (t from the
+    shared normal draw through the t quantile function when df is finite); in the tornado
+    (``spec["model_at"]``: +-1 per driver) its 5th / 95th percentile. A mixed heavy-duty error
+    (``DutyError.components``): the share from the manufacturer draw, the spread from the other."""
+    key = "model_LD" if duty == "LD" else "model_HD"
+    a, b, df, error = spec["model_error"][(fuel, duty)]
+    maker = z["maker_LD" if duty == "LD" else "maker_HD"]
+    mixed = error is not None and bool(error.components)
+    if "model_at" in spec:          # the tornado: none, or the 5th / 95th percentile
+        sign = spec["model_at"].get(key, 0.0)
+        if not sign:
+            return np.zeros(len(z[key]))
+        end = error.range90()[0 if sign < 0 else 1] if mixed else sign * float(half_width(a, b, df))
+        return np.full(len(z[key]), end)
+    if mixed:
+        return error.mixture_error(normal_cdf(maker), z[key])
+    if np.isfinite(df):
+        from scipy import special      # a t effect only (the stored light-duty effect is normal)
+
+        return a * special.stdtrit(df, normal_cdf(maker)) + b * z[key]
+    t = maker
+    return a * t + b * z[key]
 
 
 def fuel_ranges(central: dict, z: dict, spec: dict) -> dict[str, YearRange]:
@@ -130,12 +156,13 @@ def _ratio(value, centre):
 
 
 def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
-    """State revenue of the budget period with each driver at -/+ 1.645 sd (the others at
-    their centre): one row per driver that moves anything."""
+    """State revenue of the budget period with each driver at its 5th / 95th percentile (-/+
+    1.645 sd; the model error's own percentiles) and the others at their centre (the model
+    error at none): one row per driver that moves anything."""
     base_z = {k: np.zeros((1,) + v.shape[1:]) for k, v in standard_normals(1, 0).items()}
 
-    def revenue(z):
-        draws = gallons_draws(central, z, spec)
+    def revenue(z, model_at=None):
+        draws = gallons_draws(central, z, {**spec, "model_at": model_at or {}})
         return float(sum((draws[f][0] * state_rates[f]).sum() for f in draws))
 
     centre = revenue(base_z)
@@ -144,6 +171,9 @@ def tornado(central: dict, spec: dict, state_rates: dict) -> list[dict]:
         ends = []
         for sign in (-1.0, 1.0):
             z = {k: v.copy() for k, v in base_z.items()}
+            if name.startswith("model_"):
+                ends.append(revenue(z, {name: sign}))
+                continue
             z[name] = z[name] + sign * Z90
             ends.append(revenue(z))
         if abs(ends[1] - ends[0]) > 1e-9 * max(abs(centre), 1.0):

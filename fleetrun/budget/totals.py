@@ -61,7 +61,7 @@ FISCAL_SOURCES = {"miles": "miles_total", "fuel_gal": "fuel_gal_total", "fuel_ga
                   "state_tax_usd": "state_tax_usd", "federal_tax_usd": "federal_tax_usd",
                   "ev_fee_usd": "ev_fee_usd"}
 ELECTRIC = "electric"
-CALIBRATION_COLUMNS = ["scenario_id", "fuel", "fiscal_year", "model_gallons", "observed_gallons",
+CALIBRATION_COLUMNS = ["scenario_id", "fuel", "class_group", "fiscal_year", "model_gallons", "observed_gallons",
                        "model_to_observed", "calibrated", "scale", "fitted_on"]
 TORNADO_COLUMNS = ["scenario_id", "driver", "low_usd", "high_usd", "central_usd"]
 
@@ -159,43 +159,75 @@ class _Scenario:
         self.gpm = self.per_mile["fuel_gal"] * bias_factor(self.duty, self.fuel, error_model)
         self.raw = self.miles * self.gpm[:, None] * factor      # on-road, bias-corrected, priced
 
-    def base_year_gallons(self, fuel: str) -> float:
-        return math.fsum(self.raw[self.fuel == fuel, 0])
+    def base_year_gallons(self, fuel: str, group: str = "all") -> float:
+        """Modelled gallons of ``fuel`` in the first budget year, of all rows or of a class group
+        (``LD``: light duty; ``HD``: medium and heavy duty)."""
+        rows = self.fuel == fuel
+        if group != "all":
+            rows &= (self.duty == "LD") if group == "LD" else (self.duty != "LD")
+        return math.fsum(self.raw[rows, 0])
 
 
-def fit_calibration(prepared: list, warnings: list) -> tuple[dict[str, float], pd.DataFrame]:
-    """One factor per fuel: observed / modelled gallons of the base fiscal year of the first
-    scenario that gives observed gallons and says calibrate_to_observed = yes; and one row per
-    scenario x fuel with observed gallons (the ratio reported, a warning outside the band)."""
-    band = budget.constants()["calibration"]["plausible_model_to_observed"]
-    scales: dict[str, float] = {}
+def row_scale(scales: dict, fuel: np.ndarray, duty: np.ndarray) -> np.ndarray:
+    """Each row's calibration factor: its fuel and class group's (``scales[(fuel, "LD"|"HD")]``),
+    else its fuel's (``scales[(fuel, "all")]``), else 1."""
+    group = np.where(np.asarray(duty) == "LD", "LD", "HD")
+    return np.array([scales.get((f, g), scales.get((f, "all"), 1.0)) for f, g in zip(fuel, group)], dtype=float)
+
+
+def calibrated_fuels(scales: dict) -> set:
+    return {fuel for fuel, _ in scales}
+
+
+def fit_calibration(prepared: list, warnings: list) -> tuple[dict[tuple, float], pd.DataFrame]:
+    """One factor per fuel (or per fuel and class group where the observed gallons are split
+    into light duty and medium/heavy duty): observed / modelled gallons of the base fiscal year
+    of the first scenario that gives observed gallons and says calibrate_to_observed = yes; and
+    one row per scenario x fuel (x group) with observed gallons (the ratio reported, a warning
+    outside the band). Keys: (fuel, "all" | "LD" | "HD")."""
+    scales: dict[tuple, float] = {}
     fitted_on: dict[str, str] = {}
     rows = []
     for p in prepared:
         s = p.s
         for name in drivers.FUELS:
-            observed = s.observed_base_gallons(name)
-            if observed is None:
-                continue
-            model = p.base_year_gallons(name)
-            ratio = model / observed
-            if s.calibrate_to_observed and name not in scales and model > 0:
-                scales[name], fitted_on[name] = observed / model, s.scenario_id
-                if not band[0] <= ratio <= band[1]:
-                    warnings.append(f"calibration: the model's {name} gallons are {ratio:.0%} of the observed "
-                                    f"{observed:,.0f} gal (scenario {s.scenario_id}, base fiscal year "
-                                    f"{budget.fiscal_years(s)[0]}); outside the plausible {band[0]:.0%}-"
-                                    f"{band[1]:.0%}: check the vehicles, miles and the year of the collections")
-            elif s.calibrate_to_observed and fitted_on.get(name) not in (None, s.scenario_id):
-                warnings.append(f"calibration: scenario {s.scenario_id}'s observed {name} gallons are not used; "
-                                f"the factor is fitted once, on scenario {fitted_on[name]}, and applies to all")
-            rows.append({"scenario_id": s.scenario_id, "fuel": name, "fiscal_year": budget.fiscal_years(s)[0],
-                         "model_gallons": model, "observed_gallons": observed, "model_to_observed": ratio})
+            split = s.observed_split(name)
+            parts = split.items() if split else [("all", s.observed_base_gallons(name))]
+            for group, observed in parts:
+                if observed is not None:
+                    rows.append(_calibrate_one(p, name, group, observed, scales, fitted_on, warnings))
     table = pd.DataFrame(rows, columns=CALIBRATION_COLUMNS)
-    table["calibrated"] = ["yes" if f in scales else "no" for f in table.fuel]
-    table["scale"] = [scales.get(f, 1.0) for f in table.fuel]
+    key = list(zip(table.fuel, table.class_group))
+    table["calibrated"] = ["yes" if k in scales else "no" for k in key]
+    table["scale"] = [scales.get(k, 1.0) for k in key]
     table["fitted_on"] = [fitted_on.get(f, "") for f in table.fuel]
     return scales, table
+
+
+def _calibrate_one(p, name: str, group: str, observed: float, scales: dict, fitted_on: dict, warnings: list) -> dict:
+    """Fit (fuel, group)'s factor on scenario ``p`` if it is the first to say yes; its table row."""
+    s = p.s
+    band = budget.constants()["calibration"]["plausible_model_to_observed"]
+    model = p.base_year_gallons(name, group)
+    ratio = model / observed
+    what = name if group == "all" else f"{name} ({'light duty' if group == 'LD' else 'medium/heavy duty'})"
+    if s.calibrate_to_observed and fitted_on.get(name, s.scenario_id) == s.scenario_id and model > 0:
+        scales[(name, group)], fitted_on[name] = observed / model, s.scenario_id
+        if not band[0] <= ratio <= band[1]:
+            warnings.append(f"calibration: the model's {what} gallons are {ratio:.0%} of the observed "
+                            f"{observed:,.0f} gal (scenario {s.scenario_id}, base fiscal year "
+                            f"{budget.fiscal_years(s)[0]}); outside the plausible {band[0]:.0%}-"
+                            f"{band[1]:.0%}: check the vehicles, miles and the year of the collections")
+    elif s.calibrate_to_observed and model <= 0 and fitted_on.get(name, s.scenario_id) == s.scenario_id:
+        warnings.append(f"calibration: scenario {s.scenario_id} gives observed {what} gallons ({observed:,.0f}), "
+                        f"but the fleet has no such gallons; they calibrate nothing (check the fuel and duty class "
+                        f"of the vehicles, or the column)")
+    elif s.calibrate_to_observed and fitted_on.get(name) not in (None, s.scenario_id):
+        warnings.append(f"calibration: scenario {s.scenario_id}'s observed {what} gallons are not used; "
+                        f"the factor is fitted once, on scenario {fitted_on[name]}, and applies to all")
+    return {"scenario_id": s.scenario_id, "fuel": name, "class_group": group,
+            "fiscal_year": budget.fiscal_years(s)[0], "model_gallons": model, "observed_gallons": observed,
+            "model_to_observed": ratio}
 
 
 def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy: dict) -> dict:
@@ -215,8 +247,7 @@ def _ratios(per_mile: dict, miles_total: np.ndarray, gallons: np.ndarray, energy
 def _yearly(p: _Scenario, vehicles, scales: dict, ratios: dict) -> dict[str, np.ndarray]:
     """Per vehicle and budget year: miles, gallons, range, kWh, taxes, fees (rows x years)."""
     s, fuel = p.s, p.fuel
-    scale = np.array([scales.get(f, 1.0) for f in fuel])
-    gallons = p.raw * scale[:, None]
+    gallons = p.raw * row_scale(scales, fuel, p.duty)[:, None]
     low, high = gallons.copy(), gallons.copy()       # rows without gallons (electric): 0
     for name, found in ratios.items():
         rows = fuel == name
@@ -279,8 +310,7 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
     """The Monte Carlo's central gallons per (fuel, duty) and year, and its settings."""
     from fleetrun.budget.ranges import DUTIES
 
-    scale = np.array([scales.get(f, 1.0) for f in p.fuel])
-    gallons = p.raw * scale[:, None]
+    gallons = p.raw * row_scale(scales, p.fuel, p.duty)[:, None]
     makers = np.array([v.manufacturer or v.make for v in vehicles], dtype=object)
     central, sd = {}, {}
     for fuel in drivers.FUELS:
@@ -290,10 +320,11 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
                 continue
             central[(fuel, duty)] = gallons[rows].sum(axis=0)
             model = error_model.for_duty(duty) if error_model is not None else None
-            sd[(fuel, duty)] = model.relative_sd(gallons[rows].sum(axis=1), makers[rows]) if model else 0.0
+            sd[(fuel, duty)] = (*model.scales(gallons[rows].sum(axis=1), makers[rows]), model.df, model) if model else (
+                0.0, 0.0, np.inf, None)
     short, long = drivers.elasticities(p.s)
     spec = {"u": drivers.uncertainty(), "years": len(p.years), "growth": p.s.vmt_growth_pct_per_year / 100.0,
-            "short": short, "long": long, "calibrated": set(scales), "sd_model": sd,
+            "short": short, "long": long, "calibrated": calibrated_fuels(scales), "model_error": sd,
             "observed_sd": budget.constants()["calibration"]["observed_relative_sd"]}
     return central, spec
 

@@ -63,6 +63,10 @@ class Scenario:
     onroad_adjustment: str | float = "epa_label"    # "epa_label", "none" or a factor
     observed_base_gallons_gasoline: float | None = None
     observed_base_gallons_diesel: float | None = None
+    observed_base_gallons_gasoline_LD: float | None = None   # per-class calibration (docs/budget.md)
+    observed_base_gallons_gasoline_HD: float | None = None
+    observed_base_gallons_diesel_LD: float | None = None
+    observed_base_gallons_diesel_HD: float | None = None
     calibrate_to_observed: bool = False
     ev_fee_usd_per_vehicle_year: float = 0.0
     # drivers (docs/budget.md): fiscal periods, fuel price (a number or {fiscal year: $/gal}),
@@ -108,9 +112,19 @@ class Scenario:
                 "diesel": self.federal_tax_diesel_usd_per_gal}.get(fuel, 0.0)
 
     def observed_base_gallons(self, fuel: str) -> float | None:
-        """Taxable gallons of ``fuel`` collected in the first fiscal year, if given."""
-        return {"gasoline": self.observed_base_gallons_gasoline,
-                "diesel": self.observed_base_gallons_diesel}.get(fuel)
+        """Taxable gallons of ``fuel`` collected in the first fiscal year, if given (the sum of
+        the light- and heavy-duty split where only that is given)."""
+        total = {"gasoline": self.observed_base_gallons_gasoline,
+                 "diesel": self.observed_base_gallons_diesel}.get(fuel)
+        split = self.observed_split(fuel)
+        return total if total is not None or split is None else split["LD"] + split["HD"]
+
+    def observed_split(self, fuel: str) -> dict[str, float] | None:
+        """``{"LD": ..., "HD": ...}`` taxable gallons of ``fuel`` by class group (HD: medium- and
+        heavy-duty rows) in the first fiscal year, where both are given."""
+        ld = getattr(self, f"observed_base_gallons_{fuel}_LD", None)
+        hd = getattr(self, f"observed_base_gallons_{fuel}_HD", None)
+        return None if ld is None or hd is None else {"LD": ld, "HD": hd}
 
     def mile_factor(self) -> float:
         """Budget-period miles per unit of annual miles: sum over y of (1 + g)^(y - 1)."""
@@ -555,11 +569,32 @@ def _budget_fields(fields: dict, table: _Table, row: int, problems: Problems) ->
     fields["onroad_adjustment"] = fields["onroad_adjustment"] or "epa_label"
     fields["ev_fee_usd_per_vehicle_year"] = fields["ev_fee_usd_per_vehicle_year"] or 0.0
     fields["calibrate_to_observed"] = fields["calibrate_to_observed"] == "yes"
-    observed = (fields["observed_base_gallons_gasoline"], fields["observed_base_gallons_diesel"])
+    for fuel in ("gasoline", "diesel"):
+        if not _split_is_whole(fields, fuel, table, row, problems):
+            return False
+    observed = [fields[c.name] for c in SCENARIO_COLUMNS if c.name.startswith("observed_base_gallons_")]
     if fields["calibrate_to_observed"] and all(g is None for g in observed):
         problems.error("is yes, but neither observed_base_gallons_gasoline nor observed_base_gallons_diesel "
                        "is given; fill in the gallons collected in the first fiscal year, or set it to no",
                        table.sheet, row, table.columns.get("calibrate_to_observed"), "calibrate_to_observed")
+        return False
+    return True
+
+
+def _split_is_whole(fields: dict, fuel: str, table: _Table, row: int, problems: Problems) -> bool:
+    """A class split of observed gallons gives both groups, and agrees with a total given beside it
+    (to 0.5 %: the total is the split's sum, rounded)."""
+    ld, hd = (f"observed_base_gallons_{fuel}_{g}" for g in ("LD", "HD"))
+    total = fields[f"observed_base_gallons_{fuel}"]
+    if (fields[ld] is None) != (fields[hd] is None):
+        missing = hd if fields[hd] is None else ld
+        problems.error(f"is empty, but {ld if missing == hd else hd} is given; a class split needs both groups",
+                       table.sheet, row, table.columns.get(missing), missing)
+        return False
+    if fields[ld] is not None and total is not None and abs(fields[ld] + fields[hd] - total) > 0.005 * total:
+        problems.error(f"is {total:,.0f}, but {ld} + {hd} = {fields[ld] + fields[hd]:,.0f}; give the split, the total "
+                       "or both agreeing", table.sheet, row, table.columns.get(f"observed_base_gallons_{fuel}"),
+                       f"observed_base_gallons_{fuel}")
         return False
     return True
 

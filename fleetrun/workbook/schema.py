@@ -198,6 +198,11 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
     Column("new_vehicle_mpg_change_pct_per_year", "number", False, "fuel-economy change of each new model "
            "year beyond the published trend [% per year] (empty: the trend's last ten years)",
            minimum=-20, maximum=20),
+    # Per-class calibration (docs/budget.md): collections split into light and medium/heavy duty
+    *[Column(f"observed_base_gallons_{fuel}_{group}", "number", False, f"taxable {fuel} gallons of "
+             f"{label} rows in the first fiscal year (per-class calibration: give both _LD and _HD)",
+             strictly_positive=True, maximum=1e12)
+      for fuel in ("gasoline", "diesel") for group, label in (("LD", "light-duty"), ("HD", "medium- and heavy-duty"))],
 )
 
 
