@@ -20,7 +20,6 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -640,79 +639,114 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     return margin * F.max(axis=2)
 
 
-@dataclass(frozen=True)
-class _Arithmetic:
-    """The few operations the re-drive loop needs, for Python floats (one vehicle at a time:
-    no numpy call per step, ~5x faster for one vehicle, benchmarks/bench_simulate.py) or for
-    numpy arrays over vehicles: the equations are written once (:func:`_full_effort_speeds`)."""
-
-    minimum: Callable
-    maximum: Callable
-    index: Callable
+# vehicles x steps per chunk of the re-drive's all-steps trial: its ~40 temporaries of
+# ~170 kB stay in the L2 cache (4x as many per chunk took twice as long, UDDS, 200 trucks)
+REDRIVE_CHUNK_STEPS = 22000
 
 
-_FLOATS = _Arithmetic(min, max, int)
-_ARRAYS = _Arithmetic(np.minimum, np.maximum, lambda x: x.astype(np.intp))
-# up to this many vehicles, the loop runs per vehicle on Python floats: numpy's per-call cost
-# for arrays of a few elements is larger than the arithmetic (benchmarks/bench_simulate.py)
-SCALAR_REDRIVE_MAX = 4
+@dataclass(frozen=True, eq=False)
+class _EffortModel:
+    """What one full-effort step needs of each vehicle (:func:`forward_redrive`), (V,) arrays
+    and the (V, N - 1) grade force of each step; ``rows``: the same for some vehicles."""
+
+    flat: np.ndarray              # the force tables x margin, one row of ``width`` per vehicle
+    base: np.ndarray              # each vehicle's first index in ``flat``
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    inv_m: np.ndarray
+    grade_force: np.ndarray
+
+    def rows(self, rows, step: int) -> "_EffortModel":
+        """The vehicles ``rows`` in step ``step`` only ((rows,) arrays; ``grade_force`` too)."""
+        return _EffortModel(self.flat, self.base[rows], self.A[rows], self.B[rows], self.C[rows], self.inv_m[rows],
+                            self.grade_force[rows, step])
 
 
-def _full_effort_speeds(v0, t: list, cap: list, force_at, coast, grade_force_at, inv_m, dv: float, top: float,
-                        ops: _Arithmetic) -> list:
-    """Speeds v(0..N-1) at full effort, as floats or arrays over vehicles (``ops``).
+def _full_effort_step(m: _EffortModel, vp, cap, dt, dv: float, top: float):
+    """Speed at the end of steps ``steps`` from ``vp`` at their start, at full effort.
 
     v(i) = min(cap(i), v(i-1) + a dt), clipped at 0; a = (F(v) - coastdown(v) - grade force) / m_eff,
-    F interpolated on the force table (``force_at(j)``: grid point j) at the step's mean speed
-    (one predictor-corrector pass, as the backward pass evaluates the step at its mean speed).
+    F interpolated on the force table at the step's mean speed (one predictor-corrector pass,
+    as the backward pass evaluates the step at its mean speed). Element-wise for any shapes
+    that broadcast: (rows, 1) per-vehicle values against one step, or (V, 1) against (1, steps).
     """
-    def accel(v, i):
-        x = ops.minimum(v / dv, top)
-        j = ops.index(x)
+    def accel(v):
+        x = np.minimum(v / dv, top)
+        j = x.astype(np.intp)
         w = x - j
-        force = force_at(j) * (1.0 - w) + force_at(j + 1) * w
-        v = ops.maximum(v, 1e-3)
-        return (force - coast(v) - grade_force_at(i - 1)) * inv_m
+        force = m.flat[m.base + j] * (1.0 - w) + m.flat[m.base + j + 1] * w
+        v = np.maximum(v, 1e-3)
+        return (force - coastdown_force_N(v, m.A, m.B, m.C) - m.grade_force) * m.inv_m
 
-    speeds = [v0]
-    vp = v0
-    for i in range(1, len(t)):
-        dt = t[i] - t[i - 1]
-        guess = ops.maximum(ops.minimum(cap[i], vp + accel(vp, i) * dt), 0.0)
-        vp = ops.maximum(ops.minimum(cap[i], vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
-        speeds.append(vp)
-    return speeds
+    guess = np.maximum(np.minimum(cap, vp + accel(vp) * dt), 0.0)
+    return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
+
+
+def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
+    """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
+    vehicle that followed the trace to step i - 1 reaches this speed at step i. Steps that
+    end at rest are 0 without arithmetic (min(0, x) clipped at 0 is 0 for any finite x)."""
+    V = m.base.size
+    out = np.zeros((V, cap.size - 1))
+    steps = np.flatnonzero(cap[1:] > 0)
+    prev, now, dt = cap[steps][None, :], cap[steps + 1], dt[steps]
+    chunk = max(1, REDRIVE_CHUNK_STEPS // max(steps.size, 1))
+    for first in range(0, V, chunk):
+        r = slice(first, first + chunk)
+        sub = _EffortModel(m.flat, m.base[r, None], m.A[r, None], m.B[r, None], m.C[r, None], m.inv_m[r, None],
+                           m.grade_force[r][:, steps])
+        out[r, steps] = _full_effort_step(sub, prev, now, dt, dv, top)
+    return out
 
 
 def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.97, table=None):
     """Achieved speed (V, N) of vehicles driven at most at full tractive effort.
 
     v(i) = min(trace(i), v(i-1) + a_max dt), a_max from the force table at the step's mean
-    speed (:func:`_full_effort_speeds`): the vehicle falls behind on hard accelerations and
-    re-joins the trace when it slows down. One loop over steps, vectorised over vehicles (or,
-    for a few vehicles, one vehicle at a time on floats). ``table``: the unscaled
-    :func:`max_tractive_force_table` if already computed.
+    speed (:func:`_full_effort_step`): the vehicle falls behind on hard accelerations and
+    re-joins the trace when it slows down. A vehicle on the trace at step i - 1 reaches the
+    same speed at step i as any other on it, so every step is first computed from the trace's
+    own speed for all vehicles at once (:func:`_trial_speeds`); only the steps a vehicle starts
+    behind the trace are then walked one by one, vectorised over the vehicles behind. The same
+    element-wise arithmetic either way: the speeds are those of a plain step loop, bit for bit.
+    ``table``: the unscaled :func:`max_tractive_force_table` if already computed.
     """
     if table is None:
         table = max_tractive_force_table(va, 1.0)
     dv = float(REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0])
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
-    flat = table.reshape(-1) * margin
-    width = table.shape[1]
-    inv_m = 1.0 / (va.mass_kg * (1.0 + va.rot_frac))
-    grade_force = grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :])
-    A, B, C = va.A_N, va.B_N, va.C_N
-    t, cap = np.asarray(time_s, float).tolist(), np.asarray(target_mps, float).tolist()
-    if va.n <= SCALAR_REDRIVE_MAX:
-        out = np.empty((va.n, len(t)))
-        for k in range(va.n):
-            a, b, c = float(A[k]), float(B[k]), float(C[k])
-            out[k] = _full_effort_speeds(cap[0], t, cap, flat[k * width:(k + 1) * width].tolist().__getitem__,
-                                         lambda v: coastdown_force_N(v, a, b, c), grade_force[k].tolist().__getitem__,
-                                         float(inv_m[k]), dv, top, _FLOATS)
-        return out
-    base = np.arange(va.n) * width
-    speeds = _full_effort_speeds(np.full(va.n, cap[0]), t, cap, lambda j: flat[base + j],
-                                 lambda v: coastdown_force_N(v, A, B, C), lambda i: grade_force[:, i], inv_m, dv, top,
-                                 _ARRAYS)
-    return np.stack(speeds, axis=1)
+    t, cap = np.asarray(time_s, float), np.asarray(target_mps, float)
+    m = _EffortModel(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
+                     C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)),
+                     grade_force=grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :]))
+    dt = np.diff(t)
+    speeds = np.empty((va.n, t.size))
+    speeds[:, 0] = cap[0]
+    speeds[:, 1:] = _trial_speeds(m, cap, dt, dv, top)
+    _walk_behind(m, speeds, cap, dt, dv, top)
+    return speeds
+
+
+def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
+    """Re-compute, step by step, the speeds (in place) of the vehicles that start a step
+    behind the trace; ``speeds`` holds each step's trial speed (:func:`_trial_speeds`)."""
+    fails = speeds[:, 1:] != cap[1:]            # cannot follow step i even from the trace
+    fail_steps = np.flatnonzero(fails.any(axis=0)) + 1
+    behind = np.zeros(0, np.intp)
+    i, N = 1, cap.size
+    while i < N:
+        if behind.size == 0:                    # all on the trace: on to the next step someone fails
+            k = np.searchsorted(fail_steps, i)
+            if k == fail_steps.size:
+                return
+            i = int(fail_steps[k])
+            behind = np.flatnonzero(fails[:, i - 1])
+            i += 1
+            continue
+        new = _full_effort_step(m.rows(behind, i - 1), speeds[behind, i - 1], cap[i], dt[i - 1], dv, top)
+        speeds[behind, i] = new
+        mask = fails[:, i - 1].copy()          # on the trace at i - 1, but cannot follow step i
+        mask[behind] = new != cap[i]            # the others: still behind unless re-joined
+        behind = np.flatnonzero(mask)
+        i += 1
