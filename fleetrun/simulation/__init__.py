@@ -14,7 +14,8 @@ import numpy as np
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes, measured
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
+                                      backward_drivetrain, has_technology,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
@@ -155,7 +156,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     # cache, which is several times faster than one pass over the whole fleet.
     block = max(1, BLOCK_STEPS // t.size)
 
-    def run(rows, speed):
+    def run(rows, speed, redriven_if_behind=False):
         parts = []
         for first in range(0, rows.size, block):
             sub = rows[first:first + block]
@@ -165,12 +166,12 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                 va_sub = va.subset(sub)
                 solver_sub = solver.subset(sub, va_sub)
             parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
-                                    v_target, grade, trace, effects, plan))
+                                    v_target, grade, trace, effects, plan, redriven_if_behind))
         return _concatenate(parts)
 
     sums = None
     if V:  # first every vehicle drives the trace itself, then those that cannot follow it
-        sums = _redrive_until_feasible(run(np.arange(V), None), va, t, v_target, grade, run)
+        sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -224,7 +225,9 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
 def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> BlockSums:
     """Vehicles that cannot follow the trace are re-driven (all together) at full effort, with
     a smaller margin on the estimated maximum effort each round, until the backward pass finds
-    every step feasible; ``run(rows, speed)`` simulates the vehicles ``rows`` at ``speed``."""
+    every step feasible; ``run(rows, speed, redriven_if_behind)`` simulates the vehicles
+    ``rows`` at ``speed`` (``redriven_if_behind``: a block whose vehicles all fall behind
+    need not be summed, they are driven again: :func:`_run_block`)."""
     force_tables = None
     for margin in REDRIVE_MARGINS:
         behind = np.flatnonzero(sums.behind)
@@ -234,7 +237,7 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> Blo
             force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved), behind)
+        sums = _redriven(sums, run(behind, achieved, margin != REDRIVE_MARGINS[-1]), behind)
     return sums
 
 
@@ -262,12 +265,14 @@ def _redriven(sums: BlockSums, again: BlockSums, behind) -> BlockSums:
 
 
 def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(),
-               plan: ThermalPlan | None = None) -> BlockSums:
+               plan: ThermalPlan | None = None, redriven_if_behind: bool = False) -> BlockSums:
     """Simulate one block of vehicles at the speeds ``speed`` (V, N), or None: the trace
     ``v_target`` itself (then the steps' motion is computed once, (1, N), for all vehicles).
     Per-vehicle sums (and the trace if asked for); ``behind`` marks vehicles with steps above
     full load. ``plan``: a composed cycle's cold-start plan (:func:`_thermal_plan`), None for
-    a plain cycle."""
+    a plain cycle. ``redriven_if_behind``: vehicles behind will be driven again, so when all
+    of the block are (trucks on a light-duty cycle), their fuel is not computed (the sums are
+    NaN, :func:`_behind_only`)."""
     V, N = va.n, t.size
     on_trace = speed is None
     speed = v_target[None, :] if on_trace else np.asarray(speed)
@@ -275,7 +280,10 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
     columns = None if trace else np.flatnonzero(target_avg > 0)
-    out = backward(va, t, speed, grade, solver, columns, effects, losses=trace)
+    drivetrain = backward_drivetrain(va, t, speed, grade, solver, columns, effects, losses=trace)
+    if redriven_if_behind and not trace and drivetrain.k.at_rest(drivetrain.infeasible, False).any(axis=1).all():
+        return _behind_only(V, 1 if plan is None else len(plan.phases))
+    out = backward(va, t, speed, grade, solver, columns, effects, losses=trace, drivetrain=drivetrain)
     dt = out.dt
     dt_all = np.concatenate([[0.0], np.diff(t)])
     distance_m = _distance_m(out.v_avg * dt, V, on_trace)
@@ -317,6 +325,16 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         phase_fuel_g=phase_fuel_g, phase_miles=phase_miles,
         trace=_trace(t, speed, v_target, grade, out, not_followed, plan, cold, temp) if trace else None,
     )
+
+
+def _behind_only(V, phases) -> BlockSums:
+    """The sums of a block whose vehicles all fall behind and will be driven again: NaN
+    (replaced by the re-drive's), ``behind`` set, integers 0."""
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    sums = {key: nan(V) for key in SUM_FIELDS}
+    sums["shortfall_steps"] = np.zeros(V, np.intp)
+    return BlockSums(**sums, behind=np.ones(V, bool), phase_fuel_g=nan(V, phases), phase_miles=nan(V, phases),
+                     trace=None)
 
 
 def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold, temp) -> Trace:

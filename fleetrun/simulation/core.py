@@ -463,21 +463,26 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     return engine_rpm, engine_torque, unlocked, drive
 
 
-def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, idling,
-           wheel_power, drive=None):
-    """Engine limits and fuel (engine.py): full load (steps above it are infeasible), motoring
-    (engine braking; the rest is brakes), the fuel equation, idle fuel, fuel cut-off, and the
-    vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun; ``drive``:
-    the driveline pulls (technology classes: hybrids' assist and engine off, start-stop).
-
-    Returns the full-load torque, the infeasible mask, the engine torque, the fuel rate and the
-    engine-off mask (None without technology classes).
-    """
-    idle = _col(va.n_idle)
-    t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), idle,
+def engine_limits(va: VehicleArrays, engine_rpm, engine_torque):
+    """Full-load torque at ``engine_rpm`` (engine.py) and the steps whose demand lies above it
+    (infeasible: the vehicle cannot follow the trace there)."""
+    t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), _col(va.n_idle),
                                 _col(va.n_peak_torque), _col(va.idle_T_frac))
+    return t_max, engine_torque > t_max * (1.0 + 1e-9)
+
+
+def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, t_max, idling,
+           wheel_power, drive=None):
+    """Engine torque and fuel (engine.py) below the full-load torque ``t_max``
+    (:func:`engine_limits`): motoring (engine braking; the rest is brakes), the fuel equation,
+    idle fuel, fuel cut-off, and the vehicle-level effects' extra fuel. ``idling``: unlocked
+    converter on overrun; ``drive``: the driveline pulls (technology classes: hybrids' assist
+    and engine off, start-stop).
+
+    Returns the engine torque, the fuel rate and the engine-off mask (None without technology
+    classes).
+    """
     t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
-    infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
     # engine braking is limited to the motoring torque (friction and pumping); the brakes take
@@ -506,7 +511,7 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
         fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va, k.since_start,
                                                             np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
                                                             burning), 0.0)
-    return t_max, infeasible, engine_torque, fuel, off
+    return engine_torque, fuel, off
 
 
 def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
@@ -538,8 +543,50 @@ def _shaft_power_W(torque_Nm, speed_rpm):
     return power
 
 
+@dataclass(frozen=True, eq=False)
+class Drivetrain:
+    """The first part of a backward pass (:func:`backward_drivetrain`): the step motion and
+    the chain from the wheels to the engine's speed, torque and full load."""
+
+    k: Kinematics
+    force: np.ndarray
+    wheel_torque: np.ndarray
+    wheel_rpm: np.ndarray
+    wheel_power: np.ndarray
+    gear: np.ndarray
+    axle_low: np.ndarray
+    diff_rpm: np.ndarray
+    diff_torque: np.ndarray
+    diff_eff: np.ndarray | None
+    trans_torque: np.ndarray
+    turbine_rpm: np.ndarray
+    engine_rpm: np.ndarray
+    engine_torque: np.ndarray
+    unlocked: np.ndarray
+    drive: np.ndarray
+    t_max: np.ndarray
+    infeasible: np.ndarray       # demand above full load (V, steps)
+
+
+def backward_drivetrain(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
+                        effects: CycleEffects = CycleEffects(), losses: bool = True) -> Drivetrain:
+    """The wheels-to-engine part of :func:`backward` (same arguments): enough to tell which
+    vehicles cannot follow ``speed_mps`` (``infeasible``) before their fuel is computed."""
+    k = kinematics(time_s, speed_mps, grade_pct, columns)
+    force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
+    wheel_power = wheel_torque * wheel_omega
+    trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
+    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
+    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
+    engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
+    t_max, infeasible = engine_limits(va, engine_rpm, engine_torque)
+    return Drivetrain(k, force, wheel_torque, wheel_rpm, wheel_power, gear, axle_low, diff_rpm, diff_torque, diff_eff,
+                      trans_torque, turbine_rpm, engine_rpm, engine_torque, unlocked, drive, t_max, infeasible)
+
+
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects(), losses: bool = True) -> StepResults:
+             effects: CycleEffects = CycleEffects(), losses: bool = True, drivetrain: Drivetrain | None = None
+             ) -> StepResults:
     """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
     vehicle's achieved speed), or (1, N) when every vehicle drives the same speeds (then the
     motion of the steps, ``dt`` to ``moving``, is (1, N) too).
@@ -548,36 +595,34 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
     physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
     ``losses``: also the differential's step efficiency and the power lost in the
-    differential, gearbox and converter (the trace's).
+    differential, gearbox and converter (the trace's). ``drivetrain``: the pass's
+    :func:`backward_drivetrain` if the caller has it already (same arguments).
     """
-    k = kinematics(time_s, speed_mps, grade_pct, columns)
-    force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
-    wheel_power = wheel_torque * wheel_omega
-    trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
-    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
-    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
-    engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
-    t_max, infeasible, engine_torque, fuel, off = engine(va, k, effects, engine_rpm, engine_torque,
-                                                         unlocked & ~drive, wheel_power, drive)
+    d = drivetrain or backward_drivetrain(va, time_s, speed_mps, grade_pct, solver, columns, effects, losses)
+    k, wheel_power = d.k, d.wheel_power
+    engine_torque, fuel, off = engine(va, k, effects, d.engine_rpm, d.engine_torque, d.t_max, d.unlocked & ~d.drive,
+                                      wheel_power, d.drive)
+    engine_rpm = d.engine_rpm
     if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
         engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
     fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}
     if losses:
-        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
-        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+        diff_in_power = _shaft_power_W(d.diff_torque, d.diff_rpm)
+        turbine_power = _shaft_power_W(d.trans_torque, d.turbine_rpm)
         losses_W = dict(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
                         converter_loss_W=engine_power - turbine_power)
-    V, N = wheel_torque.shape
+    V, N = d.wheel_torque.shape
     return StepResults(
-        dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
-        moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
-        diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
-        transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
-        converter_unlocked=k.at_rest(unlocked, False), engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
-        engine_max_torque_Nm=t_max, infeasible=k.at_rest(infeasible, False), fuel_rate_g_per_s=fuel,
-        wheel_power_W=wheel_power, engine_power_W=engine_power, **losses_W,
+        dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=d.force,
+        moving=k.moving, wheel_torque_Nm=d.wheel_torque, wheel_speed_rpm=d.wheel_rpm, gear=d.gear,
+        axle_low=d.axle_low, diff_input_torque_Nm=d.diff_torque, diff_input_speed_rpm=d.diff_rpm,
+        diff_efficiency=d.diff_eff, transmission_input_torque_Nm=d.trans_torque,
+        transmission_input_speed_rpm=d.turbine_rpm, converter_unlocked=k.at_rest(d.unlocked, False),
+        engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque, engine_max_torque_Nm=d.t_max,
+        infeasible=k.at_rest(d.infeasible, False), fuel_rate_g_per_s=fuel, wheel_power_W=wheel_power,
+        engine_power_W=engine_power, **losses_W,
     )
 
 
