@@ -161,9 +161,9 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
     """The fuel equation (engine.py) with each vehicle's constants and technology classes;
     ``col`` shapes the (V,) parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles
     x steps arrays)."""
-    pumping, gain = technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
+    pumping, gain, load = _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
     terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain)
+                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain, load)
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
 
 
@@ -196,14 +196,24 @@ def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_N
     """The throttle-pumping share and brake-work multiplier of each vehicle's technology
     classes (simulation/technology.py) for :func:`engine.fuel_power_terms_W`; (None, None)
     when no vehicle has any. Each class is evaluated on its own vehicles' rows only."""
+    return _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)[:2]
+
+
+def _technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
+    """:func:`technology_fuel_inputs` and the load fraction it used (engine.load_fraction; None
+    without technology classes), for the fuel equation not to compute it again."""
     if not has_technology(va):
-        return None, None
+        return None, None, None
     c = tech.technology_constants()
     load = load_fraction(torque_Nm, max_torque_Nm)
-    share = 1.0 - load
     rows = _rows_with(va, "turbo")
-    if _any(rows):
-        share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]), c.na_bmep_kPa)
+    if isinstance(rows, slice):   # every vehicle boosted: no (1 - L) to overwrite
+        share = tech.boosted_pumping_share(torque_Nm, col(va.displacement_L), c.na_bmep_kPa)
+    else:
+        share = 1.0 - load
+        if rows.size:
+            share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]),
+                                                     c.na_bmep_kPa)
     rows = _rows_with(va, "atkinson", "miller")
     if _any(rows):
         share[rows] = tech.atkinson_pumping_share(share[rows], c.pumping_retained)
@@ -215,12 +225,12 @@ def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_N
     gain = np.ones(va.n)
     for name, ratio in (("atkinson", c.compression_ratio_atkinson), ("miller", c.compression_ratio_miller)):
         gain = np.where(_flag(va, name), tech.expansion_ratio_gain(ratio, c.compression_ratio_base, c.gamma), gain)
-    return share, col(gain)
+    return share, col(gain), load
 
 
 def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, engine_rpm, drive, wheel_power):
     """Hybrids' assist (engine torque after the e-machine's share of the positive work) and the
-    steps with the engine off: start-stop at warm stops, hybrids also while coasting."""
+    steps with the engine off (one mask): start-stop at warm stops, hybrids also while coasting."""
     c = tech.technology_constants()
     hybrid = _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid")
     torque = engine_torque
@@ -233,12 +243,17 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         own = engine_torque[rows]
         positive = (np.maximum(own, 0.0) * engine_rpm[rows] / RPM_PER_RAD_S * dt).sum(axis=1)
         keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
-        torque = engine_torque.copy()
-        torque[rows] = np.where(own > 0, own * keep[:, None], own)
-    stop_off = _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
-                                                                                 c.inhibit_after_cold_start_s)
-    coast_off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
-    return torque, stop_off, coast_off
+        assisted = np.where(own > 0, own * keep[:, None], own)
+        if isinstance(rows, slice):   # every vehicle a hybrid: no copy to write into
+            torque = assisted
+        else:
+            torque = engine_torque.copy()
+            torque[rows] = assisted
+    off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
+    if not k.all_moving:   # (at standstill start-stop's stops; none when every step moves)
+        off |= _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
+                                                                                c.inhibit_after_cold_start_s)
+    return torque, off
 
 
 def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
@@ -492,10 +507,9 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     off = None
     if has_technology(va):
-        engine_torque_fuel, stop_off, coast_off = technology_engine_state(
+        engine_torque_fuel, off = technology_engine_state(
             va, k, engine_torque_fuel, engine_rpm, engine_torque > 0 if drive is None else drive, wheel_power)
         engine_torque = np.where(engine_torque > 0, engine_torque_fuel, engine_torque)
-        off = stop_off | coast_off
     fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving)
     idle_fuel = _col(va.idle_fuel_g_s)
     if np.isfinite(idle_fuel).any():
@@ -504,7 +518,7 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if off is not None:   # engine off: no fuel; start-stop's stops cost the fitted average power
         stop_W = tech.technology_constants().stop_fuel_power_W
-        fuel = np.where(off, np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
+        fuel = np.where(off, 0.0 if k.all_moving else np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
