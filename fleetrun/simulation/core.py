@@ -709,34 +709,40 @@ class _EffortModel:
     and the (V, N - 1) grade force of each step; ``rows``: the same for some vehicles."""
 
     flat: np.ndarray              # the force tables x margin, one row of ``width`` per vehicle
+    flat_next: np.ndarray         # flat[i + 1] at i (one index for both ends of an interval)
     base: np.ndarray              # each vehicle's first index in ``flat``
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    inv_m: np.ndarray
+    per: np.ndarray               # (4, V): coastdown A, B, C and 1 / m_eff (one gather for a part)
     grade_force: np.ndarray
 
-    def rows(self, rows, step: int) -> "_EffortModel":
-        """The vehicles ``rows`` in step ``step`` only ((rows,) arrays; ``grade_force`` too)."""
-        return _EffortModel(self.flat, self.base[rows], self.A[rows], self.B[rows], self.C[rows], self.inv_m[rows],
-                            self.grade_force[rows, step])
+    @staticmethod
+    def of(flat, base, A, B, C, inv_m, grade_force) -> "_EffortModel":
+        return _EffortModel(flat, np.append(flat[1:], 0.0), base, np.stack([A, B, C, inv_m]), grade_force)
+
+    def part(self, rows, columns=slice(None)) -> "_EffortModel":
+        """The vehicles ``rows`` and the steps ``columns`` of ``grade_force`` (an int: that
+        step's (rows,) values)."""
+        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows],
+                            self.grade_force[rows, columns])
 
 
 def _full_effort_step(m: _EffortModel, vp, cap, dt, dv: float, top: float):
-    """Speed at the end of steps ``steps`` from ``vp`` at their start, at full effort.
+    """Speed at the end of one or more steps from ``vp`` at their start, at full effort.
 
     v(i) = min(cap(i), v(i-1) + a dt), clipped at 0; a = (F(v) - coastdown(v) - grade force) / m_eff,
     F interpolated on the force table at the step's mean speed (one predictor-corrector pass,
     as the backward pass evaluates the step at its mean speed). Element-wise for any shapes
     that broadcast: (rows, 1) per-vehicle values against one step, or (V, 1) against (1, steps).
     """
+    A, B, C, inv_m = m.per
+
     def accel(v):
         x = np.minimum(v / dv, top)
         j = x.astype(np.intp)
         w = x - j
-        force = m.flat[m.base + j] * (1.0 - w) + m.flat[m.base + j + 1] * w
+        index = m.base + j
+        force = m.flat.take(index) * (1.0 - w) + m.flat_next.take(index) * w
         v = np.maximum(v, 1e-3)
-        return (force - coastdown_force_N(v, m.A, m.B, m.C) - m.grade_force) * m.inv_m
+        return (force - coastdown_force_N(v, A, B, C) - m.grade_force) * inv_m
 
     guess = np.maximum(np.minimum(cap, vp + accel(vp) * dt), 0.0)
     return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
@@ -752,10 +758,8 @@ def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     prev, now, dt = cap[steps][None, :], cap[steps + 1], dt[steps]
     chunk = max(1, REDRIVE_CHUNK_STEPS // max(steps.size, 1))
     for first in range(0, V, chunk):
-        r = slice(first, first + chunk)
-        sub = _EffortModel(m.flat, m.base[r, None], m.A[r, None], m.B[r, None], m.C[r, None], m.inv_m[r, None],
-                           m.grade_force[r][:, steps])
-        out[r, steps] = _full_effort_step(sub, prev, now, dt, dv, top)
+        r = np.arange(first, min(first + chunk, V))
+        out[r[:, None], steps] = _full_effort_step(m.part(r[:, None], steps), prev, now, dt, dv, top)
     return out
 
 
@@ -776,9 +780,9 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     dv = float(REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0])
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
     t, cap = np.asarray(time_s, float), np.asarray(target_mps, float)
-    m = _EffortModel(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
-                     C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)),
-                     grade_force=grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :]))
+    m = _EffortModel.of(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
+                        C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)),
+                        grade_force=grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :]))
     dt = np.diff(t)
     speeds = np.empty((va.n, t.size))
     speeds[:, 0] = cap[0]
@@ -803,9 +807,9 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
             behind = np.flatnonzero(fails[:, i - 1])
             i += 1
             continue
-        new = _full_effort_step(m.rows(behind, i - 1), speeds[behind, i - 1], cap[i], dt[i - 1], dv, top)
+        new = _full_effort_step(m.part(behind, i - 1), speeds[behind, i - 1], cap[i], dt[i - 1], dv, top)
         speeds[behind, i] = new
         mask = fails[:, i - 1].copy()          # on the trace at i - 1, but cannot follow step i
         mask[behind] = new != cap[i]            # the others: still behind unless re-joined
-        behind = np.flatnonzero(mask)
+        behind = mask.nonzero()[0]
         i += 1
