@@ -807,9 +807,16 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
             behind = np.flatnonzero(fails[:, i - 1])
             i += 1
             continue
-        new = _full_effort_step(m.part(behind, i - 1), speeds[behind, i - 1], cap[i], dt[i - 1], dv, top)
-        speeds[behind, i] = new
-        mask = fails[:, i - 1].copy()          # on the trace at i - 1, but cannot follow step i
-        mask[behind] = new != cap[i]            # the others: still behind unless re-joined
-        behind = mask.nonzero()[0]
+        # every vehicle behind (one that cannot hold the cycle's speed): views, no gathers
+        rows = slice(None) if behind.size == fails.shape[0] else behind
+        new = _full_effort_step(m.part(rows, i - 1), speeds[rows, i - 1], cap[i], dt[i - 1], dv, top)
+        speeds[rows, i] = new
+        still = new != cap[i]                   # still behind unless re-joined
+        if isinstance(rows, slice):
+            if not still.all():
+                behind = still.nonzero()[0]
+        else:
+            mask = fails[:, i - 1].copy()      # on the trace at i - 1, but cannot follow step i
+            mask[behind] = still
+            behind = mask.nonzero()[0]
         i += 1
