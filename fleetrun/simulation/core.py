@@ -718,20 +718,19 @@ class _EffortModel:
     def of(flat, base, A, B, C, inv_m, grade_force) -> "_EffortModel":
         return _EffortModel(flat, np.append(flat[1:], 0.0), base, np.stack([A, B, C, inv_m]), grade_force)
 
-    def part(self, rows, columns=slice(None)) -> "_EffortModel":
-        """The vehicles ``rows`` and the steps ``columns`` of ``grade_force`` (an int: that
-        step's (rows,) values)."""
-        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows],
-                            self.grade_force[rows, columns])
+    def part(self, rows) -> "_EffortModel":
+        """The vehicles ``rows`` (their ``grade_force`` rows are taken step by step)."""
+        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows], self.grade_force)
 
 
-def _full_effort_step(m: _EffortModel, vp, cap, dt, dv: float, top: float):
+def _full_effort_step(m: _EffortModel, grade_force, vp, cap, dt, dv: float, top: float):
     """Speed at the end of one or more steps from ``vp`` at their start, at full effort.
 
     v(i) = min(cap(i), v(i-1) + a dt), clipped at 0; a = (F(v) - coastdown(v) - grade force) / m_eff,
     F interpolated on the force table at the step's mean speed (one predictor-corrector pass,
-    as the backward pass evaluates the step at its mean speed). Element-wise for any shapes
-    that broadcast: (rows, 1) per-vehicle values against one step, or (V, 1) against (1, steps).
+    as the backward pass evaluates the step at its mean speed; ``grade_force`` of these
+    vehicles and steps). Element-wise for any shapes that broadcast: (rows,) per-vehicle values
+    in one step, or (rows, 1) against (1, steps).
     """
     A, B, C, inv_m = m.per
 
@@ -742,7 +741,7 @@ def _full_effort_step(m: _EffortModel, vp, cap, dt, dv: float, top: float):
         index = m.base + j
         force = m.flat.take(index) * (1.0 - w) + m.flat_next.take(index) * w
         v = np.maximum(v, 1e-3)
-        return (force - coastdown_force_N(v, A, B, C) - m.grade_force) * inv_m
+        return (force - coastdown_force_N(v, A, B, C) - grade_force) * inv_m
 
     guess = np.maximum(np.minimum(cap, vp + accel(vp) * dt), 0.0)
     return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
@@ -759,7 +758,8 @@ def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     chunk = max(1, REDRIVE_CHUNK_STEPS // max(steps.size, 1))
     for first in range(0, V, chunk):
         r = np.arange(first, min(first + chunk, V))
-        out[r[:, None], steps] = _full_effort_step(m.part(r[:, None], steps), prev, now, dt, dv, top)
+        out[r[:, None], steps] = _full_effort_step(m.part(r[:, None]), m.grade_force[r[:, None], steps], prev, now,
+                                                   dt, dv, top)
     return out
 
 
@@ -808,11 +808,13 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
             i += 1
             continue
         # every vehicle behind (one that cannot hold the cycle's speed): views, no gathers
-        rows = slice(None) if behind.size == fails.shape[0] else behind
-        new = _full_effort_step(m.part(rows, i - 1), speeds[rows, i - 1], cap[i], dt[i - 1], dv, top)
+        every = behind.size == fails.shape[0]
+        rows = slice(None) if every else behind
+        new = _full_effort_step(m if every else m.part(rows), m.grade_force[rows, i - 1], speeds[rows, i - 1], cap[i],
+                                dt[i - 1], dv, top)
         speeds[rows, i] = new
         still = new != cap[i]                   # still behind unless re-joined
-        if isinstance(rows, slice):
+        if every:
             if not still.all():
                 behind = still.nonzero()[0]
         else:
