@@ -19,6 +19,8 @@ import tempfile
 
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# this checkout's fleetrun, not an installed copy (as bench_fastsim.py)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from bench_simulate import CLOCKS, best_of, machine, varied as fleet_of  # noqa: E402
 
 from fleetrun.cycles import load_cycle  # noqa: E402
