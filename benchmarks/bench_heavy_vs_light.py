@@ -19,7 +19,9 @@ import tempfile
 
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_simulate import best_of, varied as fleet_of  # noqa: E402
+# this checkout's fleetrun, not an installed copy (as bench_fastsim.py)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from bench_simulate import CLOCKS, best_of, machine, varied as fleet_of  # noqa: E402
 
 from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.resources import inputs_dir  # noqa: E402
@@ -32,12 +34,15 @@ def main(argv=None):
     parser.add_argument("--vehicles", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--cycles", default="HWFET,HD-UDDS,UDDS")
+    parser.add_argument("--clock", choices=sorted(CLOCKS), default="wall",
+                        help="wall clock or this process's CPU time (steadier on a shared machine)")
     args = parser.parse_args(argv)
     vehicles = read_fleet(inputs_dir() / "example_fleet.xlsx").vehicles
     groups = {"light": [v for v in vehicles if v.duty_class == "LD" and v.fuel != "electric"],
               "heavy": [v for v in vehicles if v.duty_class in ("MD", "HD") and v.fuel == "diesel"]}
     fleets = {k: fleet_of(types, args.vehicles) for k, types in groups.items()}
-    print(f"{len(groups['light'])} light and {len(groups['heavy'])} heavy types, {args.vehicles} rows each")
+    print(f"{machine()}\n{len(groups['light'])} light and {len(groups['heavy'])} heavy types, {args.vehicles} rows "
+          f"each, best of {args.repeat} ({args.clock} clock)")
     print("| cycle | light us/vehicle-cycle | heavy us/vehicle-cycle | heavy / light | heavy rows re-driven |")
     print("|---|---:|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as cache:
@@ -46,7 +51,7 @@ def main(argv=None):
             per = {}
             for kind, fleet in fleets.items():
                 result = simulate(fleet, cycle, cache_dir=cache)   # builds the maps (cold), not timed
-                per[kind] = best_of(lambda: simulate(fleet, cycle, cache_dir=cache), args.repeat) / len(fleet) * 1e6
+                per[kind] = best_of(lambda: simulate(fleet, cycle, cache_dir=cache), args.repeat, args.clock) / len(fleet) * 1e6
                 behind = float((result.shortfall_time_s > 0).mean())
             print(f"| {name} | {per['light']:.0f} | {per['heavy']:.0f} | {per['heavy'] / per['light']:.2f} | {behind:.0%} |")
 

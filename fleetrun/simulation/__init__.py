@@ -14,7 +14,8 @@ import numpy as np
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes, measured
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward, has_technology,
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
+                                      backward_drivetrain, has_technology,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
@@ -155,7 +156,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     # cache, which is several times faster than one pass over the whole fleet.
     block = max(1, BLOCK_STEPS // t.size)
 
-    def run(rows, speed):
+    def run(rows, speed, redriven_if_behind=False):
         parts = []
         for first in range(0, rows.size, block):
             sub = rows[first:first + block]
@@ -165,12 +166,12 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                 va_sub = va.subset(sub)
                 solver_sub = solver.subset(sub, va_sub)
             parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
-                                    v_target, grade, trace, effects, plan))
+                                    v_target, grade, trace, effects, plan, redriven_if_behind))
         return _concatenate(parts)
 
     sums = None
     if V:  # first every vehicle drives the trace itself, then those that cannot follow it
-        sums = _redrive_until_feasible(run(np.arange(V), None), va, t, v_target, grade, run)
+        sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -224,7 +225,9 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
 def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> BlockSums:
     """Vehicles that cannot follow the trace are re-driven (all together) at full effort, with
     a smaller margin on the estimated maximum effort each round, until the backward pass finds
-    every step feasible; ``run(rows, speed)`` simulates the vehicles ``rows`` at ``speed``."""
+    every step feasible; ``run(rows, speed, redriven_if_behind)`` simulates the vehicles
+    ``rows`` at ``speed`` (``redriven_if_behind``: a block whose vehicles all fall behind
+    need not be summed, they are driven again: :func:`_run_block`)."""
     force_tables = None
     for margin in REDRIVE_MARGINS:
         behind = np.flatnonzero(sums.behind)
@@ -234,7 +237,7 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> Blo
             force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved), behind)
+        sums = _redriven(sums, run(behind, achieved, margin != REDRIVE_MARGINS[-1]), behind)
     return sums
 
 
@@ -262,23 +265,35 @@ def _redriven(sums: BlockSums, again: BlockSums, behind) -> BlockSums:
 
 
 def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(),
-               plan: ThermalPlan | None = None) -> BlockSums:
+               plan: ThermalPlan | None = None, redriven_if_behind: bool = False, precheck: bool = True,
+               distance_rows: int | None = None) -> BlockSums:
     """Simulate one block of vehicles at the speeds ``speed`` (V, N), or None: the trace
     ``v_target`` itself (then the steps' motion is computed once, (1, N), for all vehicles).
     Per-vehicle sums (and the trace if asked for); ``behind`` marks vehicles with steps above
     full load. ``plan``: a composed cycle's cold-start plan (:func:`_thermal_plan`), None for
-    a plain cycle."""
+    a plain cycle. ``redriven_if_behind``: vehicles behind will be driven again, so their fuel
+    need not be computed (the sums are NaN, :func:`_behind_only`): not when every vehicle of
+    the block is behind, and on the trace not for those above full load in one of its hardest
+    steps (:func:`_surely_behind`; ``precheck``). ``distance_rows``: the block's size when
+    this is part of it (:func:`_distance_m`)."""
     V, N = va.n, t.size
     on_trace = speed is None
     speed = v_target[None, :] if on_trace else np.asarray(speed)
     # Without a trace, steps where the trace stands still (and so every vehicle, which is
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
+    if redriven_if_behind and on_trace and precheck and not trace:
+        surely = _surely_behind(va, solver, t, v_target, grade, effects, target_avg)
+        if surely.any() and (surely.all() or plan is None):
+            return _without_rows_behind(va, solver, t, v_target, grade, effects, plan, surely)
     columns = None if trace else np.flatnonzero(target_avg > 0)
-    out = backward(va, t, speed, grade, solver, columns, effects, losses=trace)
+    drivetrain = backward_drivetrain(va, t, speed, grade, solver, columns, effects, losses=trace)
+    if redriven_if_behind and not trace and drivetrain.k.at_rest(drivetrain.infeasible, False).any(axis=1).all():
+        return _behind_only(V, 1 if plan is None else len(plan.phases))
+    out = backward(va, t, speed, grade, solver, columns, effects, losses=trace, drivetrain=drivetrain)
     dt = out.dt
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    distance_m = _distance_m(out.v_avg * dt, V, on_trace)
+    distance_m = _distance_m(out.v_avg * dt, V, on_trace, distance_rows or V)
     target_m = float((target_avg * dt_all).sum())
     not_followed, shortfall_time_s, shortfall_max_speed_mps = _shortfall(v_target, None if on_trace else speed,
                                                                          dt_all, columns, out.infeasible)
@@ -319,6 +334,54 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     )
 
 
+# on the trace, the steps whose inertial power per kg is at least this share of the cycle's
+# largest are checked first: vehicles above full load in one of them are behind
+HARD_STEP_SHARE = 0.5
+
+
+def _surely_behind(va, solver, t, v_target, grade, effects, target_avg) -> np.ndarray:
+    """The vehicles (V,) above full load in one of the trace's hardest steps (the backward
+    pass up to full load on those steps alone, :func:`core.backward_drivetrain`: every step is
+    independent given the speed, so these are the very steps of the whole pass). Checked only
+    where rated power is below twice the inertial power of the cycle's hardest step (a
+    light-duty car on a light-duty cycle is not)."""
+    accel = np.concatenate([[0.0], np.diff(v_target) / np.diff(t)])
+    power = accel * target_avg                       # [W/kg]
+    peak = power.max()
+    short = va.P_rated_kW * 1e3 < 2.0 * va.mass_kg * (1.0 + va.rot_frac) * peak
+    if peak <= 0 or not short.any():
+        return np.zeros(va.n, bool)
+    hard = np.flatnonzero(power >= HARD_STEP_SHARE * peak)
+    d = backward_drivetrain(va, t, v_target[None, :], grade, solver, hard, effects, losses=False)
+    return d.k.at_rest(d.infeasible, False).any(axis=1)
+
+
+def _without_rows_behind(va, solver, t, v_target, grade, effects, plan, surely) -> BlockSums:
+    """A block on the trace whose vehicles ``surely`` are behind (re-driven next): NaN sums for
+    those, the others simulated as a part of the block (same figures: element-wise arithmetic,
+    the block's size for :func:`_distance_m`). A composed cycle only when all are behind (its
+    cold-start pass takes the steps where any engine of the block is cold)."""
+    sums = _behind_only(va.n, 1 if plan is None else len(plan.phases))
+    keep = np.flatnonzero(~surely)
+    if keep.size:
+        va_keep = va.subset(keep)
+        part = _run_block(va_keep, solver.subset(keep, va_keep), t, None, v_target, grade, False, effects, plan,
+                          True, precheck=False, distance_rows=va.n)
+        for key in BLOCK_ARRAYS:
+            getattr(sums, key)[keep] = getattr(part, key)
+    return sums
+
+
+def _behind_only(V, phases) -> BlockSums:
+    """The sums of a block whose vehicles all fall behind and will be driven again: NaN
+    (replaced by the re-drive's), ``behind`` set, integers 0."""
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    sums = {key: nan(V) for key in SUM_FIELDS}
+    sums["shortfall_steps"] = np.zeros(V, np.intp)
+    return BlockSums(**sums, behind=np.ones(V, bool), phase_fuel_g=nan(V, phases), phase_miles=nan(V, phases),
+                     trace=None)
+
+
 def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold, temp) -> Trace:
     """The block's trace (V, N) from its backward pass (with losses)."""
     V, N = out.wheel_torque_Nm.shape
@@ -339,13 +402,14 @@ def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold
     )
 
 
-def _distance_m(step_m, V, on_trace):
+def _distance_m(step_m, V, on_trace, block_rows=None):
     """Distance [m] (V,) driven by a block's vehicles, from the distance of each step (V, N),
     or (1, N) when they drive the trace (``on_trace``). V > 1 vehicles on the trace: summed
     step after step, the order in which numpy summed the (V, N) array that held the shared
     trace's steps before they were computed once (kept so that no figure changes); else
-    numpy's pairwise row sum."""
-    if on_trace and V > 1:
+    numpy's pairwise row sum. ``block_rows``: the size of the block these V vehicles are a part
+    of (the rule follows the block)."""
+    if on_trace and (block_rows or V) > 1:
         return np.broadcast_to(np.add.accumulate(step_m, axis=1)[:, -1], (V,))
     return step_m.sum(axis=1)
 
@@ -368,8 +432,10 @@ def _shortfall(v_target, speed, dt_all, columns, infeasible):
 
 
 def _still(N, columns):
-    """The steps the block skipped (the whole block stands still there)."""
-    return np.setdiff1d(np.arange(N), columns)
+    """The steps the block skipped (the whole block stands still there), ascending."""
+    skipped = np.ones(N, bool)
+    skipped[columns] = False
+    return np.flatnonzero(skipped)
 
 
 def _still_effects_fuel(va, t, columns, effects):

@@ -20,7 +20,6 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -162,9 +161,9 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
     """The fuel equation (engine.py) with each vehicle's constants and technology classes;
     ``col`` shapes the (V,) parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles
     x steps arrays)."""
-    pumping, gain = technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
+    pumping, gain, load = _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
     terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain)
+                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain, load)
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
 
 
@@ -197,14 +196,24 @@ def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_N
     """The throttle-pumping share and brake-work multiplier of each vehicle's technology
     classes (simulation/technology.py) for :func:`engine.fuel_power_terms_W`; (None, None)
     when no vehicle has any. Each class is evaluated on its own vehicles' rows only."""
+    return _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)[:2]
+
+
+def _technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
+    """:func:`technology_fuel_inputs` and the load fraction it used (engine.load_fraction; None
+    without technology classes), for the fuel equation not to compute it again."""
     if not has_technology(va):
-        return None, None
+        return None, None, None
     c = tech.technology_constants()
     load = load_fraction(torque_Nm, max_torque_Nm)
-    share = 1.0 - load
     rows = _rows_with(va, "turbo")
-    if _any(rows):
-        share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]), c.na_bmep_kPa)
+    if isinstance(rows, slice):   # every vehicle boosted: no (1 - L) to overwrite
+        share = tech.boosted_pumping_share(torque_Nm, col(va.displacement_L), c.na_bmep_kPa)
+    else:
+        share = 1.0 - load
+        if rows.size:
+            share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]),
+                                                     c.na_bmep_kPa)
     rows = _rows_with(va, "atkinson", "miller")
     if _any(rows):
         share[rows] = tech.atkinson_pumping_share(share[rows], c.pumping_retained)
@@ -216,12 +225,12 @@ def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_N
     gain = np.ones(va.n)
     for name, ratio in (("atkinson", c.compression_ratio_atkinson), ("miller", c.compression_ratio_miller)):
         gain = np.where(_flag(va, name), tech.expansion_ratio_gain(ratio, c.compression_ratio_base, c.gamma), gain)
-    return share, col(gain)
+    return share, col(gain), load
 
 
 def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, engine_rpm, drive, wheel_power):
     """Hybrids' assist (engine torque after the e-machine's share of the positive work) and the
-    steps with the engine off: start-stop at warm stops, hybrids also while coasting."""
+    steps with the engine off (one mask): start-stop at warm stops, hybrids also while coasting."""
     c = tech.technology_constants()
     hybrid = _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid")
     torque = engine_torque
@@ -234,12 +243,17 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         own = engine_torque[rows]
         positive = (np.maximum(own, 0.0) * engine_rpm[rows] / RPM_PER_RAD_S * dt).sum(axis=1)
         keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
-        torque = engine_torque.copy()
-        torque[rows] = np.where(own > 0, own * keep[:, None], own)
-    stop_off = _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
-                                                                                 c.inhibit_after_cold_start_s)
-    coast_off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
-    return torque, stop_off, coast_off
+        assisted = np.where(own > 0, own * keep[:, None], own)
+        if isinstance(rows, slice):   # every vehicle a hybrid: no copy to write into
+            torque = assisted
+        else:
+            torque = engine_torque.copy()
+            torque[rows] = assisted
+    off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
+    if not k.all_moving:   # (at standstill start-stop's stops; none when every step moves)
+        off |= _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
+                                                                                c.inhibit_after_cold_start_s)
+    return torque, off
 
 
 def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
@@ -464,21 +478,26 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     return engine_rpm, engine_torque, unlocked, drive
 
 
-def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, idling,
-           wheel_power, drive=None):
-    """Engine limits and fuel (engine.py): full load (steps above it are infeasible), motoring
-    (engine braking; the rest is brakes), the fuel equation, idle fuel, fuel cut-off, and the
-    vehicle-level effects' extra fuel. ``idling``: unlocked converter on overrun; ``drive``:
-    the driveline pulls (technology classes: hybrids' assist and engine off, start-stop).
-
-    Returns the full-load torque, the infeasible mask, the engine torque, the fuel rate and the
-    engine-off mask (None without technology classes).
-    """
-    idle = _col(va.n_idle)
-    t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), idle,
+def engine_limits(va: VehicleArrays, engine_rpm, engine_torque):
+    """Full-load torque at ``engine_rpm`` (engine.py) and the steps whose demand lies above it
+    (infeasible: the vehicle cannot follow the trace there)."""
+    t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), _col(va.n_idle),
                                 _col(va.n_peak_torque), _col(va.idle_T_frac))
+    return t_max, engine_torque > t_max * (1.0 + 1e-9)
+
+
+def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, engine_torque, t_max, idling,
+           wheel_power, drive=None):
+    """Engine torque and fuel (engine.py) below the full-load torque ``t_max``
+    (:func:`engine_limits`): motoring (engine braking; the rest is brakes), the fuel equation,
+    idle fuel, fuel cut-off, and the vehicle-level effects' extra fuel. ``idling``: unlocked
+    converter on overrun; ``drive``: the driveline pulls (technology classes: hybrids' assist
+    and engine off, start-stop).
+
+    Returns the engine torque, the fuel rate and the engine-off mask (None without technology
+    classes).
+    """
     t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
-    infeasible = engine_torque > t_max * (1.0 + 1e-9)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
     # engine braking is limited to the motoring torque (friction and pumping); the brakes take
@@ -488,10 +507,9 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
     off = None
     if has_technology(va):
-        engine_torque_fuel, stop_off, coast_off = technology_engine_state(
+        engine_torque_fuel, off = technology_engine_state(
             va, k, engine_torque_fuel, engine_rpm, engine_torque > 0 if drive is None else drive, wheel_power)
         engine_torque = np.where(engine_torque > 0, engine_torque_fuel, engine_torque)
-        off = stop_off | coast_off
     fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving)
     idle_fuel = _col(va.idle_fuel_g_s)
     if np.isfinite(idle_fuel).any():
@@ -500,14 +518,14 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if off is not None:   # engine off: no fuel; start-stop's stops cost the fitted average power
         stop_W = tech.technology_constants().stop_fuel_power_W
-        fuel = np.where(off, np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
+        fuel = np.where(off, 0.0 if k.all_moving else np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
         fuel = np.maximum(fuel + vehicle_extra_fuel_g_per_s(effects, va, k.since_start,
                                                             np.broadcast_to(k.v_avg, fuel.shape), wheel_power,
                                                             burning), 0.0)
-    return t_max, infeasible, engine_torque, fuel, off
+    return engine_torque, fuel, off
 
 
 def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
@@ -539,8 +557,50 @@ def _shaft_power_W(torque_Nm, speed_rpm):
     return power
 
 
+@dataclass(frozen=True, eq=False)
+class Drivetrain:
+    """The first part of a backward pass (:func:`backward_drivetrain`): the step motion and
+    the chain from the wheels to the engine's speed, torque and full load."""
+
+    k: Kinematics
+    force: np.ndarray
+    wheel_torque: np.ndarray
+    wheel_rpm: np.ndarray
+    wheel_power: np.ndarray
+    gear: np.ndarray
+    axle_low: np.ndarray
+    diff_rpm: np.ndarray
+    diff_torque: np.ndarray
+    diff_eff: np.ndarray | None
+    trans_torque: np.ndarray
+    turbine_rpm: np.ndarray
+    engine_rpm: np.ndarray
+    engine_torque: np.ndarray
+    unlocked: np.ndarray
+    drive: np.ndarray
+    t_max: np.ndarray
+    infeasible: np.ndarray       # demand above full load (V, steps)
+
+
+def backward_drivetrain(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
+                        effects: CycleEffects = CycleEffects(), losses: bool = True) -> Drivetrain:
+    """The wheels-to-engine part of :func:`backward` (same arguments): enough to tell which
+    vehicles cannot follow ``speed_mps`` (``infeasible``) before their fuel is computed."""
+    k = kinematics(time_s, speed_mps, grade_pct, columns)
+    force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
+    wheel_power = wheel_torque * wheel_omega
+    trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
+    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
+    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
+    engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
+    t_max, infeasible = engine_limits(va, engine_rpm, engine_torque)
+    return Drivetrain(k, force, wheel_torque, wheel_rpm, wheel_power, gear, axle_low, diff_rpm, diff_torque, diff_eff,
+                      trans_torque, turbine_rpm, engine_rpm, engine_torque, unlocked, drive, t_max, infeasible)
+
+
 def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
-             effects: CycleEffects = CycleEffects(), losses: bool = True) -> StepResults:
+             effects: CycleEffects = CycleEffects(), losses: bool = True, drivetrain: Drivetrain | None = None
+             ) -> StepResults:
     """One backward pass, from the wheels back to the fuel. ``speed_mps`` is (V, N) (each
     vehicle's achieved speed), or (1, N) when every vehicle drives the same speeds (then the
     motion of the steps, ``dt`` to ``moving``, is (1, N) too).
@@ -549,36 +609,34 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     stands still); the results then have shape (V, len(columns)). ``effects``: the ``--with``
     physics (fleetrun/simulation/effects.py), on top of the thesis chain and the fuel line.
     ``losses``: also the differential's step efficiency and the power lost in the
-    differential, gearbox and converter (the trace's).
+    differential, gearbox and converter (the trace's). ``drivetrain``: the pass's
+    :func:`backward_drivetrain` if the caller has it already (same arguments).
     """
-    k = kinematics(time_s, speed_mps, grade_pct, columns)
-    force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
-    wheel_power = wheel_torque * wheel_omega
-    trans_ratio, axle_low, gear_eff, gear = gear_choice(va, k, force, wheel_rpm)
-    diff_rpm, diff_torque, diff_eff = differential(va, k, solver, effects, wheel_torque, wheel_rpm, axle_low, losses)
-    trans_torque, turbine_rpm = gearbox(va, k, diff_torque, diff_rpm, trans_ratio, gear_eff)
-    engine_rpm, engine_torque, unlocked, drive = converter_or_clutch(va, k, trans_torque, turbine_rpm, gear)
-    t_max, infeasible, engine_torque, fuel, off = engine(va, k, effects, engine_rpm, engine_torque,
-                                                         unlocked & ~drive, wheel_power, drive)
+    d = drivetrain or backward_drivetrain(va, time_s, speed_mps, grade_pct, solver, columns, effects, losses)
+    k, wheel_power = d.k, d.wheel_power
+    engine_torque, fuel, off = engine(va, k, effects, d.engine_rpm, d.engine_torque, d.t_max, d.unlocked & ~d.drive,
+                                      wheel_power, d.drive)
+    engine_rpm = d.engine_rpm
     if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
         engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
     fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}
     if losses:
-        diff_in_power = _shaft_power_W(diff_torque, diff_rpm)
-        turbine_power = _shaft_power_W(trans_torque, turbine_rpm)
+        diff_in_power = _shaft_power_W(d.diff_torque, d.diff_rpm)
+        turbine_power = _shaft_power_W(d.trans_torque, d.turbine_rpm)
         losses_W = dict(diff_loss_W=diff_in_power - wheel_power, transmission_loss_W=turbine_power - diff_in_power,
                         converter_loss_W=engine_power - turbine_power)
-    V, N = wheel_torque.shape
+    V, N = d.wheel_torque.shape
     return StepResults(
-        dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=force,
-        moving=k.moving, wheel_torque_Nm=wheel_torque, wheel_speed_rpm=wheel_rpm, gear=gear, axle_low=axle_low,
-        diff_input_torque_Nm=diff_torque, diff_input_speed_rpm=diff_rpm, diff_efficiency=diff_eff,
-        transmission_input_torque_Nm=trans_torque, transmission_input_speed_rpm=turbine_rpm,
-        converter_unlocked=k.at_rest(unlocked, False), engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque,
-        engine_max_torque_Nm=t_max, infeasible=k.at_rest(infeasible, False), fuel_rate_g_per_s=fuel,
-        wheel_power_W=wheel_power, engine_power_W=engine_power, **losses_W,
+        dt=k.dt, v_avg=k.v_avg, accel=k.accel, grade=np.broadcast_to(k.grade, (V, N)), force=d.force,
+        moving=k.moving, wheel_torque_Nm=d.wheel_torque, wheel_speed_rpm=d.wheel_rpm, gear=d.gear,
+        axle_low=d.axle_low, diff_input_torque_Nm=d.diff_torque, diff_input_speed_rpm=d.diff_rpm,
+        diff_efficiency=d.diff_eff, transmission_input_torque_Nm=d.trans_torque,
+        transmission_input_speed_rpm=d.turbine_rpm, converter_unlocked=k.at_rest(d.unlocked, False),
+        engine_speed_rpm=engine_rpm, engine_torque_Nm=engine_torque, engine_max_torque_Nm=d.t_max,
+        infeasible=k.at_rest(d.infeasible, False), fuel_rate_g_per_s=fuel, wheel_power_W=wheel_power,
+        engine_power_W=engine_power, **losses_W,
     )
 
 
@@ -640,79 +698,127 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     return margin * F.max(axis=2)
 
 
-@dataclass(frozen=True)
-class _Arithmetic:
-    """The few operations the re-drive loop needs, for Python floats (one vehicle at a time:
-    no numpy call per step, ~5x faster for one vehicle, benchmarks/bench_simulate.py) or for
-    numpy arrays over vehicles: the equations are written once (:func:`_full_effort_speeds`)."""
-
-    minimum: Callable
-    maximum: Callable
-    index: Callable
+# vehicles x steps per chunk of the re-drive's all-steps trial: its ~40 temporaries of
+# ~170 kB stay in the L2 cache (4x as many per chunk took twice as long, UDDS, 200 trucks)
+REDRIVE_CHUNK_STEPS = 22000
 
 
-_FLOATS = _Arithmetic(min, max, int)
-_ARRAYS = _Arithmetic(np.minimum, np.maximum, lambda x: x.astype(np.intp))
-# up to this many vehicles, the loop runs per vehicle on Python floats: numpy's per-call cost
-# for arrays of a few elements is larger than the arithmetic (benchmarks/bench_simulate.py)
-SCALAR_REDRIVE_MAX = 4
+@dataclass(frozen=True, eq=False)
+class _EffortModel:
+    """What one full-effort step needs of each vehicle (:func:`forward_redrive`), (V,) arrays
+    and the (V, N - 1) grade force of each step; ``rows``: the same for some vehicles."""
+
+    flat: np.ndarray              # the force tables x margin, one row of ``width`` per vehicle
+    flat_next: np.ndarray         # flat[i + 1] at i (one index for both ends of an interval)
+    base: np.ndarray              # each vehicle's first index in ``flat``
+    per: np.ndarray               # (4, V): coastdown A, B, C and 1 / m_eff (one gather for a part)
+    grade_force: np.ndarray
+
+    @staticmethod
+    def of(flat, base, A, B, C, inv_m, grade_force) -> "_EffortModel":
+        return _EffortModel(flat, np.append(flat[1:], 0.0), base, np.stack([A, B, C, inv_m]), grade_force)
+
+    def part(self, rows) -> "_EffortModel":
+        """The vehicles ``rows`` (their ``grade_force`` rows are taken step by step)."""
+        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows], self.grade_force)
 
 
-def _full_effort_speeds(v0, t: list, cap: list, force_at, coast, grade_force_at, inv_m, dv: float, top: float,
-                        ops: _Arithmetic) -> list:
-    """Speeds v(0..N-1) at full effort, as floats or arrays over vehicles (``ops``).
+def _full_effort_step(m: _EffortModel, grade_force, vp, cap, dt, dv: float, top: float):
+    """Speed at the end of one or more steps from ``vp`` at their start, at full effort.
 
     v(i) = min(cap(i), v(i-1) + a dt), clipped at 0; a = (F(v) - coastdown(v) - grade force) / m_eff,
-    F interpolated on the force table (``force_at(j)``: grid point j) at the step's mean speed
-    (one predictor-corrector pass, as the backward pass evaluates the step at its mean speed).
+    F interpolated on the force table at the step's mean speed (one predictor-corrector pass,
+    as the backward pass evaluates the step at its mean speed; ``grade_force`` of these
+    vehicles and steps). Element-wise for any shapes that broadcast: (rows,) per-vehicle values
+    in one step, or (rows, 1) against (1, steps).
     """
-    def accel(v, i):
-        x = ops.minimum(v / dv, top)
-        j = ops.index(x)
-        w = x - j
-        force = force_at(j) * (1.0 - w) + force_at(j + 1) * w
-        v = ops.maximum(v, 1e-3)
-        return (force - coast(v) - grade_force_at(i - 1)) * inv_m
+    A, B, C, inv_m = m.per
 
-    speeds = [v0]
-    vp = v0
-    for i in range(1, len(t)):
-        dt = t[i] - t[i - 1]
-        guess = ops.maximum(ops.minimum(cap[i], vp + accel(vp, i) * dt), 0.0)
-        vp = ops.maximum(ops.minimum(cap[i], vp + accel(0.5 * (vp + guess), i) * dt), 0.0)
-        speeds.append(vp)
-    return speeds
+    def accel(v):
+        x = np.minimum(v / dv, top)
+        j = x.astype(np.intp)
+        w = x - j
+        index = m.base + j
+        force = m.flat.take(index) * (1.0 - w) + m.flat_next.take(index) * w
+        v = np.maximum(v, 1e-3)
+        return (force - coastdown_force_N(v, A, B, C) - grade_force) * inv_m
+
+    guess = np.maximum(np.minimum(cap, vp + accel(vp) * dt), 0.0)
+    return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
+
+
+def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
+    """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
+    vehicle that followed the trace to step i - 1 reaches this speed at step i. Steps that
+    end at rest are 0 without arithmetic (min(0, x) clipped at 0 is 0 for any finite x)."""
+    V = m.base.size
+    out = np.zeros((V, cap.size - 1))
+    steps = np.flatnonzero(cap[1:] > 0)
+    prev, now, dt = cap[steps][None, :], cap[steps + 1], dt[steps]
+    chunk = max(1, REDRIVE_CHUNK_STEPS // max(steps.size, 1))
+    for first in range(0, V, chunk):
+        r = np.arange(first, min(first + chunk, V))
+        out[r[:, None], steps] = _full_effort_step(m.part(r[:, None]), m.grade_force[r[:, None], steps], prev, now,
+                                                   dt, dv, top)
+    return out
 
 
 def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.97, table=None):
     """Achieved speed (V, N) of vehicles driven at most at full tractive effort.
 
     v(i) = min(trace(i), v(i-1) + a_max dt), a_max from the force table at the step's mean
-    speed (:func:`_full_effort_speeds`): the vehicle falls behind on hard accelerations and
-    re-joins the trace when it slows down. One loop over steps, vectorised over vehicles (or,
-    for a few vehicles, one vehicle at a time on floats). ``table``: the unscaled
-    :func:`max_tractive_force_table` if already computed.
+    speed (:func:`_full_effort_step`): the vehicle falls behind on hard accelerations and
+    re-joins the trace when it slows down. A vehicle on the trace at step i - 1 reaches the
+    same speed at step i as any other on it, so every step is first computed from the trace's
+    own speed for all vehicles at once (:func:`_trial_speeds`); only the steps a vehicle starts
+    behind the trace are then walked one by one, vectorised over the vehicles behind. The same
+    element-wise arithmetic either way: the speeds are those of a plain step loop, bit for bit.
+    ``table``: the unscaled :func:`max_tractive_force_table` if already computed.
     """
     if table is None:
         table = max_tractive_force_table(va, 1.0)
     dv = float(REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0])
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
-    flat = table.reshape(-1) * margin
-    width = table.shape[1]
-    inv_m = 1.0 / (va.mass_kg * (1.0 + va.rot_frac))
-    grade_force = grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :])
-    A, B, C = va.A_N, va.B_N, va.C_N
-    t, cap = np.asarray(time_s, float).tolist(), np.asarray(target_mps, float).tolist()
-    if va.n <= SCALAR_REDRIVE_MAX:
-        out = np.empty((va.n, len(t)))
-        for k in range(va.n):
-            a, b, c = float(A[k]), float(B[k]), float(C[k])
-            out[k] = _full_effort_speeds(cap[0], t, cap, flat[k * width:(k + 1) * width].tolist().__getitem__,
-                                         lambda v: coastdown_force_N(v, a, b, c), grade_force[k].tolist().__getitem__,
-                                         float(inv_m[k]), dv, top, _FLOATS)
-        return out
-    base = np.arange(va.n) * width
-    speeds = _full_effort_speeds(np.full(va.n, cap[0]), t, cap, lambda j: flat[base + j],
-                                 lambda v: coastdown_force_N(v, A, B, C), lambda i: grade_force[:, i], inv_m, dv, top,
-                                 _ARRAYS)
-    return np.stack(speeds, axis=1)
+    t, cap = np.asarray(time_s, float), np.asarray(target_mps, float)
+    m = _EffortModel.of(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
+                        C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)),
+                        grade_force=grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :]))
+    dt = np.diff(t)
+    speeds = np.empty((va.n, t.size))
+    speeds[:, 0] = cap[0]
+    speeds[:, 1:] = _trial_speeds(m, cap, dt, dv, top)
+    _walk_behind(m, speeds, cap, dt, dv, top)
+    return speeds
+
+
+def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
+    """Re-compute, step by step, the speeds (in place) of the vehicles that start a step
+    behind the trace; ``speeds`` holds each step's trial speed (:func:`_trial_speeds`)."""
+    fails = speeds[:, 1:] != cap[1:]            # cannot follow step i even from the trace
+    fail_steps = np.flatnonzero(fails.any(axis=0)) + 1
+    behind = np.zeros(0, np.intp)
+    i, N = 1, cap.size
+    while i < N:
+        if behind.size == 0:                    # all on the trace: on to the next step someone fails
+            k = np.searchsorted(fail_steps, i)
+            if k == fail_steps.size:
+                return
+            i = int(fail_steps[k])
+            behind = np.flatnonzero(fails[:, i - 1])
+            i += 1
+            continue
+        # every vehicle behind (one that cannot hold the cycle's speed): views, no gathers
+        every = behind.size == fails.shape[0]
+        rows = slice(None) if every else behind
+        new = _full_effort_step(m if every else m.part(rows), m.grade_force[rows, i - 1], speeds[rows, i - 1], cap[i],
+                                dt[i - 1], dv, top)
+        speeds[rows, i] = new
+        still = new != cap[i]                   # still behind unless re-joined
+        if every:
+            if not still.all():
+                behind = still.nonzero()[0]
+        else:
+            mask = fails[:, i - 1].copy()      # on the trace at i - 1, but cannot follow step i
+            mask[behind] = still
+            behind = mask.nonzero()[0]
+        i += 1

@@ -74,7 +74,7 @@ def load_fraction(torque_Nm, max_torque_Nm):
 
 
 def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stroke_m, peak_torque_Nm, throttled,
-                       inertial_power_W=0.0, pumping_share=None, brake_gain=None):
+                       inertial_power_W=0.0, pumping_share=None, brake_gain=None, load=None):
     """The eight terms of the fuel equation (module docstring), in the order of FUEL_TERMS.
 
     Parameters
@@ -88,6 +88,7 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     pumping_share : the throttle-pumping share in place of (1 - L) (technology classes,
         fleetrun/simulation/technology.py); None: (1 - L).
     brake_gain : multiplier of the two brake-work terms (a higher expansion ratio); None: 1.
+    load : :func:`load_fraction` of ``torque_Nm`` and ``max_torque_Nm`` if the caller has it.
 
     Returns a list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
     x c_m [m/s], T_peak omega (the bmep_max term: f_pk bmep_max V_d omega / (4 pi) = f_pk T_peak
@@ -97,7 +98,7 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     n = np.asarray(speed_rpm, float)
     omega = n * RAD_S_PER_RPM
     brake_W = np.maximum(torque_Nm, 0.0) * omega
-    load = load_fraction(torque_Nm, max_torque_Nm)
+    load = load_fraction(torque_Nm, max_torque_Nm) if load is None else load
     mep = mep_power_W_per_kPa(n, displacement_L)
     pumping_W = ((1.0 - load) if pumping_share is None else np.asarray(pumping_share, float)) * mep * throttled
     if brake_gain is not None:       # technology classes: a higher expansion ratio
