@@ -95,9 +95,18 @@ def test_join_finds_the_omega_vehicle_of_its_own_road_load_and_refuses_a_far_one
     m = match_configuration(test_name, row.engine_displacement_liters, row.target_coef_a, row.target_coef_b,
                             row.target_coef_c)
     assert m.road_load_difference == 0.0 and "start_stop" in m.technology.split(",")
+    assert m.join == "road_load"
+    # 10 % off every OMEGA road load: the engine's classes, the most-sold technology of the
+    # manufacturer's OMEGA vehicles of that displacement (models/epa_technology.toml [engine_join])
     far = match_configuration(test_name, row.engine_displacement_liters, 1.1 * row.target_coef_a,
                               1.1 * row.target_coef_b, 1.1 * row.target_coef_c)
-    assert far.technology == "" and far.note.startswith("no technology class")
+    table = omega_vehicles()
+    same_engine = table[(table.manufacturer_id == row.manufacturer_id)
+                        & ((table.engine_displacement_liters - row.engine_displacement_liters).abs() <= 0.1)]
+    assert far.join == "engine" and far.technology == same_engine.groupby("technology").sales.sum().idxmax()
+    assert "the engine's classes" in far.note and "differs by" in far.note
+    nothing = match_configuration(test_name, 99.0, row.target_coef_a, row.target_coef_b, row.target_coef_c)
+    assert nothing.join == "" and nothing.technology == "" and nothing.note.startswith("no technology class")
     assert technology_of_class("P0_SLA_AWD_TDS_TRX21R_SS1") == "mild_hybrid_48v,start_stop,turbo"
 
 
@@ -106,10 +115,12 @@ def test_import_epa_attaches_classes_to_most_of_the_list():
     from fleetrun.epa import import_test_car_list
 
     result = import_test_car_list(inputs_dir() / "epa" / "22-tstcar.csv")
-    joined = [v for v in result.vehicles if v.get("technology")]
-    assert 0.6 <= len(joined) / len(result.vehicles) <= 0.8
     notes = [d for d in result.derived if d["column"] == "technology"]
     assert len(notes) == len(result.vehicles)        # every row says what matched or why not
+    by_road_load = [n for n in notes if "target road load within" in n["rule"]]
+    assert 0.6 <= len(by_road_load) / len(result.vehicles) <= 0.8
+    # the others have an OMEGA vehicle of their manufacturer and displacement: their engine's classes
+    assert all(v.get("technology") for v in result.vehicles)
 
 
 def test_label_scale_reproduces_the_label_through_epas_formulas():

@@ -42,3 +42,13 @@ def test_technology_validation_reproduces_models_and_its_claims():
     joined = r["pairs"].index.intersection(r["joined"])
     for test in ("FTP", "HWFET", "US06"):
         assert _within(r["pairs"].loc[joined], test) >= _within(r["physics_pairs"].loc[joined], test) - 0.01
+    # the vehicles that take their engine's classes gain on the FTP and HWFET (about 300 vehicles
+    # each; US06 has 42, where one vehicle is 2.4 points: not asserted, reported in the docs)
+    engine = r["pairs"].index.intersection(r["unjoined"])
+    for test in ("FTP", "HWFET"):
+        assert _within(r["pairs"].loc[engine], test) > _within(r["physics_pairs"].loc[engine], test)
+    # the transfer on the physical split of losses is fitted held out too, and its weights put most
+    # of a vehicle's FTP correction on its cold start (weight 1 against w_B, w_O < 0.3)
+    assert max(max(w) for w in r["split_folds"].values()) < 0.3
+    for test in ("HWFET", "US06"):
+        assert _within(r["split"], test) > _within(r["pairs"], test) + 0.08

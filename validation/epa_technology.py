@@ -14,10 +14,20 @@ do not; fleetrun/epa/technology.py):
    driven in two modes; its measured value per test is their label-style (harmonic) mean;
 4. + one measured number: each vehicle's measured FTP composite calibrates its efficiency
    (FTP exact), and the share ``transfer_share`` of that correction (in log) carries to the
-   other cycles: one global constant, fitted with manufacturers held out;
+   other cycles: one global constant, fitted with manufacturers held out; beside it the
+   transfer on the physical split of the losses (``split_transfer``): the FTP's correction
+   spread over the vehicle's cold-start fuel, its Willans-slope fuel (brake, high load,
+   acceleration) and its offset fuel (friction, pumping, accessories, stops) with global
+   weights fitted held out, which reach HWFET and US06 in their own proportions;
 5. the fleet-level bias in total gallons (55 % FTP / 45 % HWFET per vehicle, equal miles),
    estimated without each manufacturer and removed from its predictions; random
    100-vehicle fleets.
+
+"Joined" are the vehicles whose configuration joins an OMEGA vehicle by its road load; the
+others ("engine classes") carry their engine's classes (fleetrun/epa/technology.py).
+``--residuals``: where the held-out error comes from (by displacement, power to weight,
+gearbox, gears, class, road load; HWFET - FTP) and how much of it a flexible learner on the
+list's own columns finds, held out (scikit-learn, the ``validation`` extra).
 
 ``--write``: models/technology.toml [fitted] transfer_share (the stop power: epa_fuel_economy.py --write) and
 models/fuel_economy_bias.toml.
@@ -42,6 +52,7 @@ import epa_fuel_economy as efe  # noqa: E402
 from epa_alpha import alpha_table  # noqa: E402
 from epa_table import epa_fleet  # noqa: E402
 
+from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
@@ -119,6 +130,65 @@ def one_number(err, sigma):
     return out
 
 
+#: term groups of the fuel equation (engine.FUEL_TERMS, then the stop-power column): the
+#: Willans-slope fuel (brake, high load, acceleration) and the offset fuel (friction x 3,
+#: throttle pumping, accessories, start-stop stops)
+SLOPE_TERMS, OFFSET_TERMS = (0, 1, 7), (2, 3, 4, 5, 6, 8)
+SPLIT_GRID = np.round(np.arange(0.0, 0.3001, 0.01), 2)
+
+
+def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
+    """Per vehicle and test (FTP composite, HWFET, US06), the fuel per mile [g/mi] of each fold's
+    prediction split into the slope, offset and cold-start parts: {"B", "O", "C"} -> tables."""
+    parts = []
+    for g, coef in fits.items():
+        dm = d[(d.manufacturer == g).to_numpy()]
+        c = np.where((dm.fuel == "gasoline").to_numpy()[:, None], coef["gasoline"], coef["diesel"])
+        terms = efe.design(dm, extra) * c
+        warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
+        parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
+                                       B=terms[:, SLOPE_TERMS].sum(1), O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
+    rows = pd.concat(parts)
+    return {k: _per_mile(rows, k) for k in "BOC"}
+
+
+def _per_mile(rows, col):
+    w = rows.pivot_table(index="vehicle", columns="test", values=[col, "miles"])
+    bag = {b: (w[col][f"FTP:{b}"], w["miles"][f"FTP:{b}"]) for b in efe.BAGS}
+    out = {"FTP": ftp_weighted_per_mile(*(bag[b][0] for b in efe.BAGS), *(bag[b][1] for b in efe.BAGS))}
+    out.update({t: w[col][t] / w["miles"][t] for t in ("HWFET", "US06")})
+    return pd.DataFrame(out)
+
+
+def split_transfer(split, err, weights):
+    """Errors after calibrating each vehicle on its measured FTP by adding delta x (w_B B + w_O O
+    + C) to every test's fuel, delta such that the FTP is exact (``weights`` = (w_B, w_O), the
+    cold start's weight 1): the correction reaches each test in proportion to the parts it has."""
+    B, O, C = (split[k].loc[err.index, list(TESTS)].to_numpy() for k in "BOC")
+    pred = B + O + C
+    meas = pred / (1.0 + err[list(TESTS)].to_numpy())  # g/mi measured = predicted / (1 + mpg error)
+    part = weights[0] * B + weights[1] * O + C
+    delta = (meas[:, :1] - pred[:, :1]) / part[:, :1]
+    return pd.DataFrame(meas / (pred + part * delta) - 1.0, index=err.index, columns=list(TESTS))
+
+
+def fit_split_transfer(split, err, manufacturer):
+    """Weights (w_B, w_O) on SPLIT_GRID by least squares of the log errors of HWFET and US06, per
+    held-out manufacturer on the others; returns the held-out errors, fold weights, all-vehicle weights."""
+    cost = {}
+    for wb in SPLIT_GRID:
+        for wo in SPLIT_GRID:
+            e = np.log1p(split_transfer(split, err, (wb, wo))[["HWFET", "US06"]].to_numpy()) ** 2
+            cost[(float(wb), float(wo))] = np.where(np.isfinite(e), e, 0.0).sum(axis=1)
+    out, folds = err[list(TESTS)] * np.nan, {}
+    for g in np.unique(manufacturer):
+        folds[g] = min(cost, key=lambda w: cost[w][manufacturer != g].sum())
+        out.loc[manufacturer == g] = split_transfer(split, err, folds[g]).loc[manufacturer == g]
+    return out, folds, min(cost, key=lambda w: cost[w].sum())
+
+
 def gallons(err, table, index):
     """Predicted and measured gallons per mile (55 % FTP, 45 % HWFET) of the vehicles ``index``
     that have both."""
@@ -166,10 +236,15 @@ def datasets(specs, table):
     return efe.build_dataset(bare, table), efe.build_dataset(specs, table)
 
 
+def omega_matches(specs):
+    """Each vehicle's match by the import's join (fleetrun/epa/technology.py)."""
+    return [match_configuration(v.manufacturer, v.engine_displacement_L, v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph,
+                                v.coastdown_C_lbf_per_mph2) for v in specs]
+
+
 def omega_classes(specs) -> list[str]:
     """Each vehicle's OMEGA class by the import's join ('' when it does not join)."""
-    return [match_configuration(v.manufacturer, v.engine_displacement_L, v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph,
-                                v.coastdown_C_lbf_per_mph2).cost_curve_class for v in specs]
+    return [m.cost_curve_class for m in omega_matches(specs)]
 
 
 def alpha_errors(specs, table, index):
@@ -196,7 +271,7 @@ def blend(err_a, err_b):
 
 
 def run(specs, table):
-    joined = np.array([v.technology is not None for v in specs])
+    joined = np.array([m.join == "road_load" for m in omega_matches(specs)])
     rep = drive_mode_groups(specs)
     everyone = np.ones(len(specs), bool)
     single = rep == np.arange(len(specs))
@@ -216,7 +291,11 @@ def run(specs, table):
     r["one_number"] = one_number(r["pairs"], sigma)
     r["sigma_all"] = transfer_share_all(r["pairs"])
     r["full_transfer"] = one_number(r["pairs"], np.ones(len(r["pairs"])))
+    split = loss_split(d1p[d1p.vehicle.isin(np.flatnonzero(single))], r["folds_pairs"], table)
+    r["split"], r["split_folds"], r["split_all"] = fit_split_transfer(split, r["pairs"], mf[r["pairs"].index])
+    r["split_parts"] = {k: float((v.FTP / sum(split[j].FTP for j in "BOC")).median()) for k, v in split.items()}
     r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=(STOP_COLUMN,))
+    r["dataset_pairs"] = d1p[d1p.vehicle.isin(np.flatnonzero(single))]
     r.update(joined=np.flatnonzero(joined), unjoined=np.flatnonzero(~joined), paired_table=paired, single=single)
     alpha_rows = r["pairs"].index.intersection(r["joined"])
     r["alpha"], r["alpha_scaled"] = alpha_errors(specs, paired, alpha_rows.to_numpy())
@@ -232,10 +311,11 @@ def report(r, table):
                       ("physics only, drive-mode pairs", "physics_pairs"),
                       ("physics + technology, drive-mode pairs", "pairs"),
                       ("+ one measured FTP (transfer share fitted)", "one_number"),
-                      ("+ one measured FTP (full transfer)", "full_transfer")):
-        for rows_name in ("joined", "unjoined", None):
+                      ("+ one measured FTP (full transfer)", "full_transfer"),
+                      ("+ one measured FTP (physical split)", "split")):
+        for rows_name, label in (("joined", "joined"), ("unjoined", "engine classes"), (None, "all")):
             rows = None if rows_name is None else r[rows_name]
-            lines.append(line(f"{name} [{rows_name or 'all'}]", r[key], rows))
+            lines.append(line(f"{name} [{label}]", r[key], rows))
     for name, key in (("ALPHA surfaces as published", "alpha"), ("ALPHA, mean error removed held out", "alpha_scaled"),
                       ("fleetrun + ALPHA geometric mean", "blend"), ("  + one measured FTP", "blend_one_number")):
         lines.append(line(f"{name} [joined]", r[key]))
@@ -245,6 +325,10 @@ def report(r, table):
         for t in TESTS))
     s = np.array(list(r["sigma_folds"].values()))
     lines.append(f"transfer share: all {r['sigma_all']:.3f}; folds {s.min():.3f}-{s.max():.3f}")
+    w = np.array(list(r["split_folds"].values()))
+    lines.append(f"physical split weights (w_B, w_O; cold start 1): all {r['split_all']}; folds w_B "
+                 f"{w[:, 0].min():.2f}-{w[:, 0].max():.2f}, w_O {w[:, 1].min():.2f}-{w[:, 1].max():.2f}; median FTP fuel "
+                 "shares B/O/C " + "/".join(f"{r['split_parts'][k]:.3f}" for k in "BOC"))
     stop = [f["gasoline"][-1] for f in r["folds"].values()]
     lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][-1]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
     lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
@@ -254,6 +338,119 @@ def report(r, table):
                      f"{b['total_corrected']:+.2%}; 100-vehicle fleets 5-95 % {b['fleets'][0]:+.2%}..{b['fleets'][1]:+.2%}, "
                      f"bias removed {b['fleets_corrected'][0]:+.2%}..{b['fleets_corrected'][1]:+.2%}")
         r[f"bias_{key}"] = b
+    return lines
+
+
+LBF_N, MPH_M_S = 4.4482216152605, 0.44704
+
+
+def features(specs, table) -> pd.DataFrame:
+    """Per vehicle, what the Vehicles row says (for ``--residuals``): displacement [L], power to
+    weight [W/kg], gearbox type, gear count, classes, road load at 50 mph per test mass [W/kg],
+    N/V [rpm/mph], cylinders, drive, converter lockup."""
+    v50 = 50.0 * MPH_M_S
+    rl = np.array([(v.coastdown_A_lbf + 50.0 * v.coastdown_B_lbf_per_mph + 2500.0 * v.coastdown_C_lbf_per_mph2)
+                   * LBF_N * v50 for v in specs])
+    return pd.DataFrame(dict(
+        displacement_L=table.displacement_L, power_to_weight_W_per_kg=1e3 * table.rated_power_kW / table.test_weight_kg,
+        gearbox=table.gearbox_type, gears=table.gears, technology=[v.technology or "" for v in specs],
+        road_load_50mph_W_per_kg=rl / table.test_weight_kg, nv_rpm_per_mph=[v.nv_ratio_rpm_per_mph for v in specs],
+        cylinders=table.cylinders, drive=table.configuration, lockup=[v.converter_lockup or "" for v in specs]))
+
+
+RESIDUAL_BINS = {"displacement_L": [0, 1.6, 2.1, 2.6, 3.1, 4.0, 5.0, 9.0],
+                 "power_to_weight_W_per_kg": [0, 60, 80, 100, 130, 170, 250, 600],
+                 "road_load_50mph_W_per_kg": [0, 4.5, 5.0, 5.5, 6.0, 6.5, 10.0],
+                 "nv_rpm_per_mph": [0, 20, 25, 30, 35, 40, 60], "gearbox": None, "gears": None, "technology": None}
+
+
+def residual_tables(err, feats):
+    """Median held-out error, share within 5 % and median HWFET - FTP per group of each feature."""
+    lines = []
+    e = err.assign(hwfet_minus_ftp=err["HWFET"] - err["FTP"])
+    for name, bins in RESIDUAL_BINS.items():
+        g = feats.loc[e.index, name]
+        g = pd.cut(g, bins).astype(str) if bins else g.astype(str)
+        if name == "technology":
+            g = g.where(g.map(g.value_counts()) >= 8, "(classes of < 8 vehicles)")
+        lines.append(f"-- by {name}: n | median FTP / HWFET / US06 | within 5 % FTP / HWFET / US06 | median HWFET - FTP")
+        for key, idx in e.groupby(g.to_numpy()).groups.items():
+            x = e.loc[idx]
+            lines.append(f"   {key:40s} {len(x):4d} | " + " / ".join(f"{x[t].median():+.1%}" for t in TESTS) + " | "
+                         + " / ".join(f"{np.mean(np.abs(x[t].dropna()) <= 0.05):.0%}" for t in TESTS)
+                         + f" | {x.hwfet_minus_ftp.median():+.1%}")
+    return lines
+
+
+def learner_bound(err, feats, manufacturer, with_ftp=False):
+    """Share within 5 % per test after a gradient-boosted learner on the Vehicles row's columns
+    (and the vehicle's own FTP error when ``with_ftp``) predicts each held-out manufacturer's
+    log error from the others': what the row's information could still remove."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    X = pd.get_dummies(feats.loc[err.index], columns=["gearbox", "drive", "lockup"], dtype=float)
+    for name in ("start_stop", "mild_hybrid_48v", "p2_hybrid", "atkinson", "miller", "cylinder_deactivation", "turbo"):
+        X[name] = X.technology.str.contains(name).astype(float)
+    X = X.drop(columns="technology")
+    if with_ftp:
+        X["ftp_log_error"] = np.log1p(err["FTP"].to_numpy())
+    out = {}
+    for t in (("HWFET", "US06") if with_ftp else TESTS):
+        y = np.log1p(err[t].to_numpy())
+        ok, pred = np.isfinite(y), np.full(len(y), np.nan)      # the learner takes missing inputs
+        for g in np.unique(manufacturer):
+            fit_rows, rows = ok & (manufacturer != g), ok & (manufacturer == g)
+            if rows.any():
+                model = HistGradientBoostingRegressor(max_iter=200, max_depth=3, learning_rate=0.05, random_state=0)
+                pred[rows] = model.fit(X[fit_rows], y[fit_rows]).predict(X[rows])
+        left = np.expm1(y - pred)[ok]
+        out[t] = (float(np.mean(np.abs(err[t].to_numpy()[ok]) <= 0.05)), float(np.mean(np.abs(left) <= 0.05)),
+                  float(1.0 - np.var(y[ok] - pred[ok]) / np.var(y[ok])))
+    return out
+
+
+def road_load_work_J(d, specs):
+    """Per row of the dataset ``d``: the work [J] of each target road-load coefficient (A, B v,
+    C v^2) over the fuelled driving steps (validation/epa_fuel_economy.trace_extras' v sums)."""
+    per = lambda name: np.array([getattr(v, name) for v in specs])[d.vehicle.to_numpy()]  # noqa: E731
+    return {"A": LBF_N * per("coastdown_A_lbf") * d.X_speed.to_numpy(),
+            "B": LBF_N / MPH_M_S * per("coastdown_B_lbf_per_mph") * d.X_speed2.to_numpy(),
+            "C": LBF_N / MPH_M_S ** 2 * per("coastdown_C_lbf_per_mph2") * d.X_speed3.to_numpy()}
+
+
+def road_load_candidates(r, specs, table):
+    """Each target road-load coefficient's work as a candidate fuel term (free sign), refitted
+    held out: does a part of the road load cost other fuel than the brake work says?"""
+    d, lines = r["dataset_pairs"], []
+    paired = r["paired_table"]
+    rows = np.flatnonzero(r["single"])
+    for name, work in road_load_work_J(d, specs).items():
+        col = f"X_road_load_{name}"
+        extra = (STOP_COLUMN, col)
+        pred, fits = efe.held_out(d.assign(**{col: work}), paired.iloc[rows].set_index(pd.Index(rows)),
+                                  extra=extra, lower=[0.0, -np.inf])
+        err = pd.DataFrame({t: pred[t] / paired[t].to_numpy()[pred.index] - 1.0 for t in TESTS})
+        k = np.array([f["gasoline"][-1] / f["gasoline"][0] for f in fits.values()])
+        sigma, _ = fit_transfer_share(err, table.manufacturer.to_numpy()[err.index])
+        one = one_number(err, sigma)
+        lines.append(f"candidate: {name} road-load work x k (free sign), k/slope over folds {k.min():+.3f}..{k.max():+.3f}: "
+                     + ", ".join(f"{t} {np.mean(np.abs(err[t].dropna()) <= 0.05):.1%}" for t in TESTS)
+                     + f"; one measured FTP: HWFET {np.mean(np.abs(one.HWFET.dropna()) <= 0.05):.1%}, "
+                     f"US06 {np.mean(np.abs(one.US06.dropna()) <= 0.05):.1%}")
+    return lines
+
+
+def residual_report(r, specs, table):
+    """``--residuals``: group tables and the learner bounds of physics + technology (pairs merged)."""
+    feats, err = features(specs, table), r["pairs"]
+    mf = table.manufacturer.to_numpy()[err.index]
+    lines = residual_tables(err, feats) + road_load_candidates(r, specs, table)
+    lines.append("correlation of held-out errors FTP-HWFET {:.2f}, FTP-US06 {:.2f}, HWFET-US06 {:.2f}".format(
+        *(err[a].corr(err[b]) for a, b in (("FTP", "HWFET"), ("FTP", "US06"), ("HWFET", "US06")))))
+    for label, with_ftp in (("the row's columns", False), ("the row's columns + the vehicle's FTP error", True)):
+        for t, (before, after, r2) in learner_bound(err, feats, mf, with_ftp).items():
+            lines.append(f"learner on {label}, held out: {t} within 5 % {before:.1%} -> {after:.1%} "
+                         f"(share of log-error variance explained {r2:+.2f})")
     return lines
 
 
@@ -284,6 +481,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
+    ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
     args = ap.parse_args(argv)
     specs, table = epa_fleet()
     if args.subset:
@@ -294,6 +492,9 @@ def main(argv=None):
           f"duplicates merged into their pair", flush=True)
     for text in report(r, table):
         print(text, flush=True)
+    if args.residuals:
+        for text in residual_report(r, specs, table):
+            print(text, flush=True)
     if args.write:
         write_models(r)
     return r

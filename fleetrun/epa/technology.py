@@ -9,6 +9,11 @@ largest difference over the speeds). OMEGA lists the target coefficients of the 
 line, so the match is on the vehicle's own measured road load, not on a name. Among equally
 near OMEGA rows the one with the most sales wins. The technology names are the parts of
 OMEGA's ``cost_curve_class`` mapped by ``[tokens]`` (e.g. ``SS1`` -> ``start_stop``).
+
+A configuration whose road load is farther than the tolerance from every such OMEGA vehicle
+(a body, tyre or trim OMEGA does not list) gets the classes of its engine instead: the
+technology names most sold among the manufacturer's OMEGA vehicles of that displacement
+(``[engine_join]``; the match's ``join`` says which rule applied).
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ class TechnologyMatch:
     cost_curve_class: str
     road_load_difference: float   # largest relative target-force difference (nan when unmatched)
     note: str                # the rule, for the Derived sheet
+    join: str = ""           # "road_load", "engine" or "" (unmatched)
 
 
 @lru_cache(maxsize=1)
@@ -78,8 +84,9 @@ def match_configuration(manufacturer, displacement_L, coef_A_lbf, coef_B_lbf_per
     distance = np.abs(own / theirs - 1.0).max(axis=1)
     best = distance.min()
     if not best <= join["road_load_tolerance"]:
-        return _unmatched(f"nearest {omega_make} target road load of {float(displacement_L):g} L differs by "
-                          f"{best:.1%} (tolerance {join['road_load_tolerance']:.0%})")
+        far = (f"nearest {omega_make} target road load of {float(displacement_L):g} L differs by "
+               f"{best:.1%} (tolerance {join['road_load_tolerance']:.0%})")
+        return _engine_match(cand, far, float(best)) if rules["engine_join"]["enabled"] else _unmatched(far)
     tied = cand[distance <= best + 1e-12]
     row = tied.loc[tied.sales.idxmax()]
     classes = sorted(set(tied.cost_curve_class))
@@ -87,7 +94,20 @@ def match_configuration(manufacturer, displacement_L, coef_A_lbf, coef_B_lbf_per
             f"{row.engine_displacement_liters:g} L): target road load within {best:.2%}"
             + (f"; {len(classes)} classes equally near ({', '.join(classes)}), the best-selling taken"
                if len(classes) > 1 else "") + f" [models/{JOIN_FILE}]")
-    return TechnologyMatch(row.technology, str(row.vehicle_name), str(row.cost_curve_class), float(best), note)
+    return TechnologyMatch(row.technology, str(row.vehicle_name), str(row.cost_curve_class), float(best), note,
+                           "road_load")
+
+
+def _engine_match(cand: pd.DataFrame, why: str, distance: float) -> TechnologyMatch:
+    """The engine's classes: the technology names with the most sales among ``cand`` (the
+    manufacturer's OMEGA vehicles of the displacement); their best-selling row is named."""
+    sales = cand.groupby("technology").sales.sum()
+    technology = sales.idxmax()
+    row = cand[cand.technology == technology].sort_values("sales").iloc[-1]
+    note = (f"{why}: the engine's classes, '{technology or 'none'}' ({sales.max() / sales.sum():.0%} of the "
+            f"{len(cand)} OMEGA vehicles' sales with {row.engine_displacement_liters:g} L; best-selling "
+            f"'{row.vehicle_name}', {row.cost_curve_class}) [models/{JOIN_FILE} [engine_join]]")
+    return TechnologyMatch(technology, str(row.vehicle_name), str(row.cost_curve_class), distance, note, "engine")
 
 
 def _unmatched(reason: str) -> TechnologyMatch:
