@@ -11,7 +11,7 @@ XlsxWriter's own ``_write_row`` / ``_write_cell`` on the sheet first, style indi
 in the order XlsxWriter would take them, and a table this cannot write exactly (a row with its
 own height or format, a rich-string marker, a value of another type, not constant_memory) is
 left to the cell-by-cell path (:func:`write_rows` returns False).
-``tests/test_report.py::test_block_rows_same_xml`` compares the two on hostile values.
+``tests/test_sheet_rows.py`` compares the two, byte for byte, on hostile values and a whole report.
 """
 from __future__ import annotations
 
