@@ -108,6 +108,8 @@ def _digits(n: int, exact: bool = False) -> re.Pattern:
 def _widest(text: bytes, path: Path, sheet: str) -> int:
     """The largest column index referenced in ``text`` (an upper bound of 26 when every
     reference has one letter: exact values only where they matter and are cheap)."""
+    if not _letters(2).search(text):   # one pass where every reference has one letter
+        return 26
     found = _letters(4).search(text)
     if found:
         _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), "column XFD")
@@ -125,6 +127,8 @@ def _widest(text: bytes, path: Path, sheet: str) -> int:
 def _deepest(text: bytes, path: Path, sheet: str) -> int:
     """The largest row number referenced in ``text`` (upper bounds 99,999 / 9,999 where no
     reference has six / five digits)."""
+    if not _digits(5).search(text):    # one pass where every row number has four digits or fewer
+        return 9_999
     found = _digits(8).search(text)
     if found:
         _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), f"row {EXCEL_MAX_ROWS:,}")
@@ -139,10 +143,18 @@ def _deepest(text: bytes, path: Path, sheet: str) -> int:
     return 99_999 if _digits(5).search(text) else 9_999
 
 
+def _started(text: bytes, tag: bytes) -> int:
+    """How many ``tag`` elements start in ``text`` (unprefixed): two counts where every ``tag``
+    is followed by a space (the usual writing), one per possible next character otherwise."""
+    spaced = text.count(tag + b" ")
+    if text.count(tag) == spaced:
+        return spaced
+    return sum(text.count(tag + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+
+
 def _count_tags(text: bytes) -> tuple[int, int]:
     """(cells, rows) started in ``text``, counted without building match lists."""
-    cells = sum(text.count(b"<c" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
-    rows = sum(text.count(b"<row" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+    cells, rows = _started(text, b"<c"), _started(text, b"<row")
     if b":c" in text or b":row" in text:
         prefixed = _PREFIXED.findall(text)
         cells += sum(1 for tag in prefixed if b":c" in tag)
