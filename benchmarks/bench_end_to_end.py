@@ -12,7 +12,7 @@
   (x 0.95-1.05), so every row is a different vehicle and is simulated (none is deduplicated);
   one scenario driving UDDS only (FASTSim's benchmark cycle).
 - fleetrun: wall time of ``python -m fleetrun run FLEET --out DIR -q`` (a new process each time,
-  warm map cache, pinned to one CPU with ``taskset`` where there is one, OMP_NUM_THREADS=1);
+  warm map cache, its modules' bytecode compiled in the warm-up run as an installed package's is, pinned to one CPU with ``taskset`` where there is one, OMP_NUM_THREADS=1);
   rate = rows / wall time (vehicle-UDDS runs per second, everything included).
 - FASTSim 3.1: its own 2012 Ford Fusion over its own UDDS in a loop (bench_fastsim.py), pinned
   alike; runs per second. The two alternate, so a load change hits both.
@@ -74,16 +74,17 @@ def make_fleet(rows: int, folder: Path, env: dict, seed: int = 1) -> Path:
     return path
 
 
-def fleetrun_seconds(fleet: Path, out: Path, env: dict, tree: Path = ROOT) -> float:
+def fleetrun_seconds(fleet: Path, out: Path, env: dict, tree: Path = ROOT) -> tuple[float, float]:
+    """(wall, CPU user + system) seconds of one ``fleetrun run`` process."""
     shutil.rmtree(out, ignore_errors=True)
     env = {**env, "PYTHONPATH": str(tree)}
-    started = time.perf_counter()
+    started, children = time.perf_counter(), os.times()
     done = subprocess.run(pinned([sys.executable, "-m", "fleetrun", "run", str(fleet), "--out", str(out), "-q"]),
                           cwd=tree, env=env, capture_output=True, text=True)
-    elapsed = time.perf_counter() - started
+    elapsed, after = time.perf_counter() - started, os.times()
     if done.returncode != 0:
         raise SystemExit(f"fleetrun run failed ({done.returncode}):\n{done.stderr}")
-    return elapsed
+    return elapsed, (after.children_user - children.children_user) + (after.children_system - children.children_system)
 
 
 FASTSIM = """
@@ -120,7 +121,10 @@ def main(argv=None):
     args = p.parse_args(argv)
     folder = Path(tempfile.mkdtemp(prefix="fleetrun-e2e-"))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-           "FLEETRUN_CACHE_DIR": str(folder / "cache"), "PYTHONPATH": str(ROOT)}
+           "FLEETRUN_CACHE_DIR": str(folder / "cache"), "PYTHONPATH": str(ROOT),
+           # compiled once in the warm-up run, as an installed package is (pip compiles it)
+           "PYTHONPYCACHEPREFIX": str(folder / "pycache")}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     try:
         fleet = make_fleet(args.rows, folder, env)
         trees = [ROOT, *args.trees]
@@ -130,9 +134,9 @@ def main(argv=None):
         for k in range(args.repeat):
             version, fs_rate = fastsim_rate(args.fastsim_runs, env)
             for tree in trees:
-                seconds = fleetrun_seconds(fleet, folder / "out", env, tree)
+                seconds, cpu = fleetrun_seconds(fleet, folder / "out", env, tree)
                 rate = args.rows / seconds
-                print(f"  round {k + 1}, {tree}: fleetrun run {seconds:.2f} s = {rate:,.0f} vehicle-UDDS/s; FASTSim "
+                print(f"  round {k + 1}, {tree}: fleetrun run {seconds:.2f} s (CPU {cpu:.2f} s) = {rate:,.0f} vehicle-UDDS/s; FASTSim "
                       f"{version} {fs_rate:,.1f} /s; ratio {rate / fs_rate:.1f}x; load {os.getloadavg()[0]:.2f}",
                       flush=True)
     finally:
