@@ -23,6 +23,7 @@ from typing import Callable
 from xlsxwriter.utility import xl_col_to_name
 from xlsxwriter.worksheet import CellNumberTuple, CellStringTuple
 
+_USED = ("_write_cell", "_write_row", "_write_single_row", "_check_dimensions")   # XlsxWriter's own
 MIN_ROWS = 8   # below this, the cell-by-cell path is as fast and there is nothing to gain
 
 
@@ -145,8 +146,17 @@ def _style(ws, col: int, fmt) -> str:
 def _fits(ws, first_row: int, rows: int, columns: list[list], kinds: list) -> bool:
     """Whether the block can be written as one piece: constant_memory, nothing pending at or past
     ``first_row``, no row of the block (bar the last) with its own height or format, only
-    plain numbers and texts, no text past Excel's cell limit, plain ``<row>`` tags."""
-    if not ws.constant_memory or rows < MIN_ROWS or first_row < ws.previous_row:
+    plain numbers and texts, no text past Excel's cell limit, plain ``<row>`` tags; and the
+    XlsxWriter internals this module uses are there (another version may lack them: then the
+    cell-by-cell path, and ``tests/test_sheet_rows.py`` says the block path is no longer used)."""
+    try:
+        return _fits_here(ws, first_row, rows, columns, kinds)
+    except (AttributeError, TypeError):
+        return False
+
+
+def _fits_here(ws, first_row: int, rows: int, columns: list[list], kinds: list) -> bool:
+    if not all(callable(getattr(ws, name, None)) for name in _USED) or not ws.constant_memory or rows < MIN_ROWS or first_row < ws.previous_row:
         return False
     if any(r >= first_row for r in ws.table) or ws.comments:
         return False
