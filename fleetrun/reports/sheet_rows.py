@@ -156,7 +156,9 @@ def _fits(ws, first_row: int, rows: int, columns: list[list], kinds: list) -> bo
 
 
 def _fits_here(ws, first_row: int, rows: int, columns: list[list], kinds: list) -> bool:
-    if not all(callable(getattr(ws, name, None)) for name in _USED) or not ws.constant_memory or rows < MIN_ROWS or first_row < ws.previous_row:
+    if not all(callable(getattr(ws, name, None)) for name in _USED):
+        return False
+    if not ws.constant_memory or rows < MIN_ROWS or first_row < ws.previous_row:
         return False
     if any(r >= first_row for r in ws.table) or ws.comments:
         return False
@@ -173,8 +175,10 @@ def write_rows(ws, first_row: int, columns: list[list], formats: list) -> bool:
     """Write rows ``first_row`` .. ``first_row + n - 2`` (0-based) of the table whose columns are
     ``columns`` (n values each) into ``ws`` as XlsxWriter would, and return True; the last row is
     left to the caller (written cell by cell, so the sheet's end is XlsxWriter's own). ``formats``:
-    per column the Format, or for text columns a function of the text giving it. False (nothing
-    written): the block is not one this can write exactly; write it cell by cell."""
+    per column the Format, or for text columns a function of the text giving it. False: the block
+    is not one this can write exactly; write it cell by cell (what may have been done already,
+    the pending row flushed and style indices taken, is what that path does first, in the
+    same order)."""
     rows = len(columns[0]) if columns else 0
     kinds = [_column_kind(values) for values in columns]
     if not _fits(ws, first_row, rows, columns, kinds):

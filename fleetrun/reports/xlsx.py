@@ -112,7 +112,8 @@ class Sheet:
         self._room(len(columns[0]) if columns else 0)
         cell, ws, index = self.book.cell, self.ws, self.row
         formats = [self.book.style(s) for s in styles]
-        texts = [lambda value, style=s, plain=f: self.book.style(style, quoted=True) if looks_like_formula(value) else plain
+        texts = [lambda value, style=s, plain=f: (self.book.style(style, quoted=True) if looks_like_formula(value)
+                                                  else plain)
                  for s, f in zip(styles, formats)]   # the Format Book.text gives the text
         if write_rows(ws, index, columns, [t if _texts(c) else f for c, f, t in zip(columns, formats, texts)]):
             columns, index = [c[-1:] for c in columns], index + len(columns[0]) - 1   # the last row: below
