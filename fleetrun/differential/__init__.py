@@ -40,8 +40,12 @@ def kim_torque_scale_Nm(peak_engine_torque_Nm, torque_converter_ratio, max_trans
     >>> float(kim_torque_scale_Nm(250.0, 3.0, 4.7))
     3525.0
     """
-    return (np.asarray(peak_engine_torque_Nm, dtype=float) * torque_converter_ratio
-            * max_transmission_gear_ratio)
+    if all(type(x) in (int, float) for x in (peak_engine_torque_Nm, torque_converter_ratio,
+                                              max_transmission_gear_ratio)):
+        peak = float(peak_engine_torque_Nm)   # one vehicle (a row of the fleet): no array to build
+    else:
+        peak = np.asarray(peak_engine_torque_Nm, dtype=float)
+    return peak * torque_converter_ratio * max_transmission_gear_ratio
 
 
 def physics_names() -> list[str]:

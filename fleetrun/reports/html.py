@@ -15,7 +15,7 @@ from fleetrun import __version__
 from fleetrun.reports import charts
 from fleetrun.reports import text as report_text
 from fleetrun.reports.changes import describe as describe_changes
-from fleetrun.reports.manifest import manifest_dict, physics_label
+from fleetrun.reports.manifest import physics_label, run_header
 from fleetrun.budget.result import RunResult
 from fleetrun.budget.totals import CLASS_COLUMNS, FISCAL_COLUMNS, scenario_totals
 from fleetrun.resources import templates_dir
@@ -157,7 +157,7 @@ def render_summary(result: RunResult) -> str:
     fuel = {(r.vehicle_class, r.scenario_id): r.fuel_gal_total for r in result.classes.itertuples(index=False)}
     fuel_chart = charts.grouped_bars(class_names, scenario_ids, fuel)
     maps, scale = _maps(result)
-    info = manifest_dict(result)
+    info = run_header(result)
     engine = info["engine"].get("engine", "")
     if info["engine"].get("scheduler"):
         engine += f" ({info['engine']['scheduler']})"

@@ -12,7 +12,9 @@ from fleetrun.reports.changes import attribution_inputs, model_files, scenario_t
 SCHEMA = "fleetrun.run/1"
 
 
-def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
+def run_header(result) -> dict:
+    """manifest.json's description of the run (schema to warnings): what the report's RunInfo
+    and summary.html show; quick to make, unlike the totals and fingerprints that follow it."""
     inputs = [{"role": "fleet workbook", "path": str(result.fleet.path), "sha256": result.fleet.sha256}]
     inputs += [{"role": "drive cycle", "path": path, "sha256": sha}
                for path, sha in sorted(result.cycle_inputs.items())]
@@ -32,6 +34,14 @@ def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
         "cycles": {name: info.as_json() for name, info in result.cycles.items()},
         "timings_s": {k: round(v, 6) for k, v in result.timings_s.items()},
         "warnings": list(result.warnings),
+    }
+
+
+def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
+    """manifest.json (docs/interface.md): the run header, the model files, the totals and the
+    fingerprints the next run compares with, the comparison with the earlier run, the outputs."""
+    return {
+        **run_header(result),
         "model_files": model_files(),                             # models/**: constants the numbers come from
         "totals": scenario_totals_dict(result.classes),          # what the next run compares with
         "attribution": attribution_inputs(result),                # per fuel factors + input fingerprints

@@ -31,7 +31,8 @@ from fleetrun.budget.result import EfficiencyMap, RunResult
 from fleetrun.budget.totals import scenario_totals, yearly_totals
 from fleetrun.reports import text as report_text
 from fleetrun.reports.charts import efficiency_scale
-from fleetrun.reports.manifest import manifest_dict, physics_label
+from fleetrun.reports.manifest import physics_label, run_header
+from fleetrun.reports.sheet_rows import write_rows
 from fleetrun.workbook.schema import SCENARIO_COLUMNS, VEHICLE_COLUMNS
 from fleetrun.workbook.text_cells import looks_like_formula
 
@@ -111,12 +112,22 @@ class Sheet:
         self._room(len(columns[0]) if columns else 0)
         cell, ws, index = self.book.cell, self.ws, self.row
         formats = [self.book.style(s) for s in styles]
+        texts = [lambda value, style=s, plain=f: (self.book.style(style, quoted=True) if looks_like_formula(value)
+                                                  else plain)
+                 for s, f in zip(styles, formats)]   # the Format Book.text gives the text
+        if write_rows(ws, index, columns, [t if _texts(c) else f for c, f, t in zip(columns, formats, texts)]):
+            columns, index = [c[-1:] for c in columns], index + len(columns[0]) - 1   # the last row: below
         for values in zip(*columns):
             for column, value in enumerate(values):
                 if value is not None:
                     cell(ws, index, column, value, styles[column], formats[column])
             index += 1
         self.row = index
+
+
+def _texts(values: list) -> bool:
+    """Whether a column holds texts (each written by :meth:`Book.text`, with its own Format)."""
+    return any(type(v) is str for v in values)
 
 
 class Book:
@@ -673,7 +684,7 @@ def _run_info(book: Book, result: RunResult):
     page_setup(sheet, landscape=False, title_row=None)
     sheet.ws.set_column("A:A", 30)
     sheet.ws.set_column("B:B", 90)
-    info = manifest_dict(result)
+    info = run_header(result)
     for key in ("fleetrun_version", "created_utc", "physics", "mode"):
         sheet.append([key, str(info[key])])
     sheet.append(["with (effects)", physics_label(info) if info.get("with") else "none"])

@@ -381,7 +381,7 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     ok = True
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
-    for column, index, low, high in _plan(table):
+    for column, index, low, high, known in _plan(table):
         raw = values[index - 1] if index <= width else None
         if uncached and (row_number, index) in uncached:
             problem, raw = rows.scanned_cell(column, uncached[(row_number, index)], raw)
@@ -391,6 +391,10 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
                 continue
         if type(raw) is float and low <= raw <= high:   # a number within its range: rows.parse_value's fast path
             parsed[column.name] = raw
+            continue
+        value = known.get(raw, _UNSEEN) if type(raw) is str else _UNSEEN   # a text seen before in this column
+        if value is not _UNSEEN and not isinstance(value, CellProblem):
+            parsed[column.name] = value
             continue
         if raw is None or (type(raw) is str and not raw.strip()):
             if column.required:
@@ -418,12 +422,13 @@ def _names(schema) -> tuple[str, ...]:
     return tuple(c.name for c in schema)
 
 
-def _plan(table: _Table) -> list[tuple[Column, int, float, float]]:
-    """Per schema column present: (column, index, low, high), the range a float cell may take
-    without further parsing (rows.parse_value's own fast path); an empty range for the others."""
+def _plan(table: _Table) -> list[tuple[Column, int, float, float, dict]]:
+    """Per schema column present: (column, index, low, high, texts), the range a float cell may
+    take without further parsing (rows.parse_value's own fast path; an empty range for the
+    others) and the column's parsed texts (:func:`_parsed_value`)."""
     if table.plan is None:
-        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)))
-                      for c, i in table.present]
+        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)),
+                       table.texts.setdefault(i, {})) for c, i in table.present]
     return table.plan
 
 

@@ -26,7 +26,9 @@ MAX_FILE_BYTES = 500_000_000            # the workbook file itself (a 100,000-ro
 MAX_TOTAL_UNCOMPRESSED = 1_000_000_000   # 1 GB: a 100,000-row fleet is ~0.1 GB of XML
 EXCEL_MAX_ROWS = 1_048_576               # Excel's own sheet limits (ECMA-376; Excel specifications)
 EXCEL_MAX_COLUMNS = 16_384               # XFD
-MAX_SHEET_CELLS = 10_000_000             # rows x columns of a sheet's used range (~45 B each read)
+# rows x columns of a sheet's used range (~45 B each read): a 360,000-row fleet of 31 columns
+# (the size docs/benchmarks-run.md runs) is 11.2 M
+MAX_SHEET_CELLS = 12_000_000
 SPARSE_FLOOR_CELLS = 1_000_000           # a used range beyond this must be filled ...
 MIN_FILL = 1 / 16                        # ... at least this much: else a stray far cell
 MAX_TAG_BYTES = 64_000_000               # one XML tag or cell text
@@ -105,16 +107,61 @@ def _digits(n: int, exact: bool = False) -> re.Pattern:
     return re.compile(_REF_HEAD + rb"[A-Za-z]*0*([1-9][0-9]{%d}%s)\"" % (n - 1, b"" if exact else b"[0-9]*"))
 
 
+WINDOW_BYTES = 1 << 16   # the ends of a chunk where its largest reference is looked for first
+
+
+def _largest(text: bytes, exact: re.Pattern, above, order) -> bytes | None:
+    """The largest (by ``order``) of ``exact``'s matches in ``text``, or None if it has none: a
+    candidate from the text's two ends (a table is written in order), confirmed by one search for
+    a match above it (the pattern ``above(candidate)``); only where that finds one is every match
+    listed. A match in an end is a match in the text: a reference starts with ``r="`` and ends
+    at its closing quote, neither of which a reference holds."""
+    ends = exact.findall(text[:WINDOW_BYTES]) + exact.findall(text[-WINDOW_BYTES:])
+    if ends:
+        candidate = max(ends, key=order)
+        if not above(candidate).search(text):
+            return candidate
+    found = set(exact.findall(text))
+    return max(found, key=order) if found else None
+
+
+def _greater(value: bytes, first: int, last: int) -> bytes:
+    """A regular expression for the strings as long as ``value``, of the characters ``first``
+    to ``last`` (in that order), that come after ``value``."""
+    options = [re.escape(value[:i]) + b"[%c-%c]" % (ch + 1, last) + b"[%c-%c]{%d}" % (first, last, len(value) - i - 1)
+               for i, ch in enumerate(value) if ch < last]
+    return b"|".join(options) or b"(?!)"
+
+
+@lru_cache(maxsize=64)
+def _letters_above(letters: bytes) -> re.Pattern:
+    """A reference whose column has as many letters as ``letters`` and comes after it."""
+    return re.compile(_REF_HEAD + rb"(?:%s)[0-9]+\"" % _greater(letters.upper(), ord("A"), ord("Z")), re.IGNORECASE)
+
+
+@lru_cache(maxsize=64)
+def _digits_above(digits: bytes) -> re.Pattern:
+    """A reference whose row has as many digits as ``digits`` (leading zeros aside) and is larger."""
+    return re.compile(_REF_HEAD + rb"[A-Za-z]*0*(?:%s)\"" % _greater(digits, ord("0"), ord("9")))
+
+
+def _column_of(letters: bytes) -> int:
+    return column_number(letters.decode("ascii"))
+
+
 def _widest(text: bytes, path: Path, sheet: str) -> int:
     """The largest column index referenced in ``text`` (an upper bound of 26 when every
     reference has one letter: exact values only where they matter and are cheap)."""
-    found = _letters(4).search(text)
+    if not _letters(2).search(text):   # one pass where every reference has one letter
+        return 26
+    three = _letters(3).search(text) is not None   # three letters or more: AAA and beyond
+    found = three and _letters(4).search(text)
     if found:
         _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), "column XFD")
-    for n in (3, 2):
-        letters = set(_letters(n, exact=True).findall(text))
-        if letters:
-            widest = max(column_number(item.decode("ascii")) for item in letters)
+    for n in ((3, 2) if three else (2,)):
+        letters = _largest(text, _letters(n, exact=True), _letters_above, _column_of)
+        if letters is not None:
+            widest = _column_of(letters)
             if widest > EXCEL_MAX_COLUMNS:
                 match = _letters(n).search(text)
                 _beyond(path, sheet, match.group(0)[3:-1].decode("ascii"), "column XFD")
@@ -125,13 +172,16 @@ def _widest(text: bytes, path: Path, sheet: str) -> int:
 def _deepest(text: bytes, path: Path, sheet: str) -> int:
     """The largest row number referenced in ``text`` (upper bounds 99,999 / 9,999 where no
     reference has six / five digits)."""
-    found = _digits(8).search(text)
+    if not _digits(5).search(text):    # one pass where every row number has four digits or fewer
+        return 9_999
+    seven = _digits(7).search(text) is not None    # seven digits or more: row 1,000,000 and beyond
+    found = seven and _digits(8).search(text)
     if found:
         _beyond(path, sheet, found.group(0)[3:-1].decode("ascii", "replace"), f"row {EXCEL_MAX_ROWS:,}")
-    for n in (7, 6):
-        numbers = set(_digits(n, exact=True).findall(text))
-        if numbers:
-            deepest = max(int(item) for item in numbers)
+    for n in ((7, 6) if seven else (6,)):
+        digits = _largest(text, _digits(n, exact=True), _digits_above, int)
+        if digits is not None:
+            deepest = int(digits)
             if deepest > EXCEL_MAX_ROWS:
                 match = _digits(n).search(text)
                 _beyond(path, sheet, match.group(0)[3:-1].decode("ascii"), f"row {EXCEL_MAX_ROWS:,}")
@@ -139,10 +189,18 @@ def _deepest(text: bytes, path: Path, sheet: str) -> int:
     return 99_999 if _digits(5).search(text) else 9_999
 
 
+def _started(text: bytes, tag: bytes) -> int:
+    """How many ``tag`` elements start in ``text`` (unprefixed): two counts where every ``tag``
+    is followed by a space (the usual writing), one per possible next character otherwise."""
+    spaced = text.count(tag + b" ")
+    if text.count(tag) == spaced:
+        return spaced
+    return sum(text.count(tag + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+
+
 def _count_tags(text: bytes) -> tuple[int, int]:
     """(cells, rows) started in ``text``, counted without building match lists."""
-    cells = sum(text.count(b"<c" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
-    rows = sum(text.count(b"<row" + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
+    cells, rows = _started(text, b"<c"), _started(text, b"<row")
     if b":c" in text or b":row" in text:
         prefixed = _PREFIXED.findall(text)
         cells += sum(1 for tag in prefixed if b":c" in tag)

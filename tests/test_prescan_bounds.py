@@ -1,0 +1,48 @@
+"""The pre-scan's largest row and column (fleetrun/workbook/xlsx_safety.py) found from a chunk's
+ends and confirmed by one search are exactly the largest of every reference in the chunk (the
+reference: the list of all of them), in order or not, with leading zeros, lower-case letters and
+references far from the ends."""
+from __future__ import annotations
+
+import random
+
+from fleetrun.workbook import xlsx_safety as X
+
+
+def _every(text: bytes, n_values, pattern, order):
+    for n in n_values:
+        found = set(pattern(n, True).findall(text))
+        if found:
+            return max(order(x) for x in found)
+    return None
+
+
+def _fast(text: bytes, n_values, pattern, above, order):
+    for n in n_values:
+        found = X._largest(text, pattern(n, True), above, order)
+        if found is not None:
+            return order(found)
+    return None
+
+
+def test_largest_reference_equals_the_largest_of_all():
+    rng = random.Random(3)
+    for _ in range(1500):
+        refs = []
+        for _ in range(rng.randint(1, 40)):
+            letters = "".join(rng.choice("ABCXYZabcxyz") for _ in range(rng.choice([1, 2, 2, 3])))
+            number = str(rng.choice([rng.randint(1, 999_999), rng.randint(100_000, 999_999),
+                                     rng.randint(1_000_000, 1_048_576)]))
+            refs.append(f'<c r="{letters}{"00" if rng.random() < 0.1 else ""}{number}"><v>1</v></c>')
+        middle = "x" * rng.choice([0, 10, 2 * X.WINDOW_BYTES])
+        text = ("".join(refs[:len(refs) // 2]) + middle + "".join(refs[len(refs) // 2:])).encode()
+        assert _fast(text, (7, 6), X._digits, X._digits_above, int) == _every(text, (7, 6), X._digits, int)
+        assert (_fast(text, (3, 2), X._letters, X._letters_above, X._column_of)
+                == _every(text, (3, 2), X._letters, X._column_of))
+
+
+def test_a_larger_reference_in_the_middle_is_found():
+    rows = b"".join(b'<row r="%d"><c r="A%d"/></row>' % (r, r) for r in range(100_000, 104_000))
+    text = rows[:len(rows) // 2] + b'<c r="AZ999999"/>' + rows[len(rows) // 2:]
+    assert int(X._largest(text, X._digits(6, True), X._digits_above, int)) == 999_999
+    assert X._column_of(X._largest(text, X._letters(2, True), X._letters_above, X._column_of)) == 52
