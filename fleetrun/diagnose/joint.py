@@ -9,7 +9,10 @@ built into its own :class:`~fleetrun.diagnose.engine.Problem` exactly as ``fleet
 builds it alone (its own ``--calibrate-on`` reference and residual), and the problems are
 joined (:func:`join`): the residuals, baselines and channels one after another, each
 candidate effect's column the recordings' columns one after another, so that its linear
-parameter and its shape parameter are **one value for all recordings**. The calibration
+parameter and its shape parameter are **one value for all recordings**. An effect that is a
+condition of each recording rather than of the vehicle (a cold start's warm-up:
+``Effect.per_recording``) is one candidate per recording instead, ``warmup@<recording>``,
+with its own size and time constant, zero on the other recordings. The calibration
 terms stay each recording's own (each baseline is only known to its own reference's standard
 errors). The selection (:func:`fleetrun.diagnose.engine.select`) then runs unchanged on the
 joined problem (docs/diagnose.md, "Several recordings of one vehicle").
@@ -25,7 +28,8 @@ import numpy as np
 from fleetrun.diagnose import _clean, analyse, build, integral_share
 from fleetrun.diagnose.engine import Problem, Settings, windowed
 from fleetrun.diagnose.integrals import integrals, phases
-from fleetrun.diagnose.select import Candidate
+from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
+from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
 from fleetrun.errors import InputError
 
@@ -67,14 +71,31 @@ def _joined_candidate(cands: Sequence[Candidate]) -> Candidate:
                      shape_bounds=bounds)
 
 
+def _pad(col, before: int, after: int) -> np.ndarray:
+    return np.concatenate([np.zeros(before), np.asarray(col, float), np.zeros(after)])
+
+
+def _per_recording(cands: Sequence[Candidate], names: Sequence[str], sizes: Sequence[int]) -> list[Candidate]:
+    """One candidate per recording (``effect@recording``), zero on the others' samples: an
+    effect that is a condition of each recording (:attr:`fleetrun.effects.base.Effect.per_recording`)."""
+    out = []
+    for k, (c, name) in enumerate(zip(cands, names)):
+        before, after = sum(sizes[:k]), sum(sizes[k + 1:])
+        column_for = None if c.column_for is None else \
+            (lambda sh, f=c.column_for, b=before, a=after: _pad(f(sh), b, a))
+        out.append(Candidate(f"{c.id}{PER_RECORDING_SEP}{name}", [_pad(x, before, after) for x in c.columns],
+                             list(c.shapes), c.lower, c.upper, column_for=column_for,
+                             shape_bounds=c.shape_bounds))
+    return out
+
+
 def _padded_terms(problems: Sequence[Problem]) -> list:
     """Each recording's calibration terms, zero on the other recordings' samples."""
     sizes = [len(p.time_s) for p in problems]
     out = []
     for k, p in enumerate(problems):
         before, after = sum(sizes[:k]), sum(sizes[k + 1:])
-        out += [(np.concatenate([np.zeros(before), np.asarray(col, float), np.zeros(after)]), lo, hi)
-                for col, lo, hi in p.initial_terms]
+        out += [(_pad(col, before, after), lo, hi) for col, lo, hi in p.initial_terms]
     return out
 
 
@@ -111,8 +132,14 @@ def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tu
     without one are windowed to the same window length."""
     _check_joinable(problems)
     ids = [c.id for c in problems[0].candidates if all(any(d.id == c.id for d in p.candidates) for p in problems)]
-    candidates = [_joined_candidate([next(d for d in p.candidates if d.id == cid) for p in problems])
-                  for cid in ids]
+    sizes = [len(p.time_s) for p in problems]
+    candidates = []
+    for cid in ids:
+        cands = [next(d for d in p.candidates if d.id == cid) for p in problems]
+        if EFFECTS[cid].per_recording:
+            candidates += _per_recording(cands, names, sizes)
+        else:
+            candidates.append(_joined_candidate(cands))
     untestable: dict[str, list[str]] = {}
     for p in problems:
         for cid, missing in p.untestable.items():
@@ -142,8 +169,8 @@ def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tu
                      {k: _cat(p.driver_channels[k] for p in problems) for k in keys}, info, notes,
                      {k: v for p in problems for k, v in p.extra_ambiguity.items()}, problems[0].units,
                      _padded_terms(problems), offset_floor, integral)
-    sizes = np.cumsum([0] + [len(p.time_s) for p in problems])
-    pieces = tuple(Piece(name, int(a), int(b)) for name, a, b in zip(names, sizes[:-1], sizes[1:]))
+    ends = np.cumsum([0] + sizes)
+    pieces = tuple(Piece(name, int(a), int(b)) for name, a, b in zip(names, ends[:-1], ends[1:]))
     return joined, pieces
 
 
