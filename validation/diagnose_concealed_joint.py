@@ -36,9 +36,8 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from diagnose_concealed import SIZE_TOLERANCE, SIZES, concealed_fuel  # noqa: E402
+from validation.diagnose_concealed import SIZE_TOLERANCE, SIZES, concealed_fuel  # noqa: E402
 
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
