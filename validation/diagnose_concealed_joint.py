@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2] [--out DIR]
+    python validation/diagnose_concealed_joint.py [--design J1|J2] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -186,12 +186,88 @@ def table(design: str, clean: dict, cases: list[JointCase]) -> str:
     return "\n".join(lines)
 
 
+# ----------------------------------------------------------------------------- why
+COMPARED = ("road_grade", "aero_drag", "accessory_load")
+
+
+@dataclass(frozen=True)
+class JointSeparation:
+    """The three vehicle effects' columns on the clean targets' joined 10-s windows (each
+    recording's calibration terms and the named warm-ups partialled out): cosines, what each
+    fits alone on the clean targets [g over all targets], its standard error alone and
+    jointly with the other two, and what it fits on each target alone (scaled to all targets'
+    column, so the numbers compare)."""
+
+    cosines: tuple[tuple[str, str, float], ...]
+    noise_g_per_s: float
+    alone_g: dict
+    alone_se_g: dict
+    joint_se_g: dict
+    per_recording_g: dict
+
+
+def separation(design: str, workdir=None) -> JointSeparation:
+    workdir = Path(workdir or tempfile.mkdtemp())
+    pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
+    refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
+    paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
+    clean = joint_diagnosis(paths, refs)
+    J = clean.problem.coarse
+    cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
+    warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})
+            for f in clean.result["findings"] if f["effect"].startswith("warmup")]
+    A = np.array([c for c in [t[0] for t in J.initial_terms] + warm if np.any(c)]).T
+    P = {k: cols[k] - A @ np.linalg.lstsq(A, cols[k], rcond=None)[0] for k in COMPARED}
+    r = J.residual - A @ np.linalg.lstsq(A, J.residual, rcond=None)[0]
+    window = float(np.median(np.diff(J.time_s)))
+    grams = {k: float(cols[k].sum() * window) for k in COMPARED}
+    X = np.array([P[k] for k in COMPARED]).T
+    e = r - X @ np.linalg.lstsq(X, r, rcond=None)[0]
+    rho = max(float(np.corrcoef(e[:-1], e[1:])[0, 1]), 0.0)
+    s2 = float(np.var(e)) * (1 + rho) / (1 - rho)
+    cov = np.linalg.inv(X.T @ X) * s2
+    ends = np.cumsum([0] + [len(_phase_free(p)) for p in clean.pieces])
+    ends = np.round(ends / (len(clean.problem.time_s) / len(J.time_s))).astype(int)
+    per = {k: tuple(_alone(P[k][a:b], cols[k][a:b], r[a:b]) * grams[k] for a, b in zip(ends[:-1], ends[1:]))
+           for k in COMPARED}
+    return JointSeparation(tuple((a, b, float(P[a] @ P[b] / np.sqrt((P[a] @ P[a]) * (P[b] @ P[b]))))
+                                 for i, a in enumerate(COMPARED) for b in COMPARED[i + 1:]),
+                           float(np.std(e)), {k: float(P[k] @ r / (P[k] @ P[k]) * grams[k]) for k in COMPARED},
+                           {k: float(np.sqrt(s2 / (P[k] @ P[k])) * grams[k]) for k in COMPARED},
+                           {k: float(np.sqrt(cov[i, i]) * grams[k]) for i, k in enumerate(COMPARED)}, per)
+
+
+def _alone(x: np.ndarray, raw: np.ndarray, r: np.ndarray) -> float:
+    """Least-squares coefficient of ``x`` on ``r``; NaN where the calibration terms take
+    (almost) all of the column (an accessory load against a recording's own idle offset)."""
+    return float(x @ r / (x @ x)) if x @ x > 1e-6 * (raw @ raw) else float("nan")
+
+
+def _phase_free(piece) -> range:
+    return range(piece.start, piece.stop)
+
+
+def separation_table(design: str, sep: JointSeparation) -> str:
+    lines = [f"design {design}, clean targets: cosines " + ", ".join(f"{a}/{b} {c:.3f}" for a, b, c in sep.cosines)
+             + f"; window noise {sep.noise_g_per_s:.4f} g/s", "",
+             "| effect | clean, alone [g] | se alone [g] | se jointly [g] | each target alone [g] |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {k} | {sep.alone_g[k]:.1f} | {sep.alone_se_g[k]:.1f} | {sep.joint_se_g[k]:.1f} | "
+              + " / ".join(f"{x:.1f}" for x in sep.per_recording_g[k]) + " |" for k in COMPARED]
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
+                    "columns on the clean targets")
     args = ap.parse_args(argv)
     for design in args.design or sorted(DESIGNS):
+        if args.why:
+            print(separation_table(design, separation(design)), "\n", flush=True)
+            continue
         out = Path(args.out) / design if args.out else None
         if out:
             out.mkdir(parents=True, exist_ok=True)
