@@ -46,12 +46,17 @@ from fleetrun.resources import inputs_dir  # noqa: E402
 from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
 
 #: Where the second run of a two-run recording starts [s] (inputs/dyno/PROVENANCE.md).
-SECOND_RUN_S = {"camry2018_hwfet": 780.0, "camry2018_us06": 690.0}
+SECOND_RUN_S = {"camry2018_hwfet": 780.0, "camry2018_us06": 690.0,
+                "camry2018_udds_cold": 1960.0}   # in the engine-off soak (1368-1994 s)
 #: design -> [(target, reference)]: a stem, or (stem, "first"/"second") for one run of it
 DESIGNS = {
     "J1": [("camry2018_udds_cold", "camry2018_udds_hot"), ("camry2018_hwfet", "camry2018_udds_hot"),
            ("camry2018_us06", "camry2018_udds_hot")],
     "J2": [("camry2018_udds_cold", "camry2018_udds_hot"),
+           (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
+           (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
+    # chosen after J1 and J2 had been measured: warm runs only (no cold start in any target)
+    "J3": [(("camry2018_udds_cold", "second"), "camry2018_udds_hot"),
            (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
            (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
 }
