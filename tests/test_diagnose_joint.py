@@ -86,3 +86,8 @@ def test_real_camry_three_cycles_with_a_same_trace_reference_each():
     assert all(c.size_ok for c in cases if c.named)
     drag = next(c for c in cases if c.effect == "aero_drag" and c.size == 0.6)
     assert drag.named and drag.size_ok and drag.phases_ok
+
+
+def test_join_refuses_two_recordings_of_one_name():
+    with pytest.raises(InputError, match="distinct"):
+        join([_problem(7, 0.0, 0.0, 5.0), _problem(8, 0.0, 0.0, 5.0)], ["run", "run"])

@@ -125,9 +125,8 @@ def _phase_masks(d) -> list[np.ndarray]:
     out = []
     n = len(d.problem.time_s)
     for piece in d.pieces:
-        for ph in d.piece_phases(piece):
+        for a, b in d.phase_spans(piece):
             m = np.zeros(n, bool)
-            a, b = ph["span"]
             m[piece.start + a:piece.start + b] = True
             out.append(m)
     return out
@@ -231,7 +230,7 @@ def separation(design: str, workdir=None) -> JointSeparation:
     rho = max(float(np.corrcoef(e[:-1], e[1:])[0, 1]), 0.0)
     s2 = float(np.var(e)) * (1 + rho) / (1 - rho)
     cov = np.linalg.inv(X.T @ X) * s2
-    ends = np.cumsum([0] + [len(_phase_free(p)) for p in clean.pieces])
+    ends = np.cumsum([0] + [p.stop - p.start for p in clean.pieces])
     ends = np.round(ends / (len(clean.problem.time_s) / len(J.time_s))).astype(int)
     per = {k: tuple(_alone(P[k][a:b], cols[k][a:b], r[a:b]) * grams[k] for a, b in zip(ends[:-1], ends[1:]))
            for k in COMPARED}
@@ -246,10 +245,6 @@ def _alone(x: np.ndarray, raw: np.ndarray, r: np.ndarray) -> float:
     """Least-squares coefficient of ``x`` on ``r``; NaN where the calibration terms take
     (almost) all of the column (an accessory load against a recording's own idle offset)."""
     return float(x @ r / (x @ x)) if x @ x > 1e-6 * (raw @ raw) else float("nan")
-
-
-def _phase_free(piece) -> range:
-    return range(piece.start, piece.stop)
 
 
 def separation_table(design: str, sep: JointSeparation) -> str:

@@ -19,7 +19,7 @@ joined problem (docs/diagnose.md, "Several recordings of one vehicle").
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -32,6 +32,7 @@ from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
 from fleetrun.errors import InputError
+from fleetrun.fileio import JsonDocument
 
 
 @dataclass(frozen=True)
@@ -111,26 +112,28 @@ def _check_joinable(problems: Sequence[Problem]) -> None:
                          "is not supported", hint="diagnose these recordings one at a time")
 
 
-def _time(problems: Sequence[Problem]) -> tuple[np.ndarray, list[float]]:
-    """Times one after another (each recording shifted to start one step after the last
-    ended), and each recording's shift."""
-    out, shifts, end = [], [], None
+def _time(problems: Sequence[Problem]) -> np.ndarray:
+    """Times one after another: each recording shifted to start one step after the last
+    ended."""
+    out, end = [], None
     for p in problems:
         t = np.asarray(p.time_s, float)
         step = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-        shift = 0.0 if end is None else end + step - t[0]
-        out.append(t + shift)
-        shifts.append(shift)
+        out.append(t if end is None else t + (end + step - t[0]))
         end = float(out[-1][-1])
-    return np.concatenate(out), shifts
+    return np.concatenate(out)
 
 
 def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tuple[Piece, ...]]:
     """One problem from several recordings' problems (same level and target), and where each
-    recording sits in it. A candidate effect is kept if every recording can test it; its
-    parameters are shared. ``coarse`` is joined too when any recording has one: recordings
-    without one are windowed to the same window length."""
+    recording sits in it (``names``: one per recording, distinct). A candidate effect is kept
+    if every recording can test it; its parameters are shared, except for an effect that is
+    a condition of each recording (one candidate per recording). ``coarse`` is not joined
+    here (:func:`join_coarse`)."""
     _check_joinable(problems)
+    if len(set(names)) != len(names):
+        raise InputError(f"a joint diagnosis needs distinct recording names, got {list(names)}",
+                         hint="rename the files so that their stems differ")
     ids = [c.id for c in problems[0].candidates if all(any(d.id == c.id for d in p.candidates) for p in problems)]
     sizes = [len(p.time_s) for p in problems]
     candidates = []
@@ -147,9 +150,9 @@ def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tu
     for p, name in zip(problems, names):
         for c in p.candidates:
             if c.id not in ids:
-                untestable.setdefault(c.id, []).append(f"testable in every recording ({name} cannot)")
+                untestable.setdefault(c.id, []).append(f"a recording where it is testable: not {name}")
     keys = [k for k in problems[0].driver_channels if all(k in p.driver_channels for p in problems)]
-    t, _ = _time(problems)
+    t = _time(problems)
     ig0 = problems[0].integral
     integral = {"moving": np.concatenate([np.asarray(p.integral["moving"], bool) for p in problems]),
                 "speed_mps": None if any(p.integral.get("speed_mps") is None for p in problems)
@@ -188,19 +191,20 @@ class JointDiagnosis:
     each recording sits."""
 
     problem: Problem
-    result: dict
+    result: JsonDocument
     fitted: np.ndarray
     pieces: tuple[Piece, ...]
 
-    def piece_phases(self, piece: Piece) -> list[dict]:
-        """The phases of one recording (index spans into its own samples)."""
+    def phase_spans(self, piece: Piece) -> list[tuple[int, int]]:
+        """The phases of one recording: index spans into its own samples."""
         p = self.problem
         s = piece.span
         speed = p.integral.get("speed_mps")
-        return phases(p.time_s[s], p.integral["moving"][s], None if speed is None else speed[s])
+        return [tuple(ph["span"]) for ph in
+                phases(p.time_s[s], p.integral["moving"][s], None if speed is None else speed[s])]
 
 
-def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece]) -> list[dict]:
+def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece]) -> list[JsonDocument]:
     """``integrals`` (phases only) of each recording, times relative to its own start."""
     out = []
     speed = problem.integral.get("speed_mps")
