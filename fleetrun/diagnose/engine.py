@@ -27,8 +27,8 @@ import numpy as np
 
 from fleetrun.diagnose.openworld import drift_columns, review, unexplained
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
-from fleetrun.diagnose.select import (Candidate, cv_fit, evaluate_candidate, fold_ids, full_fit,
-                                      refine_shape, shift_null)
+from fleetrun.diagnose.select import (Candidate, cv_fit, effect_of, evaluate_candidate, fold_ids,
+                                      full_fit, refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
 
 
@@ -118,14 +118,14 @@ class Settings:
 
 
 def _params(cand: Candidate, shape: dict, coef: float) -> dict:
-    effect = EFFECTS[cand.id]
+    effect = EFFECTS[effect_of(cand.id)]
     out = {effect.linear: float(coef)}
     out.update({k: float(v) for k, v in shape.items()})
     return {p.name: round(out[p.name], 6) for p in effect.parameters if p.name in out}
 
 
 def explanation(effect_id: str, params: dict, before: float, after: float, units: str) -> str:
-    e = EFFECTS[effect_id]
+    e = EFFECTS[effect_of(effect_id)]
     ps = ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
     text = (f"The residual follows the signature of {e.title} ({e.signature}); adding it with "
             f"{ps} cuts the held-out error from {before:.3g} to {after:.3g} {units}.")
@@ -142,8 +142,8 @@ def explanation(effect_id: str, params: dict, before: float, after: float, units
 
 
 def _ambiguity(best_id, rivals, statuses, ambiguities):
-    tests = [EFFECTS[best_id].separating_test] + [
-        EFFECTS[rid].separating_test for rid, _ in rivals if rid in EFFECTS]
+    tests = [EFFECTS[effect_of(best_id)].separating_test] + [
+        EFFECTS[effect_of(rid)].separating_test for rid, _ in rivals if effect_of(rid) in EFFECTS]
     test = "; ".join(dict.fromkeys(t for t in tests if t))
     ambiguities.append({"effects": [best_id] + [rid for rid, _ in rivals],
                         "reasons": [why for _, why in rivals], "separating_test": test})
@@ -278,7 +278,7 @@ def _untestable_rivals(s: _Search, best, col, thr: float, thr_dsse: float) -> li
             elif b2 - a2 > thr_dsse:
                 rivals.append((uid, f"cannot be tested (missing {missing}) and with assumed "
                                     f"values explains what {best.id} leaves"))
-        elif best.id in EFFECTS[uid].confounded_with and p.confound_possible.get(uid, False):
+        elif effect_of(best.id) in EFFECTS[uid].confounded_with and p.confound_possible.get(uid, False):
             rivals.append((uid, f"cannot be tested (missing {missing}) and produces a residual "
                                 f"like {best.id}'s in such data"))
     if best.id in p.extra_ambiguity:
@@ -388,7 +388,7 @@ def _final_refit(s: _Search) -> tuple[list[Finding], np.ndarray]:
         s.statuses[a.id]["heldout_gain"] = round(a.gain, 5)
         findings.append(Finding(a.id, params, round(a.before, 6), round(a.after, 6),
                                 explanation(a.id, params, a.before, a.after, p.units),
-                                EFFECTS[a.id].seed))
+                                EFFECTS[effect_of(a.id)].seed))
         fitted = fitted + a.coefficient * a.column
     return findings, fitted
 

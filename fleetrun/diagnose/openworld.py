@@ -30,7 +30,7 @@ import numpy as np
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.records import Drift, Unexplained
-from fleetrun.diagnose.select import _circ_corr, _fold_gram, _heldout_sse
+from fleetrun.diagnose.select import _circ_corr, _fold_gram, _heldout_sse, effect_of
 
 #: Hinges per channel of the generic description (a piecewise-linear function of it).
 GENERIC_KNOTS = 6
@@ -327,7 +327,7 @@ def review(search, findings: list, descriptions: list) -> bool:
     keep = []
     by_id = {f.effect: f for f in findings}
     for a in search.accepted:
-        bound = _at_bound(a.cand, EFFECTS[a.id], by_id[a.id].parameters)
+        bound = _at_bound(a.cand, EFFECTS[effect_of(a.id)], by_id[a.id].parameters)
         rival = _collinear_rival(search, a)
         if a.coefficient == 0.0:
             _demote(search, a, "ambiguous", "weak: refitted together with the other findings "

@@ -22,6 +22,16 @@ from typing import Callable
 import numpy as np
 
 
+#: Separates an effect id from the recording it is fitted to in a candidate id
+#: (``warmup@run2``: an effect with its own parameters per recording, :mod:`.joint`).
+PER_RECORDING_SEP = "@"
+
+
+def effect_of(candidate_id: str) -> str:
+    """The catalogue effect id of a candidate id (``warmup@run2`` -> ``warmup``)."""
+    return candidate_id.split(PER_RECORDING_SEP, 1)[0]
+
+
 @dataclass
 class Candidate:
     """One effect as the selection sees it."""

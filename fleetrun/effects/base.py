@@ -68,6 +68,10 @@ class Effect:
     confounded_with: tuple[str, ...] = ()
     #: the measurement that would separate it from its confounders
     separating_test: str = ""
+    #: a condition of each recording (a cold start), not a property of the vehicle: when
+    #: several recordings are diagnosed together (:mod:`fleetrun.diagnose.joint`) it gets its
+    #: own parameters in each recording instead of one set for all
+    per_recording: bool = False
 
     @property
     def shape(self) -> tuple[Parameter, ...]:

@@ -104,7 +104,8 @@ VEHICLE_EFFECTS = (
         seed="thesis Sec. 3.1.2 and 9.8 (temperatures fixed at operating values; Walther B.7)",
         steady_state="zero in a warm steady state", basis=_basis_warmup,
         separating_test="compare with a hot start of the same vehicle (--calibrate-on): a warm-up "
-                        "is absent there, a constant load is not"),
+                        "is absent there, a constant load is not",
+        per_recording=True),
     Effect(
         id="road_grade", level="vehicle", title="road grade missing from the drive profile",
         parameters=(Parameter("grade_pct", 1.0, -15.0, 15.0, "%",

@@ -1,0 +1,93 @@
+"""Several recordings of one vehicle diagnosed together (fleetrun.diagnose.joint).
+
+Generated problems with a known answer: two recordings whose residual is the same effect at
+the same size (a vehicle property) plus white noise, and a warm-up in only one of them (a
+condition of that recording). The joint selection must recover the shared size (within the
+noise's 3 standard errors) and give the warm-up to the recording that has it.
+"""
+import numpy as np
+import pytest
+
+from fleetrun.diagnose.engine import Problem, Settings, select
+from fleetrun.diagnose.joint import join
+from fleetrun.diagnose.select import Candidate, effect_of
+from fleetrun.errors import InputError
+
+N = 700
+TAUS = [30.0, 60.0, 120.0, 240.0]
+
+
+def _problem(seed: int, grade_signal: float, warm: float, speed_scale: float) -> Problem:
+    rng = np.random.default_rng(seed)
+    t = np.arange(N, dtype=float)
+    speed = speed_scale * (1 + np.sin(2 * np.pi * t / 170.0)) * (rng.random(N) > 0.1)
+    grade_col, drag_col = 0.01 * speed, 1e-4 * speed ** 3
+    warm_cols = [np.exp(-t / tau) for tau in TAUS]
+    residual = grade_signal * grade_col + warm * warm_cols[1] + rng.normal(0.0, 0.02, N)
+    cands = [Candidate("warmup", warm_cols, [{"tau_s": tau} for tau in TAUS], 0.0, 20.0,
+                       column_for=lambda sh, t=t: np.exp(-t / sh["tau_s"]), shape_bounds=(20.0, 600.0)),
+             Candidate("road_grade", [grade_col], [{}], -15.0, 15.0),
+             Candidate("aero_drag", [drag_col], [{}], 0.0, 5.0)]
+    return Problem("vehicle", "fuel_rate_g_per_s", t, residual, np.zeros(N), cands, {},
+                   driver_channels={"speed": speed}, units="g/s",
+                   initial_terms=[(np.ones(N), -0.01, 0.01)],
+                   integral={"moving": speed > 0.1, "speed_mps": speed, "weight": np.ones(N), "unit": "g"})
+
+
+def test_a_shared_effect_and_a_per_recording_warmup():
+    # grade 0.5 % in both recordings (a city-like and a highway-like speed), warm-up only in
+    # the first
+    a, b = _problem(1, 0.5, 0.4, 5.0), _problem(2, 0.5, 0.0, 15.0)
+    joined, pieces = join([a, b], ["city", "highway"])
+    assert [c.id for c in joined.candidates] == ["warmup@city", "warmup@highway", "road_grade", "aero_drag"]
+    assert [(p.start, p.stop) for p in pieces] == [(0, N), (N, 2 * N)]
+    # a per-recording column is zero on the other recording; a shared one is both columns
+    assert not joined.candidates[0].columns[0][N:].any() and not joined.candidates[1].columns[0][:N].any()
+    assert np.array_equal(joined.candidates[2].columns[0][N:], b.candidates[1].columns[0])
+    assert np.all(np.diff(joined.time_s) > 0)
+    sel = select(joined, Settings(n_shifts=50))
+    found = {f.effect: f.parameters for f in sel.findings}
+    assert set(found) == {"road_grade", "warmup@city"}
+    # 3 standard errors of a least-squares grade on 1400 samples of noise 0.02 g/s
+    x = joined.candidates[2].columns[0]
+    se = 0.02 / np.sqrt(x @ x)
+    assert abs(found["road_grade"]["grade_pct"] - 0.5) < 3 * se + 1e-3
+    assert effect_of("warmup@city") == "warmup" and effect_of("road_grade") == "road_grade"
+
+
+def test_the_calibration_terms_stay_each_recordings_own():
+    a, b = _problem(3, 0.0, 0.0, 5.0), _problem(4, 0.0, 0.0, 9.0)
+    joined, _ = join([a, b], ["one", "two"])
+    (c1, _, _), (c2, _, _) = joined.initial_terms
+    assert np.array_equal(c1, np.r_[np.ones(N), np.zeros(N)])
+    assert np.array_equal(c2, np.r_[np.zeros(N), np.ones(N)])
+
+
+def test_join_refuses_one_recording_and_mixed_levels():
+    a = _problem(5, 0.0, 0.0, 5.0)
+    with pytest.raises(InputError):
+        join([a], ["one"])
+    other = _problem(6, 0.0, 0.0, 5.0)
+    other.level = "differential"
+    with pytest.raises(InputError):
+        join([a, other], ["one", "two"])
+
+
+@pytest.mark.slow
+def test_real_camry_three_cycles_with_a_same_trace_reference_each():
+    """Design J2 of validation/diagnose_concealed_joint.py (docs/diagnose-realdata.md, 1c):
+    the clean targets name only the real cold start, in the recording that has it; every
+    concealed effect that is named is sized within 25 %; the drag at C + 60 % is named.
+    (The floor measured: 1 of 6 cases meets all three criteria; the issue asks for 6.)"""
+    from validation.diagnose_concealed_joint import run
+
+    clean, cases = run("J2")
+    assert [f["effect"] for f in clean["findings"]] == ["warmup@camry2018_udds_cold"]
+    assert all(c.size_ok for c in cases if c.named)
+    drag = next(c for c in cases if c.effect == "aero_drag" and c.size == 0.6)
+    assert drag.named and drag.size_ok and drag.phases_ok
+
+
+def test_join_refuses_two_recordings_of_one_name():
+    with pytest.raises(InputError, match="distinct"):
+        join([_problem(7, 0.0, 0.0, 5.0), _problem(8, 0.0, 0.0, 5.0)], ["run", "run"])

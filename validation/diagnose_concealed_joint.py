@@ -1,0 +1,281 @@
+"""One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
+
+    python validation/diagnose_concealed_joint.py [--design J1|J2] [--out DIR] [--why]
+
+A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
+cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
+accessory load ~ engine-on time, large at idle; a grade ~ distance and mass). The Argonne 2018
+Camry was driven over four recordings (inputs/dyno: cold UDDS, hot UDDS, HWFET x 2, US06 x 2).
+The same effect at the same size is concealed in each target recording with
+:func:`diagnose_concealed.concealed_fuel` (the simulation with the effect minus without), and
+the targets are diagnosed together (:func:`fleetrun.diagnose.joint.joint_diagnosis`: one
+parameter set for all recordings). The designs were fixed before any result was seen:
+
+* ``J1`` (each target against the model calibrated on the hot UDDS, as ``fleetrun diagnose
+  --calibrate-on`` does): targets the cold UDDS recording (same-trace residual against the hot
+  UDDS), HWFET and US06 (no same-trace reference: residual against the calibrated simulation).
+* ``J2`` (a same-trace reference on every cycle): the cold UDDS recording against the hot
+  UDDS, the second HWFET against the first (61811013, split at 780 s), the second US06 against
+  the first (61811014, split at 690 s); each target's reference is its ``--calibrate-on``.
+
+Sizes, concealment and scoring are those of validation/diagnose_concealed.py: named as a
+finding; its fuel over all targets, less what the same effect fits on the clean targets when
+it is no finding there, within 25 % of the concealed fuel; the phase-fuel error the
+concealment adds (per phase of every target) at least halved; the clean targets give no
+finding but ``warmup``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from validation.diagnose_concealed import SIZE_TOLERANCE, SIZES, concealed_fuel  # noqa: E402
+
+from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
+from fleetrun.diagnose.recording import load_recording  # noqa: E402
+from fleetrun.effects import EFFECTS  # noqa: E402
+from fleetrun.resources import inputs_dir  # noqa: E402
+from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
+
+#: Where the second run of a two-run recording starts [s] (inputs/dyno/PROVENANCE.md).
+SECOND_RUN_S = {"camry2018_hwfet": 780.0, "camry2018_us06": 690.0,
+                "camry2018_udds_cold": 1960.0}   # in the engine-off soak (1368-1994 s)
+#: design -> [(target, reference)]: a stem, or (stem, "first"/"second") for one run of it
+DESIGNS = {
+    "J1": [("camry2018_udds_cold", "camry2018_udds_hot"), ("camry2018_hwfet", "camry2018_udds_hot"),
+           ("camry2018_us06", "camry2018_udds_hot")],
+    "J2": [("camry2018_udds_cold", "camry2018_udds_hot"),
+           (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
+           (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
+    # chosen after J1 and J2 had been measured: warm runs only (no cold start in any target)
+    "J3": [(("camry2018_udds_cold", "second"), "camry2018_udds_hot"),
+           (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
+           (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
+}
+
+
+@dataclass(frozen=True)
+class JointCase:
+    effect: str
+    size: float
+    share_of_fuel: float
+    findings: tuple[str, ...]
+    concealed_g: float
+    fitted_raw_g: float          # the named effect's fuel over all targets
+    fitted_g: float              # less its fit on the clean targets when no finding there
+    phase_error_before_g: float
+    phase_error_after_g: float
+    parameters: dict
+
+    @property
+    def named(self) -> bool:
+        return self.effect in self.findings
+
+    @property
+    def size_ok(self) -> bool:
+        return self.named and abs(self.fitted_g / self.concealed_g - 1) <= SIZE_TOLERANCE
+
+    @property
+    def phases_ok(self) -> bool:
+        return self.phase_error_after_g <= 0.5 * self.phase_error_before_g
+
+
+def _data(spec_stem):
+    """Time, speed, fuel of one recording or one run of it, and its sidecar text."""
+    stem, run = (spec_stem, None) if isinstance(spec_stem, str) else spec_stem
+    dyno = inputs_dir() / "dyno"
+    df = load_recording(dyno / f"{stem}.csv").data[["time_s", "vehicle_speed_mps", "fuel_rate_g_per_s"]]
+    if run is not None:
+        second = df["time_s"] >= SECOND_RUN_S[stem]
+        df = df[second if run == "second" else ~second].copy()
+        df["time_s"] = df["time_s"] - df["time_s"].iloc[0]
+    name = stem if run is None else f"{stem}_{run}"
+    return name, df.reset_index(drop=True), (dyno / f"{stem}.toml").read_text(), read_vehicle_toml(dyno / f"{stem}.toml")
+
+
+def _write(df, meta_text, path: Path) -> Path:
+    df.to_csv(path, index=False, float_format="%.6g")
+    path.with_suffix(".toml").write_text(meta_text)
+    return path
+
+
+def _effect_fuel(d, effect: str, findings_only: bool = True) -> np.ndarray:
+    """The effect's fuel [g] per joined sample from its fitted parameters."""
+    pool = d.result["findings"] if findings_only else d.result["candidates"]
+    f = next((x for x in pool if x["effect"] == effect and x.get("parameters")), None)
+    if f is None:
+        return np.zeros(len(d.problem.time_s))
+    cand = next(c for c in d.problem.candidates if c.id == effect)
+    e = EFFECTS[effect]
+    shape = {p.name: f["parameters"][p.name] for p in e.shape}
+    col = cand.column_for(shape) if cand.column_for is not None and shape else cand.columns[0]
+    return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
+
+
+def _phase_masks(d) -> list[np.ndarray]:
+    """Boolean masks over the joined samples, one per phase of every target."""
+    out = []
+    n = len(d.problem.time_s)
+    for piece in d.pieces:
+        for a, b in d.phase_spans(piece):
+            m = np.zeros(n, bool)
+            m[piece.start + a:piece.start + b] = True
+            out.append(m)
+    return out
+
+
+def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
+    workdir = Path(workdir or tempfile.mkdtemp())
+    pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
+    refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
+    clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
+    clean = joint_diagnosis(clean_paths, refs)
+    dt = np.gradient(clean.problem.time_s)
+    total = float(np.sum(clean.problem.measured * dt))
+    masks = _phase_masks(clean)
+    cases = []
+    for effect, these in sizes.items():
+        for size in these:
+            extras, param, paths = [], None, []
+            for (tn, td, tm, spec), _ in pairs:
+                extra, param = concealed_fuel(effect, size, td, spec)
+                hidden = td.copy()
+                hidden["fuel_rate_g_per_s"] = td["fuel_rate_g_per_s"] + extra
+                extras.append(extra)
+                sub = workdir / f"{effect}_{size:g}"
+                sub.mkdir(exist_ok=True)
+                paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
+            extra = np.concatenate(extras)
+            d = joint_diagnosis(paths, refs)
+            names = tuple(f["effect"] for f in d.result["findings"])
+            bg = np.zeros(len(extra))
+            if effect in names and effect not in [f["effect"] for f in clean.result["findings"]]:
+                bg = _effect_fuel(clean, effect, False)
+            # what the diagnosis adds over the clean diagnosis, less the effect's clean background
+            added = (d.fitted - clean.fitted) * dt - bg
+            before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
+            after = sum(abs(float((extra * dt - added)[m].sum())) for m in masks)
+            raw = float(_effect_fuel(d, effect).sum()) if effect in names else 0.0
+            params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
+            cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
+                                   float((extra * dt).sum()), raw, raw - float(bg.sum()) if effect in names else 0.0,
+                                   before, after, {"concealed": param, **params}))
+    return clean.result, cases
+
+
+def table(design: str, clean: dict, cases: list[JointCase]) -> str:
+    lines = [f"design {design}: clean targets jointly: findings "
+             f"{[(f['effect'], f['parameters']) for f in clean['findings']] or 'none'}; candidates "
+             f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
+             f"{clean['unexplained']['significant']}", "",
+             "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
+             "less clean background g | phase error g before -> after | parameter (concealed / fitted) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for c in cases:
+        fitted = {k: v for k, v in c.parameters.items() if k != "concealed"}
+        lines.append(f"| {c.effect} | {c.size:g} | {100 * c.share_of_fuel:.1f} % | "
+                     f"{', '.join(c.findings) or 'none'} | {c.concealed_g:.1f} | {c.fitted_raw_g:.1f} | "
+                     f"{c.fitted_g:.1f} | {c.phase_error_before_g:.1f} -> {c.phase_error_after_g:.1f} | "
+                     f"{c.parameters['concealed']:.3g} / {fitted} |")
+    ok = sum(c.named and c.size_ok and c.phases_ok for c in cases)
+    lines.append(f"\n{ok}/{len(cases)} named, sized within 25 % and with the phase error at least halved")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- why
+COMPARED = ("road_grade", "aero_drag", "accessory_load")
+
+
+@dataclass(frozen=True)
+class JointSeparation:
+    """The three vehicle effects' columns on the clean targets' joined 10-s windows (each
+    recording's calibration terms and the named warm-ups partialled out): cosines, what each
+    fits alone on the clean targets [g over all targets], its standard error alone and
+    jointly with the other two, and what it fits on each target alone (scaled to all targets'
+    column, so the numbers compare)."""
+
+    cosines: tuple[tuple[str, str, float], ...]
+    noise_g_per_s: float
+    alone_g: dict
+    alone_se_g: dict
+    joint_se_g: dict
+    per_recording_g: dict
+
+
+def separation(design: str, workdir=None) -> JointSeparation:
+    workdir = Path(workdir or tempfile.mkdtemp())
+    pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
+    refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
+    paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
+    clean = joint_diagnosis(paths, refs)
+    J = clean.problem.coarse
+    cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
+    warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})
+            for f in clean.result["findings"] if f["effect"].startswith("warmup")]
+    A = np.array([c for c in [t[0] for t in J.initial_terms] + warm if np.any(c)]).T
+    P = {k: cols[k] - A @ np.linalg.lstsq(A, cols[k], rcond=None)[0] for k in COMPARED}
+    r = J.residual - A @ np.linalg.lstsq(A, J.residual, rcond=None)[0]
+    window = float(np.median(np.diff(J.time_s)))
+    grams = {k: float(cols[k].sum() * window) for k in COMPARED}
+    X = np.array([P[k] for k in COMPARED]).T
+    e = r - X @ np.linalg.lstsq(X, r, rcond=None)[0]
+    rho = max(float(np.corrcoef(e[:-1], e[1:])[0, 1]), 0.0)
+    s2 = float(np.var(e)) * (1 + rho) / (1 - rho)
+    cov = np.linalg.inv(X.T @ X) * s2
+    ends = np.cumsum([0] + [p.stop - p.start for p in clean.pieces])
+    ends = np.round(ends / (len(clean.problem.time_s) / len(J.time_s))).astype(int)
+    per = {k: tuple(_alone(P[k][a:b], cols[k][a:b], r[a:b]) * grams[k] for a, b in zip(ends[:-1], ends[1:]))
+           for k in COMPARED}
+    return JointSeparation(tuple((a, b, float(P[a] @ P[b] / np.sqrt((P[a] @ P[a]) * (P[b] @ P[b]))))
+                                 for i, a in enumerate(COMPARED) for b in COMPARED[i + 1:]),
+                           float(np.std(e)), {k: float(P[k] @ r / (P[k] @ P[k]) * grams[k]) for k in COMPARED},
+                           {k: float(np.sqrt(s2 / (P[k] @ P[k])) * grams[k]) for k in COMPARED},
+                           {k: float(np.sqrt(cov[i, i]) * grams[k]) for i, k in enumerate(COMPARED)}, per)
+
+
+def _alone(x: np.ndarray, raw: np.ndarray, r: np.ndarray) -> float:
+    """Least-squares coefficient of ``x`` on ``r``; NaN where the calibration terms take
+    (almost) all of the column (an accessory load against a recording's own idle offset)."""
+    return float(x @ r / (x @ x)) if x @ x > 1e-6 * (raw @ raw) else float("nan")
+
+
+def separation_table(design: str, sep: JointSeparation) -> str:
+    lines = [f"design {design}, clean targets: cosines " + ", ".join(f"{a}/{b} {c:.3f}" for a, b, c in sep.cosines)
+             + f"; window noise {sep.noise_g_per_s:.4f} g/s", "",
+             "| effect | clean, alone [g] | se alone [g] | se jointly [g] | each target alone [g] |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {k} | {sep.alone_g[k]:.1f} | {sep.alone_se_g[k]:.1f} | {sep.joint_se_g[k]:.1f} | "
+              + " / ".join(f"{x:.1f}" for x in sep.per_recording_g[k]) + " |" for k in COMPARED]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
+                    "columns on the clean targets")
+    args = ap.parse_args(argv)
+    for design in args.design or sorted(DESIGNS):
+        if args.why:
+            print(separation_table(design, separation(design)), "\n", flush=True)
+            continue
+        out = Path(args.out) / design if args.out else None
+        if out:
+            out.mkdir(parents=True, exist_ok=True)
+        clean, cases = run(design, out)
+        print(table(design, clean, cases), flush=True)
+        print()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
