@@ -16,12 +16,14 @@ the way EPA's GEM describes heavy vehicles.
 
 Counts and annual miles are plausible for a mid-size US state (about 3.5 million vehicles),
 not registration data. Three scenarios: baseline, hot summer, congested urban, each with a
-light-duty cycle mix of four cycles and mixes for medium and heavy trucks, over fiscal years
-2027-2028.
+light-duty cycle mix of four cycles, over fiscal years 2027-2028. Medium and heavy trucks drive
+the national split of single-unit / combination-truck miles over road categories (FHWA VM-1
+2010, ``inputs/state_statistics/vm1_truck_travel.toml``, which also holds the road -> cycle rule).
 """
 from __future__ import annotations
 
 import argparse
+import tomllib
 from pathlib import Path
 
 import openpyxl
@@ -29,6 +31,7 @@ import pandas as pd
 
 HERE = Path(__file__).resolve().parent
 EPA_CSV = HERE / "epa" / "22-tstcar.csv"
+VM1_TRUCK_TRAVEL = HERE / "state_statistics" / "vm1_truck_travel.toml"
 FTP = "Federal fuel 2-day exhaust (w/can load)"
 LB_TO_KG = 0.45359237
 HP_TO_KW = 0.745699872
@@ -104,18 +107,37 @@ HEAVY = [
      1.36, 32_000, 0.0080, 7.0, "11R22.5", 4_500, 20_000, 336, 1800, 14.8),
 ]
 
-# Light-duty vehicles drive cycle_mix; medium and heavy trucks cannot follow US06 or the
-# UDDS's accelerations, so they drive the heavy-duty UDDS and the highway cycle instead.
+
+def vm1_truck_mix(vehicle_type: str, path: Path = VM1_TRUCK_TRAVEL) -> str:
+    """A cycle mix (shares of miles) from FHWA VM-1 travel of ``vehicle_type`` by road category,
+    each category driven on the cycle its ``[cycle_for_road]`` rule names (the file says why).
+    Shares are rounded to 4 decimals, the rounding remainder going to the largest."""
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    miles = data["vehicle_miles_million"][vehicle_type]
+    by_cycle: dict[str, float] = {}
+    for road, cycle in data["cycle_for_road"].items():
+        by_cycle[cycle] = by_cycle.get(cycle, 0.0) + miles[road]
+    total = sum(by_cycle.values())
+    shares = {cycle: round(m / total, 4) for cycle, m in by_cycle.items()}
+    largest = max(shares, key=shares.get)
+    shares[largest] = round(shares[largest] + 1.0 - sum(shares.values()), 4)
+    return ",".join(f"{cycle}:{share:g}" for cycle, share in shares.items())
+
+
+# Light-duty vehicles drive cycle_mix. Medium trucks (single-unit) and heavy trucks drive the
+# national split of their FHWA vehicle type's miles over road categories (VM-1 2010; the heavy
+# class takes the combination trucks', which are 85 % of its miles here), the same in every
+# scenario: no published figure says how a hot summer or congestion shifts trucks' roads.
+MD_MIX = vm1_truck_mix("single_unit_trucks")
+HD_MIX = vm1_truck_mix("combination_trucks")
 SCENARIOS = [
     ("baseline", "Average year: mixed urban, highway and aggressive driving at 20 C", 20,
-     "UDDS:0.43,HWFET:0.42,US06:0.10,NYCC:0.05",
-     "HD-UDDS:0.5,NYCC:0.1,HWFET:0.4", "HD-UDDS:0.55,HWFET:0.45"),
+     "UDDS:0.43,HWFET:0.42,US06:0.10,NYCC:0.05", MD_MIX, HD_MIX),
     ("hot_summer", "Hot summer: 38 C ambient (A/C load, warmer axle oil), more highway driving", 38,
-     "UDDS:0.38,HWFET:0.44,US06:0.13,NYCC:0.05",
-     "HD-UDDS:0.45,NYCC:0.1,HWFET:0.45", "HD-UDDS:0.5,HWFET:0.5"),
+     "UDDS:0.38,HWFET:0.44,US06:0.13,NYCC:0.05", MD_MIX, HD_MIX),
     ("congested_urban", "Congested urban growth: more stop-and-go", 25,
-     "UDDS:0.45,HWFET:0.20,US06:0.05,NYCC:0.30",
-     "HD-UDDS:0.6,NYCC:0.25,HWFET:0.15", "HD-UDDS:0.7,HWFET:0.3"),
+     "UDDS:0.45,HWFET:0.20,US06:0.05,NYCC:0.30", MD_MIX, HD_MIX),
 ]
 
 

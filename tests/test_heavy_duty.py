@@ -363,3 +363,35 @@ def test_graded_cruise_cycles_follow_appendix_iv(cycle):
         assert np.allclose(c.grade_pct[inside], np.interp(distance[inside], at, grade), atol=0.005), (cycle, at[0])
     climb_m = np.sum(c.grade_pct[1:] / 100.0 * np.diff(distance))
     assert abs(climb_m) < 1.0 and distance[-1] == pytest.approx(20040.0, abs=30.0)
+
+
+# ----------------------------------------------------------------------------- the example's trucks
+def test_example_truck_mixes_are_the_vm1_split_of_miles_over_road_categories():
+    """The example's MD / HD mixes are FHWA VM-1 2010's single-unit / combination-truck miles by
+    road category, summed per cycle of the file's rule (to the 4 decimals the workbook keeps)."""
+    from fleetrun.resources import inputs_dir
+    from fleetrun.workbook import read_fleet
+
+    with open(inputs_dir() / "state_statistics" / "vm1_truck_travel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    fleet = read_fleet(inputs_dir() / "example_fleet.xlsx")
+    for duty, vehicle_type in (("MD", "single_unit_trucks"), ("HD", "combination_trucks")):
+        miles = data["vehicle_miles_million"][vehicle_type]
+        expected: dict[str, float] = {}
+        for road, cycle in data["cycle_for_road"].items():
+            expected[cycle] = expected.get(cycle, 0.0) + miles[road] / sum(miles.values())
+        for scenario in fleet.scenarios:
+            mix = scenario.mix_for(duty)
+            assert set(mix) == set(expected)
+            assert all(mix[c] == pytest.approx(expected[c], abs=1.5e-4) for c in mix), (duty, scenario.scenario_id)
+
+
+def test_example_combination_trucks_average_within_vm1_on_their_mixes():
+    """Issue 21: the example's combination trucks, as a class (miles over gallons), land in the
+    national combination-truck range of FHWA VM-1 (5.4-6.4 mpg) in every scenario, on the
+    VM-1 split of their miles over road categories."""
+    rows = hd_validation.check_example_combination_trucks()
+    averages = {r["scenario"]: r["mpg"] for r in rows if r["vehicle"] == "class average"}
+    assert len(averages) == 3
+    low, high = hd_validation.VM1_COMBINATION_MPG
+    assert all(low <= mpg <= high for mpg in averages.values()), averages

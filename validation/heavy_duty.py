@@ -11,8 +11,11 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
 2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
    cycles and weighting, vocational vehicles with GEM's drive- and parked-idle cycles:
    g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106);
-3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes: mpg
-   against the national combination-truck range (FHWA Highway Statistics VM-1, 5.4-6.4 mpg).
+3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes (the
+   national VM-1 2010 split of combination-truck miles over road categories,
+   inputs/state_statistics/vm1_truck_travel.toml): mpg against the national combination-truck
+   range (FHWA Highway Statistics VM-1, 5.4-6.4 mpg), and how it moves with the road -> cycle
+   rule and with the on-road (weigh-in-motion) weight.
 
 ``--write`` stores the relative fuel-economy errors of check 2 as
 ``models/heavy_duty/fuel_economy_error.toml`` (the shape of models/fuel_economy_error.toml).
@@ -20,6 +23,7 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import sys
@@ -140,20 +144,78 @@ def check_reference_vehicles(with_idle: bool = True) -> list[dict]:
     return rows
 
 
+def _mix_gal_per_mile(trucks, mix: dict[str, float], ambient_temp_C: float = 20.0) -> np.ndarray:
+    """Gallons per mile of each truck over a cycle mix (shares of miles)."""
+    gal_per_mile = np.zeros(len(trucks))
+    for cycle, share in mix.items():
+        r = simulate(trucks, cycle, ambient_temp_C=ambient_temp_C)
+        gal_per_mile += share * r.fuel_gal / r.miles
+    return gal_per_mile
+
+
+def _class_mpg(trucks, gal_per_mile) -> float:
+    """The trucks' average mpg as a class: their miles over their gallons."""
+    miles = np.array([v.count * v.annual_miles for v in trucks], float)
+    return float(miles.sum() / (miles * gal_per_mile).sum())
+
+
 def check_example_combination_trucks() -> list[dict]:
+    """The example's combination trucks on their scenarios' heavy-duty mixes, each truck and
+    the class average (miles over gallons)."""
     fleet = read_fleet(ROOT / "inputs" / "example_fleet.xlsx")
     trucks = [v for v in fleet.vehicles if v.vehicle_class == COMBINATION_CLASS]
     rows = []
     for scenario in fleet.scenarios:
-        mix = scenario.mix_for("HD")
-        gal_per_mile = np.zeros(len(trucks))
-        for cycle, share in mix.items():
-            r = simulate(trucks, cycle, ambient_temp_C=scenario.ambient_temp_C)
-            gal_per_mile += share * r.fuel_gal / r.miles
-        for v, g in zip(trucks, gal_per_mile):
-            mpg = 1.0 / g
-            rows.append(dict(scenario=scenario.scenario_id, vehicle=v.vehicle_id, mpg=round(float(mpg), 3),
+        gal_per_mile = _mix_gal_per_mile(trucks, scenario.mix_for("HD"), scenario.ambient_temp_C)
+        mpgs = [(v.vehicle_id, float(1.0 / g)) for v, g in zip(trucks, gal_per_mile)]
+        for vid, mpg in mpgs + [("class average", _class_mpg(trucks, gal_per_mile))]:
+            rows.append(dict(scenario=scenario.scenario_id, vehicle=vid, mpg=round(mpg, 3),
                              within_vm1=bool(VM1_COMBINATION_MPG[0] <= mpg <= VM1_COMBINATION_MPG[1])))
+    return rows
+
+
+# Other readings of VM-1's road categories, for the sensitivity of the example's mix
+# (docs/validation-heavy-duty.md): the arterials on GEM's urban transient, and every
+# non-Interstate mile on the HD-UDDS (the registrations default before 2026-11).
+VM1_RULE_VARIANTS = {
+    "rural other arterials on ARB-TRANSIENT": {"rural_other_arterial": "ARB-TRANSIENT"},
+    "all non-Interstate on HD-UDDS": {"rural_other_arterial": "HD-UDDS", "rural_other": "HD-UDDS",
+                                      "urban_other": "HD-UDDS"},
+}
+
+
+def _vm1_mix(data: dict, rule: dict) -> dict[str, float]:
+    miles = data["vehicle_miles_million"]["combination_trucks"]
+    mix: dict[str, float] = {}
+    for road, cycle in rule.items():
+        mix[cycle] = mix.get(cycle, 0.0) + miles[road] / sum(miles.values())
+    return mix
+
+
+def check_example_mix_sensitivity() -> list[dict]:
+    """The example's combination trucks (20 C) on the VM-1 mix under the shipped road -> cycle
+    rule and its variants, at their workbook weights and at the mean weigh-in-motion weight of
+    five-axle tractor-trailers (road load A and B scaled with the mass)."""
+    with open(ROOT / "inputs" / "state_statistics" / "vm1_truck_travel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    wim = data["tractor_trailer_weigh_in_motion_2008"]
+    mean_lb = float(np.average(wim["weight_lb"], weights=wim["trucks"]))
+    trucks = [v for v in read_fleet(ROOT / "inputs" / "example_fleet.xlsx").vehicles
+              if v.vehicle_class == COMBINATION_CLASS]
+    light = [dataclasses.replace(v, test_weight_kg=mean_lb * LB_KG,
+                                 coastdown_A_lbf=v.coastdown_A_lbf * mean_lb * LB_KG / v.test_weight_kg,
+                                 coastdown_B_lbf_per_mph=v.coastdown_B_lbf_per_mph * mean_lb * LB_KG / v.test_weight_kg)
+             for v in trucks]
+    rules = {"shipped": data["cycle_for_road"]}
+    rules.update({name: {**data["cycle_for_road"], **change} for name, change in VM1_RULE_VARIANTS.items()})
+    rows = []
+    for name, rule in rules.items():
+        mix = _vm1_mix(data, rule)
+        for weight, fleet_rows in (("workbook", trucks), (f"WIM mean {mean_lb:.0f} lb", light)):
+            g = _mix_gal_per_mile(fleet_rows, mix)
+            rows.append(dict(rule=name, weight=weight, mix={c: round(s, 4) for c, s in mix.items()},
+                             mpg={v.vehicle_id: round(float(1.0 / x), 3) for v, x in zip(trucks, g)},
+                             class_mpg=round(_class_mpg(trucks, g), 3)))
     return rows
 
 
@@ -250,6 +312,7 @@ def main(argv=None) -> dict:
     report = dict(typed_tractor=check_typed_tractor(), reference_vehicles=check_reference_vehicles(),
                   example_combination_trucks=check_example_combination_trucks(),
                   example_combination_trucks_gem=check_example_trucks_on_gem_weighting(),
+                  example_mix_sensitivity=check_example_mix_sensitivity(),
                   fhwa_class_defaults=check_fhwa_class_defaults())
     report["reference_error"] = error_groups(report["reference_vehicles"])
     print(json.dumps(report, indent=1))
