@@ -76,6 +76,7 @@ class Scenario:
     state_tax_schedule_diesel_usd_per_gal: dict | float | None = None
     state_tax_index_pct_per_year: float | None = None
     base_year_vmt_million: float | None = None          # registrations: base fiscal year's VMT
+    base_year_vmt_share_pct: dict | None = None         # registrations: {FHWA class: % of the VMT}
     new_vehicle_mpg_change_pct_per_year: float | None = None   # None: the published trend's
     extra: dict = field(default_factory=dict, compare=False)
 
