@@ -649,7 +649,17 @@ def _default_mixes(parsed: dict) -> None:
     for name, duty in (("cycle_mix", "LD"), ("cycle_mix_MD", "MD"), ("cycle_mix_HD", "HD")):
         value = parsed.get(name)
         if value == rows.DEFAULT_MIX or (value is None and all_default):
-            parsed[name] = cells.parse_cycle_mix(defaults[duty])
+            parsed[name] = default_mix(defaults[duty])
+
+
+def default_mix(text: str) -> dict[str, float]:
+    """A ``[cycle_mix_default]`` entry as a mix: ``gem:<vehicle type>`` is that GEM weighting
+    as its owner, models/heavy_duty/gem_cycles.toml, gives it; otherwise a CYCLE:share list."""
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix
+
+    if text.startswith("gem:"):
+        return gem_cycle_mix(text[len("gem:"):])
+    return cells.parse_cycle_mix(text)
 
 
 def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Problems) -> list[dict]:
