@@ -62,10 +62,52 @@ def test_a_workbook_with_only_registrations_reads_and_default_mixes_apply(tmp_pa
     fleet = read_fleet(registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000}]))
     assert fleet.vehicles == [] and fleet.registrations[0]["vehicle_class"] == "truck"
     s = fleet.scenarios[0]
-    # cycle_mix = default: light duty EPA 55/45, MD and HD their own heavy-duty mixes
+    # cycle_mix = default: light duty EPA 55/45; MD and HD EPA GEM's vocational multi-purpose and
+    # day-cab weightings of 40 CFR 1037.510(c) on GEM's own cycles (ARB transient, 55 / 65 mph cruise)
     assert s.cycle_mix == {"UDDS": 0.55, "HWFET": 0.45}
-    assert "HD-UDDS" in s.cycle_mix_MD and "HD-UDDS" in s.cycle_mix_HD
+    assert s.cycle_mix_MD == {"ARB-TRANSIENT": 0.54, "CRUISE-55": 0.29, "CRUISE-65": 0.17}
+    assert s.cycle_mix_HD == {"ARB-TRANSIENT": 0.19, "CRUISE-55": 0.17, "CRUISE-65": 0.64}
     assert s.base_year_vmt_million == 1000
+
+
+def _with_shares(tmp_path, text):
+    row = ["s", 20, "default", 2, 1.0, 0.2, 0.2, 0.184, 0.244, 2024, 1000, text]
+    path = registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000},
+                                                        {"vehicle_class": "automobile", "count": 900}], row)
+    wb = openpyxl.load_workbook(path)
+    wb["Scenarios"].cell(1, len(SCENARIO) + 1).value = "base_year_vmt_share_pct"
+    wb.save(path)
+    return path
+
+
+def test_class_shares_of_the_miles_hold_every_year(tmp_path):
+    """base_year_vmt_share_pct (docs/registrations.md, "Miles by class"): each listed class
+    drives its percent of the scenario's miles in every budget year, the others the rest."""
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:9.5, single_unit_truck: 4.25"))
+    s = fleet.scenarios[0]
+    assert s.base_year_vmt_share_pct == {"combination_truck": 9.5, "single_unit_truck": 4.25}
+    e = expand(fleet, [s])
+    miles = FleetYears([], e).year_miles(s)
+    total = miles.sum(axis=0)
+    assert total == pytest.approx([1e9, 1.01e9], rel=1e-12)
+    for name, pct in s.base_year_vmt_share_pct.items():
+        assert miles[e.fhwa_class == name].sum(axis=0) / total == pytest.approx(pct / 100, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("combination_trucks:9", "did you mean combination_truck"),
+    ("bus:60, combination_truck:50", "adds up to 110 %"),
+    ("combination_truck", "has no ':percent'"),
+])
+def test_bad_class_shares_are_named(tmp_path, text, message):
+    with pytest.raises(InputError) as info:
+        read_fleet(_with_shares(tmp_path, text))
+    assert "base_year_vmt_share_pct" in str(info.value) and message in str(info.value)
+
+
+def test_a_share_for_a_class_without_registrations_is_refused(tmp_path):
+    with pytest.raises(InputError, match="Scenarios!L2 base_year_vmt_share_pct.*share of the miles to bus"):
+        read_fleet(_with_shares(tmp_path, "bus:0.5"))
 
 
 def test_bad_registration_cells_are_named(tmp_path):

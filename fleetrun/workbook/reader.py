@@ -248,6 +248,8 @@ def read_fleet(path) -> Fleet:
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
     registrations = _registrations(registration_table, vehicle_rows, problems) if registration_table else []
+    if scenario_table is not None:
+        _check_share_classes(scenarios, scenario_rows, registrations, scenario_table, problems)
 
     if problems.errors:
         errors = problems.sorted_errors()
@@ -660,6 +662,21 @@ def default_mix(text: str) -> dict[str, float]:
     if text.startswith("gem:"):
         return gem_cycle_mix(text[len("gem:"):])
     return cells.parse_cycle_mix(text)
+
+
+def _check_share_classes(scenarios, scenario_rows, registrations, table: _Table, problems: Problems) -> None:
+    """A class given a share of the miles (``base_year_vmt_share_pct``) needs registrations of
+    it (MV-1's ``truck`` counts for the three truck classes), or its miles would vanish."""
+    present = {r["vehicle_class"] for r in registrations}
+    if "truck" in present:
+        present |= {"light_truck", "single_unit_truck", "combination_truck"}
+    for s in scenarios:
+        missing = [name for name, pct in (s.base_year_vmt_share_pct or {}).items() if pct > 0 and name not in present]
+        if missing:
+            problems.error(f"gives a share of the miles to {', '.join(missing)}, but the Registrations sheet has "
+                           f"no such vehicles; add their registrations or drop them from the list", table.sheet,
+                           scenario_rows.get(s.scenario_id), table.columns.get("base_year_vmt_share_pct"),
+                           "base_year_vmt_share_pct")
 
 
 def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Problems) -> list[dict]:
