@@ -245,6 +245,8 @@ def parse_class_shares(value, classes) -> dict[str, float]:
         if name in shares:
             raise CellProblem(f"{show(value)} names {name} twice")
         shares[name] = parse_number(number.strip())
+        if shares[name] < 0:
+            raise CellProblem(f"{show(value)}: the percent of {name} is negative")
     if not shares:
         raise CellProblem(f"{show(value)} names no class")
     if sum(shares.values()) > 100.0 + 1e-9:

@@ -50,7 +50,7 @@ class Column:
     @property
     def numeric(self) -> bool:
         """Whether the column holds numbers (for ratios and the on-road factor: each number)."""
-        return self.kind in ("number", "integer", "ratios", "onroad", "schedule", "class_shares")
+        return self.kind in ("number", "integer", "ratios", "onroad", "schedule")
 
     def range_text(self) -> str:
         """The physical range as the template and the docs show it, e.g. ``> 0 to 10,000``."""
@@ -198,8 +198,7 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7),
     Column("base_year_vmt_share_pct", "class_shares", False, "percent of the base year's vehicle-miles "
            "driven by FHWA class, e.g. combination_truck:9.1, single_unit_truck:4.6, bus:0.6 (your state's "
-           "VMT by vehicle type, FHWA VM-4 / HPMS); classes not listed share the rest (docs/registrations.md)",
-           minimum=0, maximum=100),
+           "VMT by vehicle type, FHWA VM-4 / HPMS); classes not listed share the rest (docs/registrations.md)"),
     Column("new_vehicle_mpg_change_pct_per_year", "number", False, "fuel-economy change of each new model "
            "year beyond the published trend [% per year] (empty: the trend's last ten years)",
            minimum=-20, maximum=20),
