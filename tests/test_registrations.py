@@ -254,3 +254,17 @@ def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
     by_year = {v.model_year: f for v, f in zip(e.vehicles, e.fuel_factor(s))}
     assert by_year[2022] == pytest.approx(1.0, rel=1e-12)
     assert by_year[2026] == pytest.approx(1 / 1.05 ** 4, rel=1e-12)
+
+
+def test_a_typed_truck_mix_beside_cycle_mix_default_is_warned(tmp_path):
+    """The template's example scenario rows type cycle_mix_MD / cycle_mix_HD; an analyst who
+    sets cycle_mix = default and keeps them gets those mixes, and is told (validate warns)."""
+    path = registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000}])
+    wb = openpyxl.load_workbook(path)
+    sc = wb["Scenarios"]
+    sc.cell(1, len(SCENARIO) + 1).value = "cycle_mix_HD"
+    sc.cell(2, len(SCENARIO) + 1).value = "HD-UDDS:0.6,HWFET:0.4"
+    wb.save(path)
+    fleet = read_fleet(path)
+    assert fleet.scenarios[0].cycle_mix_HD == {"HD-UDDS": 0.6, "HWFET": 0.4}
+    assert any("cycle_mix_HD" in w and "instead of their default mix" in w for w in fleet.warnings)

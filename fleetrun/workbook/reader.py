@@ -521,6 +521,7 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
         ok = _first_use(parsed, "scenario_id", first_rows, table, row_number, problems) and ok
         _warn_example(parsed, "scenario_id", table, row_number, problems)
+        _warn_typed_truck_mixes(parsed, table, row_number, problems)
         _default_mixes(parsed)
         mixes = {}
         for name in MIX_COLUMNS:
@@ -638,6 +639,18 @@ def _shipped_cycle_names() -> list[str]:
 
 
 # --- Registrations (docs/registrations.md) ------------------------------------------------
+
+def _warn_typed_truck_mixes(parsed: dict, table: _Table, row: int, problems: Problems) -> None:
+    """``cycle_mix = default`` beside a typed ``cycle_mix_MD`` / ``cycle_mix_HD`` (the template's
+    example rows have them): the typed mix wins; say so, since the reader asked for defaults."""
+    if parsed.get("cycle_mix") != rows.DEFAULT_MIX:
+        return
+    for name in ("cycle_mix_MD", "cycle_mix_HD"):
+        if parsed.get(name) not in (None, rows.DEFAULT_MIX):
+            problems.warn("is typed, so these trucks drive it instead of their default mix (cycle_mix is "
+                          "default); empty the cell or write default for the documented GEM weighting",
+                          table.sheet, row, table.columns.get(name), name)
+
 
 def _default_mixes(parsed: dict) -> None:
     """``cycle_mix = default``: each duty class's documented mix (models/turnover.toml
