@@ -229,7 +229,8 @@ def test_import_registrations_then_run_lists_every_row(tmp_path):
                        encoding="utf-8")
     workbook = tmp_path / "fleet.xlsx"
     done = CliRunner().invoke(cli, ["import-registrations", str(extract), "-o", str(workbook),
-                                    "--first-fiscal-year", "2027", "--base-year-vmt-million", "0.05"])
+                                    "--first-fiscal-year", "2027", "--base-year-vmt-million", "0.05",
+                                    "--base-year-vmt-share-pct", "combination_truck:10"])
     assert done.exit_code == 0, done.output
     fleet = read_fleet(workbook)
     assert sorted(r["count"] for r in fleet.registrations) == [1, 1, 1, 2]
@@ -243,6 +244,8 @@ def test_import_registrations_then_run_lists_every_row(tmp_path):
     assert "Registrations" in openpyxl.load_workbook(out / "report.xlsx", read_only=True).sheetnames
     fiscal = pd.read_csv(out / "fiscal_summary.csv")
     assert fiscal[fiscal.fiscal_year == 2027].miles.sum() == pytest.approx(0.05e6, rel=1e-9)
+    first = fiscal[(fiscal.fiscal_year == 2027) & (fiscal.vehicle_class == "combination_truck")]
+    assert first.miles.sum() == pytest.approx(0.1 * 0.05e6, rel=1e-9)
 
 
 def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
