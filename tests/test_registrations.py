@@ -105,6 +105,14 @@ def test_bad_class_shares_are_named(tmp_path, text, message):
     assert "base_year_vmt_share_pct" in str(info.value) and message in str(info.value)
 
 
+def test_shares_that_look_like_fractions_are_warned_and_a_percent_sign_is_read(tmp_path):
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:0.09, single_unit_truck:0.04"))
+    assert any("these are percents" in w for w in fleet.warnings)
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:9%"))
+    assert fleet.scenarios[0].base_year_vmt_share_pct == {"combination_truck": 9.0}
+    assert not any("these are percents" in w for w in fleet.warnings)
+
+
 def test_a_share_for_a_class_without_registrations_is_refused(tmp_path):
     with pytest.raises(InputError, match="Scenarios!L2 base_year_vmt_share_pct.*share of the miles to bus"):
         read_fleet(_with_shares(tmp_path, "bus:0.5"))

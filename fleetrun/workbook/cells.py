@@ -244,7 +244,7 @@ def parse_class_shares(value, classes) -> dict[str, float]:
             raise CellProblem(f"{show(value)}: {show(name)} is not an FHWA class{guess}; valid: {', '.join(classes)}")
         if name in shares:
             raise CellProblem(f"{show(value)} names {name} twice")
-        shares[name] = parse_number(number.strip())
+        shares[name] = parse_number(number.strip().rstrip("%").strip())   # "9.1%" is 9.1 percent
         if shares[name] < 0:
             raise CellProblem(f"{show(value)}: the percent of {name} is negative")
     if not shares:
