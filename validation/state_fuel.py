@@ -158,10 +158,39 @@ def _summarize(table: pd.DataFrame) -> None:
           f"%/yr: {int(table.mpg_change_in_published_range.sum())} of {len(table)}")
 
 
+def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
+    """The table of docs/validation-state-fuel.md (and the README's columns) from a run with
+    both input variants: per state, the observed fuel, the VM-4 shares, each variant's errors."""
+    mv1, vm4 = (table[table.inputs == v].set_index("state") for v in ("mv1", "mv1+vm4"))
+    base = data.set_index(["state", "year"])
+    lines = ["| state | VMT (M mi) | MF-27 gasoline (M gal) | MF-27 special fuels | special fuels per 1,000 mi | "
+             "VM-4 combination / single-unit % of miles | gasoline error %: MV-1 only | with VM-4 | "
+             "special fuels error %: MV-1 only | with VM-4 | 2016 gasoline forecast % (naive) | "
+             "2016 special fuels forecast % (naive) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def err(row, fuel):
+        return f"{row[f'{fuel}_error_pct']:+.1f}" + (" hit" if row[f"{fuel}_hit"] else "")
+
+    def forecast(row, fuel):
+        value = row[f"{fuel}_forecast_error_pct"] if f"{fuel}_forecast_error_pct" in row else float("nan")
+        return "" if pd.isna(value) else f"{value:+.1f} ({row[f'{fuel}_naive_error_pct']:+.1f})"
+
+    for state, r in mv1.iterrows():
+        q, b = vm4.loc[state], base.loc[(state, int(r.year))]
+        per_1000 = 1e6 * b.special_fuels_kgal / (b.vmt_million_km / KM_PER_MILE * 1e6)
+        lines.append(f"| {state} | {r.vmt_million_mi:,.0f} | {r.gasoline_observed_Mgal:,.0f} | "
+                     f"{r.diesel_observed_Mgal:,.0f} | {per_1000:.1f} | {q.vm4_combination_truck_pct:.1f} / "
+                     f"{q.vm4_single_unit_truck_pct:.1f} | {err(r, 'gasoline')} | {err(q, 'gasoline')} | "
+                     f"{err(r, 'diesel')} | {err(q, 'diesel')} | {forecast(q, 'gasoline')} | {forecast(q, 'diesel')} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> pd.DataFrame:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", default="", help="comma list (default: every state with registrations)")
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
+    parser.add_argument("--markdown", action="store_true", help="also print the docs page's table")
     parser.add_argument("--variants", default="mv1,mv1+vm4",
                         help="mv1: registrations only; mv1+vm4: plus the state's VM-4 class shares of the miles")
     args = parser.parse_args(argv)
@@ -186,6 +215,8 @@ def main(argv=None) -> pd.DataFrame:
                   flush=True)
     table = pd.DataFrame(rows)
     summarize(table)
+    if args.markdown and set(table.inputs) == {"mv1", "mv1+vm4"}:
+        print(markdown_table(table, data))
     if args.out:
         table.to_csv(args.out, index=False, float_format="%.4g")
     return table
