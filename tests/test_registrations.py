@@ -62,10 +62,64 @@ def test_a_workbook_with_only_registrations_reads_and_default_mixes_apply(tmp_pa
     fleet = read_fleet(registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000}]))
     assert fleet.vehicles == [] and fleet.registrations[0]["vehicle_class"] == "truck"
     s = fleet.scenarios[0]
-    # cycle_mix = default: light duty EPA 55/45, MD and HD their own heavy-duty mixes
+    # cycle_mix = default: light duty EPA 55/45; MD and HD EPA GEM's vocational multi-purpose and
+    # day-cab weightings of 40 CFR 1037.510(c) on GEM's own cycles (ARB transient, 55 / 65 mph cruise)
+    # (the cycles are whatever models/heavy_duty/gem_cycles.toml, their owner, names for GEM's parts)
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix
+
     assert s.cycle_mix == {"UDDS": 0.55, "HWFET": 0.45}
-    assert "HD-UDDS" in s.cycle_mix_MD and "HD-UDDS" in s.cycle_mix_HD
+    assert s.cycle_mix_MD == gem_cycle_mix("vocational_multipurpose") and s.cycle_mix_HD == gem_cycle_mix("day_cab")
+    assert list(s.cycle_mix_MD.values()) == [0.54, 0.29, 0.17] and list(s.cycle_mix_HD.values()) == [0.19, 0.17, 0.64]
+    assert next(iter(s.cycle_mix_HD)) == "ARB-TRANSIENT"
     assert s.base_year_vmt_million == 1000
+
+
+def _with_shares(tmp_path, text):
+    row = ["s", 20, "default", 2, 1.0, 0.2, 0.2, 0.184, 0.244, 2024, 1000, text]
+    path = registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000},
+                                                        {"vehicle_class": "automobile", "count": 900}], row)
+    wb = openpyxl.load_workbook(path)
+    wb["Scenarios"].cell(1, len(SCENARIO) + 1).value = "base_year_vmt_share_pct"
+    wb.save(path)
+    return path
+
+
+def test_class_shares_of_the_miles_hold_every_year(tmp_path):
+    """base_year_vmt_share_pct (docs/registrations.md, "Miles by class"): each listed class
+    drives its percent of the scenario's miles in every budget year, the others the rest."""
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:9.5, single_unit_truck: 4.25"))
+    s = fleet.scenarios[0]
+    assert s.base_year_vmt_share_pct == {"combination_truck": 9.5, "single_unit_truck": 4.25}
+    e = expand(fleet, [s])
+    miles = FleetYears([], e).year_miles(s)
+    total = miles.sum(axis=0)
+    assert total == pytest.approx([1e9, 1.01e9], rel=1e-12)
+    for name, pct in s.base_year_vmt_share_pct.items():
+        assert miles[e.fhwa_class == name].sum(axis=0) / total == pytest.approx(pct / 100, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("combination_trucks:9", "did you mean combination_truck"),
+    ("bus:60, combination_truck:50", "adds up to 110 %"),
+    ("combination_truck", "has no ':percent'"),
+])
+def test_bad_class_shares_are_named(tmp_path, text, message):
+    with pytest.raises(InputError) as info:
+        read_fleet(_with_shares(tmp_path, text))
+    assert "base_year_vmt_share_pct" in str(info.value) and message in str(info.value)
+
+
+def test_shares_that_look_like_fractions_are_warned_and_a_percent_sign_is_read(tmp_path):
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:0.09, single_unit_truck:0.04"))
+    assert any("these are percents" in w for w in fleet.warnings)
+    fleet = read_fleet(_with_shares(tmp_path, "combination_truck:9%"))
+    assert fleet.scenarios[0].base_year_vmt_share_pct == {"combination_truck": 9.0}
+    assert not any("these are percents" in w for w in fleet.warnings)
+
+
+def test_a_share_for_a_class_without_registrations_is_refused(tmp_path):
+    with pytest.raises(InputError, match="Scenarios!L2 base_year_vmt_share_pct.*share of the miles to bus"):
+        read_fleet(_with_shares(tmp_path, "bus:0.5"))
 
 
 def test_bad_registration_cells_are_named(tmp_path):
@@ -187,7 +241,8 @@ def test_import_registrations_then_run_lists_every_row(tmp_path):
                        encoding="utf-8")
     workbook = tmp_path / "fleet.xlsx"
     done = CliRunner().invoke(cli, ["import-registrations", str(extract), "-o", str(workbook),
-                                    "--first-fiscal-year", "2027", "--base-year-vmt-million", "0.05"])
+                                    "--first-fiscal-year", "2027", "--base-year-vmt-million", "0.05",
+                                    "--base-year-vmt-share-pct", "combination_truck:10"])
     assert done.exit_code == 0, done.output
     fleet = read_fleet(workbook)
     assert sorted(r["count"] for r in fleet.registrations) == [1, 1, 1, 2]
@@ -201,6 +256,8 @@ def test_import_registrations_then_run_lists_every_row(tmp_path):
     assert "Registrations" in openpyxl.load_workbook(out / "report.xlsx", read_only=True).sheetnames
     fiscal = pd.read_csv(out / "fiscal_summary.csv")
     assert fiscal[fiscal.fiscal_year == 2027].miles.sum() == pytest.approx(0.05e6, rel=1e-9)
+    first = fiscal[(fiscal.fiscal_year == 2027) & (fiscal.vehicle_class == "combination_truck")]
+    assert first.miles.sum() == pytest.approx(0.1 * 0.05e6, rel=1e-9)
 
 
 def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
@@ -212,3 +269,17 @@ def test_a_user_set_rate_replaces_the_trend_after_its_last_model_year():
     by_year = {v.model_year: f for v, f in zip(e.vehicles, e.fuel_factor(s))}
     assert by_year[2022] == pytest.approx(1.0, rel=1e-12)
     assert by_year[2026] == pytest.approx(1 / 1.05 ** 4, rel=1e-12)
+
+
+def test_a_typed_truck_mix_beside_cycle_mix_default_is_warned(tmp_path):
+    """The template's example scenario rows type cycle_mix_MD / cycle_mix_HD; an analyst who
+    sets cycle_mix = default and keeps them gets those mixes, and is told (validate warns)."""
+    path = registrations_workbook(tmp_path / "r.xlsx", [{"vehicle_class": "truck", "count": 1000}])
+    wb = openpyxl.load_workbook(path)
+    sc = wb["Scenarios"]
+    sc.cell(1, len(SCENARIO) + 1).value = "cycle_mix_HD"
+    sc.cell(2, len(SCENARIO) + 1).value = "HD-UDDS:0.6,HWFET:0.4"
+    wb.save(path)
+    fleet = read_fleet(path)
+    assert fleet.scenarios[0].cycle_mix_HD == {"HD-UDDS": 0.6, "HWFET": 0.4}
+    assert any("cycle_mix_HD" in w and "instead of their default mix" in w for w in fleet.warnings)

@@ -32,6 +32,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 DATA = ROOT / "inputs" / "state_statistics" / "fhwa_state_years.csv"
+VM4 = ROOT / "inputs" / "state_statistics" / "vm4_2010"
+# VM-4's vehicle types -> FHWA classes; VM-4's road groups -> VM-2's functional systems
+VM4_CLASSES = {"Motorcycle": "motorcycle", "Auto": "automobile", "LightTruck": "light_truck", "Bus": "bus",
+               "SingleTruck": "single_unit_truck", "CombiTruck": "combination_truck"}
+VM4_ROADS = {"interstate": ["Interstate"], "arterial": ["OthFwyExp", "OthPrinArt", "MinArt"],
+             "other": ["MajColl", "MinColl", "Local"]}
+# The classes whose VM-4 share the "class VMT" variant gives (light duty: the rest)
+SHARE_CLASSES = ("single_unit_truck", "combination_truck", "bus", "motorcycle")
 KM_PER_MILE = 1.609344
 GASOLINE_TOLERANCE, DIESEL_TOLERANCE = 0.05, 0.10      # the issue's targets
 # Published yearly change of fleet on-road mpg [%/yr]: FHWA VM-1 all motor vehicles 1990-2002
@@ -40,11 +48,34 @@ GASOLINE_TOLERANCE, DIESEL_TOLERANCE = 0.05, 0.10      # the issue's targets
 PUBLISHED_MPG_CHANGE_PCT = (100 * ((17.0 / 16.4) ** (1 / 12) - 1), 100 * ((26.0 / 19.3) ** (1 / 18) - 1))
 SCENARIO = ["scenario_id", "ambient_temp_C", "cycle_mix", "budget_years", "vmt_growth_pct_per_year",
             "state_tax_gasoline_usd_per_gal", "state_tax_diesel_usd_per_gal", "federal_tax_gasoline_usd_per_gal",
-            "federal_tax_diesel_usd_per_gal", "first_fiscal_year", "base_year_vmt_million"]
+            "federal_tax_diesel_usd_per_gal", "first_fiscal_year", "base_year_vmt_million", "base_year_vmt_share_pct"]
 
 
-def workbook(path: Path, row: pd.Series, years: int, growth_pct: float) -> Path:
-    """Registrations (MV-1) and one scenario (VM-2 miles, default mixes)."""
+def vm4_class_shares() -> pd.DataFrame:
+    """Percent of each state's vehicle-miles by FHWA class (rows: postal code): VM-4 2010's
+    percentages by vehicle type on each road group (rural / urban x Interstate, other
+    arterials, other) weighted by VM-2 2010's vehicle-miles on that group. A group a state
+    does not have (no rural Interstate in Delaware) carries no miles."""
+    total = None
+    for area in ("rural", "urban"):
+        miles = pd.read_csv(VM4 / f"functional_class_vmt_split_{area}.csv").set_index("State")
+        for road, systems in VM4_ROADS.items():
+            pct = pd.read_csv(VM4 / f"vehicle_type_vmt_split_{area}_{road}.csv").set_index("State")[list(VM4_CLASSES)]
+            pct = pct.fillna(0.0)
+            part = pct.div(pct.sum(axis=1).replace(0.0, 1.0), axis=0).mul(miles[systems].sum(axis=1), axis=0)
+            total = part if total is None else total + part
+    return (100 * total.div(total.sum(axis=1), axis=0)).rename(columns=VM4_CLASSES)
+
+
+def share_text(shares: pd.Series | None) -> str | None:
+    if shares is None:
+        return None
+    return ", ".join(f"{name}:{shares[name]:.3f}" for name in SHARE_CLASSES)
+
+
+def workbook(path: Path, row: pd.Series, years: int, growth_pct: float, shares: pd.Series | None = None) -> Path:
+    """Registrations (MV-1) and one scenario (VM-2 miles, default mixes; with ``shares``, the
+    state's VM-4 class shares of the miles)."""
     wb = openpyxl.Workbook()
     ws = wb.active
     ws.title = "Registrations"
@@ -55,7 +86,7 @@ def workbook(path: Path, row: pd.Series, years: int, growth_pct: float) -> Path:
     sc = wb.create_sheet("Scenarios")
     sc.append(SCENARIO)
     sc.append([f"{row.state} {row.year}", 20, "default", years, growth_pct, 0.2, 0.2, 0.184, 0.244, int(row.year),
-               row.vmt_million_km / KM_PER_MILE])
+               row.vmt_million_km / KM_PER_MILE, share_text(shares)])
     wb.save(path)
     return path
 
@@ -70,17 +101,20 @@ def light_duty_mpg_change_pct(fiscal: pd.DataFrame) -> float:
     return 100 * ((mpg[-1] / mpg[0]) ** (1 / (len(mpg) - 1)) - 1)
 
 
-def run_state(row: pd.Series, later: pd.Series | None, folder: Path) -> dict:
+def run_state(row: pd.Series, later: pd.Series | None, folder: Path, shares: pd.Series | None = None) -> dict:
     from fleetrun.run.runner import run_fleet
     from fleetrun.workbook import read_fleet
 
     years = 1 + (int(later.year) - int(row.year) if later is not None else 1)
     growth = 100 * ((later.vmt_million_km / row.vmt_million_km) ** (1 / (years - 1)) - 1) if later is not None else 0.0
-    fleet = read_fleet(workbook(folder / f"{row.state}-{row.year}.xlsx", row, years, growth))
+    variant = "mv1" if shares is None else "mv1+vm4"
+    fleet = read_fleet(workbook(folder / f"{row.state}-{row.year}-{variant}.xlsx", row, years, growth, shares))
     result = run_fleet(fleet, error_model=None)
     gallons = by_fuel_year(result.fiscal)
     base = int(row.year)
-    out = {"state": row.state, "year": base, "vmt_million_mi": row.vmt_million_km / KM_PER_MILE}
+    out = {"state": row.state, "year": base, "inputs": variant, "vmt_million_mi": row.vmt_million_km / KM_PER_MILE}
+    if shares is not None:
+        out.update({f"vm4_{name}_pct": float(shares[name]) for name in SHARE_CLASSES})
     for fuel, column, tol in (("gasoline", "highway_gasoline_kgal", GASOLINE_TOLERANCE),
                               ("diesel", "special_fuels_kgal", DIESEL_TOLERANCE)):
         observed = row[column] * 1e3
@@ -102,9 +136,19 @@ def run_state(row: pd.Series, later: pd.Series | None, folder: Path) -> dict:
 
 
 def summarize(table: pd.DataFrame) -> None:
-    """Hits per fuel; forecast and naive mean absolute errors; turnover in the published range."""
+    """Per input variant: hits per fuel; forecast and naive mean absolute errors; turnover in
+    the published range."""
+    for variant, part in table.groupby("inputs", sort=False):
+        print(f"inputs {variant}:")
+        _summarize(part)
+
+
+def _summarize(table: pd.DataFrame) -> None:
+    both = int((table.gasoline_hit & table.diesel_hit).sum())
+    print(f"both fuels within their targets: {both} of {len(table)}")
     for fuel in ("gasoline", "diesel"):
-        print(f"{fuel}: {int(table[f'{fuel}_hit'].sum())} hits of {len(table)}")
+        print(f"{fuel}: {int(table[f'{fuel}_hit'].sum())} hits of {len(table)}; base-year mean |error| "
+              f"{table[f'{fuel}_error_pct'].abs().mean():.1f} %")
         if f"{fuel}_forecast_error_pct" in table:
             both = table.dropna(subset=[f"{fuel}_forecast_error_pct"])
             better = (both[f"{fuel}_forecast_error_pct"].abs() < both[f"{fuel}_naive_error_pct"].abs()).sum()
@@ -114,22 +158,55 @@ def summarize(table: pd.DataFrame) -> None:
           f"%/yr: {int(table.mpg_change_in_published_range.sum())} of {len(table)}")
 
 
+def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
+    """The table of docs/validation-state-fuel.md (and the README's columns) from a run with
+    both input variants: per state, the observed fuel, the VM-4 shares, each variant's errors."""
+    mv1, vm4 = (table[table.inputs == v].set_index("state") for v in ("mv1", "mv1+vm4"))
+    base = data.set_index(["state", "year"])
+    lines = ["| state | VMT (M mi) | MF-27 gasoline (M gal) | MF-27 special fuels | special fuels per 1,000 mi | "
+             "VM-4 combination / single-unit % of miles | gasoline error %: MV-1 only | with VM-4 | "
+             "special fuels error %: MV-1 only | with VM-4 | 2016 gasoline forecast % (naive) | "
+             "2016 special fuels forecast % (naive) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def err(row, fuel):
+        return f"{row[f'{fuel}_error_pct']:+.1f}" + (" hit" if row[f"{fuel}_hit"] else "")
+
+    def forecast(row, fuel):
+        value = row[f"{fuel}_forecast_error_pct"] if f"{fuel}_forecast_error_pct" in row else float("nan")
+        return "" if pd.isna(value) else f"{value:+.1f} ({row[f'{fuel}_naive_error_pct']:+.1f})"
+
+    for state, r in mv1.iterrows():
+        q, b = vm4.loc[state], base.loc[(state, int(r.year))]
+        per_1000 = 1e6 * b.special_fuels_kgal / (b.vmt_million_km / KM_PER_MILE * 1e6)
+        lines.append(f"| {state} | {r.vmt_million_mi:,.0f} | {r.gasoline_observed_Mgal:,.0f} | "
+                     f"{r.diesel_observed_Mgal:,.0f} | {per_1000:.1f} | {q.vm4_combination_truck_pct:.1f} / "
+                     f"{q.vm4_single_unit_truck_pct:.1f} | {err(r, 'gasoline')} | {err(q, 'gasoline')} | "
+                     f"{err(r, 'diesel')} | {err(q, 'diesel')} | {forecast(q, 'gasoline')} | {forecast(q, 'diesel')} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> pd.DataFrame:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", default="", help="comma list (default: every state with registrations)")
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
+    parser.add_argument("--markdown", action="store_true", help="also print the docs page's table")
+    parser.add_argument("--variants", default="mv1,mv1+vm4",
+                        help="mv1: registrations only; mv1+vm4: plus the state's VM-4 class shares of the miles")
     args = parser.parse_args(argv)
     data = pd.read_csv(DATA)
     bases = data[data.mv1_automobiles.notna()]
     if args.states:
         bases = bases[bases.state.isin(args.states.split(","))]
     rows = []
+    vm4 = vm4_class_shares()
     with tempfile.TemporaryDirectory() as tmp:
-        for _, row in bases.iterrows():
+        for variant, (_, row) in ((v, r) for v in args.variants.split(",") for r in bases.iterrows()):
             later = data[(data.state == row.state) & (data.year > row.year)]
-            rows.append(run_state(row, later.iloc[0] if len(later) else None, Path(tmp)))
+            shares = vm4.loc[row.postal] if variant == "mv1+vm4" else None
+            rows.append(run_state(row, later.iloc[0] if len(later) else None, Path(tmp), shares))
             r = rows[-1]
-            print(f"{r['state']} {r['year']}: gasoline {r['gasoline_error_pct']:+.1f} % "
+            print(f"[{variant}] {r['state']} {r['year']}: gasoline {r['gasoline_error_pct']:+.1f} % "
                   f"({'hit' if r['gasoline_hit'] else 'miss'}), special fuels {r['diesel_error_pct']:+.1f} % "
                   f"({'hit' if r['diesel_hit'] else 'miss'}), LD mpg {r['ld_mpg_change_pct_per_year']:+.2f} %/yr"
                   + (f"; forecast gasoline {r['gasoline_forecast_error_pct']:+.1f} % (naive "
@@ -138,6 +215,8 @@ def main(argv=None) -> pd.DataFrame:
                   flush=True)
     table = pd.DataFrame(rows)
     summarize(table)
+    if args.markdown and set(table.inputs) == {"mv1", "mv1+vm4"}:
+        print(markdown_table(table, data))
     if args.out:
         table.to_csv(args.out, index=False, float_format="%.4g")
     return table

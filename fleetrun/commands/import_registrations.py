@@ -16,17 +16,33 @@ from fleetrun.errors import InputError
 @click.option("--first-fiscal-year", type=int, default=None, help="Fiscal year of budget year 1 (e.g. 2027).")
 @click.option("--base-year-vmt-million", type=float, default=None,
               help="The base fiscal year's vehicle-miles in millions (e.g. from FHWA VM-2).")
-def command(extract: Path, output: Path, first_fiscal_year, base_year_vmt_million):
+@click.option("--base-year-vmt-share-pct", default=None,
+              help="Percent of those miles by FHWA class, e.g. 'combination_truck:9.1,single_unit_truck:4.6' "
+                   "(your VM-4 / HPMS; docs/registrations.md, \"Miles by class\").")
+def command(extract: Path, output: Path, first_fiscal_year, base_year_vmt_million, base_year_vmt_share_pct):
     """Aggregate a registration extract (one line per vehicle, or counts per make, model and
     model year; read in chunks) into the Registrations sheet of a new fleet workbook."""
     from fleetrun.fileio import refuse_replacing_inputs
     from fleetrun.registrations.extract import read_extract
     from fleetrun.registrations.workbook import write_registrations_workbook
 
+    if base_year_vmt_share_pct is not None:
+        _check_shares(base_year_vmt_share_pct)
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")
     refuse_replacing_inputs(output, [extract], "-o")
     frame = read_extract(extract)
-    write_registrations_workbook(frame, output, first_fiscal_year, base_year_vmt_million)
+    write_registrations_workbook(frame, output, first_fiscal_year, base_year_vmt_million, base_year_vmt_share_pct)
     click.echo(f"Wrote {output}: {len(frame):,} registration rows ({frame['count'].sum():,.0f} vehicles). "
                f"Next: check the Scenarios sheet (tax rates, VMT), then `fleetrun run {output}`.")
+
+
+def _check_shares(text: str) -> None:
+    """A usage error (exit 2) for a share list the workbook would refuse."""
+    from fleetrun.workbook.cells import CellProblem, parse_class_shares
+    from fleetrun.workbook.schema import FHWA_CLASSES
+
+    try:
+        parse_class_shares(text, FHWA_CLASSES)
+    except CellProblem as exc:
+        raise click.BadParameter(str(exc), param_hint="--base-year-vmt-share-pct") from None

@@ -20,7 +20,7 @@ from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import refuse_replacing_inputs
 from fleetrun.run import batch
 from fleetrun.run.batch import read_config
-from fleetrun.run.outputs import OUTPUT_FILES
+from fleetrun.run.outputs import OUTPUT_FILES, REGISTRATION_FILES
 
 from fleetrun.run.engines import ENGINES
 from fleetrun.simulation.diffmodes import default_cache_dir
@@ -124,7 +124,8 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         for item in written:
             note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
                     if item["warnings"] else "")
-            click.echo(f"Wrote {item['out']}/: {', '.join(OUTPUT_FILES)}{note}")
+            files = OUTPUT_FILES + tuple(n for n in REGISTRATION_FILES if (Path(item["out"]) / n).exists())
+            click.echo(f"Wrote {item['out']}/: {', '.join(files)}{note}")
     if code == batch.EXIT_OK:
         return
     if len(errors) == 1 and len(plan.inputs) == 1:

@@ -21,4 +21,5 @@ def command(output: Path, force: bool):
     if output.exists() and not force:
         raise InputError(f"'{output}' exists", hint="Choose another name or add --force.")
     write_template(output)
-    click.echo(f"Wrote {output}: fill in Vehicles and Scenarios, then `fleetrun validate {output}`.")
+    click.echo(f"Wrote {output}: fill in Registrations (or Vehicles) and Scenarios, then "
+               f"`fleetrun validate {output}` (docs/registrations.md: the path from registration counts).")

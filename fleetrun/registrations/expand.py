@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from fleetrun.errors import InputError
 from fleetrun.registrations import library as lib
 from fleetrun.registrations import turnover
 from fleetrun.vehicle import VehicleSpec
@@ -42,7 +43,9 @@ class Expansion:
     def year_miles(self, scenario, other_year1_miles: float = 0.0) -> np.ndarray:
         """(cohorts, budget years) miles: turnover's composition, the fleet's total scaled to
         ``base_year_vmt_million`` (less the Vehicles rows' miles) in year 1 and grown by
-        ``vmt_growth_pct_per_year`` after it."""
+        ``vmt_growth_pct_per_year`` after it; each class named in ``base_year_vmt_share_pct``
+        drives its percent of that total every year, the other classes share the rest in
+        proportion to their own miles (docs/registrations.md, "Miles by class")."""
         k0, years = self.offset(scenario), scenario.budget_years
         raw = self.counts[:, k0:k0 + years] * self.miles_per_vehicle[:, k0:k0 + years]
         totals = raw.sum(axis=0)
@@ -52,9 +55,36 @@ class Expansion:
             target = totals[0]
         g = scenario.vmt_growth_pct_per_year / 100.0
         wanted = target * (1.0 + g) ** np.arange(years)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale = np.where(totals > 0, wanted / totals, 0.0)
-        return raw * scale
+        groups = self.share_groups(scenario)
+        out = np.zeros_like(raw)
+        for rows, share in groups:
+            have = raw[rows].sum(axis=0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[rows] = raw[rows] * np.where(have > 0, share * wanted / have, 0.0)
+        return out
+
+    def share_groups(self, scenario) -> list[tuple[np.ndarray, float]]:
+        """[(cohort rows, share of the miles)]: one group per class of ``base_year_vmt_share_pct``,
+        one for every other class (the rest). A class given a share but without a vehicle is
+        an InputError (its miles would vanish)."""
+        shares = scenario.base_year_vmt_share_pct or {}
+        groups, listed = [], np.zeros(len(self.fhwa_class), dtype=bool)
+        for name, pct in shares.items():
+            rows = self.fhwa_class == name
+            if pct > 0 and not rows.any():
+                raise InputError(f"scenario {scenario.scenario_id}: base_year_vmt_share_pct gives {name} "
+                                 f"{pct:g} % of the miles, but the Registrations sheet has no {name} "
+                                 f"(nor a truck row split into it)",
+                                 hint="add its registrations, or drop it from base_year_vmt_share_pct")
+            groups.append((rows, pct / 100.0))
+            listed |= rows
+        rest = 1.0 - sum(pct for pct in shares.values()) / 100.0
+        if shares and rest > 1e-9 and listed.all():
+            raise InputError(f"scenario {scenario.scenario_id}: base_year_vmt_share_pct adds up to "
+                             f"{100 * (1 - rest):g} %, and every class with registrations is listed",
+                             hint="the listed percents must add up to 100 when no other class is registered")
+        groups.append((~listed, rest))
+        return groups
 
     def fuel_factor(self, scenario) -> np.ndarray:
         """Fuel per mile of each cohort's model year relative to its representing vehicle."""

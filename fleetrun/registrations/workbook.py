@@ -15,7 +15,7 @@ DEFAULT_SCENARIO = {"scenario_id": "baseline", "description": "From a registrati
 
 
 def write_registrations_workbook(frame: pd.DataFrame, path, first_fiscal_year=None,
-                                 base_year_vmt_million=None) -> Path:
+                                 base_year_vmt_million=None, base_year_vmt_share_pct=None) -> Path:
     """Write ``frame`` (extract.read_extract) as the Registrations sheet and one scenario."""
     import xlsxwriter
 
@@ -24,7 +24,7 @@ def write_registrations_workbook(frame: pd.DataFrame, path, first_fiscal_year=No
 
     names = [c.name for c in REGISTRATION_COLUMNS if c.name in frame.columns]
     scenario = dict(DEFAULT_SCENARIO, first_fiscal_year=first_fiscal_year,
-                    base_year_vmt_million=base_year_vmt_million)
+                    base_year_vmt_million=base_year_vmt_million, base_year_vmt_share_pct=base_year_vmt_share_pct)
     scenario_names = [c.name for c in SCENARIO_COLUMNS if scenario.get(c.name) is not None]
     path = Path(path)
     with atomic_file(path) as tmp:

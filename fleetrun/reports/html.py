@@ -186,11 +186,15 @@ def _fleet_size(result: RunResult) -> dict:
     registered vehicles (docs/registrations.md) when there are registrations."""
     fleet = result.fleet
     types, vehicles = len(fleet.vehicles), sum(v.count for v in fleet.vehicles)
+    text = f"{types:,} vehicle types, {vehicles:,.0f} vehicles"
     if result.registrations is not None:
         types = result.results["vehicle_id"].nunique()
         registered = result.registrations[result.registrations["registration_row"] != "new sales"]
         vehicles += float(registered["count"].sum())
-    return {"vehicle_types": f"{types:,}", "vehicles": f"{vehicles:,.0f}"}
+        own = f"{len(fleet.vehicles):,} Vehicles rows and " if fleet.vehicles else ""
+        text = (f"{own}{len(fleet.registrations):,} registration rows: {vehicles:,.0f} vehicles, simulated "
+                f"as {types:,} cohorts (vehicle, class, fuel, model year)")
+    return {"vehicle_types": f"{types:,}", "vehicles": f"{vehicles:,.0f}", "fleet_size": text}
 
 
 def _turnover(result: RunResult) -> dict:

@@ -120,6 +120,7 @@ def assumptions(s) -> list[tuple[str, str]]:
             ("Fiscal years", ", ".join(str(y) for y in budget.fiscal_years(s))
              if s.first_fiscal_year else f"{s.budget_years} budget year(s), numbered from 1")]
     rows += driver_rows(s)
+    rows += registration_rows(s)
     if s.ev_fee_usd_per_vehicle_year:
         rows.append(("Electric-vehicle fee", f"${s.ev_fee_usd_per_vehicle_year:,.2f} per vehicle per year"))
     observed = [f"{fuel} {s.observed_base_gallons(fuel):,.0f} gal" for fuel in ("gasoline", "diesel")
@@ -127,6 +128,19 @@ def assumptions(s) -> list[tuple[str, str]]:
     if observed:
         rows.append(("Observed first-year gallons", ", ".join(observed)
                      + ("; forecast calibrated to them" if s.calibrate_to_observed else "; not calibrated")))
+    return rows
+
+
+def registration_rows(s) -> list[tuple[str, str]]:
+    """The registration controls a scenario gives (docs/registrations.md): the base year's
+    vehicle-miles and the share of them by class."""
+    rows = []
+    if s.base_year_vmt_million is not None:
+        rows.append(("Base-year vehicle-miles", f"{s.base_year_vmt_million:,.0f} million (the registrations' "
+                                                f"miles are scaled to it)"))
+    if s.base_year_vmt_share_pct:
+        listed = ", ".join(f"{name} {pct:g} %" for name, pct in s.base_year_vmt_share_pct.items())
+        rows.append(("Share of the miles by class", f"{listed}; the other classes the rest"))
     return rows
 
 

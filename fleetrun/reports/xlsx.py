@@ -61,6 +61,8 @@ FORMATS = {
     "federal_tax_low_usd": '"$"#,##0', "federal_tax_high_usd": '"$"#,##0', "low_usd": '"$"#,##0',
     "high_usd": '"$"#,##0', "central_usd": '"$"#,##0', "share": "0.0%", "low_change_usd": '"$"#,##0',
     "high_change_usd": '"$"#,##0',
+    "gal_per_mile": "0.00000", "change_gal": "+#,##0;-#,##0;0", "change_from_vmt_gal": "+#,##0;-#,##0;0",
+    "change_from_gal_per_mile_gal": "+#,##0;-#,##0;0",
 }
 
 WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "strings_to_urls": False,
@@ -578,16 +580,26 @@ def _registrations(book: Book, result: RunResult):
     sheet = Sheet(book, "Registrations")
     page_setup(sheet)
     frame = result.registrations
-    _widths(sheet, list(frame.columns), minimum=12)
+    shown = frame.head(REGISTRATION_ROWS_SHOWN)
+    _shared_widths(sheet, [result.turnover, shown])
     sheet.append(["Change in gallons from the year before: from VMT (change in miles x last year's gallons "
                   "per mile) and from gallons per mile (turnover: newer model years replace older ones)"], "bold")
     _table(sheet, result.turnover, widths=False)
     sheet.append([])
-    shown = frame.head(REGISTRATION_ROWS_SHOWN)
     more = f" (first {len(shown):,} of {len(frame):,}; all in registrations.csv)" if len(shown) < len(frame) else ""
     sheet.append([f"Each registration row: the vehicle that represents it, matched on what, assumed what{more}"],
                  "bold")
     _table(sheet, shown, widths=False)
+
+
+def _shared_widths(sheet: Sheet, frames, minimum: int = 10, maximum: int = 60) -> None:
+    """Column widths for tables stacked in one sheet: each column as wide as its widest header
+    or value in its number format over all the tables (no ``###``, no cut-off class names),
+    at most ``maximum`` characters (longer text runs on into the empty cells to its right)."""
+    for i in range(max(len(f.columns) for f in frames)):
+        need = max(max(len(str(f.columns[i])), printed_width(f.iloc[:, i].tolist(), FORMATS.get(str(f.columns[i]))))
+                   for f in frames if i < len(f.columns))
+        sheet.ws.set_column(i, i, max(minimum, min(maximum, need + 2)))
 
 
 MAP_BLOCK_ROWS = 2   # blank + title rows before each map's table

@@ -260,8 +260,8 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     refuse_overwriting_inputs(out_dir, [fleet_path, *fleet.input_files()])
     for warning in fleet.warnings:
         log.warning("%s: %s", fleet_path.name, warning)
-    log.info("%s: %d vehicle types, %d scenarios; engine %s", fleet_path.name, len(fleet.vehicles),
-             len(plan.scenarios) or len(fleet.scenarios), plan.engine)
+    log.info("%s: %d vehicle types, %d registration rows, %d scenarios; engine %s", fleet_path.name,
+             len(fleet.vehicles), len(fleet.registrations), len(plan.scenarios) or len(fleet.scenarios), plan.engine)
     result = run_fleet(fleet, plan.scenarios, engine=engine, physics=plan.physics, mode=plan.mode,
                        effects=plan.effects, cache_dir=str(plan.cache_dir) if plan.cache_dir else None,
                        progress=Progress(fleet_path.name, enabled=progress_enabled),

@@ -128,9 +128,10 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     shortfalls = {cond: {name: values[owner] for name, values in arrays.items()}
                   for cond, arrays in shortfalls.items()}
 
-    shortfall_lines = _shortfall_warnings(vehicles, shortfalls)
-    if registrations:   # one line per representing vehicle, not per model year (docs/registrations.md)
-        shortfall_lines = list(dict.fromkeys(re.sub(r":MY\d+(:mi[0-9.e+]+)?", ":MY*", t) for t in shortfall_lines))
+    if registrations:
+        shortfall_lines = _library_shortfalls(_shortfall_warnings(vehicles, shortfalls, listed=None))
+    else:
+        shortfall_lines = _shortfall_warnings(vehicles, shortfalls)
     warnings = list(fleet.warnings) + (registrations.warnings if registrations else []) \
         + _map_grid_notes(fleet, mode) + shortfall_lines
     cycles = _cycle_info({cycle for cycle, _ in conditions})
@@ -332,10 +333,10 @@ def _shortfall_phrase(name: str, value: float) -> str:
     return template.format(value) if template else f"{name.removeprefix('shortfall_')} {value:.3g}"
 
 
-def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
-    """One line per vehicle that could not follow some cycle (the first MAX_LISTED_WARNINGS,
-    then a count): which cycles, and the worst value of each shortfall measure the simulation
-    reports. The masks are numpy; only the listed vehicles are looked at one by one."""
+def _shortfall_warnings(vehicles, shortfalls, listed: int | None = MAX_LISTED_WARNINGS) -> list[str]:
+    """One line per vehicle that could not follow some cycle (the first ``listed``, then a
+    count; None: all): which cycles, and the worst value of each shortfall measure the
+    simulation reports. The masks are numpy; only the listed vehicles are looked at one by one."""
     behind_by_condition = {}
     for condition, arrays in shortfalls.items():
         if not arrays:
@@ -352,12 +353,26 @@ def _shortfall_warnings(vehicles, shortfalls) -> list[str]:
         return []
     anyone = np.logical_or.reduce([behind for _, _, behind in behind_by_condition.values()])
     vehicles_behind = np.flatnonzero(anyone)
-    lines = [_shortfall_line(vehicles[i], int(i), behind_by_condition)
-             for i in vehicles_behind[:MAX_LISTED_WARNINGS]]
-    if len(vehicles_behind) > MAX_LISTED_WARNINGS:
-        lines.append(f"... and {len(vehicles_behind) - MAX_LISTED_WARNINGS} more vehicle types that cannot "
+    shown = vehicles_behind if listed is None else vehicles_behind[:listed]
+    lines = [_shortfall_line(vehicles[i], int(i), behind_by_condition) for i in shown]
+    if len(vehicles_behind) > len(shown):
+        lines.append(f"... and {len(vehicles_behind) - len(shown)} more vehicle types that cannot "
                      "follow some cycle")
     return lines
+
+
+def _library_shortfalls(lines: list[str]) -> list[str]:
+    """Registration cohorts: one line per representing vehicle, not per model year
+    (docs/registrations.md), the first MAX_LISTED_WARNINGS, then a count; a shipped library
+    vehicle's line says what it means for the forecast."""
+    unique = list(dict.fromkeys(re.sub(r":MY\d+(:mi[0-9.e+]+)?", ":MY*", t) for t in lines))
+    unique = [t + ("; a shipped library vehicle: its fuel is that of the speed it reaches, nothing to fix in the "
+                   "workbook" if ":MY*" in t and ":VEH:" not in t else "")
+              for t in unique]
+    if len(unique) > MAX_LISTED_WARNINGS:
+        unique = unique[:MAX_LISTED_WARNINGS] + [f"... and {len(unique) - MAX_LISTED_WARNINGS} more vehicle types "
+                                                 "that cannot follow some cycle"]
+    return unique
 
 
 def _shortfall_line(vehicle, i: int, behind_by_condition: dict) -> str:

@@ -6,6 +6,7 @@ like ``Vehicles!H4 peak_engine_torque_Nm: 'abc' is not a number``.
 from __future__ import annotations
 
 import datetime as _dt
+import difflib
 import math
 import re
 import unicodedata
@@ -221,6 +222,36 @@ def parse_cycle_mix(value) -> dict[str, float]:
     if not mix:
         raise CellProblem(f"{show(value)} names no drive cycle")
     return mix
+
+
+def parse_class_shares(value, classes) -> dict[str, float]:
+    """``combination_truck:9.1, single_unit_truck:4.6`` -> {class: percent} (docs/registrations.md,
+    "Miles by class"): each named class's percent of the base year's vehicle-miles; the names
+    must be of ``classes`` and the percents add up to at most 100."""
+    text = parse_text(value)
+    shares: dict[str, float] = {}
+    for item in (p.strip() for p in re.split(r"[,;]", text)):
+        if not item:
+            continue
+        name, sep, number = item.rpartition(":")
+        name = name.strip().lower()
+        if not sep or not name:
+            raise CellProblem(f"{show(value)} is not a list like combination_truck:9.1, single_unit_truck:4.6 "
+                              f"({show(item)} has no ':percent')")
+        if name not in classes:
+            near = difflib.get_close_matches(name, list(classes), n=1, cutoff=0.4)
+            guess = f" (did you mean {near[0]}?)" if near else ""
+            raise CellProblem(f"{show(value)}: {show(name)} is not an FHWA class{guess}; valid: {', '.join(classes)}")
+        if name in shares:
+            raise CellProblem(f"{show(value)} names {name} twice")
+        shares[name] = parse_number(number.strip().rstrip("%").strip())   # "9.1%" is 9.1 percent
+        if shares[name] < 0:
+            raise CellProblem(f"{show(value)}: the percent of {name} is negative")
+    if not shares:
+        raise CellProblem(f"{show(value)} names no class")
+    if sum(shares.values()) > 100.0 + 1e-9:
+        raise CellProblem(f"{show(value)} adds up to {sum(shares.values()):g} %; at most 100")
+    return shares
 
 
 def parse_tire_size(value) -> str:

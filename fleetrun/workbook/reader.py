@@ -80,6 +80,7 @@ class Scenario:
     state_tax_schedule_diesel_usd_per_gal: dict | float | None = None
     state_tax_index_pct_per_year: float | None = None
     base_year_vmt_million: float | None = None          # registrations: base fiscal year's VMT
+    base_year_vmt_share_pct: dict | None = None         # registrations: {FHWA class: % of the VMT}
     new_vehicle_mpg_change_pct_per_year: float | None = None   # None: the published trend's
     extra: dict = field(default_factory=dict, compare=False)
 
@@ -261,6 +262,8 @@ def read_fleet(path) -> Fleet:
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
     registrations = _registrations(registration_table, vehicle_rows, problems) if registration_table else []
+    if scenario_table is not None:
+        _check_share_classes(scenarios, scenario_rows, registrations, scenario_table, problems)
 
     if problems.errors:
         errors = problems.sorted_errors()
@@ -537,6 +540,12 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
         parsed, ok = _parse_row(table, SCENARIO_COLUMNS, row_number, values, problems)
         ok = _first_use(parsed, "scenario_id", first_rows, table, row_number, problems) and ok
         _warn_example(parsed, "scenario_id", table, row_number, problems)
+        _warn_typed_truck_mixes(parsed, table, row_number, problems)
+        shares = parsed.get("base_year_vmt_share_pct")
+        if shares and max(shares.values()) < 1.0:
+            problems.warn(f"every share is below 1: these are percents (combination_truck:9.1 is 9.1 % of the "
+                          f"miles), not fractions; check them", sheet, row_number, col("base_year_vmt_share_pct"),
+                          "base_year_vmt_share_pct")
         _default_mixes(parsed)
         mixes = {}
         for name in MIX_COLUMNS:
@@ -676,6 +685,18 @@ def _shipped_cycle_names() -> list[str]:
 
 # --- Registrations (docs/registrations.md) ------------------------------------------------
 
+def _warn_typed_truck_mixes(parsed: dict, table: _Table, row: int, problems: Problems) -> None:
+    """``cycle_mix = default`` beside a typed ``cycle_mix_MD`` / ``cycle_mix_HD`` (the template's
+    example rows have them): the typed mix wins; say so, since the reader asked for defaults."""
+    if parsed.get("cycle_mix") != rows.DEFAULT_MIX:
+        return
+    for name in ("cycle_mix_MD", "cycle_mix_HD"):
+        if parsed.get(name) not in (None, rows.DEFAULT_MIX):
+            problems.warn("is typed, so these trucks drive it instead of their default mix (cycle_mix is "
+                          "default); empty the cell or write default for the documented GEM weighting",
+                          table.sheet, row, table.columns.get(name), name)
+
+
 def _default_mixes(parsed: dict) -> None:
     """``cycle_mix = default``: each duty class's documented mix (models/turnover.toml
     [cycle_mix_default]); an MD / HD mix column left empty (or ``default``) takes its class's."""
@@ -688,7 +709,32 @@ def _default_mixes(parsed: dict) -> None:
     for name, duty in (("cycle_mix", "LD"), ("cycle_mix_MD", "MD"), ("cycle_mix_HD", "HD")):
         value = parsed.get(name)
         if value == rows.DEFAULT_MIX or (value is None and all_default):
-            parsed[name] = cells.parse_cycle_mix(defaults[duty])
+            parsed[name] = default_mix(defaults[duty])
+
+
+def default_mix(text: str) -> dict[str, float]:
+    """A ``[cycle_mix_default]`` entry as a mix: ``gem:<vehicle type>`` is that GEM weighting
+    as its owner, models/heavy_duty/gem_cycles.toml, gives it; otherwise a CYCLE:share list."""
+    from fleetrun.simulation.heavy_duty_gem import gem_cycle_mix
+
+    if text.startswith("gem:"):
+        return gem_cycle_mix(text[len("gem:"):])
+    return cells.parse_cycle_mix(text)
+
+
+def _check_share_classes(scenarios, scenario_rows, registrations, table: _Table, problems: Problems) -> None:
+    """A class given a share of the miles (``base_year_vmt_share_pct``) needs registrations of
+    it (MV-1's ``truck`` counts for the three truck classes), or its miles would vanish."""
+    present = {r["vehicle_class"] for r in registrations}
+    if "truck" in present:
+        present |= {"light_truck", "single_unit_truck", "combination_truck"}
+    for s in scenarios:
+        missing = [name for name, pct in (s.base_year_vmt_share_pct or {}).items() if pct > 0 and name not in present]
+        if missing:
+            problems.error(f"gives a share of the miles to {', '.join(missing)}, but the Registrations sheet has "
+                           f"no such vehicles; add their registrations or drop them from the list", table.sheet,
+                           scenario_rows.get(s.scenario_id), table.columns.get("base_year_vmt_share_pct"),
+                           "base_year_vmt_share_pct")
 
 
 def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Problems) -> list[dict]:

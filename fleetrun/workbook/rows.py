@@ -18,7 +18,7 @@ from fleetrun.physics.lubricant import lubricant_names
 from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook import cells
 from fleetrun.workbook.cells import CellProblem
-from fleetrun.workbook.schema import DUAL_CONFIGURATIONS, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
+from fleetrun.workbook.schema import DUAL_CONFIGURATIONS, FHWA_CLASSES, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
 
 MAX_GEARS = 20
 
@@ -76,6 +76,8 @@ def _parse(column: Column, raw):
         return cells.parse_onroad(raw)
     if kind == "schedule":
         return cells.parse_schedule(raw)
+    if kind == "class_shares":
+        return cells.parse_class_shares(raw, FHWA_CLASSES)
     if column.name == "tire_size":
         return cells.parse_tire_size(raw)
     if column.name == "lubricant":

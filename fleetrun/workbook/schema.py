@@ -36,7 +36,8 @@ class Column:
     outside it, a warning. Adding a column with its range is one line here; the reader, the
     template's Instructions sheet and docs/workbook.md all take it from this list."""
     name: str
-    kind: str                 # "text", "number", "choice", "ratios", "cycle_mix", "integer", "onroad"
+    kind: str                 # "text", "number", "choice", "ratios", "cycle_mix", "integer", "onroad",
+                              # "schedule", "class_shares"
     required: bool
     note: str
     choices: tuple[str, ...] = ()
@@ -195,6 +196,9 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
     # Registrations columns (docs/registrations.md)
     Column("base_year_vmt_million", "number", False, "the base fiscal year's vehicle-miles in millions "
            "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7),
+    Column("base_year_vmt_share_pct", "class_shares", False, "percent of the base year's vehicle-miles "
+           "driven by FHWA class, e.g. combination_truck:9.1, single_unit_truck:4.6, bus:0.6 (your state's "
+           "VMT by vehicle type, FHWA VM-4 / HPMS); classes not listed share the rest (docs/registrations.md)"),
     Column("new_vehicle_mpg_change_pct_per_year", "number", False, "fuel-economy change of each new model "
            "year beyond the published trend [% per year] (empty: the trend's last ten years)",
            minimum=-20, maximum=20),
