@@ -80,15 +80,6 @@ KNOWN = {
     "fleetrun/diagnose/report.py:render_html(result)": _JSON_SIDE,
     "fleetrun/diagnose/select.py:Candidate.shapes": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/select.py:NullDistribution.gains": _DIAGNOSE_SELECT,
-    "fleetrun/run/batch.py:read_config": "batch.toml's content (a TOML document)",
-    "fleetrun/run/batch.py:run_one": "the batch's per-fleet line of the log; to become a record",
-    "fleetrun/run/batch.py:run_plan": "the batch's per-fleet lines of the log; to become a record",
-    "fleetrun/run/outputs.py:write_run_outputs(earlier)": "the earlier run's manifest.json (a JSON document)",
-    "fleetrun/run/runner.py:simulate_task": "per-condition arrays inside the runner (engines ship them)",
-    "fleetrun/run/runner.py:plan_tasks(needed)": "per-condition arrays inside the runner",
-    "fleetrun/run/runner.py:collect": "per-condition arrays inside the runner",
-    "fleetrun/run/runner.py:electric_sums(needed)": "per-condition arrays inside the runner",
-    "fleetrun/run/runner.py:electric_sums(per_condition)": "per-condition arrays inside the runner",
 }
 
 
