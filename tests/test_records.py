@@ -41,9 +41,6 @@ _DIAGNOSE_SELECT = "diagnose's selection result, typed in the selection rewrite 
 _JSON_SIDE = "a JSON/TOML document read from or written to a file (recording sidecar, diagnosis.json)"
 _CONFIG = "defaults read from a models/*.toml file"
 KNOWN = {
-    "fleetrun/simulation/electric.py:constants": _CONFIG,
-    "fleetrun/simulation/params.py:engine_defaults": _CONFIG,
-    "fleetrun/simulation/params.py:transmission_defaults": _CONFIG,
     "fleetrun/diagnose/__init__.py:analyse": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/__init__.py:Diagnosis.result": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/__init__.py:diagnose": _JSON_SIDE,

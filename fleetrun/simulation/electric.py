@@ -21,15 +21,16 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.resources import model_file
+from fleetrun.simulation.records import ElectricConstants
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si, tractive_force_N
 from fleetrun.units import METERS_PER_MILE
 
 J_PER_KWH = 3.6e6
 
 
-def constants() -> dict:
-    """``models/electric.toml``."""
-    return model_file("electric.toml")
+def constants() -> ElectricConstants:
+    """``models/electric.toml`` as :class:`ElectricConstants`."""
+    return ElectricConstants(**model_file("electric.toml"))
 
 
 def battery_power_W(wheel_power_W, drive_efficiency, regen_share, regen_efficiency):
@@ -78,10 +79,10 @@ def simulate_electric(vehicles, cycle) -> dict[str, np.ndarray]:
     rot = np.array([ROTATING_MASS_FRACTION[x.duty_class] for x in vehicles])[:, None]
     force = tractive_force_N(v[None, :], a[None, :], grade[None, :], mass, rot, A[:, None], B[:, None], C[:, None])
     wheel_W = force * v[None, :]
-    battery_W = battery_power_W(wheel_W, c["drive_efficiency"], c["regen_share"], c["regen_efficiency"])
+    battery_W = battery_power_W(wheel_W, c.drive_efficiency, c.regen_share, c.regen_efficiency)
     traction_J = (np.where(wheel_W > 0, wheel_W, 0.0) * dt).sum(axis=1)
-    battery_J = (battery_W * dt).sum(axis=1) + c["accessory_power_W"] * float(dt.sum())
+    battery_J = (battery_W * dt).sum(axis=1) + c.accessory_power_W * float(dt.sum())
     miles = np.full(len(vehicles), float((v * dt).sum()) / METERS_PER_MILE)
-    return {"miles": miles, "kwh": wall_energy_J(battery_J, c["charging_efficiency"]) / J_PER_KWH,
-            "wheel_energy_J": traction_J, "drivetrain_input_energy_J": traction_J / c["drive_efficiency"],
+    return {"miles": miles, "kwh": wall_energy_J(battery_J, c.charging_efficiency) / J_PER_KWH,
+            "wheel_energy_J": traction_J, "drivetrain_input_energy_J": traction_J / c.drive_efficiency,
             "battery_energy_J": battery_J}
