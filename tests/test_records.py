@@ -46,10 +46,6 @@ KNOWN = {
     "fleetrun/diagnose/__init__.py:diagnose": _JSON_SIDE,
     "fleetrun/diagnose/differential.py:sidecar_kim_torque_scale_Nm(meta)": _JSON_SIDE,
     "fleetrun/diagnose/differential.py:thesis_output_torque(meta)": _JSON_SIDE,
-    "fleetrun/diagnose/engine.py:Problem.baseline_info": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/engine.py:Problem.offset_floor": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/engine.py:Problem.integral": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/engine.py:explanation(params)": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/fleet.py:FleetProblem.candidates": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/fleet.py:FleetProblem.untestable": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/fleet.py:FleetProblem.properties": _DIAGNOSE_SELECT,
@@ -64,10 +60,6 @@ KNOWN = {
     "fleetrun/diagnose/fleet_report.py:fleet_figures(result)": _JSON_SIDE,
     "fleetrun/diagnose/fleet_report.py:summary_words(result)": _JSON_SIDE,
     "fleetrun/diagnose/fleet_report.py:render_fleet_html(result)": _JSON_SIDE,
-    "fleetrun/diagnose/integrals.py:phases": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/integrals.py:integrals": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/locate.py:segments": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/locate.py:drivers": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/openworld.py:generic_columns(channels)": _DIAGNOSE_SELECT,
     "fleetrun/diagnose/recording.py:Recording.meta": _JSON_SIDE,
     "fleetrun/diagnose/recording.py:read_sidecar": _JSON_SIDE,
@@ -75,8 +67,6 @@ KNOWN = {
     "fleetrun/diagnose/report.py:figures(result)": _JSON_SIDE,
     "fleetrun/diagnose/report.py:summary_sentence(result)": _JSON_SIDE,
     "fleetrun/diagnose/report.py:render_html(result)": _JSON_SIDE,
-    "fleetrun/diagnose/select.py:Candidate.shapes": _DIAGNOSE_SELECT,
-    "fleetrun/diagnose/select.py:NullDistribution.gains": _DIAGNOSE_SELECT,
 }
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.diagnose.engine import Problem
+from fleetrun.diagnose.engine import IntegralSpec, Problem
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate
 from fleetrun.differential import configuration_lubricant, efficiency, kim_torque_scale_Nm
@@ -233,8 +233,8 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
             "offset": round(offset, 6), "input_offset_Nm": round(offset_in, 6),
             "standstill_samples": int(still.sum()),
             "kim_torque_scale_Nm": sidecar_kim_torque_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
-    integral = {"moving": moving, "unit": "kJ", "weight": ch["input_speed_rad_s"] / g / 1000.0,
-                "speed_mps": df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None}
+    integral = IntegralSpec(moving=moving, unit="kJ", weight=ch["input_speed_rad_s"] / g / 1000.0,
+                            speed_mps=df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None)
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
                    surrogates, confound, _driver_channels(df, ch, n_rpm, t_in, t0), info, notes,
                    extra_ambiguity, units="N m", offset_floor=offset_floor, integral=integral)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.cycles import DriveCycle
-from fleetrun.diagnose.engine import Problem, windowed
+from fleetrun.diagnose.engine import IntegralSpec, Problem, windowed
 from fleetrun.diagnose.integrals import MATCH_RMS_MPS, STILL_MPS, align, driving_stretches
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate, full_fit
@@ -221,7 +221,7 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis",
         drivers["grade"] = df["grade_pct"].to_numpy()
     if "ambient_temp_C" in df:
         drivers["temperature"] = df["ambient_temp_C"].to_numpy()
-    integral = {"moving": v > 0.1, "speed_mps": v, "weight": np.ones(len(t)), "unit": "g"}
+    integral = IntegralSpec(moving=v > 0.1, speed_mps=v, weight=np.ones(len(t)), unit="g")
     problem = Problem("vehicle", "fuel_rate_g_per_s", t, y, baseline, candidates, untestable, {},
                       {}, drivers, info, notes, {}, units="g/s", initial_terms=initial,
                       integral=integral)
