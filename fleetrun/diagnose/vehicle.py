@@ -71,7 +71,7 @@ def simulated(rec: Recording, physics="thesis"):
     grade = df["grade_pct"].to_numpy() if "grade_pct" in df else np.zeros(len(df))
     cycle = DriveCycle(rec.stem, df["time_s"].to_numpy(), df["vehicle_speed_mps"].to_numpy(), grade)
     ambient = float(np.median(df["ambient_temp_C"])) if "ambient_temp_C" in df else \
-        float(rec.meta.get("ambient_temp_C", 20.0))
+        float(20.0 if rec.meta.ambient_temp_C is None else rec.meta.ambient_temp_C)
     res = simulate([spec], cycle, mode="direct", ambient_temp_C=ambient, physics=physics, trace=True)
     tr = res.trace_frame(0)
     on = engine_on(df["time_s"].to_numpy(), df["vehicle_speed_mps"].to_numpy(),
