@@ -29,7 +29,7 @@ from fleetrun.diagnose.recording import load_recording
 from fleetrun.diagnose.records import Integral
 from fleetrun.diagnose.report import render_html
 from fleetrun.errors import InputError
-from fleetrun.fileio import prepare_output_folder, write_text_atomic
+from fleetrun.fileio import JsonDocument, prepare_output_folder, write_text_atomic
 
 SCHEMA = "fleetrun.diagnosis/1"
 
@@ -59,8 +59,9 @@ def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="a
     return prob
 
 
-def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, np.ndarray]:
-    """Locate and select; the JSON-ready result and the fitted effects (target units)."""
+def analyse(problem: Problem, settings: Settings | None = None) -> tuple[JsonDocument, np.ndarray]:
+    """Locate and select; diagnosis.json's document (docs/interface.md), built from the typed
+    records of the steps (:mod:`.records`), and the fitted effects (target units)."""
     s = settings or Settings()
     t0 = time.perf_counter()
     r = problem.residual
@@ -144,11 +145,12 @@ def _clean(obj):
 
 @dataclass
 class Diagnosis:
-    """A diagnosis: the problem (recording, baseline, candidates), the JSON-ready result and
-    the fitted effects in target units (for figures)."""
+    """A diagnosis: the problem (recording, baseline, candidates), diagnosis.json's document
+    (the report renders the document it is written beside: the two cannot disagree) and the
+    fitted effects in target units (for figures)."""
 
     problem: Problem
-    result: dict
+    result: JsonDocument
     fitted: np.ndarray
 
 
@@ -174,8 +176,9 @@ def write_outputs(d: Diagnosis, out) -> None:
 
 
 def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
-             settings: Settings | None = None, write=True, residual="auto") -> dict:
-    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+             settings: Settings | None = None, write=True, residual="auto") -> JsonDocument:
+    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``; the
+    document written."""
     t_start = time.perf_counter()
     d = diagnosis(recording, meta, calibrate_on, physics=physics, settings=settings,
                   residual=residual)

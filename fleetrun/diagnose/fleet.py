@@ -612,7 +612,7 @@ def _finding(prob, effect, coef, before: dict[str, PerTestError], after: dict[st
             "by_test": by_test, "explanation": text}
 
 
-def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> dict:
+def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> JsonDocument:
     """The fleet diagnosis as the JSON of docs/interface.md (``fleetrun.fleet-diagnosis/1``)."""
     st = settings or FleetSettings()
     folds = manufacturer_folds(prob.manufacturer, st.folds)
@@ -659,8 +659,9 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
 
 
 def diagnose_fleet(fleet_path, measured_path, out=None, *, settings: FleetSettings | None = None,
-                   write=True) -> dict:
-    """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``."""
+                   write=True) -> JsonDocument:
+    """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``; the
+    document written."""
 
     t0 = time.perf_counter()
     prob = build_fleet_problem(fleet_path, measured_path)
