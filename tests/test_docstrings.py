@@ -1,7 +1,8 @@
 """The public model functions say what goes in and what comes out, with units.
 
 Every public function of ``fleetrun/physics/`` (the small pure physics functions of the house
-style, docs/architecture.md) has a numpydoc ``Parameters`` section naming every argument and a
+style, docs/architecture.md) and of the simulation's physics families (road load, tyre, engine,
+transmission, electric) has a numpydoc ``Parameters`` section naming every argument and a
 ``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
 or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
@@ -15,7 +16,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py"))
+PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
+    ROOT / "fleetrun" / "simulation" / f"{name}.py" for name in ("road_load", "tyre", "engine", "transmission", "electric")]
 
 
 def _public_functions(path: Path):
@@ -41,8 +43,11 @@ def test_every_physics_function_documents_its_parameters_and_units(path):
             documented = {n.strip() for line in block.splitlines() if " : " in line
                           for n in line.split(" : ")[0].split(",")}
             assert set(names) <= documented, f"{where}: Parameters lacks {sorted(set(names) - documented)}"
-            unitless = [line for line in block.splitlines() if " : " in line
-                        and "float" in line.split(" : ")[1].split(",")[0] and "[" not in line]
+            # numpydoc's two-line form ("name : float" and the description below) counts too
+            lines = block.splitlines()
+            unitless = [line for k, line in enumerate(lines) if " : " in line
+                        and "float" in line.split(" : ")[1].split(",")[0]
+                        and "[" not in line + (lines[k + 1] if k + 1 < len(lines) and " : " not in lines[k + 1] else "")]
             assert not unitless, f"{where}: a float parameter without its unit in brackets: {unitless}"
         assert _section(doc, "Returns"), f"{where}: no numpydoc Returns section"
 

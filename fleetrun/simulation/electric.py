@@ -29,7 +29,12 @@ J_PER_KWH = 3.6e6
 
 
 def constants() -> ElectricConstants:
-    """``models/electric.toml`` as :class:`ElectricConstants`."""
+    """``models/electric.toml`` as :class:`ElectricConstants`.
+
+    Returns
+    -------
+    ElectricConstants (efficiencies [-], accessory power [W]).
+    """
     return ElectricConstants(**model_file("electric.toml"))
 
 
@@ -47,19 +52,50 @@ def battery_power_W(wheel_power_W, drive_efficiency, regen_share, regen_efficien
         Share of the braking energy the motor takes [-].
     regen_efficiency : float
         Wheels -> battery [-].
+
+    Returns
+    -------
+    battery power [W], the shape of ``wheel_power_W``.
+
+    >>> battery_power_W([9000.0, -10000.0], 0.9, 0.8, 0.9).tolist()
+    [10000.0, -7200.0]
     """
     p = np.asarray(wheel_power_W, dtype=float)
     return np.where(p > 0.0, p / drive_efficiency, p * regen_share * regen_efficiency)
 
 
 def wall_energy_J(battery_energy_J, charging_efficiency):
-    """Energy drawn from the wall [J] to put ``battery_energy_J`` back: E / eta_charge."""
+    """Energy drawn from the wall [J] to put ``battery_energy_J`` back: E / eta_charge.
+
+    Parameters
+    ----------
+    battery_energy_J : float or array, energy to put back into the battery [J]
+    charging_efficiency : float, wall -> battery [-]
+
+    Returns
+    -------
+    energy from the wall [J].
+
+    >>> float(wall_energy_J(9.0e6, 0.9))
+    10000000.0
+    """
     return np.asarray(battery_energy_J, dtype=float) / charging_efficiency
 
 
 def step_kinematics(time_s, speed_mps, grade_pct):
     """Per step between samples: duration [s], mean speed [m/s], acceleration [m/s^2] and
-    mean grade [%] (the backward simulation's step convention)."""
+    mean grade [%] (the backward simulation's step convention).
+
+    Parameters
+    ----------
+    time_s : array (N,), sample times [s]
+    speed_mps : array (N,), speed [m/s]
+    grade_pct : array (N,), grade [%]
+
+    Returns
+    -------
+    (dt [s], mean speed [m/s], acceleration [m/s^2], mean grade [%]), arrays (N - 1,).
+    """
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(speed_mps, dtype=float)
     g = np.asarray(grade_pct, dtype=float)
@@ -70,7 +106,18 @@ def step_kinematics(time_s, speed_mps, grade_pct):
 def simulate_electric(vehicles, cycle) -> dict[str, np.ndarray]:
     """Per vehicle over ``cycle`` (a DriveCycle): ``miles``, ``kwh`` (from the wall, dynamometer),
     ``wheel_energy_J`` (positive traction), ``drivetrain_input_energy_J`` (battery energy for
-    traction) and ``battery_energy_J`` (net, accessories included)."""
+    traction) and ``battery_energy_J`` (net, accessories included).
+
+    Parameters
+    ----------
+    vehicles : list of VehicleSpec, battery-electric rows (coastdown, test weight, duty class)
+    cycle : DriveCycle, the speed and grade trace
+
+    Returns
+    -------
+    dict, column name -> array (V,): ``miles`` [mi], ``kwh`` [kWh from the wall],
+    ``wheel_energy_J``, ``drivetrain_input_energy_J``, ``battery_energy_J`` [J].
+    """
     c = constants()
     dt, v, a, grade = step_kinematics(cycle.time_s, cycle.speed_mps, cycle.grade_pct)
     A, B, C = coastdown_to_si([x.coastdown_A_lbf for x in vehicles], [x.coastdown_B_lbf_per_mph for x in vehicles],
