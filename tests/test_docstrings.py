@@ -2,7 +2,7 @@
 
 Every public function of ``fleetrun/physics/`` (the small pure physics functions of the house
 style, docs/architecture.md) and of the simulation's physics families (road load, tyre, engine,
-transmission, electric, thermal, climate, technology, heavy duty) has a numpydoc ``Parameters`` section naming every argument and a
+transmission, electric, thermal, climate, technology, heavy-duty engine and shift) has a numpydoc ``Parameters`` section naming every argument and a
 ``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
 or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
     ROOT / "fleetrun" / "simulation" / f"{name}.py" for name in ("road_load", "tyre", "engine", "transmission", "electric",
                                                            "thermal", "climate", "technology", "heavy_duty_engine",
-                                                           "heavy_duty_shift", "heavy_duty_gem", "heavy_duty_road_load")]
+                                                           "heavy_duty_shift")]
 
 
 def _public_functions(path: Path):

@@ -131,16 +131,15 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
 
     Parameters
     ----------
-    torque_Nm : float or array, brake torque T_e [N m] (negative on overrun: no brake power)
-    speed_rpm : float or array, engine speed n [rpm]
-    max_torque_Nm : float or array, full-load torque at n [N m] (:func:`full_load_torque_Nm`)
-    displacement_L, stroke_m, peak_torque_Nm : float or array, the engine's V_d [L], S [m] and T_peak [N m]
-    throttled : bool, True for spark-ignition (gasoline) engines
-    inertial_power_W : float or array, m (1 + f_rot) a v of the vehicle [W] (only its positive part counts)
-    pumping_share : float or array, the throttle-pumping share [-] in place of (1 - L) (technology
-        classes, fleetrun/simulation/technology.py); None: (1 - L)
-    brake_gain : float or array, multiplier of the two brake-work terms [-] (a higher expansion
-        ratio); None: 1
+    torque_Nm : brake torque T_e (negative on overrun: no brake power).
+    speed_rpm : engine speed n.
+    max_torque_Nm : full-load torque at n (:func:`full_load_torque_Nm`).
+    displacement_L, stroke_m, peak_torque_Nm : the engine's V_d, S and T_peak.
+    throttled : bool, True for spark-ignition (gasoline) engines.
+    inertial_power_W : m (1 + f_rot) a v of the vehicle (only its positive part counts).
+    pumping_share : the throttle-pumping share in place of (1 - L) (technology classes,
+        fleetrun/simulation/technology.py); None: (1 - L).
+    brake_gain : multiplier of the two brake-work terms (a higher expansion ratio); None: 1.
 
     Returns
     -------

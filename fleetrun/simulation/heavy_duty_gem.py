@@ -17,19 +17,7 @@ PARTS = ("transient", "cruise_55", "cruise_65")
 
 def gem_cycle_mix(vehicle_type: str) -> dict[str, float]:
     """{cycle name: share} of GEM's weighting for ``vehicle_type`` (a key of the file's
-    ``weights``, e.g. ``sleeper_cab``); cycles of zero weight left out.
-
-    Parameters
-    ----------
-    vehicle_type : str, e.g. ``day_cab``, ``sleeper_cab``
-
-    Returns
-    -------
-    dict, cycle name -> weight [-] (summing to 1).
-
-    >>> gem_cycle_mix("day_cab")
-    {'ARB-TRANSIENT': 0.19, 'CRUISE-55': 0.17, 'CRUISE-65': 0.64}
-    """
+    ``weights``, e.g. ``sleeper_cab``); cycles of zero weight left out."""
     data = model_file(GEM_FILE)
     if vehicle_type not in data["weights"]:
         raise unknown_name_error("GEM vehicle type", vehicle_type, tuple(data["weights"]))
@@ -38,19 +26,7 @@ def gem_cycle_mix(vehicle_type: str) -> dict[str, float]:
 
 
 def payload_short_tons(regulatory_class: str) -> float:
-    """The regulatory payload [short tons] of ``regulatory_class`` (40 CFR 1037.705(b)).
-
-    Parameters
-    ----------
-    regulatory_class : str, e.g. ``medium_heavy_vocational``
-
-    Returns
-    -------
-    payload [short tons].
-
-    >>> payload_short_tons("medium_heavy_vocational")
-    5.6
-    """
+    """The regulatory payload [short tons] of ``regulatory_class`` (40 CFR 1037.705(b))."""
     payloads = model_file(GEM_FILE)["payload_short_tons"]
     if regulatory_class not in payloads:
         raise unknown_name_error("regulatory class", regulatory_class, tuple(payloads))
@@ -63,14 +39,9 @@ def composite_g_co2_per_ton_mile(gallons_per_mile: dict[str, float], mix: dict[s
 
     Parameters
     ----------
-    gallons_per_mile : dict, cycle -> fuel per mile [gal/mi] of each cycle of ``mix``
-    mix : dict, cycle -> weight [-] (:func:`gem_cycle_mix`)
-    payload_tons : float, regulatory payload [short tons]
-    fuel : str, a fuel of models/fuels.toml (its CO2 per gallon)
-
-    Returns
-    -------
-    g CO2 per ton-mile.
+    gallons_per_mile : fuel per mile [gal/mi] of each cycle of ``mix``.
+    mix : {cycle: weight} (:func:`gem_cycle_mix`).
+    payload_tons : regulatory payload [short tons].
     """
     per_mile = sum(w * gallons_per_mile[c] for c, w in mix.items())
     return per_mile * fuel_properties(fuel).co2_g_per_gal / payload_tons
