@@ -261,24 +261,25 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> FleetSimulation:
     for name in ("bag1", "bag2", "bag3"):
         ph = ftp.phases[name]
         full[name] = _amounts(ph.fuel_g, ph.fuel_gal, ph.miles)
-    out = FleetSimulation(warm={}, full={}, s_per_mi={})
-    for by_test, model in ((out.warm, warm), (out.full, full)):
+    by_test = {"warm": {}, "full": {}}
+    s_per_mi = {}
+    for key, model in (("warm", warm), ("full", full)):
         bag = [model[b] for b in ("bag1", "bag2", "bag3")]
         miles = [b.mi for b in bag]
         for name in ("bag1", "bag2", "bag3"):
-            by_test[f"FTP:{name}"] = model[name]
-        by_test["FTP"] = FuelAmounts(g=ftp_weighted_per_mile(*[b.g for b in bag], *miles) * sum(miles),
-                                     gal=ftp_weighted_per_mile(*[b.gal for b in bag], *miles) * sum(miles),
-                                     mi=sum(miles))
+            by_test[key][f"FTP:{name}"] = model[name]
+        by_test[key]["FTP"] = FuelAmounts(g=ftp_weighted_per_mile(*[b.g for b in bag], *miles) * sum(miles),
+                                          gal=ftp_weighted_per_mile(*[b.gal for b in bag], *miles) * sum(miles),
+                                          mi=sum(miles))
     for name in ("bag1", "bag2", "bag3"):
-        out.s_per_mi[f"FTP:{name}"] = seconds[name] / warm[name].mi
-    out.s_per_mi["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"].mi + warm["bag2"].mi)
+        s_per_mi[f"FTP:{name}"] = seconds[name] / warm[name].mi
+    s_per_mi["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"].mi + warm["bag2"].mi)
     for test in ("HWFET", "US06"):
         cyc = load_cycle(test)
         r = run(cyc)
-        out.warm[test] = out.full[test] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
-        out.s_per_mi[test] = float(cyc.time_s[-1] - cyc.time_s[0]) / np.asarray(r.miles, float)
-    return out
+        by_test["warm"][test] = by_test["full"][test] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
+        s_per_mi[test] = float(cyc.time_s[-1] - cyc.time_s[0]) / np.asarray(r.miles, float)
+    return FleetSimulation(warm=by_test["warm"], full=by_test["full"], s_per_mi=s_per_mi)
 
 
 # ----------------------------------------------------------------------------- candidates
