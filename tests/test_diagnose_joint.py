@@ -8,7 +8,7 @@ noise's 3 standard errors) and give the warm-up to the recording that has it.
 import numpy as np
 import pytest
 
-from fleetrun.diagnose.engine import Problem, Settings, select
+from fleetrun.diagnose.engine import IntegralSpec, Problem, Settings, select
 from fleetrun.diagnose.joint import join
 from fleetrun.diagnose.select import Candidate, effect_of
 from fleetrun.errors import InputError
@@ -31,7 +31,7 @@ def _problem(seed: int, grade_signal: float, warm: float, speed_scale: float) ->
     return Problem("vehicle", "fuel_rate_g_per_s", t, residual, np.zeros(N), cands, {},
                    driver_channels={"speed": speed}, units="g/s",
                    initial_terms=[(np.ones(N), -0.01, 0.01)],
-                   integral={"moving": speed > 0.1, "speed_mps": speed, "weight": np.ones(N), "unit": "g"})
+                   integral=IntegralSpec(moving=speed > 0.1, speed_mps=speed, weight=np.ones(N), unit="g"))
 
 
 def test_a_shared_effect_and_a_per_recording_warmup():

@@ -109,10 +109,10 @@ def test_phases_split_at_long_standstill_and_udds_bag_boundary():
     v = np.concatenate([v_u, np.zeros(int(GAP_S) + 40), v_u[:300]])
     t = np.arange(len(v), dtype=float)
     spans = phases(t, v > 0.1, v)
-    labels = [p["label"] for p in spans]
+    labels = [p.label for p in spans]
     assert labels[:3] == ["UDDS bag 1", "UDDS bag 2", "standstill"]
-    assert t[spans[1]["span"][0]] == 505.0          # 40 CFR 86.137: bag 1 ends at 505 s
-    assert spans[-1]["label"] == "driving"           # 300 s of UDDS: not a whole first bag
+    assert t[spans[1].span[0]] == 505.0          # 40 CFR 86.137: bag 1 ends at 505 s
+    assert spans[-1].label == "driving"           # 300 s of UDDS: not a whole first bag
 
 
 def test_camry_cold_vs_hot_integrals_same_trace(tmp_path):

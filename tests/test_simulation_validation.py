@@ -62,7 +62,7 @@ def test_camry_calibration_on_hot_udds_only(camry):
     # efficient than the fleet's average, as Toyota's vehicles are in docs/validation-epa.md
     from fleetrun.simulation.params import engine_defaults
 
-    assert camry["eta_indicated_default"] == engine_defaults("gasoline", "LD")["eta_indicated"]
+    assert camry["eta_indicated_default"] == engine_defaults("gasoline", "LD").eta_indicated
     # (bands, here and below, wide enough for a refit of the fleet constants: their spread over
     # the manufacturer folds is a few per cent, docs/validation-epa.md)
     assert 1.10 < camry["eta_indicated_calibrated"] / camry["eta_indicated_default"] < 1.18

@@ -26,9 +26,9 @@ def test_light_duty_defaults_are_the_fleet_calibration():
         ld = engine_defaults(fuel, "LD")
         for key in FUEL_CONSTANTS:
             c = fitted[fuel]["LD"]["constants"][key]
-            assert ld[key] == c["value"]
+            assert getattr(ld, key) == c["value"]
             assert c["fold_min"] <= c["value"] <= c["fold_max"]      # the folds bracket the full fit
-    assert engine_defaults("diesel", "HD")["eta_indicated"] == _toml("engines.toml")["diesel"]["HD"]["eta_indicated"]
+    assert engine_defaults("diesel", "HD").eta_indicated == _toml("engines.toml")["diesel"]["HD"]["eta_indicated"]
 
 
 def test_fuel_is_linear_in_the_constants():

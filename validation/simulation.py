@@ -165,8 +165,8 @@ def camry_validation(mode="auto", dyno_dir=None, vehicle=None):
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     vehicle = camry_vehicle(folder) if vehicle is None else vehicle
     defaults = engine_defaults(vehicle.fuel, vehicle.duty_class)
-    eta0 = float(vehicle.extra.get("eta_indicated", defaults["eta_indicated"]))
-    density = defaults["density_kg_per_L"]
+    eta0 = float(vehicle.extra.get("eta_indicated", defaults.eta_indicated))
+    density = defaults.density_kg_per_L
     segments = {k: dyno_segment(rec, start, folder) for k, (rec, start) in DYNO_TESTS.items()}
 
     def predicted_cc(eta):
@@ -333,7 +333,7 @@ def camry_traces(result, mode="auto", dyno_dir=None, with_trace=False):
 
     folder = Path(dyno_dir) if dyno_dir else inputs_dir() / "dyno"
     vehicle = camry_vehicle(folder, extra={"eta_indicated": result["eta_indicated_calibrated"]})
-    density = engine_defaults(vehicle.fuel, vehicle.duty_class)["density_kg_per_L"]
+    density = engine_defaults(vehicle.fuel, vehicle.duty_class).density_kg_per_L
     import pandas as pd
     out = {}
     for k, (rec, start) in DYNO_TESTS.items():

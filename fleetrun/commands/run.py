@@ -41,8 +41,9 @@ def _load_config(ctx, config):
     except InputError as exc:   # raised after the usage checks (WORKBOOK and --config: exit 2)
         ctx.meta[CONFIG_KEY] = exc
         return config
+    given = {option: getattr(settings, key) for key, option in OPTION_OF_KEY.items()}
     ctx.default_map = {**(ctx.default_map or {}),
-                       **{option: settings[key] for key, option in OPTION_OF_KEY.items() if key in settings}}
+                       **{option: value for option, value in given.items() if value is not None}}
     ctx.meta[CONFIG_KEY] = settings
     return config
 
@@ -80,7 +81,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     report.xlsx, summary.html, results.csv, results.parquet, class_summary.csv, fiscal_summary.csv and
     manifest.json."""
 
-    settings = ctx.meta.get(CONFIG_KEY, {})   # what the defaults (ctx.default_map) do not carry
+    settings = ctx.meta.get(CONFIG_KEY)   # what the defaults (ctx.default_map) do not carry
     if config is not None and workbook is not None:
         raise click.UsageError("give either WORKBOOK or --config, not both")
     if config is None and workbook is None:
@@ -88,8 +89,11 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     if isinstance(settings, Exception):
         raise settings
     # a misspelt effect fails here, before any fleet is read
-    effects = parse_with(with_effects) if with_effects is not None else settings.get("with", [])
-    inputs = settings.get("inputs") or [workbook]
+    if with_effects is not None:
+        effects = parse_with(with_effects)
+    else:
+        effects = list(settings.effects or ()) if settings else []
+    inputs = settings.inputs if settings else [workbook]
     batch_mode = config is not None
     out = out or Path(f"run-{Path(workbook).stem}")
     engine = engine or "local"
@@ -108,7 +112,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     plan = batch.RunPlan(inputs=list(inputs), out=Path(out), per_input_dirs=batch_mode,
                          scenarios=list(scenarios), engine=engine, scheduler=scheduler,
                          physics=physics or "thesis", mode=mode or "auto", effects=effects,
-                         cache_dir=cache, log=log_file, chunk_size=settings.get("chunk_size"))
+                         cache_dir=cache, log=log_file, chunk_size=settings.chunk_size if settings else None)
     plan.replace = replace
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.
@@ -122,10 +126,10 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
         batch.teardown_logging(handlers)
     if not quiet:
         for item in written:
-            note = (f"; {item['warnings']} warning(s), listed in summary.html and manifest.json"
-                    if item["warnings"] else "")
-            files = OUTPUT_FILES + tuple(n for n in REGISTRATION_FILES if (Path(item["out"]) / n).exists())
-            click.echo(f"Wrote {item['out']}/: {', '.join(files)}{note}")
+            warnings = len(item.result.warnings)
+            note = f"; {warnings} warning(s), listed in summary.html and manifest.json" if warnings else ""
+            files = OUTPUT_FILES + tuple(n for n in REGISTRATION_FILES if (item.out / n).exists())
+            click.echo(f"Wrote {item.out}/: {', '.join(files)}{note}")
     if code == batch.EXIT_OK:
         return
     if len(errors) == 1 and len(plan.inputs) == 1:

@@ -26,9 +26,10 @@ from fleetrun.diagnose.integrals import integrals, phases
 from fleetrun.diagnose.locate import drivers as find_drivers
 from fleetrun.diagnose.locate import segments as find_segments
 from fleetrun.diagnose.recording import load_recording
+from fleetrun.diagnose.records import Integral
 from fleetrun.diagnose.report import render_html
 from fleetrun.errors import InputError
-from fleetrun.fileio import prepare_output_folder, write_text_atomic
+from fleetrun.fileio import JsonDocument, prepare_output_folder, write_text_atomic
 
 SCHEMA = "fleetrun.diagnosis/1"
 
@@ -54,12 +55,13 @@ def build(recording, meta=None, calibrate_on=None, physics="thesis", residual="a
             raise InputError("--calibrate-on must be a vehicle-level recording", file=calibrate_on)
         prob = build_problem(rec, ref, physics, residual)
     prob.baseline_info.setdefault("recording", str(rec.path))
-    prob.baseline_info["_rec"] = rec
+    prob.recording = rec
     return prob
 
 
-def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, np.ndarray]:
-    """Locate and select; the JSON-ready result and the fitted effects (target units)."""
+def analyse(problem: Problem, settings: Settings | None = None) -> tuple[JsonDocument, np.ndarray]:
+    """Locate and select; diagnosis.json's document (docs/interface.md), built from the typed
+    records of the steps (:mod:`.records`), and the fitted effects (target units)."""
     s = settings or Settings()
     t0 = time.perf_counter()
     r = problem.residual
@@ -76,15 +78,15 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     segs = find_segments(problem.time_s, r, noise=(r - fitted) if sel.findings else None) \
         if significant else []
     rmse = float(np.sqrt(np.mean(r ** 2)))
-    info = {k: v for k, v in problem.baseline_info.items() if not k.startswith("_")}
+    info = problem.baseline_info
     baseline = {"rmse": round(rmse, 6), "bias": round(float(np.mean(r)), 6),
                 "heldout_rmse": round(float(base_heldout if base_heldout is not None else rmse), 6)}
     baseline.update(info)
     after = r - fitted
-    rec = problem.baseline_info.get("_rec")
+    rec = problem.recording
     ig = problem.integral
-    phase_list = phases(problem.time_s, ig["moving"], ig.get("speed_mps"))
-    integral_list = integrals(problem.time_s, ig["weight"], problem.measured, problem.baseline,
+    phase_list = phases(problem.time_s, ig.moving, ig.speed_mps)
+    integral_list = integrals(problem.time_s, ig.weight, problem.measured, problem.baseline,
                               problem.baseline + fitted, phase_list, segs)
     chosen = sel.as_json()
     chosen["unexplained"]["integral_share"] = integral_share(integral_list)
@@ -98,10 +100,10 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
         "samples": int(len(r)),
         "dt_s": float(rec.dt_s) if rec is not None else float(np.median(np.diff(problem.time_s))),
         "baseline": baseline,
-        "mismatch": {"significant": significant, "segments": segs,
-                     "drivers": drv},
-        "integrals": integral_list,
-        "integral_unit": ig["unit"],
+        "mismatch": {"significant": significant, "segments": [x.as_json() for x in segs],
+                     "drivers": [x.as_json() for x in drv]},
+        "integrals": [x.as_json() for x in integral_list],
+        "integral_unit": ig.unit,
         "findings": chosen["findings"],
         "candidates": chosen["candidates"],
         "ambiguities": chosen["ambiguities"],
@@ -118,12 +120,12 @@ def analyse(problem: Problem, settings: Settings | None = None) -> tuple[dict, n
     return result, fitted
 
 
-def integral_share(integral_list: list) -> float | None:
+def integral_share(integral_list: list[Integral]) -> float | None:
     """The phase-integral error the findings leave, as a share of the error before:
     ``sum |after - measured| / sum |before - measured|`` over the phases."""
-    ph = [e for e in integral_list if e.get("kind") == "phase"]
-    before = sum(abs(e["before"] - e["measured"]) for e in ph)
-    after = sum(abs(e["after"] - e["measured"]) for e in ph)
+    ph = [e for e in integral_list if e.kind == "phase"]
+    before = sum(abs(e.before - e.measured) for e in ph)
+    after = sum(abs(e.after - e.measured) for e in ph)
     return float(after / before) if before > 0 else None
 
 
@@ -143,11 +145,12 @@ def _clean(obj):
 
 @dataclass
 class Diagnosis:
-    """A diagnosis: the problem (recording, baseline, candidates), the JSON-ready result and
-    the fitted effects in target units (for figures)."""
+    """A diagnosis: the problem (recording, baseline, candidates), diagnosis.json's document
+    (the report renders the document it is written beside: the two cannot disagree) and the
+    fitted effects in target units (for figures)."""
 
     problem: Problem
-    result: dict
+    result: JsonDocument
     fitted: np.ndarray
 
 
@@ -173,8 +176,9 @@ def write_outputs(d: Diagnosis, out) -> None:
 
 
 def diagnose(recording, meta=None, calibrate_on=None, out=None, *, physics="thesis",
-             settings: Settings | None = None, write=True, residual="auto") -> dict:
-    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``."""
+             settings: Settings | None = None, write=True, residual="auto") -> JsonDocument:
+    """Diagnose ``recording``; writes ``out/diagnosis.json`` and ``out/diagnosis.html``; the
+    document written."""
     t_start = time.perf_counter()
     d = diagnosis(recording, meta, calibrate_on, physics=physics, settings=settings,
                   residual=residual)

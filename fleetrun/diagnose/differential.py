@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrun.diagnose.engine import Problem
-from fleetrun.diagnose.recording import Recording
+from fleetrun.diagnose.engine import IntegralSpec, Problem
+from fleetrun.diagnose.recording import Recording, Sidecar
 from fleetrun.diagnose.select import Candidate
 from fleetrun.differential import configuration_lubricant, efficiency, kim_torque_scale_Nm
 from fleetrun.effects import effects_for_level, overall_ratio
@@ -33,10 +33,10 @@ STANDSTILL_RPM = 5.0
 MIN_STANDSTILL = 20
 
 
-def sidecar_kim_torque_scale_Nm(meta: dict) -> float:
+def sidecar_kim_torque_scale_Nm(meta: Sidecar) -> float:
     """The Kim torque scale (:func:`fleetrun.differential.kim_torque_scale_Nm`) of a sidecar."""
-    return float(kim_torque_scale_Nm(float(meta["peak_engine_torque_Nm"]), float(meta["torque_converter_ratio"]),
-                                     float(meta["max_transmission_gear_ratio"])))
+    return float(kim_torque_scale_Nm(float(meta.peak_engine_torque_Nm), float(meta.torque_converter_ratio),
+                                     float(meta.max_transmission_gear_ratio)))
 
 
 def acceleration(w_rad_s: np.ndarray, dt_s: float) -> np.ndarray:
@@ -64,19 +64,19 @@ def fit_oil_time_constant(time_s, oil_temp_C, ambient_temp_C) -> float:
     return float(np.exp(res.x))
 
 
-def thesis_output_torque(meta: dict, t_in_Nm, n_rpm, physics="thesis"):
+def thesis_output_torque(meta: Sidecar, t_in_Nm, n_rpm, physics="thesis"):
     """Model output torque and marginal efficiency for measured input torque and speed."""
     kim = sidecar_kim_torque_scale_Nm(meta)
-    cfg = meta["configuration"]
+    cfg = meta.configuration
     kw = {"physics": physics}
-    if meta.get("low_gear_ratio"):
-        kw["low_gear_ratio"] = float(meta["low_gear_ratio"])
-        kw["axle_gear"] = str(meta.get("axle_gear", "high"))
-    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
+    if meta.low_gear_ratio:
+        kw["low_gear_ratio"] = float(meta.low_gear_ratio)
+        kw["axle_gear"] = str(meta.axle_gear)
+    g = overall_ratio(meta.gear_ratio, meta.low_gear_ratio, meta.axle_gear)
     t_pos = np.maximum(t_in_Nm, 0.0)
 
     def f(t):
-        return np.asarray(efficiency(cfg, t / kim, np.abs(n_rpm), float(meta["gear_ratio"]), **kw),
+        return np.asarray(efficiency(cfg, t / kim, np.abs(n_rpm), float(meta.gear_ratio), **kw),
                           dtype=float) * t
 
     delta = max(0.005 * kim, 1.0)
@@ -144,8 +144,8 @@ def _channels(df, meta, rec, t0, t_in, n_rpm, g, lubricant) -> dict:
                                                     - df["wheel_speed_right_rpm"].to_numpy()) * RAD_S_PER_RPM
     if "ambient_temp_C" in df:
         ch["ambient_temp_C"] = df["ambient_temp_C"].to_numpy()
-    elif "ambient_temp_C" in meta:
-        ch["ambient_temp_C"] = np.full(len(t0), float(meta["ambient_temp_C"]))
+    elif meta.ambient_temp_C is not None:
+        ch["ambient_temp_C"] = np.full(len(t0), float(meta.ambient_temp_C))
     if "oil_temp_C" in df:
         ch["oil_temp_C"] = df["oil_temp_C"].to_numpy()
     return ch
@@ -197,7 +197,7 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
     t0 = t - t[0]
     n_rpm = df["diff_input_speed_rpm"].to_numpy()
     notes = list(rec.notes)
-    g = overall_ratio(meta["gear_ratio"], meta.get("low_gear_ratio"), meta.get("axle_gear", "high"))
+    g = overall_ratio(meta.gear_ratio, meta.low_gear_ratio, meta.axle_gear)
     still = np.abs(n_rpm) < STANDSTILL_RPM
     if "wheel_speed_left_rpm" in df:
         still &= (np.abs(df["wheel_speed_left_rpm"].to_numpy()) < STANDSTILL_RPM / g) & \
@@ -209,7 +209,7 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
     y = df["diff_output_torque_Nm"].to_numpy() - offset
     t_in = df["diff_input_torque_Nm"].to_numpy() - offset_in
     y_model, marginal, g = thesis_output_torque(meta, t_in, n_rpm, physics)
-    lubricant = meta.get("lubricant") or configuration_lubricant(meta["configuration"])
+    lubricant = meta.lubricant or configuration_lubricant(meta.configuration)
     ch = _channels(df, meta, rec, t0, t_in, n_rpm, g, lubricant)
     moving = np.abs(n_rpm) >= STANDSTILL_RPM
     scale = -g * marginal * moving
@@ -229,12 +229,12 @@ def build_problem(rec: Recording, physics: str = "thesis") -> Problem:
         confound[effect.id] = "vehicle_speed_kph" in df
     if "wheel_speed_difference_rad_s" not in ch:
         notes.append("no wheel speeds: wheels assumed equal (cornering cannot be tested)")
-    info = {"model": f"thesis differential chain, {meta['configuration']}, physics={physics}",
+    info = {"model": f"thesis differential chain, {meta.configuration}, physics={physics}",
             "offset": round(offset, 6), "input_offset_Nm": round(offset_in, 6),
             "standstill_samples": int(still.sum()),
             "kim_torque_scale_Nm": sidecar_kim_torque_scale_Nm(meta), "overall_ratio": g, "lubricant": lubricant}
-    integral = {"moving": moving, "unit": "kJ", "weight": ch["input_speed_rad_s"] / g / 1000.0,
-                "speed_mps": df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None}
+    integral = IntegralSpec(moving=moving, unit="kJ", weight=ch["input_speed_rad_s"] / g / 1000.0,
+                            speed_mps=df["vehicle_speed_kph"].to_numpy() / 3.6 if "vehicle_speed_kph" in df else None)
     return Problem("differential", "diff_output_torque_Nm", t, y, y_model, candidates, untestable,
                    surrogates, confound, _driver_channels(df, ch, n_rpm, t_in, t0), info, notes,
                    extra_ambiguity, units="N m", offset_floor=offset_floor, integral=integral)

@@ -26,10 +26,24 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fleetrun.diagnose.openworld import drift_columns, review, unexplained
+from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
 from fleetrun.diagnose.select import (Candidate, cv_fit, effect_of, evaluate_candidate, fold_ids,
                                       full_fit, refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
+from fleetrun.fileio import JsonDocument
+
+
+@dataclass(frozen=True)
+class IntegralSpec:
+    """What the integrals of diagnosis.json (:mod:`.integrals`) need: ``moving`` (bool per
+    sample: turning with the engine on), ``weight`` (target -> rate of the integrated
+    quantity, per sample), ``unit`` (of the integral) and ``speed_mps`` (vehicle speed, or
+    None)."""
+    moving: np.ndarray
+    weight: np.ndarray
+    unit: str
+    speed_mps: np.ndarray | None = None
 
 
 @dataclass
@@ -44,7 +58,8 @@ class Problem:
     surrogates: dict[str, Candidate] = field(default_factory=dict)   # id -> candidate on assumed channels
     confound_possible: dict[str, bool] = field(default_factory=dict)  # untestable id -> could masquerade
     driver_channels: dict[str, np.ndarray] = field(default_factory=dict)
-    baseline_info: dict = field(default_factory=dict)
+    #: the ``baseline`` part of diagnosis.json this level adds (model, offsets, ...: docs/diagnose.md)
+    baseline_info: JsonDocument = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     extra_ambiguity: dict[str, str] = field(default_factory=dict)     # id -> reason (e.g. offset)
     units: str = ""
@@ -53,11 +68,11 @@ class Problem:
     initial_terms: list = field(default_factory=list)
     #: effect id -> smallest size (target units, mean over the samples it acts on) that can be
     #: told from a sensor-zeroing error; smaller fits are rejected
-    offset_floor: dict = field(default_factory=dict)
-    #: for the integrals (:mod:`.integrals`): ``moving`` (bool per sample: turning with the
-    #: engine on), ``speed_mps`` (vehicle speed or None), ``weight`` (target -> rate of the
-    #: integrated quantity) and ``unit`` (of the integral)
-    integral: dict = field(default_factory=dict)
+    offset_floor: dict[str, float] = field(default_factory=dict)
+    #: what the integrals (:mod:`.integrals`) need
+    integral: IntegralSpec | None = None
+    #: the recording the problem was built from (None: built in memory, e.g. a test)
+    recording: Recording | None = None
     #: the same problem on a coarser grid (:func:`windowed`) where the selection runs, or None
     coarse: "Problem | None" = None
 
@@ -90,11 +105,10 @@ def windowed(problem: Problem, w: int) -> Problem:
         return Candidate(c.id, [m(x) for x in c.columns], c.shapes, c.lower, c.upper,
                          column_for=column_for, shape_bounds=c.shape_bounds)
 
-    ig = dict(problem.integral)
-    ig["moving"] = m(ig["moving"]) > 0.5
-    ig["weight"] = m(ig["weight"])
-    if ig.get("speed_mps") is not None:
-        ig["speed_mps"] = m(ig["speed_mps"])
+    ig = problem.integral
+    if ig is not None:
+        ig = replace(ig, moving=m(ig.moving) > 0.5, weight=m(ig.weight),
+                     speed_mps=None if ig.speed_mps is None else m(ig.speed_mps))
     return replace(problem, time_s=m(problem.time_s), measured=m(problem.measured), baseline=m(problem.baseline),
                    candidates=[cand(c) for c in problem.candidates],
                    surrogates={k: cand(c) for k, c in problem.surrogates.items()},
@@ -124,7 +138,7 @@ def _params(cand: Candidate, shape: dict, coef: float) -> dict:
     return {p.name: round(out[p.name], 6) for p in effect.parameters if p.name in out}
 
 
-def explanation(effect_id: str, params: dict, before: float, after: float, units: str) -> str:
+def explanation(effect_id: str, params: dict[str, float], before: float, after: float, units: str) -> str:
     e = EFFECTS[effect_of(effect_id)]
     ps = ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
     text = (f"The residual follows the signature of {e.title} ({e.signature}); adding it with "

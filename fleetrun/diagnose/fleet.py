@@ -46,7 +46,7 @@ from fleetrun.diagnose.integrals import BAG_BOUNDARIES_S
 from fleetrun.diagnose.select import _solve_bounded
 from fleetrun.effects.vehicle import marginal_fuel_g_per_J
 from fleetrun.errors import InputError
-from fleetrun.fileio import prepare_output_folder, write_text_atomic
+from fleetrun.fileio import JsonDocument, prepare_output_folder, write_text_atomic
 from fleetrun.simulation import simulate
 from fleetrun.simulation.params import willans_slope
 from fleetrun.workbook.reader import read_fleet
@@ -82,14 +82,84 @@ class FleetProblem:
     manufacturer: np.ndarray            # row -> manufacturer
     residual: np.ndarray                # ln(measured fuel per mile / baseline)
     residual_full: np.ndarray           # the same against the full model
-    candidates: dict                    # effect id -> column (rows,)
-    untestable: dict                    # effect id -> reason
-    properties: dict                    # property -> (vehicles,) values
+    candidates: dict[str, np.ndarray]   # effect id -> column (rows,)
+    untestable: dict[str, str]          # effect id -> reason
+    properties: dict[str, np.ndarray]   # property -> (vehicles,) values
     notes: list = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class FuelAmounts:
+    """Simulated fuel [g, gal] and miles per vehicle over one test (arrays (V,))."""
+    g: np.ndarray
+    gal: np.ndarray
+    mi: np.ndarray
+
+
+@dataclass(frozen=True)
+class FleetSimulation:
+    """:func:`simulate_fleet`: per test (``FTP``, ``FTP:bag1``.., ``HWFET``, ``US06``) the fuel
+    with a warm engine (``warm``) and with the cold-start model (``full``), and the engine-on
+    seconds per mile (``s_per_mi``, (V,) or one number)."""
+    warm: dict[str, FuelAmounts]
+    full: dict[str, FuelAmounts]
+    s_per_mi: dict[str, np.ndarray | float]
+
+
+@dataclass(frozen=True)
+class PerTestError:
+    """One test's row of diagnosis.json's ``tests`` tables: rows, mean error (all data
+    fitted), held-out mean absolute error."""
+    n: int
+    mean_error: float
+    heldout_mae: float
+
+    def as_json(self) -> JsonDocument:
+        return {"n": self.n, "mean_error": self.mean_error, "heldout_mae": self.heldout_mae}
+
+
+@dataclass(frozen=True)
+class OutlyingTest:
+    """A test whose mean held-out error stands out (``unexplained.test_details``)."""
+    test: str
+    mean_error: float
+    clustered_se: float
+
+    def as_json(self) -> JsonDocument:
+        return {"test": self.test, "mean_error": self.mean_error, "clustered_se": self.clustered_se}
+
+
+@dataclass(frozen=True)
+class PropertyLink:
+    """How strongly the per-vehicle mean error follows a vehicle property (``unexplained.drivers``),
+    with the mean error per bin of the property (``profile``: (bin label, vehicles, mean error))."""
+    property: str
+    strength: float
+    significant: bool
+    null_threshold: float
+    profile: tuple[tuple[str, int, float], ...]
+
+    def as_json(self) -> JsonDocument:
+        return {"property": self.property, "strength": self.strength, "significant": self.significant,
+                "null_threshold": self.null_threshold,
+                "profile": [{"bin": b, "n": n, "mean_error": e} for b, n, e in self.profile]}
+
+
+@dataclass(frozen=True)
+class FleetUnexplained:
+    """diagnosis.json's ``unexplained`` of a fleet (:func:`unexplained`)."""
+    significant: bool
+    test_details: tuple[OutlyingTest, ...]
+    drivers: tuple[PropertyLink, ...]
+
+    def as_json(self) -> JsonDocument:
+        return {"significant": self.significant, "tests": [t.test for t in self.test_details],
+                "test_details": [t.as_json() for t in self.test_details],
+                "drivers": [d.as_json() for d in self.drivers]}
+
+
 # ----------------------------------------------------------------------------- inputs
-def read_measured(path, known_ids) -> dict:
+def read_measured(path, known_ids) -> dict[tuple[str, str], tuple[float, str]]:
     """MEASURED.csv (docs/interface.md): ``{(vehicle_id, test): (mpg, manufacturer or "")}``.
 
     Errors name the file, the row as a spreadsheet shows it, the column and the value.
@@ -138,7 +208,7 @@ def read_measured(path, known_ids) -> dict:
     return out
 
 
-def vehicle_properties(vehicles) -> dict:
+def vehicle_properties(vehicles) -> dict[str, np.ndarray]:
     """The properties the unexplained residual is tested against, per vehicle."""
     def num(name):
         return np.array([np.nan if getattr(v, name, None) is None else float(getattr(v, name))
@@ -167,13 +237,13 @@ def _udds_bag_cycles():
     return parts
 
 
-def _amounts(fuel_g, fuel_gal, miles) -> dict:
-    return {"g": np.asarray(fuel_g, float), "gal": np.asarray(fuel_gal, float), "mi": np.asarray(miles, float)}
+def _amounts(fuel_g, fuel_gal, miles) -> FuelAmounts:
+    return FuelAmounts(g=np.asarray(fuel_g, float), gal=np.asarray(fuel_gal, float), mi=np.asarray(miles, float))
 
 
-def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
-    """Fuel [g, gal] and miles per vehicle and test, ``{"warm": {test: {"g", "gal", "mi"}},
-    "full": {...}}``, and the engine-on seconds per mile ``"s_per_mi": {test: (V,)}``. The FTP
+def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> FleetSimulation:
+    """Fuel [g, gal] and miles per vehicle and test with a warm engine and with the cold-start
+    model, and the engine-on seconds per mile (:class:`FleetSimulation`). The FTP
     composite by EPA's bag weighting (its seconds per mile: a constant load weighs the same
     in both halves, (bag 1 + bag 2) / their miles)."""
 
@@ -191,23 +261,25 @@ def simulate_fleet(vehicles, *, ambient_temp_C=20.0) -> dict:
     for name in ("bag1", "bag2", "bag3"):
         ph = ftp.phases[name]
         full[name] = _amounts(ph.fuel_g, ph.fuel_gal, ph.miles)
-    out = {"warm": {}, "full": {}, "s_per_mi": {}}
+    by_test = {"warm": {}, "full": {}}
+    s_per_mi = {}
     for key, model in (("warm", warm), ("full", full)):
         bag = [model[b] for b in ("bag1", "bag2", "bag3")]
-        miles = [b["mi"] for b in bag]
+        miles = [b.mi for b in bag]
         for name in ("bag1", "bag2", "bag3"):
-            out[key][f"FTP:{name}"] = model[name]
-        out[key]["FTP"] = {unit: ftp_weighted_per_mile(*[b[unit] for b in bag], *miles) * sum(miles)
-                           for unit in ("g", "gal")} | {"mi": sum(miles)}
+            by_test[key][f"FTP:{name}"] = model[name]
+        by_test[key]["FTP"] = FuelAmounts(g=ftp_weighted_per_mile(*[b.g for b in bag], *miles) * sum(miles),
+                                          gal=ftp_weighted_per_mile(*[b.gal for b in bag], *miles) * sum(miles),
+                                          mi=sum(miles))
     for name in ("bag1", "bag2", "bag3"):
-        out["s_per_mi"][f"FTP:{name}"] = seconds[name] / warm[name]["mi"]
-    out["s_per_mi"]["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"]["mi"] + warm["bag2"]["mi"])
+        s_per_mi[f"FTP:{name}"] = seconds[name] / warm[name].mi
+    s_per_mi["FTP"] = (seconds["bag1"] + seconds["bag2"]) / (warm["bag1"].mi + warm["bag2"].mi)
     for test in ("HWFET", "US06"):
         cyc = load_cycle(test)
         r = run(cyc)
-        out["warm"][test] = out["full"][test] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
-        out["s_per_mi"][test] = float(cyc.time_s[-1] - cyc.time_s[0]) / np.asarray(r.miles, float)
-    return out
+        by_test["warm"][test] = by_test["full"][test] = _amounts(r.fuel_g, r.fuel_gal, r.miles)
+        s_per_mi[test] = float(cyc.time_s[-1] - cyc.time_s[0]) / np.asarray(r.miles, float)
+    return FleetSimulation(warm=by_test["warm"], full=by_test["full"], s_per_mi=s_per_mi)
 
 
 # ----------------------------------------------------------------------------- candidates
@@ -230,29 +302,31 @@ def cruise_share(test: str) -> float:
 def _bag1_share_column(warm, rows_v, rows_t) -> np.ndarray:
     """Relative extra fuel per unit extra share of bag 1's fuel: 1 in bag 1; in the FTP
     composite its 0.43-weighted part (40 CFR 86.144: 0.43 (Y1 + Y2) / (D1 + D2) + ...)."""
-    g = {b: warm[f"FTP:{b}"]["g"] for b in ("bag1", "bag2", "bag3")}
-    mi = {b: warm[f"FTP:{b}"]["mi"] for b in ("bag1", "bag2", "bag3")}
-    composite = warm["FTP"]["g"] / warm["FTP"]["mi"]
+    g = {b: warm[f"FTP:{b}"].g for b in ("bag1", "bag2", "bag3")}
+    mi = {b: warm[f"FTP:{b}"].mi for b in ("bag1", "bag2", "bag3")}
+    composite = warm["FTP"].g / warm["FTP"].mi
     in_ftp = FTP_TRANSIENT_WEIGHT * g["bag1"] / (mi["bag1"] + mi["bag2"]) / composite
     return np.array([1.0 if t == "FTP:bag1" else (in_ftp[v] if t == "FTP" else 0.0)
                      for v, t in zip(rows_v, rows_t)])
 
 
-def candidate_columns(sim, rows_v, rows_t, vehicles) -> tuple[dict, dict]:
-    """Each candidate's effect on ``r`` per unit of its global parameter, per row."""
+def candidate_columns(sim: FleetSimulation, rows_v, rows_t,
+                      vehicles) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Each candidate's effect on ``r`` per unit of its global parameter, per row (effect id ->
+    column), and the candidates that cannot be tested (effect id -> reason)."""
 
     def gpm(model, v, t):
-        return sim[model][t]["g"][v] / sim[model][t]["mi"][v]
+        return model[t].g[v] / model[t].mi[v]
 
-    warm = np.array([gpm("warm", v, t) for v, t in zip(rows_v, rows_t)])
-    full = np.array([gpm("full", v, t) for v, t in zip(rows_v, rows_t)])
+    warm = np.array([gpm(sim.warm, v, t) for v, t in zip(rows_v, rows_t)])
+    full = np.array([gpm(sim.full, v, t) for v, t in zip(rows_v, rows_t)])
     cols, untestable = {}, {}
-    cols["warmup"] = _bag1_share_column(sim["warm"], rows_v, rows_t)
+    cols["warmup"] = _bag1_share_column(sim.warm, rows_v, rows_t)
     cols["warmup_thermal"] = full / warm - 1.0
     simulated = sorted(set(rows_v))
     eta = dict(zip(simulated, willans_slope([vehicles[v] for v in simulated])))
     gpj = np.array([marginal_fuel_g_per_J(vehicles[v].fuel, eta[v]) for v in rows_v])
-    s_per_mi = np.array([sim["s_per_mi"][t][v] for v, t in zip(rows_v, rows_t)])
+    s_per_mi = np.array([sim.s_per_mi[t][v] for v, t in zip(rows_v, rows_t)])
     cols["accessory_load"] = 1000.0 * gpj * s_per_mi / warm
     cyl = np.array([getattr(vehicles[v], "cylinders", None) or np.nan for v in rows_v], float)
     if np.isfinite(cyl).mean() > 0.5:
@@ -394,17 +468,21 @@ def select_effects(prob: FleetProblem, settings: FleetSettings) -> tuple[list, l
     return accepted, [statuses[c] for c in list(prob.candidates) + list(prob.untestable)]
 
 
-def test_table(prob: FleetProblem, r, fitted_heldout, fitted_all) -> dict:
+def test_table(prob: FleetProblem, r, fitted_heldout, fitted_all) -> dict[str, PerTestError]:
     """Per test: rows, mean error (all data fitted) and held-out MAE."""
     out = {}
     for t in TESTS:
         sel = prob.test == t
         if not sel.any():
             continue
-        out[t] = {"n": int(sel.sum()),
-                  "mean_error": round(float(np.mean(relative_error(r[sel], fitted_all[sel]))), 5),
-                  "heldout_mae": round(_mae(relative_error(r, fitted_heldout), prob.test, t), 5)}
+        out[t] = PerTestError(n=int(sel.sum()),
+                            mean_error=round(float(np.mean(relative_error(r[sel], fitted_all[sel]))), 5),
+                            heldout_mae=round(_mae(relative_error(r, fitted_heldout), prob.test, t), 5))
     return out
+
+
+def _tests_json(table: dict[str, PerTestError]) -> JsonDocument:
+    return {t: row.as_json() for t, row in table.items()}
 
 
 # ----------------------------------------------------------------------------- unexplained
@@ -438,7 +516,7 @@ def _eta2(e: np.ndarray, idx: np.ndarray) -> float:
     return between / total if total > 0 else 0.0
 
 
-def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) -> dict:
+def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) -> FleetUnexplained:
     """What the held-out errors ``err`` (per row) still show: tests whose mean error stands
     out (manufacturer-clustered t > 3 and more than 2 %), vehicle properties whose bins
     explain the per-vehicle mean error beyond shuffled errors."""
@@ -453,7 +531,7 @@ def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) ->
         mean = float(err[sel].mean())
         se = float(np.std(means, ddof=1) / np.sqrt(len(means))) if len(means) > 2 else np.inf
         if abs(mean) > 0.02 and abs(mean) > 3 * se:
-            tests.append({"test": t, "mean_error": round(mean, 5), "clustered_se": round(se, 5)})
+            tests.append(OutlyingTest(test=t, mean_error=round(mean, 5), clustered_se=round(se, 5)))
     vehicles = np.unique(prob.vehicle)
     e_v = np.array([err[prob.vehicle == v].mean() for v in vehicles])
     bins = {name: _property_bins(prob.properties[name][vehicles]) for name in PROPERTIES
@@ -464,13 +542,13 @@ def unexplained(prob: FleetProblem, err: np.ndarray, settings: FleetSettings) ->
     drivers = []
     for name, (idx, labels) in bins.items():
         st = _eta2(e_v, idx)
-        profile = [{"bin": labels[i], "n": int((idx == i).sum()), "mean_error": round(float(e_v[idx == i].mean()), 5)}
-                   for i in range(len(labels)) if (idx == i).any()]
-        drivers.append({"property": name, "strength": round(st, 4), "significant": bool(st > thr),
-                        "null_threshold": round(thr, 4), "profile": profile})
-    drivers.sort(key=lambda d: -d["strength"])
-    return {"significant": bool(tests) or any(d["significant"] for d in drivers),
-            "tests": [t["test"] for t in tests], "test_details": tests, "drivers": drivers}
+        profile = tuple((labels[i], int((idx == i).sum()), round(float(e_v[idx == i].mean()), 5))
+                        for i in range(len(labels)) if (idx == i).any())
+        drivers.append(PropertyLink(property=name, strength=round(st, 4), significant=bool(st > thr),
+                                    null_threshold=round(thr, 4), profile=profile))
+    drivers.sort(key=lambda d: -d.strength)
+    return FleetUnexplained(significant=bool(tests) or any(d.significant for d in drivers),
+                            test_details=tuple(tests), drivers=tuple(drivers))
 
 
 # ----------------------------------------------------------------------------- the diagnosis
@@ -503,23 +581,24 @@ def build_fleet_problem(fleet_path, measured_path, *, ambient_temp_C=20.0) -> Fl
 
     def residual(model):
         # measured fuel per mile over simulated = simulated mpg / measured mpg
-        sim_mpg = np.array([sim[model][t]["mi"][v] / sim[model][t]["gal"][v] for v, t in zip(rows_v, rows_t)])
+        sim_mpg = np.array([model[t].mi[v] / model[t].gal[v] for v, t in zip(rows_v, rows_t)])
         return np.log(sim_mpg / mpg)
 
-    plausible.check_mpg_scale(np.exp(-residual("warm")), file=measured_path, column="mpg")
+    plausible.check_mpg_scale(np.exp(-residual(sim.warm)), file=measured_path, column="mpg")
     cols, untestable = candidate_columns(sim, rows_v, rows_t, sub)
-    return FleetProblem([v.vehicle_id for v in sub], rows_v, rows_t, makers, residual("warm"),
-                        residual("full"), cols, untestable, vehicle_properties(sub))
+    return FleetProblem([v.vehicle_id for v in sub], rows_v, rows_t, makers, residual(sim.warm),
+                        residual(sim.full), cols, untestable, vehicle_properties(sub))
 
 
-def _finding(prob, effect, coef, before, after, settings) -> dict:
+def _finding(prob, effect, coef, before: dict[str, PerTestError], after: dict[str, PerTestError],
+             settings) -> JsonDocument:
     """One accepted effect for the JSON: parameters, the tests it is in, errors, words."""
     name, _, _, unit, meaning = PARAMETERS[effect]
     col = prob.candidates[effect]
     added = {t: float(coef * np.mean(col[prob.test == t])) for t in TESTS if (prob.test == t).any()}
     tests = [t for t, a in added.items() if abs(a) > settings.test_share]
-    by_test = {t: {"heldout_mae_before": round(before[t]["heldout_mae"], 5),
-                   "heldout_mae_after": round(after[t]["heldout_mae"], 5),
+    by_test = {t: {"heldout_mae_before": round(before[t].heldout_mae, 5),
+                   "heldout_mae_after": round(after[t].heldout_mae, 5),
                    "fuel_added": round(added[t], 5)} for t in added}
     where = ", ".join(f"{t} {100 * added[t]:+.1f} %" for t in tests) or "no test by more than 1 %"
     absent = ", ".join(t for t in ("FTP:bag3", "HWFET", "US06") if t in added and t not in tests)
@@ -529,12 +608,12 @@ def _finding(prob, effect, coef, before, after, settings) -> dict:
             + (f", and not in {absent}" if absent else "") + ". ")
     if "FTP" in before and "FTP" in after:
         text += (f"The FTP composite's held-out error (by manufacturer) goes from "
-                 f"{100 * before['FTP']['heldout_mae']:.2f} % to {100 * after['FTP']['heldout_mae']:.2f} %.")
+                 f"{100 * before['FTP'].heldout_mae:.2f} % to {100 * after['FTP'].heldout_mae:.2f} %.")
     return {"effect": effect, "parameters": {name: round(float(coef), 6)}, "tests": tests,
             "by_test": by_test, "explanation": text}
 
 
-def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> dict:
+def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> JsonDocument:
     """The fleet diagnosis as the JSON of docs/interface.md (``fleetrun.fleet-diagnosis/1``)."""
     st = settings or FleetSettings()
     folds = manufacturer_folds(prob.manufacturer, st.folds)
@@ -565,14 +644,15 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
             "baseline": {"model": "fleetrun simulation with a warm engine on every test (cold-start "
                                   "model off), one global fuel scale calibrated on the hot-engine "
                                   "tests (" + ", ".join(HOT_TESTS) + ")",
-                         "fuel_scale": round(float(np.exp(base_coef[0])), 5), "tests": base_tests},
+                         "fuel_scale": round(float(np.exp(base_coef[0])), 5), "tests": _tests_json(base_tests)},
             "findings": findings, "candidates": candidates,
-            "after": {"fuel_scale": round(float(np.exp(final_coef[0])), 5), "tests": final_tests},
-            "unexplained": unexplained(prob, relative_error(r, final_held), st),
+            "after": {"fuel_scale": round(float(np.exp(final_coef[0])), 5), "tests": _tests_json(final_tests)},
+            "unexplained": unexplained(prob, relative_error(r, final_held), st).as_json(),
             "full_model": {"model": "fleetrun simulation with its cold-start model (FTP), one "
                                     "global fuel scale calibrated on the hot-engine tests",
-                           "fuel_scale": round(float(np.exp(full_coef[0])), 5), "tests": full_tests,
-                           "unexplained": unexplained(prob, relative_error(prob.residual_full, full_held), st)},
+                           "fuel_scale": round(float(np.exp(full_coef[0])), 5), "tests": _tests_json(full_tests),
+                           "unexplained": unexplained(prob, relative_error(prob.residual_full, full_held),
+                                                      st).as_json()},
             "method": {"folds": st.folds, "held_out": "manufacturer", "n_perm": st.n_perm,
                        "hot_tests": list(HOT_TESTS),
                        "quantile": st.quantile, "min_gain": st.min_gain},
@@ -580,8 +660,9 @@ def analyse_fleet(prob: FleetProblem, settings: FleetSettings | None = None) -> 
 
 
 def diagnose_fleet(fleet_path, measured_path, out=None, *, settings: FleetSettings | None = None,
-                   write=True) -> dict:
-    """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``."""
+                   write=True) -> JsonDocument:
+    """Diagnose a fleet's measured results; writes ``out/diagnosis.json`` and ``.html``; the
+    document written."""
 
     t0 = time.perf_counter()
     prob = build_fleet_problem(fleet_path, measured_path)

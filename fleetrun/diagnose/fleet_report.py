@@ -4,13 +4,14 @@ from __future__ import annotations
 import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
+from fleetrun.fileio import JsonDocument
 from fleetrun.diagnose.report import NO_FIGURES, _png, data_uri
 from fleetrun.errors import MissingExtraError
 from fleetrun.plots import pyplot
 from fleetrun.resources import templates_dir
 
 
-def fleet_figures(result: dict) -> dict[str, bytes]:
+def fleet_figures(result: JsonDocument) -> dict[str, bytes]:
     """Mean error per test (baseline, after the findings, full model) and the unexplained
     error against the strongest vehicle property; none without matplotlib (NO_FIGURES)."""
     try:
@@ -46,7 +47,7 @@ def fleet_figures(result: dict) -> dict[str, bytes]:
     return figs
 
 
-def summary_words(result: dict) -> str:
+def summary_words(result: JsonDocument) -> str:
     """The first paragraph: what was found, where, and what stays unexplained."""
     parts = []
     for f in result["findings"]:
@@ -65,7 +66,7 @@ def summary_words(result: dict) -> str:
     return " ".join(parts)
 
 
-def render_fleet_html(prob, result: dict) -> str:
+def render_fleet_html(prob, result: JsonDocument) -> str:
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     figs = {k: data_uri(v) for k, v in fleet_figures(result).items()}

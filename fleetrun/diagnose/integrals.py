@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.cycles import ftp_bag1_end_s, load_cycle
+from fleetrun.diagnose.records import Integral, Phase, Segment
 
 #: A standstill or engine-off stretch longer than this [s] separates two phases (a soak).
 GAP_S = 60.0
@@ -88,7 +89,7 @@ def _epa_cycles():
     return [load_cycle(name) for name in BAG_BOUNDARIES_S]
 
 
-def phases(time_s, moving, speed_mps=None) -> list[dict]:
+def phases(time_s, moving, speed_mps=None) -> list[Phase]:
     """Phases of a recording: index spans with a ``label``.
 
     ``moving``: True where the vehicle (or pinion) turns and the engine runs; a run of False
@@ -98,13 +99,13 @@ def phases(time_s, moving, speed_mps=None) -> list[dict]:
     t = np.asarray(time_s, float)
     stretches, gaps = driving_stretches(t, moving)
     cycles = _epa_cycles() if speed_mps is not None else []
-    out = [{"span": gap, "label": "standstill"} for gap in gaps]
+    out = [Phase(span=gap, label="standstill") for gap in gaps]
     for a, b in stretches:
         out.extend(_bags(t, speed_mps, a, b, cycles))
-    return sorted(out, key=lambda p: p["span"][0])
+    return sorted(out, key=lambda p: p.span[0])
 
 
-def _bags(t, speed_mps, a, b, cycles) -> list[dict]:
+def _bags(t, speed_mps, a, b, cycles) -> list[Phase]:
     """A driving phase, cut at the bag boundaries of the first EPA cycle it follows."""
     for cycle in cycles:
         offset = cycle_offset(t[a:b], speed_mps[a:b], cycle)
@@ -113,14 +114,15 @@ def _bags(t, speed_mps, a, b, cycles) -> list[dict]:
         spans, start = [], a
         for k, bound in enumerate(BAG_BOUNDARIES_S[cycle.name]):
             cut = a + int(np.searchsorted(t[a:b], offset + bound))
-            spans.append({"span": (start, cut), "label": f"{cycle.name} bag {k + 1}"})
+            spans.append(Phase(span=(start, cut), label=f"{cycle.name} bag {k + 1}"))
             start = cut
-        spans.append({"span": (start, b), "label": f"{cycle.name} bag {len(spans) + 1}"})
-        return [s for s in spans if s["span"][1] > s["span"][0]]
-    return [{"span": (a, b), "label": "driving"}]
+        spans.append(Phase(span=(start, b), label=f"{cycle.name} bag {len(spans) + 1}"))
+        return [s for s in spans if s.span[1] > s.span[0]]
+    return [Phase(span=(a, b), label="driving")]
 
 
-def integrals(time_s, weight, measured, before, after, phase_list, segments) -> list[dict]:
+def integrals(time_s, weight, measured, before, after, phase_list: list[Phase],
+              segments: list[Segment]) -> list[Integral]:
     """``integrals`` of diagnosis.json: per phase, then per located segment.
 
     ``weight`` converts the target into a rate of the integrated quantity (1 for a fuel rate
@@ -132,16 +134,16 @@ def integrals(time_s, weight, measured, before, after, phase_list, segments) -> 
     w = np.asarray(weight, float) * dt
     m, bf, af = (np.asarray(x, float) * w for x in (measured, before, after))
 
-    def entry(a, b, **extra):
+    def entry(a, b, kind, label):
         end = t[b] if b < len(t) else t[-1]
-        return {"start_s": round(float(t[a]), 3), "end_s": round(float(end), 3),
-                "measured": round(float(m[a:b].sum()), 4), "before": round(float(bf[a:b].sum()), 4),
-                "after": round(float(af[a:b].sum()), 4), "heldout": False, **extra}
+        return Integral(start_s=round(float(t[a]), 3), end_s=round(float(end), 3),
+                        measured=round(float(m[a:b].sum()), 4), before=round(float(bf[a:b].sum()), 4),
+                        after=round(float(af[a:b].sum()), 4), kind=kind, label=label)
 
-    out = [entry(*p["span"], kind="phase", label=p["label"]) for p in phase_list]
+    out = [entry(*p.span, kind="phase", label=p.label) for p in phase_list]
     for seg in segments:
-        a = int(np.searchsorted(t, seg["start_s"]))
-        b = int(np.searchsorted(t, seg["end_s"], side="right"))
+        a = int(np.searchsorted(t, seg.start_s))
+        b = int(np.searchsorted(t, seg.end_s, side="right"))
         if b > a:
-            out.append(entry(a, b, kind="segment", label=f"located segment ({100 * seg['share']:.0f} %)"))
+            out.append(entry(a, b, kind="segment", label=f"located segment ({100 * seg.share:.0f} %)"))
     return out

@@ -26,8 +26,9 @@ from typing import Sequence
 import numpy as np
 
 from fleetrun.diagnose import _clean, analyse, build, integral_share
-from fleetrun.diagnose.engine import Problem, Settings, windowed
+from fleetrun.diagnose.engine import IntegralSpec, Problem, Settings, windowed
 from fleetrun.diagnose.integrals import integrals, phases
+from fleetrun.diagnose.records import Integral
 from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
@@ -154,13 +155,11 @@ def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tu
     keys = [k for k in problems[0].driver_channels if all(k in p.driver_channels for p in problems)]
     t = _time(problems)
     ig0 = problems[0].integral
-    integral = {"moving": np.concatenate([np.asarray(p.integral["moving"], bool) for p in problems]),
-                "speed_mps": None if any(p.integral.get("speed_mps") is None for p in problems)
-                else _cat(p.integral["speed_mps"] for p in problems),
-                "weight": _cat(p.integral["weight"] for p in problems), "unit": ig0["unit"]}
-    info = {"recordings": [{"recording": name, **{k: v for k, v in p.baseline_info.items()
-                                                     if not k.startswith("_")}}
-                           for p, name in zip(problems, names)]}
+    integral = IntegralSpec(moving=np.concatenate([np.asarray(p.integral.moving, bool) for p in problems]),
+                            speed_mps=None if any(p.integral.speed_mps is None for p in problems)
+                            else _cat(p.integral.speed_mps for p in problems),
+                            weight=_cat(p.integral.weight for p in problems), unit=ig0.unit)
+    info = {"recordings": [{"recording": name, **p.baseline_info} for p, name in zip(problems, names)]}
     notes = [f"{name}: {n}" for p, name in zip(problems, names) for n in p.notes]
     offset_floor = {}
     for p in problems:
@@ -199,22 +198,23 @@ class JointDiagnosis:
         """The phases of one recording: index spans into its own samples."""
         p = self.problem
         s = piece.span
-        speed = p.integral.get("speed_mps")
-        return [tuple(ph["span"]) for ph in
-                phases(p.time_s[s], p.integral["moving"][s], None if speed is None else speed[s])]
+        speed = p.integral.speed_mps
+        return [tuple(ph.span) for ph in
+                phases(p.time_s[s], p.integral.moving[s], None if speed is None else speed[s])]
 
 
-def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece]) -> list[JsonDocument]:
-    """``integrals`` (phases only) of each recording, times relative to its own start."""
+def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece]) -> list[tuple[str, Integral]]:
+    """``integrals`` (phases only) of each recording, times relative to its own start: (the
+    recording's name, the entry) pairs."""
     out = []
-    speed = problem.integral.get("speed_mps")
+    speed = problem.integral.speed_mps
     for piece in pieces:
         s = piece.span
         t = problem.time_s[s] - problem.time_s[s][0]
-        ph = phases(t, problem.integral["moving"][s], None if speed is None else speed[s])
-        for e in integrals(t, problem.integral["weight"][s], problem.measured[s], problem.baseline[s],
+        ph = phases(t, problem.integral.moving[s], None if speed is None else speed[s])
+        for e in integrals(t, problem.integral.weight[s], problem.measured[s], problem.baseline[s],
                            problem.baseline[s] + fitted[s], ph, []):
-            out.append({"recording": piece.name, **e})
+            out.append((piece.name, e))
     return out
 
 
@@ -234,7 +234,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     window = max(1, int(round((window_s or SAME_TRACE_WINDOW_S) / dt)))
     joined.coarse = join_coarse(problems, names, window)
     result, fitted = analyse(joined, settings)
-    result["integrals"] = piece_integrals(joined, fitted, pieces)
-    result["unexplained"]["integral_share"] = integral_share(result["integrals"])
+    entries = piece_integrals(joined, fitted, pieces)
+    result["integrals"] = [{"recording": name, **e.as_json()} for name, e in entries]
+    result["unexplained"]["integral_share"] = integral_share([e for _, e in entries])
     result["recording_name"] = ", ".join(names)
     return JointDiagnosis(joined, _clean(result), fitted, pieces)

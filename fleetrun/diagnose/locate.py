@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.diagnose.records import DriverLink, Segment
 from fleetrun.diagnose.select import _circ_corr
 
 
@@ -24,7 +25,7 @@ def smooth(x: np.ndarray, window: int) -> np.ndarray:
 
 def segments(time_s: np.ndarray, r: np.ndarray, *, n_blocks: int = 60, share_target: float = 0.6,
              noise: np.ndarray | None = None, smooth_s: float | None = None,
-             max_segments: int = 6) -> list[dict]:
+             max_segments: int = 6) -> list[Segment]:
     """Contiguous time spans that hold most of the residual's systematic energy.
 
     The residual is first averaged over ``smooth_s`` (default: 1 % of the recording, at least
@@ -67,12 +68,12 @@ def segments(time_s: np.ndarray, r: np.ndarray, *, n_blocks: int = 60, share_tar
             while j + 1 < n_blocks and chosen[j + 1]:
                 j += 1
             a, b = edges[i], edges[j + 1] - 1
-            segs.append({"start_s": float(time_s[a]), "end_s": float(time_s[b]),
-                         "share": float(excess[i:j + 1].sum() / total)})
+            segs.append(Segment(start_s=float(time_s[a]), end_s=float(time_s[b]),
+                                share=float(excess[i:j + 1].sum() / total)))
             i = j + 1
         else:
             i += 1
-    segs.sort(key=lambda s: -s["share"])
+    segs.sort(key=lambda s: -s.share)
     return segs[:max_segments]
 
 
@@ -136,7 +137,7 @@ def bins(x: np.ndarray, nb: int, resolution: float = 0.02) -> tuple[np.ndarray, 
 
 def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
             n_shifts: int = 200, quantile: float = 0.99, rng=None,
-            smooth_window: int = 1, null_residual: np.ndarray | None = None) -> tuple[list[dict], bool]:
+            smooth_window: int = 1, null_residual: np.ndarray | None = None) -> tuple[list[DriverLink], bool]:
     """How strongly the residual follows each channel, and whether any does beyond noise.
 
     Strength is the correlation ratio (eta^2) of the (lightly smoothed) residual over quantile
@@ -165,10 +166,10 @@ def drivers(channels: dict[str, np.ndarray], r: np.ndarray, *, n_bins: int = 12,
     out = []
     for name, (b, nb) in usable.items():
         st = _eta2(rs, b, nb)
-        out.append({"channel": name, "strength": round(st, 4), "significant": bool(st > thr),
-                    "null_threshold": round(thr, 4)})
-    out.sort(key=lambda d: -d["strength"])
-    return out, any(d["significant"] for d in out)
+        out.append(DriverLink(channel=name, strength=round(st, 4), significant=bool(st > thr),
+                              null_threshold=round(thr, 4)))
+    out.sort(key=lambda d: -d.strength)
+    return out, any(d.significant for d in out)
 
 
 def binned_profile(x: np.ndarray, r: np.ndarray, n_bins: int = 20) -> tuple[np.ndarray, np.ndarray]:

@@ -74,7 +74,7 @@ def _hinges(x: np.ndarray, n_knots: int) -> list[np.ndarray]:
     return cols
 
 
-def generic_columns(channels: dict, names=None, n_knots: int = GENERIC_KNOTS) -> list[np.ndarray]:
+def generic_columns(channels: dict[str, np.ndarray], names=None, n_knots: int = GENERIC_KNOTS) -> list[np.ndarray]:
     """A piecewise-linear function of each channel (:func:`_hinges`) and, for the first two
     of ``names``, each one times a piecewise-linear function of the other: losses in a
     differential are often a torque times a function of speed."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +19,7 @@ from fleetrun.cycles import SPEED_COLUMNS
 from fleetrun.differential import canonical_configuration
 from fleetrun import plausible
 from fleetrun.errors import InputError
+from fleetrun.fileio import JsonDocument
 from fleetrun.physics.fuels import fuel_table
 from fleetrun.workbook.cells import CellProblem
 from fleetrun.workbook.rows import parse_value
@@ -51,6 +52,44 @@ _UNIT_ALIASES = {
 }
 
 
+@dataclass(frozen=True)
+class Sidecar:
+    """The keys diagnose reads from a recording's sidecar TOML (docs/interface.md, Recordings);
+    None: not in the file. Differential level: the configuration and the thesis' Kim torque
+    scale inputs, checked against the ranges of the Vehicles columns they mean
+    (``SIDECAR_COLUMNS``); vehicle level: the file is one Vehicles row (read as such by
+    :func:`fleetrun.workbook.vehicle_file.read_vehicle_toml`), of which the fuel and the
+    ambient temperature are read here. Other keys are not read."""
+
+    configuration: str | None = None
+    gear_ratio: float | None = None
+    peak_engine_torque_Nm: float | None = None
+    torque_converter_ratio: float | None = None
+    max_transmission_gear_ratio: float | None = None
+    low_gear_ratio: float | None = None
+    axle_gear: str = "high"
+    lubricant: str | None = None
+    ambient_temp_C: float | None = None
+    fuel: str = "gasoline"
+
+    @classmethod
+    def from_toml(cls, document: JsonDocument, level: str, meta_path: Path | None = None) -> "Sidecar":
+        """The sidecar of a TOML document (checked values, as :func:`load_recording` leaves them)
+        of a ``level`` recording."""
+        known = {f.name for f in fields(cls)} if level == "differential" else {"fuel", "ambient_temp_C"}
+        values = {k: v for k, v in document.items() if k in known}
+        if "fuel" in values:
+            values["fuel"] = str(values["fuel"])
+        ambient = values.get("ambient_temp_C")
+        if ambient is not None and not isinstance(ambient, (int, float)):
+            try:
+                values["ambient_temp_C"] = float(ambient)
+            except (TypeError, ValueError):
+                raise InputError("sidecar key ambient_temp_C must be a number", file=meta_path,
+                                 column="ambient_temp_C", value=ambient) from None
+        return cls(**values)
+
+
 @dataclass
 class Recording:
     """A checked recording on a uniform time grid."""
@@ -58,7 +97,7 @@ class Recording:
     path: Path
     level: str                 # "differential" or "vehicle"
     data: pd.DataFrame         # uniform time grid; vehicle level adds vehicle_speed_mps, fuel_rate_g_per_s
-    meta: dict
+    meta: Sidecar
     meta_path: Path | None
     dt_s: float
     resampled: bool = False
@@ -72,7 +111,8 @@ class Recording:
         return column in self.data.columns
 
 
-def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path]:
+def _read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[JsonDocument, Path]:
+    """The sidecar TOML's content and path (``meta``, else the recording's stem with .toml)."""
     meta_path = Path(meta) if meta else path.with_suffix(".toml")
     if not meta_path.is_file():
         hint = ("Check the --meta path" if meta else
@@ -88,7 +128,7 @@ def read_sidecar(path: Path, meta: str | Path | None = None) -> tuple[dict, Path
                          file=meta_path, hint="Save the sidecar as UTF-8") from None
 
 
-def check_sidecar_numbers(sidecar: dict, meta_path: Path) -> None:
+def _check_sidecar_numbers(sidecar: JsonDocument, meta_path: Path) -> None:
     """Every differential-level sidecar value within the range its Vehicles/Scenarios column
     has (fleetrun.workbook.schema.SIDECAR_COLUMNS); InputError naming the file and key."""
 
@@ -229,7 +269,7 @@ def _differential_columns(path, columns, sidecar, meta_path, notes) -> list[str]
     if missing_meta:
         raise InputError(f"sidecar lacks {', '.join(missing_meta)}", file=meta_path,
                          hint="Differential-level sidecar keys: " + ", ".join(DIFF_META_REQUIRED))
-    check_sidecar_numbers(sidecar, meta_path)
+    _check_sidecar_numbers(sidecar, meta_path)
     for k in ("gear_ratio", "peak_engine_torque_Nm", "torque_converter_ratio",
               "max_transmission_gear_ratio"):
         v = sidecar[k]
@@ -310,7 +350,7 @@ def load_recording(path, meta=None) -> Recording:
         raise InputError("missing column time_s", file=path, column="time_s",
                          hint=f"Columns present: {_shown(columns)}")
     level = _level(path, columns)
-    sidecar, meta_path = read_sidecar(path, meta)
+    sidecar, meta_path = _read_sidecar(path, meta)
     notes = []
     if level == "differential":
         used = _differential_columns(path, columns, sidecar, meta_path, notes)
@@ -326,4 +366,4 @@ def load_recording(path, meta=None) -> Recording:
     df, resampled = _resample(df, step)
     if resampled:
         notes.append(f"resampled to a uniform {step:g} s grid (linear interpolation)")
-    return Recording(path, level, df, sidecar, meta_path, step, resampled, notes)
+    return Recording(path, level, df, Sidecar.from_toml(sidecar, level, meta_path), meta_path, step, resampled, notes)

@@ -20,6 +20,64 @@ def _round(x: float | None, digits: int = 5) -> float | None:
 
 
 @dataclass(frozen=True)
+class Segment:
+    """A located stretch of the residual (:func:`fleetrun.diagnose.locate.segments`): start and
+    end [s] and its ``share`` of the residual's excess energy; diagnosis.json's
+    ``mismatch.segments`` entries."""
+
+    start_s: float
+    end_s: float
+    share: float
+
+    def as_json(self) -> JsonDocument:
+        return {"start_s": self.start_s, "end_s": self.end_s, "share": self.share}
+
+
+@dataclass(frozen=True)
+class DriverLink:
+    """How strongly the residual follows one channel (:func:`fleetrun.diagnose.locate.drivers`):
+    diagnosis.json's ``mismatch.drivers`` entries."""
+
+    channel: str
+    strength: float
+    significant: bool
+    null_threshold: float
+
+    def as_json(self) -> JsonDocument:
+        return {"channel": self.channel, "strength": self.strength, "significant": self.significant,
+                "null_threshold": self.null_threshold}
+
+
+@dataclass(frozen=True)
+class Phase:
+    """A phase of a recording (:func:`fleetrun.diagnose.integrals.phases`): the sample index
+    span ``[start, end)`` and its label (``standstill``, ``driving``, ``UDDS bag 1``, ...)."""
+
+    span: tuple[int, int]
+    label: str
+
+
+@dataclass(frozen=True)
+class Integral:
+    """One entry of diagnosis.json's ``integrals`` (:func:`fleetrun.diagnose.integrals.integrals`):
+    the target integrated over a phase or a located segment, measured, model before and after
+    the findings (``integral_unit``)."""
+
+    start_s: float
+    end_s: float
+    measured: float
+    before: float
+    after: float
+    kind: str
+    label: str
+    heldout: bool = False
+
+    def as_json(self) -> JsonDocument:
+        return {"start_s": self.start_s, "end_s": self.end_s, "measured": self.measured, "before": self.before,
+                "after": self.after, "heldout": self.heldout, "kind": self.kind, "label": self.label}
+
+
+@dataclass(frozen=True)
 class Accepted:
     """An effect accepted into the model during the search.
 
@@ -105,8 +163,8 @@ class Unexplained:
     heldout_gain: float
     energy_share: float | None
     form_share: float | None
-    segments: list
-    drivers: list
+    segments: list[Segment]
+    drivers: list[DriverLink]
     drift: Drift | None = None
     integral_share: float | None = None
 
@@ -115,7 +173,7 @@ class Unexplained:
                "noise_rmse": round(self.noise_rmse, 6), "heldout_gain": round(self.heldout_gain, 5),
                "energy_share": _round(self.energy_share), "form_share": _round(self.form_share),
                "integral_share": _round(self.integral_share),
-               "segments": list(self.segments), "drivers": list(self.drivers)}
+               "segments": [x.as_json() for x in self.segments], "drivers": [x.as_json() for x in self.drivers]}
         if self.drift is not None:
             out["drift"] = self.drift.as_json()
         return out

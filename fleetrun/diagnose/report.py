@@ -7,6 +7,7 @@ import io
 import numpy as np
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 
+from fleetrun.fileio import JsonDocument
 from fleetrun.diagnose.locate import binned_profile, smooth
 from fleetrun.effects import EFFECTS
 from fleetrun.resources import templates_dir
@@ -105,7 +106,7 @@ def _driver_figure(problem, result, fitted, plt) -> str | None:
     return _png(fig)
 
 
-def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, bytes]:
+def figures(problem, result: JsonDocument, fitted: np.ndarray) -> dict[str, bytes]:
     """The report's figures as PNG bytes, by name (measured, residual, cumulative, drivers,
     heldout); none without matplotlib (the page then says so, :data:`NO_FIGURES`)."""
     try:
@@ -132,7 +133,7 @@ def figures(problem, result: dict, fitted: np.ndarray) -> dict[str, bytes]:
     return figs
 
 
-def _where(result: dict) -> str:
+def _where(result: JsonDocument) -> str:
     segs = result["mismatch"]["segments"][:2]
     drv = [d["channel"].replace("_", " ") for d in result["mismatch"]["drivers"] if d.get("significant")][:3]
     parts = []
@@ -144,13 +145,13 @@ def _where(result: dict) -> str:
     return (" " + "; ".join(parts).capitalize() + ".") if parts else ""
 
 
-def summary_sentence(result: dict) -> str:
+def summary_sentence(result: JsonDocument) -> str:
     """The report's first paragraph: what is left unexplained first, then the findings."""
     return " ".join(x for x in (_unexplained_words(result), _summary(result) + _where(result),
                                 _descriptions_words(result)) if x)
 
 
-def _unexplained_words(result: dict) -> str:
+def _unexplained_words(result: JsonDocument) -> str:
     u = result.get("unexplained") or {}
     if not u.get("significant"):
         return ""
@@ -185,7 +186,7 @@ def _drift_words(u: dict) -> str:
             "calibration).")
 
 
-def _descriptions_words(result: dict) -> str:
+def _descriptions_words(result: JsonDocument) -> str:
     d = result.get("descriptions") or []
     if not d:
         return ""
@@ -194,7 +195,7 @@ def _descriptions_words(result: dict) -> str:
             "mismatch; they are not evidence that the model leaves this physics out.")
 
 
-def _summary(result: dict) -> str:
+def _summary(result: JsonDocument) -> str:
     f = result["findings"]
     if f:
         names = " and then ".join(EFFECTS[x["effect"]].title for x in f)
@@ -213,7 +214,7 @@ def _summary(result: dict) -> str:
     return "Nothing is missing: the model matches the recording to within its noise."
 
 
-def render_html(problem, result: dict, fitted: np.ndarray) -> str:
+def render_html(problem, result: JsonDocument, fitted: np.ndarray) -> str:
     env = Environment(loader=FileSystemLoader(str(templates_dir() / "diagnosis")),
                       autoescape=select_autoescape(["html", "j2"]))
     tpl = env.get_template("diagnosis.html.j2")

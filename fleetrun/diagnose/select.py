@@ -38,7 +38,7 @@ class Candidate:
 
     id: str
     columns: list[np.ndarray]            # one column per shape value (len 1: no shape)
-    shapes: list[dict]                   # the shape parameters of each column
+    shapes: list[dict[str, float]]       # the shape parameters of each column: name -> value
     lower: float
     upper: float
     column_for: Callable[[dict], np.ndarray] | None = None  # column for any shape (refinement)
@@ -164,7 +164,7 @@ class NullDistribution:
     shifts: np.ndarray
     max_gain: np.ndarray           # (B,) largest relative gain over all candidates/shapes per shift
     max_dsse: np.ndarray           # (B,) largest held-out SSE reduction per shift
-    gains: dict = field(default_factory=dict)   # id -> (B,) best gain of that candidate
+    gains: dict[str, np.ndarray] = field(default_factory=dict)   # id -> (B,) best gain of that candidate
 
     def threshold(self, quantile: float) -> float:
         return float(np.quantile(self.max_gain, quantile))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrun.cycles import DriveCycle
-from fleetrun.diagnose.engine import Problem, windowed
+from fleetrun.diagnose.engine import IntegralSpec, Problem, windowed
 from fleetrun.diagnose.integrals import MATCH_RMS_MPS, STILL_MPS, align, driving_stretches
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.select import Candidate, full_fit
@@ -71,7 +71,7 @@ def simulated(rec: Recording, physics="thesis"):
     grade = df["grade_pct"].to_numpy() if "grade_pct" in df else np.zeros(len(df))
     cycle = DriveCycle(rec.stem, df["time_s"].to_numpy(), df["vehicle_speed_mps"].to_numpy(), grade)
     ambient = float(np.median(df["ambient_temp_C"])) if "ambient_temp_C" in df else \
-        float(rec.meta.get("ambient_temp_C", 20.0))
+        float(20.0 if rec.meta.ambient_temp_C is None else rec.meta.ambient_temp_C)
     res = simulate([spec], cycle, mode="direct", ambient_temp_C=ambient, physics=physics, trace=True)
     tr = res.trace_frame(0)
     on = engine_on(df["time_s"].to_numpy(), df["vehicle_speed_mps"].to_numpy(),
@@ -221,7 +221,7 @@ def build_problem(rec: Recording, ref: Recording | None, physics="thesis",
         drivers["grade"] = df["grade_pct"].to_numpy()
     if "ambient_temp_C" in df:
         drivers["temperature"] = df["ambient_temp_C"].to_numpy()
-    integral = {"moving": v > 0.1, "speed_mps": v, "weight": np.ones(len(t)), "unit": "g"}
+    integral = IntegralSpec(moving=v > 0.1, speed_mps=v, weight=np.ones(len(t)), unit="g")
     problem = Problem("vehicle", "fuel_rate_g_per_s", t, y, baseline, candidates, untestable, {},
                       {}, drivers, info, notes, {}, units="g/s", initial_terms=initial,
                       integral=integral)

@@ -26,7 +26,15 @@ class FuelProperties:
 
 @lru_cache(maxsize=None)
 def fuel_table() -> dict[str, FuelProperties]:
-    """Every fuel of ``models/fuels.toml`` by its (lower-case) name."""
+    """Every fuel of ``models/fuels.toml`` by its (lower-case) name.
+
+    Returns
+    -------
+    dict, fuel name -> FuelProperties (:func:`fuel_properties` gives the units).
+
+    >>> sorted(fuel_table())
+    ['diesel', 'gasoline']
+    """
     data = model_file("fuels.toml")
     return {name.lower(): FuelProperties(float(v["lhv_MJ_per_kg"]), float(v["density_kg_per_L"]),
                                          float(v["co2_g_per_gal"]))
@@ -34,7 +42,20 @@ def fuel_table() -> dict[str, FuelProperties]:
 
 
 def fuel_properties(fuel: str) -> FuelProperties:
-    """The properties of ``fuel`` (``gasoline``, ``diesel``); an unknown name lists the valid ones."""
+    """The properties of ``fuel`` (``gasoline``, ``diesel``); an unknown name lists the valid ones.
+
+    Parameters
+    ----------
+    fuel : str, a fuel name of ``models/fuels.toml`` (case and surrounding blanks ignored)
+
+    Returns
+    -------
+    FuelProperties: ``lhv_MJ_per_kg`` (lower heating value [MJ/kg]), ``density_kg_per_L``
+    [kg/L] and ``co2_g_per_gal`` [g CO2 per US gallon burnt]; their sources are in the file.
+
+    >>> fuel_properties("Gasoline").density_kg_per_L
+    0.743
+    """
     table = fuel_table()
     try:
         return table[str(fuel).strip().lower()]

@@ -19,7 +19,7 @@ def helical_mesh_efficiency(friction_coefficient, center_distance, pressure_angl
     Parameters
     ----------
     friction_coefficient : float or array, mu [-]
-    center_distance : float or array, C (any length unit: only ratios of it enter)
+    center_distance : float or array, C [any length unit: only ratios of it enter]
     pressure_angle_rad : float or array, a [rad]
     gear_ratio : float or array, G [-] (not 1)
     contact_ratio : float, e [-]

@@ -80,7 +80,7 @@ def walther_kinematic_viscosity_m2_s(temp_K, A, B):
     Parameters
     ----------
     temp_K : float or array, lubricant temperature [K]
-    A, B : float, Walther's coefficients (:func:`walther_coefficients`)
+    A, B : float, Walther's coefficients [-] (:func:`walther_coefficients`, nu in cSt, T in K)
 
     Returns
     -------
@@ -145,6 +145,19 @@ def air_density_thesis_kg_m3(temp_K, density_std_kg_m3=1.2250, cte_per_K=7e-4):
     Quirk (docs/thesis-quirks.md): the sign makes air *denser* when hot, and the liquid's
     expansion coefficient is used for a gas. Kept for ``--physics thesis``; the ideal gas
     would give ``1.225 * 288.2 / T``.
+
+    Parameters
+    ----------
+    temp_K : float or array, air temperature [K]
+    density_std_kg_m3 : float, density at 288.2 K [kg/m^3]
+    cte_per_K : float, the printed expansion coefficient [1/K]
+
+    Returns
+    -------
+    density [kg/m^3], the shape of ``temp_K``.
+
+    >>> round(float(air_density_thesis_kg_m3(343.15)), 4)   # 70 C: denser than at 15 C (the quirk)
+    1.274
     """
     temp_K = np.asarray(temp_K, dtype=float)
     return density_std_kg_m3 * (1 - cte_per_K * (temp_K - DENSITY_REFERENCE_K)) ** -1
@@ -161,12 +174,30 @@ class FluidProperties:
 
 @lru_cache(maxsize=None)
 def lubricant_data() -> dict:
-    """The lubricants of ``models/lubricants.toml`` keyed by upper-case name."""
+    """The lubricants of ``models/lubricants.toml`` keyed by upper-case name.
+
+    Returns
+    -------
+    dict, lubricant name -> its table of the file: two viscosities ``nu1_cSt``, ``nu2_cSt`` [cSt]
+    at ``T1_K``, ``T2_K`` [K] (Walther's two points), ``density_kg_m3`` [kg/m^3] and a description (the source).
+
+    >>> sorted(lubricant_data())
+    ['75W90', '80W90', 'ATF']
+    """
     data = model_file("lubricants.toml")
     return {name.upper(): spec for name, spec in data["lubricant"].items()}
 
 
 def lubricant_names() -> list[str]:
+    """The lubricant names of ``models/lubricants.toml``.
+
+    Returns
+    -------
+    list of str, sorted.
+
+    >>> lubricant_names()
+    ['75W90', '80W90', 'ATF']
+    """
     return sorted(lubricant_data())
 
 
@@ -180,7 +211,20 @@ def _lubricant(name: str) -> dict:
 
 
 def walther_viscosity_m2_s(temp_C, lubricant: str):
-    """Kinematic viscosity [m^2/s] of a named lubricant at ``temp_C`` (thesis Eqs 5.13-5.14)."""
+    """Kinematic viscosity [m^2/s] of a named lubricant at ``temp_C`` (thesis Eqs 5.13-5.14).
+
+    Parameters
+    ----------
+    temp_C : float or array, lubricant temperature [C]
+    lubricant : str, a name of ``models/lubricants.toml`` (e.g. ``80W90``)
+
+    Returns
+    -------
+    kinematic viscosity [m^2/s], the shape of ``temp_C``.
+
+    >>> round(float(walther_viscosity_m2_s(70.0, "80W90")) * 1e6, 2)   # cSt
+    37.51
+    """
     spec = _lubricant(lubricant)
     A, B = walther_coefficients(spec["nu1_cSt"], spec["T1_K"], spec["nu2_cSt"], spec["T2_K"])
     return walther_kinematic_viscosity_m2_s(np.asarray(temp_C, dtype=float) + KELVIN, A, B)
@@ -191,6 +235,19 @@ def fluid_properties(name: str, temp_C: float = THESIS_OPERATING_TEMP_C) -> Flui
 
     B.7 works in kelvin with ``T = 70 + 273.15``; the same arithmetic is kept so that
     ``--physics thesis`` reproduces the printed numbers.
+
+    Parameters
+    ----------
+    name : str, ``air`` or a lubricant of ``models/lubricants.toml``
+    temp_C : float, temperature [C] (default the thesis' operating 70 C)
+
+    Returns
+    -------
+    FluidProperties: ``rho_kg_m3`` [kg/m^3], ``mu_Pa_s`` (dynamic viscosity [Pa s]),
+    ``nu_m2_s`` (kinematic viscosity [m^2/s]).
+
+    >>> round(fluid_properties("air").rho_kg_m3, 4)
+    1.274
     """
     temp_K = temp_C + KELVIN
     if name.lower() == "air":

@@ -125,6 +125,18 @@ def load_geometry(path=None) -> dict[str, float]:
 
     ``path`` is a TOML file with one table per quantity (``value``, ``unit``, ``matlab``,
     ``source``); ``None`` loads the shipped ``models/eaton_fro16210c_two_speed.toml``.
+
+    Parameters
+    ----------
+    path : str, Path or None, the geometry TOML (None: the shipped file)
+
+    Returns
+    -------
+    dict, quantity name (:data:`GEOMETRY_KEYS`) -> value in the unit its table states (mm,
+    degrees, degF, N/m, ...: the units B.5 prints).
+
+    >>> load_geometry()["centre_distance"]   # mm
+    149.5044
     """
     if path is None:
         path = models_dir() / GEOMETRY_FILE
@@ -199,7 +211,20 @@ def bearing_f1_branch(lf, whole_array_third_test: bool = False):
     ``if`` takes for each element, with MATLAB's left-to-right chained comparisons (see
     :func:`_bearing_f1`). Where the printed test uses the whole array, ``if`` is true when
     every element is non-zero; on a block of a large input this is the block's elements,
-    which gives the same answer because the test is true for every element."""
+    which gives the same answer because the test is true for every element.
+
+    Parameters
+    ----------
+    lf : float or array, the bearing load factor F_a / F_r of B.5 [-]
+    whole_array_third_test : bool, apply the third test to the whole array, as printed
+
+    Returns
+    -------
+    int array of the branch taken (1-4), the shape of ``lf``.
+
+    >>> bearing_f1_branch([0.2, 0.5, 1.0, 3.0])   # MATLAB's (0.47 <= lf) < 0.94: 3, not 2
+    array([1, 3, 3, 3])
+    """
     lf = np.asarray(lf, dtype=float)
     first = lf < 0.47
     second = (0.47 <= lf).astype(float) < 0.94
@@ -226,6 +251,21 @@ def gear_pair_efficiency(drive_teeth, driven_teeth, helix_angle_deg, drive_outer
     roll angles use the transverse angle ``alpha_t``; a helical gear's base radius is
     ``R_p * cosd(alpha_t)``. Both roll angles divide by the DRIVE gear's base radius; that is
     consistent (both are drive-gear roll angles in ``(1+1/G)*(mu/2)*(b1^2+b2^2)/(b1+b2)``).
+
+    Parameters
+    ----------
+    drive_teeth, driven_teeth : int, tooth counts [-]
+    helix_angle_deg : float, helix angle [deg]
+    drive_outer_diameter_mm, driven_outer_diameter_mm : float, outside diameters [mm]
+    centre_distance_mm : float, C [mm]
+    normal_pressure_angle_deg : float, alpha_n [deg]
+    friction_coefficient : float, mu [-]
+    gear_ratio : float or None, G [-] (None: driven_teeth / drive_teeth)
+    drive_scale : float, the drive gear's size factor [-]
+
+    Returns
+    -------
+    mesh efficiency [-].
     """
     alpha_n = normal_pressure_angle_deg
     C = centre_distance_mm
@@ -247,7 +287,20 @@ def gear_pair_efficiency(drive_teeth, driven_teeth, helix_angle_deg, drive_outer
 
 
 def output_seal_loss(seal_diameter_mm, tangential_friction_n_per_m):
-    """B.5 ``torqueloss_seal_output = 2*pi*(r_sh_output*(10^-3))^2*F_tan`` in N m."""
+    """B.5 ``torqueloss_seal_output = 2*pi*(r_sh_output*(10^-3))^2*F_tan`` in N m.
+
+    Parameters
+    ----------
+    seal_diameter_mm : float, output shaft diameter at the seal [mm]
+    tangential_friction_n_per_m : float, F_tan, seal friction per unit circumference [N/m]
+
+    Returns
+    -------
+    seal torque loss [N m].
+
+    >>> round(output_seal_loss(100.0, 100.0), 4)
+    1.5708
+    """
     r_sh_output = seal_diameter_mm / 2
     return 2 * np.pi * (r_sh_output * (10.0 ** -3)) ** 2 * tangential_friction_n_per_m
 
@@ -262,6 +315,18 @@ def oil_and_air_properties(ambient_temperature_degF, oil_temperature_rise):
     ``T_oil = (((T_ambient+50)-32)*(5/9)) + 273.1``, added 50 degF (27.8 K). With 72 degF the
     oil is at 345.32 K (72.2 degC), where B.4/B.7 use 70 degC and 80W90 oil. 273.1 (not
     273.15) is printed.
+
+    Parameters
+    ----------
+    ambient_temperature_degF : float, T_ambient [degF] (B.5 prints 72)
+    oil_temperature_rise : float, the printed rise of the oil over ambient [K] (50)
+
+    Returns
+    -------
+    (rho_air [kg/m^3], mu_air [m^2/s], rho_oil [kg/m^3], mu_oil [m^2/s], mu_oil_dynamic [cP])
+
+    >>> [round(float(x), 6) for x in oil_and_air_properties(72.0, 50.0)]
+    [1.022168, 2e-05, 808.635, 3.8e-05, 30.748136]
     """
     T_oil = (ambient_temperature_degF - 32) * 5 / 9 + 273.1 + oil_temperature_rise
     T_air = T_oil
@@ -314,7 +379,7 @@ def auxiliary_box(torque_fraction, speed_rpm, low_gear_ratio, axle_gear, geometr
         B.5 ``input_torque_aux``: box input torque / B.5 ``peak_torque`` (5794.088 N m).
     speed_rpm : array_like
         B.5 ``input_RPM_aux``: box input (transmission output) speed in rpm.
-    low_gear_ratio : float or array_like
+    low_gear_ratio : float or array_like [-]
         B.5 ``toospd_lo_gear``: total low ratio (measured box 43/34 * 62/16 = 4.900735...).
         It shapes the low drive gear and so matters in high gear too.
     axle_gear : {"low", "high"} (or B.5's ``gear`` 1 / 2)

@@ -12,11 +12,13 @@ import hashlib
 import json
 import math
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from fleetrun.budget.result import ChangeCause, InputChange, RunChanges, TotalChange
+from fleetrun.fileio import JsonDocument
 
 EARLIER_DIR = "earlier-runs"
 TOTAL_COLUMNS = ("fuel_gal_total", "state_tax_usd", "federal_tax_usd", "kwh_total", "ev_fee_usd")
@@ -142,7 +144,19 @@ def attribute(earlier: dict, now: dict) -> tuple[ChangeCause, ...]:
     return tuple(causes)
 
 
-def read_earlier(out_dir: Path) -> dict | None:
+@dataclass(frozen=True)
+class EarlierRun:
+    """The run already in an output folder: its ``manifest.json`` as read (docs/interface.md),
+    ``totals`` filled in from its ``class_summary.csv`` for a manifest written before the
+    manifest carried them."""
+    manifest: JsonDocument
+
+    def folder_name(self) -> str:
+        """A folder name for the kept earlier run: its creation time, file-name safe."""
+        return earlier_run_name(self.manifest)
+
+
+def read_earlier(out_dir: Path) -> EarlierRun | None:
     """The earlier run in ``out_dir``: its manifest with ``totals`` filled in; None if none
     (or its manifest cannot be read: then there is nothing to compare, said in the log)."""
     manifest = Path(out_dir) / "manifest.json"
@@ -160,7 +174,7 @@ def read_earlier(out_dir: Path) -> dict | None:
             data["totals"] = scenario_totals_dict(pd.read_csv(classes)) if classes.is_file() else {}
         except (OSError, ValueError, KeyError):
             data["totals"] = {}
-    return data
+    return EarlierRun(manifest=data)
 
 
 WORKBOOK_ROLE = "fleet workbook"
@@ -190,11 +204,12 @@ def _compare_inputs(earlier_inputs: list, inputs: list[dict]) -> list[InputChang
     return out
 
 
-def compare(earlier: dict, inputs: list[dict], totals: dict[str, dict[str, float]],
+def compare(earlier_run: EarlierRun, inputs: list[dict], totals: dict[str, dict[str, float]],
             attribution: dict | None = None) -> RunChanges:
     """Inputs added, removed, renamed or changed (by sha256), totals by scenario earlier vs now,
     and each total's change attributed to its causes (``attribution``: this run's
     :func:`attribution_inputs`)."""
+    earlier = earlier_run.manifest
     changed_inputs = _compare_inputs(earlier.get("inputs", []), inputs)
     rows = []
     earlier_totals = earlier.get("totals") or {}
@@ -239,12 +254,12 @@ def earlier_run_name(earlier: dict) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_.TZ" else "_" for ch in stamp) or "unknown"
 
 
-def keep_earlier_run(out_dir: Path, staging: Path, earlier: dict, files) -> Path:
+def keep_earlier_run(out_dir: Path, staging: Path, earlier: EarlierRun, files) -> Path:
     """Copy the earlier run's ``files`` into ``staging/earlier-runs/<its time>/`` and carry over
     the runs it kept itself, so the new folder holds every earlier run; the kept folder."""
     out_dir, staging = Path(out_dir), Path(staging)
     digest = hashlib.sha256((out_dir / "manifest.json").read_bytes()).hexdigest()[:8]
-    kept = staging / EARLIER_DIR / f"{earlier_run_name(earlier)}-{digest}"
+    kept = staging / EARLIER_DIR / f"{earlier.folder_name()}-{digest}"
     kept.mkdir(parents=True, exist_ok=True)
     for name in files:
         if (out_dir / name).is_file():

@@ -29,7 +29,7 @@ from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError
 from fleetrun.fileio import write_error_log
-from fleetrun.reports.changes import compare, describe, read_earlier, scenario_totals_dict
+from fleetrun.reports.changes import EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
 from fleetrun.run.engines import make_engine
 from fleetrun.output_folder import folder_lock
@@ -104,8 +104,34 @@ def _clashes(names: dict[Path, str]) -> list[list[Path]]:
     return [group for group in seen.values() if len(group) > 1]
 
 
-def read_config(path: Path) -> dict:
-    """``batch.toml`` as a dict of checked values; paths resolved against the file's folder."""
+@dataclass(frozen=True)
+class BatchConfig:
+    """``batch.toml``'s checked values (docs/batch.md); paths resolved against the file's
+    folder. None: the key was not in the file (the command line's option or default holds)."""
+    inputs: tuple[Path, ...]
+    out: Path
+    scenarios: tuple[str, ...] = ()
+    cache_dir: Path | None = None
+    log: Path | None = None
+    engine: str | None = None
+    scheduler: str | None = None
+    physics: str | None = None
+    mode: str | None = None
+    effects: tuple | None = None        # 'with': (Effect, params) pairs from parse_with
+    chunk_size: int | None = None
+
+
+@dataclass(frozen=True)
+class FleetWritten:
+    """One fleet of a run, written: its workbook, output folder, files and result."""
+    fleet: Path
+    out: Path
+    outputs: dict[str, Path]
+    result: RunResult
+
+
+def read_config(path: Path) -> BatchConfig:
+    """``batch.toml`` as checked values; paths resolved against the file's folder."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -133,13 +159,13 @@ def read_config(path: Path) -> dict:
         if not matches:
             raise InputError(f"'inputs' pattern '{pattern}' matches no file", file=path)
         found.extend(Path(m) for m in matches)
-    config: dict = {"inputs": list(dict.fromkeys(found))}
+    config = {"inputs": tuple(dict.fromkeys(found))}
     scenarios = data.get("scenarios", [])
     if isinstance(scenarios, str):
         scenarios = [scenarios]
     if not isinstance(scenarios, list) or not all(isinstance(s, str) for s in scenarios):
         raise InputError("'scenarios' must be a list of scenario ids", file=path)
-    config["scenarios"] = scenarios
+    config["scenarios"] = tuple(scenarios)
     for key in ("out", "cache_dir", "log"):
         if key in data:
             if not isinstance(data[key], str):
@@ -164,7 +190,7 @@ def read_config(path: Path) -> dict:
                              "'bearing_preload:drag_torque_Nm=3,warmup'", file=path)
 
         try:
-            config["with"] = [pair for item in value for pair in parse_with(item)]
+            config["effects"] = tuple(pair for item in value for pair in parse_with(item))
         except InputError as exc:
             exc.file = exc.file or path
             raise
@@ -172,7 +198,7 @@ def read_config(path: Path) -> dict:
         if type(data["chunk_size"]) is not int or data["chunk_size"] < 1:   # true is no size
             raise InputError("'chunk_size' must be a positive whole number", file=path)
         config["chunk_size"] = data["chunk_size"]
-    return config
+    return BatchConfig(**config)
 
 
 class Progress:
@@ -250,7 +276,7 @@ def teardown_logging(handlers) -> None:
         handler.close()
 
 
-def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> dict:
+def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> FleetWritten:
     """Read, simulate and write one fleet; raises on failure (nothing written then)."""
 
     started = time.perf_counter()
@@ -277,10 +303,10 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
         log.info("%s: the earlier run is kept in %s", fleet_path.name, out_dir / "earlier-runs")
     log.info("%s: wrote %s (read %.1f s, simulate %.1f s, write %.1f s)", fleet_path.name, out_dir,
              read_s, result.timings_s["simulate"], time.perf_counter() - written_at)
-    return {"fleet": fleet_path, "out": out_dir, "outputs": outputs, "result": result}
+    return FleetWritten(fleet=fleet_path, out=out_dir, outputs=outputs, result=result)
 
 
-def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[RunResult, dict | None]:
+def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[RunResult, EarlierRun | None]:
     """Compare with the run already in ``out_dir`` (inputs' sha256, totals by scenario): the
     result with the comparison on ``changes`` (logged), and the earlier manifest (None: no
     earlier run)."""
@@ -296,18 +322,16 @@ def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[R
     return result, earlier
 
 
-def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[dict]]:
+def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[FleetWritten]]:
     """Run every fleet in the plan; return (exit code, error lines, what was written)."""
     errors: list[str] = []
     internal = False
-    written: list[dict] = []
+    written: list[FleetWritten] = []
     engine = make_engine(plan.engine, plan.scheduler)   # InputError here: nothing to run
     try:
         for fleet_path in plan.inputs:
             try:
-                done = run_one(plan, fleet_path, engine, progress_enabled=not quiet)
-                written.append({"fleet": fleet_path, "out": done["out"],
-                                "warnings": len(done["result"].warnings)})
+                written.append(run_one(plan, fleet_path, engine, progress_enabled=not quiet))
             except FleetrunError as exc:
                 errors.append(str(exc))
                 log.error("%s", exc)

@@ -18,7 +18,7 @@ import pandas as pd
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
 from fleetrun.output_folder import new_output_folder
-from fleetrun.reports.changes import keep_earlier_run
+from fleetrun.reports.changes import EarlierRun, keep_earlier_run
 from fleetrun.reports.html import write_summary_html
 from fleetrun.reports.manifest import SCHEMA, write_manifest
 from fleetrun.reports.xlsx import write_report_xlsx
@@ -146,10 +146,10 @@ def refuse_foreign_outputs(out_dir: Path) -> None:
                          hint="Move them away, or choose another output folder (--out)")
 
 
-def write_run_outputs(result, out_dir: Path, earlier: dict | None = None) -> dict[str, Path]:
+def write_run_outputs(result, out_dir: Path, earlier: EarlierRun | None = None) -> dict[str, Path]:
     """Write the outputs (docs/report.md) of a run into ``out_dir``, all or nothing: the folder changes as
-    one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the manifest of
-    the run already there, whose files are then kept in ``earlier-runs/``
+    one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the run
+    already there (its manifest), whose files are then kept in ``earlier-runs/``
     (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
 
     out_dir = Path(out_dir)

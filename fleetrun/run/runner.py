@@ -39,13 +39,14 @@ from fleetrun.vehicle import VehicleSpec
 from fleetrun.workbook.reader import Fleet, Scenario, file_sha256
 from fleetrun.workbook.schema import DUTY_CLASSES
 
-__all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "RESULTS_COLUMNS", "CLASS_COLUMNS"]
+__all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "CycleSums", "RESULTS_COLUMNS", "CLASS_COLUMNS"]
 
 CHUNK_SIZE = 128            # vehicles per simulation task: bounds memory, spreads work
 MAX_LISTED_WARNINGS = 50    # per kind; the rest are counted
 SHORTFALL_TOLERANCE = 1e-6  # shortfall measures below this are rounding noise
 RESULT_FIELDS = ("miles", "fuel_gal") + ENERGY_FIELDS
 ELECTRIC = "electric"
+Condition = tuple[str, float]   # a simulated condition: (drive cycle name, ambient temperature C)
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,16 @@ def _cycle(name: str):
     return load_cycle(name)
 
 
-def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
+@dataclass(frozen=True)
+class CycleSums:
+    """One task's per-vehicle results over one cycle, what travels back from a worker:
+    ``sums`` the RESULT_FIELDS (miles, fuel_gal, the energies), ``shortfalls`` the measures of
+    how far the vehicles fell behind the trace (``shortfall_*``, those the simulation reports)."""
+    sums: dict[str, np.ndarray]
+    shortfalls: dict[str, np.ndarray]
+
+
+def simulate_task(task: SimulationTask) -> dict[str, CycleSums]:
     """Run one chunk over its cycles: cycle -> per-vehicle sums (only these travel back)."""
     simulate = task.simulate or simulate_vehicles
     kwargs = {"ambient_temp_C": task.ambient_temp_C, "physics": task.physics, "mode": task.mode}
@@ -82,13 +92,14 @@ def simulate_task(task: SimulationTask) -> dict[str, dict[str, np.ndarray]]:
     found = {}
     for cycle, members in task.cycles:
         result = simulate([task.vehicles[k] for k in members], _cycle(cycle), **kwargs)
-        out = {name: np.asarray(getattr(result, name), dtype=float) for name in RESULT_FIELDS}
+        sums = {name: np.asarray(getattr(result, name), dtype=float) for name in RESULT_FIELDS}
+        shortfalls = {}
         for name in dir(result):
             if name.startswith("shortfall_"):
                 value = getattr(result, name)
                 if isinstance(value, (np.ndarray, list, tuple)):
-                    out[name] = np.asarray(value, dtype=float)
-        found[cycle] = out
+                    shortfalls[name] = np.asarray(value, dtype=float)
+        found[cycle] = CycleSums(sums=sums, shortfalls=shortfalls)
     return found
 
 
@@ -197,10 +208,10 @@ def refuse_non_finite(fleet: Fleet, tasks, positions, per_condition) -> None:
                                            "`fleetrun simulate` shows the trace")
 
 
-def needed_conditions(scenarios) -> dict[tuple[str, float], set[str]]:
+def needed_conditions(scenarios) -> dict[Condition, set[str]]:
     """Each distinct (cycle, ambient) the scenarios use, with the duty classes that drive it:
     simulated once, for those vehicles only."""
-    needed: dict[tuple[str, float], set[str]] = {}
+    needed: dict[Condition, set[str]] = {}
     for s in scenarios:
         for duty in DUTY_CLASSES:
             for cycle in s.mix_for(duty):
@@ -208,7 +219,7 @@ def needed_conditions(scenarios) -> dict[tuple[str, float], set[str]]:
     return needed
 
 
-def plan_tasks(distinct, needed: dict, template: SimulationTask,
+def plan_tasks(distinct, needed: dict[Condition, set[str]], template: SimulationTask,
                chunk_size: int) -> tuple[list[SimulationTask], list[np.ndarray]]:
     """Chunks of vehicles per temperature, each with the cycles its members drive there, and
     each chunk's positions among ``distinct``. ``template`` carries the shared settings."""
@@ -233,11 +244,13 @@ def plan_tasks(distinct, needed: dict, template: SimulationTask,
     return tasks, positions
 
 
-def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tuple[dict, dict]:
-    """Run the tasks on ``engine``; per condition the per-vehicle sums and shortfall measures."""
+def collect(engine, tasks, positions, conditions, n: int,
+            progress=None) -> tuple[dict[Condition, dict[str, np.ndarray]], dict[Condition, dict[str, np.ndarray]]]:
+    """Run the tasks on ``engine``; per condition (cycle, ambient C) the per-vehicle sums and
+    shortfall measures, each a column of values by name."""
     per_condition = {cond: {**{name: np.full(n, np.nan) for name in RESULT_FIELDS}, "kwh": np.zeros(n)}
                      for cond in conditions}
-    shortfalls: dict[tuple, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
+    shortfalls: dict[Condition, dict[str, np.ndarray]] = {cond: {} for cond in conditions}
     if progress:
         progress(0, len(tasks))
     for done, (index, by_cycle) in enumerate(engine.run(simulate_task, tasks), start=1):
@@ -245,18 +258,18 @@ def collect(engine, tasks, positions, conditions, n: int, progress=None) -> tupl
         for cycle, members in task.cycles:
             cond = (cycle, task.ambient_temp_C)
             where = positions[index][list(members)]
-            arrays = by_cycle[cycle]
+            sums = by_cycle[cycle]
             for name in RESULT_FIELDS:
-                per_condition[cond][name][where] = arrays[name]
-            for name, values in arrays.items():
-                if name.startswith("shortfall_"):
-                    shortfalls[cond].setdefault(name, np.zeros(n))[where] = values
+                per_condition[cond][name][where] = sums.sums[name]
+            for name, values in sums.shortfalls.items():
+                shortfalls[cond].setdefault(name, np.zeros(n))[where] = values
         if progress:
             progress(done, len(tasks))
     return per_condition, shortfalls
 
 
-def electric_sums(distinct, needed: dict, per_condition: dict) -> None:
+def electric_sums(distinct, needed: dict[Condition, set[str]],
+                  per_condition: dict[Condition, dict[str, np.ndarray]]) -> None:
     """Fill in the electric vehicles' per-cycle sums from the road-load energy model
     (:func:`fleetrun.simulation.electric.simulate_electric`): kWh from the wall, no fuel, no
     differential energies (the thesis model is not run for them), the battery energy spent on

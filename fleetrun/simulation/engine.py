@@ -52,23 +52,75 @@ def stroke_m(displacement_L, cylinders, bore_stroke_ratio=1.0):
     """Stroke S [m] of ``cylinders`` equal cylinders of bore B = ratio x S sweeping ``displacement_L``.
 
     V_cyl = pi/4 B^2 S  ->  S = (4 V_cyl / (pi ratio^2))^(1/3); square engines (ratio 1) by default.
+
+    Parameters
+    ----------
+    displacement_L : float or array, V_d [L]
+    cylinders : int or array, number of cylinders
+    bore_stroke_ratio : float or array, B / S [-]
+
+    Returns
+    -------
+    stroke S [m].
+
+    >>> round(float(stroke_m(2.0, 4)), 4)
+    0.086
     """
     v_cyl = np.asarray(displacement_L, float) * 1e-3 / np.asarray(cylinders, float)
     return np.cbrt(4.0 * v_cyl / (np.pi * np.asarray(bore_stroke_ratio, float) ** 2))
 
 
 def mean_piston_speed_m_s(speed_rpm, stroke_m):
-    """Mean piston speed c_m = 2 S n [m/s] (Heywood 1988, Eq. 2.2)."""
+    """Mean piston speed c_m = 2 S n [m/s] (Heywood 1988, Eq. 2.2).
+
+    Parameters
+    ----------
+    speed_rpm : float or array, n [rpm]
+    stroke_m : float or array, S [m]
+
+    Returns
+    -------
+    c_m [m/s], the broadcast shape.
+
+    >>> round(float(mean_piston_speed_m_s(3000.0, 0.086)), 2)
+    8.6
+    """
     return (np.asarray(stroke_m, float) * (2.0 / 60.0)) * np.asarray(speed_rpm, float)   # per-engine factor first
 
 
 def mep_power_W_per_kPa(speed_rpm, displacement_L):
-    """Power [W] of 1 kPa of mean effective pressure in a four-stroke engine: V_d omega / (4 pi)."""
+    """Power [W] of 1 kPa of mean effective pressure in a four-stroke engine: V_d omega / (4 pi).
+
+    Parameters
+    ----------
+    speed_rpm : float or array, n [rpm]
+    displacement_L : float or array, V_d [L]
+
+    Returns
+    -------
+    power per kPa of mean effective pressure [W/kPa].
+
+    >>> round(float(mep_power_W_per_kPa(3000.0, 2.0)), 2)
+    50.0
+    """
     return (np.asarray(displacement_L, float) * (RAD_S_PER_RPM / (4.0 * np.pi))) * np.asarray(speed_rpm, float)
 
 
 def load_fraction(torque_Nm, max_torque_Nm):
-    """L = T_e / T_max in [0, 1] (0 on overrun)."""
+    """L = T_e / T_max in [0, 1] (0 on overrun).
+
+    Parameters
+    ----------
+    torque_Nm : float or array, brake torque T_e [N m]
+    max_torque_Nm : float or array, full-load torque at the same speed [N m]
+
+    Returns
+    -------
+    L [-] in [0, 1], the broadcast shape.
+
+    >>> load_fraction([-5.0, 50.0, 300.0], 200.0).tolist()
+    [0.0, 0.25, 1.0]
+    """
     load = np.maximum(torque_Nm, 0.0) / np.maximum(max_torque_Nm, 1e-9)
     return np.minimum(load, 1.0, out=load) if isinstance(load, np.ndarray) else min(load, 1.0)
 
@@ -90,7 +142,9 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     brake_gain : multiplier of the two brake-work terms (a higher expansion ratio); None: 1.
     load : :func:`load_fraction` of ``torque_Nm`` and ``max_torque_Nm`` if the caller has it.
 
-    Returns a list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
+    Returns
+    -------
+    list of arrays [W per unit coefficient]: P_b, P_b L, mep power (per kPa) x 1,
     x c_m [m/s], T_peak omega (the bmep_max term: f_pk bmep_max V_d omega / (4 pi) = f_pk T_peak
     omega), mep power x (1 - L) for throttled engines, 1, max(inertial power, 0). Terms that
     do not vary with the step keep their own (broadcastable) shape.
@@ -114,10 +168,22 @@ def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_s
                       fmep_peak_fraction, pmep_throttle_kPa, accessory_power_W, transient_factor):
     """Weights of :func:`fuel_power_terms_W`: (1, k_hl, f_0, f_cm, f_pk, p_th, P_acc, k_tr) / eta_ind.
 
-    Parameters (units as in the names; fitted fleet-wide in models/engine_calibration.toml):
-    eta_indicated (Willans slope), high_load_factor (k_hl), fmep_0_kPa (f_0),
-    fmep_piston_speed_kPa_s_per_m (f_cm), fmep_peak_fraction (f_pk, of bmep_max),
-    pmep_throttle_kPa (p_th), accessory_power_W (P_acc), transient_factor (k_tr).
+    Fitted fleet-wide in models/engine_calibration.toml.
+
+    Parameters
+    ----------
+    eta_indicated : float or array, the Willans slope [-]
+    high_load_factor : float or array, k_hl [-]
+    fmep_0_kPa : float or array, f_0 [kPa]
+    fmep_piston_speed_kPa_s_per_m : float or array, f_cm [kPa s/m]
+    fmep_peak_fraction : float or array, f_pk [-] (of bmep_max)
+    pmep_throttle_kPa : float or array, p_th [kPa]
+    accessory_power_W : float or array, P_acc [W]
+    transient_factor : float or array, k_tr [-]
+
+    Returns
+    -------
+    list of eight float arrays, the coefficients divided by eta_indicated (units of the inputs).
     """
     parts = (1.0, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction,
              pmep_throttle_kPa, accessory_power_W, transient_factor)
@@ -129,6 +195,17 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
 
     Never negative. ``terms`` from :func:`fuel_power_terms_W`, ``coefficients`` from
     :func:`fuel_coefficients` (arrays that broadcast against the terms).
+
+    Parameters
+    ----------
+    terms : list of arrays, :func:`fuel_power_terms_W` [W per unit coefficient]
+    coefficients : list of floats or arrays, :func:`fuel_coefficients` [-, kPa, W, ... / eta]
+    fueled : bool or array, False where the injectors are shut
+    lhv_MJ_per_kg : float or array, the fuel's lower heating value [MJ/kg]
+
+    Returns
+    -------
+    fuel rate [g/s], the broadcast shape.
     """
     shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
     power = np.zeros(shape)
@@ -150,7 +227,22 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
 def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep_0_kPa,
                        fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction, pmep_throttle_kPa, throttled):
     """Torque [N m] to turn the unfuelled engine: friction plus closed-throttle pumping,
-    (FMEP + PMEP(L=0)) V_d / (4 pi) with FMEP as in the module docstring."""
+    (FMEP + PMEP(L=0)) V_d / (4 pi) with FMEP as in the module docstring.
+
+    Parameters
+    ----------
+    speed_rpm : float or array, n [rpm]
+    displacement_L : float or array, V_d [L]
+    stroke_m : float or array, S [m]
+    peak_torque_Nm : float or array, T_peak [N m] (the bmep_max term)
+    fmep_0_kPa, fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction : float or array, f_0 [kPa], f_cm [kPa s/m], f_pk [-]
+    pmep_throttle_kPa : float or array, p_th [kPa]
+    throttled : bool or array, spark-ignition (gasoline) engine
+
+    Returns
+    -------
+    motoring torque [N m] (positive: what it takes to turn the engine), the broadcast shape.
+    """
     # per-engine factors first (arrays of vehicles x 1), one pass over the steps for each of
     # c_m, f_cm c_m and the sum
     per_kPa = np.asarray(displacement_L, float) / (4.0 * np.pi)           # [N m per kPa]
@@ -169,6 +261,21 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     speed, is capped by rated power (T = P / omega) and falls to zero 10 % above rated speed
     (governor / rev limiter). Evaluated in place in one array of the arguments' broadcast
     shape (no temporaries for vehicles x steps arrays).
+
+    Parameters
+    ----------
+    speed_rpm : float or array, n [rpm]
+    peak_torque_Nm : float or array, T_peak [N m]
+    rated_power_kW : float or array, P_rated [kW]
+    rated_speed_rpm, idle_speed_rpm, peak_torque_speed_rpm : float or array, [rpm]
+    idle_torque_fraction : float or array, full-load torque at idle / T_peak [-]
+
+    Returns
+    -------
+    torque [N m], the broadcast shape (a float for float arguments).
+
+    >>> round(float(full_load_torque_Nm(3000.0, 200.0, 100.0, 6000.0, 700.0, 4000.0, 0.7)), 2)
+    181.82
     """
     n = np.asarray(speed_rpm, float)
     rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)

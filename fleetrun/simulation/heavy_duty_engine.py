@@ -43,8 +43,16 @@ def set_speeds_rpm(speed_rpm, power_W) -> dict[str, float]:
 
     Parameters
     ----------
-    speed_rpm : increasing engine speeds of the full-load curve [rpm].
-    power_W : full-load power at those speeds [W].
+    speed_rpm : array, increasing engine speeds of the full-load curve [rpm]
+    power_W : array, full-load power at those speeds [W]
+
+    Returns
+    -------
+    dict, ``A``, ``B``, ``C`` -> speed [rpm].
+
+    >>> n = np.linspace(600.0, 2000.0, 15)
+    >>> {k: float(v) for k, v in set_speeds_rpm(n, np.minimum(100.0 * n, 150000.0)).items()}
+    {'A': 1100.0, 'B': 1400.0, 'C': 1700.0}
     """
     n, p = np.asarray(speed_rpm, float), np.asarray(power_W, float)
     p_max = p.max()
@@ -67,7 +75,16 @@ def _set_modes() -> tuple[list, np.ndarray, np.ndarray]:
 
 
 def set_points(engine: ReferenceEngine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Speed [rpm], torque [N m] and weight of each SET mode (engines.toml) for ``engine``."""
+    """Speed [rpm], torque [N m] and weight of each SET mode (engines.toml) for ``engine``.
+
+    Parameters
+    ----------
+    engine : ReferenceEngine, size and full-load shape
+
+    Returns
+    -------
+    (speed [rpm], torque [N m], weight [-]), arrays, one entry per SET mode.
+    """
     labels, loads, weights = _set_modes()
     n = np.linspace(engine.idle_speed_rpm, 1.1 * engine.rated_speed_rpm, 881)
     speeds = set_speeds_rpm(n, _full_load(engine, n) * n * RAD_S_PER_RPM)
@@ -77,7 +94,19 @@ def set_points(engine: ReferenceEngine) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def co2_g_per_g_fuel(fuel: str = "diesel") -> float:
-    """Tailpipe CO2 per gram of fuel, from models/fuels.toml's CO2 per gallon and density."""
+    """Tailpipe CO2 per gram of fuel, from models/fuels.toml's CO2 per gallon and density.
+
+    Parameters
+    ----------
+    fuel : str, a fuel of models/fuels.toml
+
+    Returns
+    -------
+    CO2 per fuel [g/g].
+
+    >>> round(co2_g_per_g_fuel("diesel"), 4)
+    3.2015
+    """
     props = fuel_properties(fuel)
     return props.co2_g_per_gal / (props.density_kg_per_L * LITERS_PER_GALLON * 1e3)
 
@@ -96,7 +125,17 @@ def _engine_fuel_g_per_s(engine: ReferenceEngine, constants: HeavyDutyFuelConsta
 def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngine) -> float:
     """Cycle-weighted brake-specific CO2 [g/hp-hr] of ``engine`` over the SET modes:
     sum(w CO2 rate) / sum(w brake power) (40 CFR 1036.510 weighting), no accessory load
-    (an engine on the dynamometer drives none)."""
+    (an engine on the dynamometer drives none).
+
+    Parameters
+    ----------
+    constants : HeavyDutyFuelConstants, the fuel equation's constants
+    engine : ReferenceEngine
+
+    Returns
+    -------
+    brake-specific CO2 [g/hp-hr].
+    """
     speed, torque, weight = set_points(engine)
     fuel = _engine_fuel_g_per_s(engine, constants, speed, torque)
     work_hp_h = float(np.sum(weight * torque * speed * RAD_S_PER_RPM)) / HP_W
@@ -106,18 +145,51 @@ def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngi
 def willans_slope_for_standard(standard_g_per_hp_hr: float, constants: HeavyDutyFuelConstants,
                                engine: ReferenceEngine) -> float:
     """The eta_indicated at which ``engine`` meets the SET standard exactly. Every term of the
-    fuel equation is divided by eta_indicated, so SET CO2 x eta is a constant."""
+    fuel equation is divided by eta_indicated, so SET CO2 x eta is a constant.
+
+    Parameters
+    ----------
+    standard_g_per_hp_hr : float, the SET CO2 standard [g/hp-hr]
+    constants : HeavyDutyFuelConstants, the other constants (eta_indicated is replaced)
+    engine : ReferenceEngine
+
+    Returns
+    -------
+    eta_indicated [-].
+    """
     return set_co2_g_per_hp_hr(replace(constants, eta_indicated=1.0), engine) / standard_g_per_hp_hr
 
 
 def service_class(displacement_L: float) -> str:
-    """``heavy`` (>= heavy_min_displacement_L) or ``medium``."""
+    """``heavy`` (>= heavy_min_displacement_L) or ``medium``.
+
+    Parameters
+    ----------
+    displacement_L : float, [L]
+
+    Returns
+    -------
+    str, ``heavy`` or ``medium``.
+
+    >>> service_class(12.0), service_class(7.0)
+    ('heavy', 'medium')
+    """
     return "heavy" if displacement_L >= model_file(ENGINES_FILE)["heavy_min_displacement_L"] else "medium"
 
 
 def standard_for(service: str, model_year: int) -> float:
     """The SET CO2 standard [g/hp-hr] in force for ``model_year`` (the latest step at or
-    before it; before the first step, the first)."""
+    before it; before the first step, the first).
+
+    Parameters
+    ----------
+    service : str, ``heavy`` or ``medium``
+    model_year : int
+
+    Returns
+    -------
+    standard [g CO2/hp-hr].
+    """
     steps = sorted((int(y), s) for y, s in model_file(ENGINES_FILE)["set_standard_g_per_hp_hr"][service].items())
     in_force = [s for y, s in steps if y <= model_year]
     return in_force[-1] if in_force else steps[0][1]
@@ -126,7 +198,19 @@ def standard_for(service: str, model_year: int) -> float:
 def reference_engine(service: str, idle_speed_rpm: float, peak_torque_speed_fraction: float,
                      idle_torque_fraction: float) -> ReferenceEngine:
     """The reference engine of ``service`` (engines.toml) with the full-load shape given (the
-    engines.toml set of the row's duty class)."""
+    engines.toml set of the row's duty class).
+
+    Parameters
+    ----------
+    service : str, ``heavy`` or ``medium``
+    idle_speed_rpm : float, [rpm]
+    peak_torque_speed_fraction : float, peak-torque speed / rated speed [-]
+    idle_torque_fraction : float, full-load torque at idle / peak torque [-]
+
+    Returns
+    -------
+    ReferenceEngine (units in its field names).
+    """
     size = model_file(ENGINES_FILE)["reference_engine"][service]
     return ReferenceEngine(displacement_L=size["displacement_L"], peak_torque_Nm=size["peak_torque_Nm"],
                            rated_power_kW=size["rated_power_kW"], rated_speed_rpm=size["rated_speed_rpm"],
@@ -139,7 +223,19 @@ def reference_engine(service: str, idle_speed_rpm: float, peak_torque_speed_frac
 def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, peak_torque_speed_fraction: float,
                          idle_torque_fraction: float) -> HeavyDutyFuelConstants:
     """The fuel-equation constants of a ``service``-class diesel of ``model_year``: the
-    literature constants of engines.toml and the Willans slope that meets the SET standard."""
+    literature constants of engines.toml and the Willans slope that meets the SET standard.
+
+    Parameters
+    ----------
+    service : str, ``heavy`` or ``medium``
+    model_year : int, the engine's model year (its standard)
+    idle_speed_rpm : float, [rpm]
+    peak_torque_speed_fraction, idle_torque_fraction : float, the full-load shape [-]
+
+    Returns
+    -------
+    HeavyDutyFuelConstants (the eight constants of engine.py's fuel equation).
+    """
     literature = HeavyDutyFuelConstants(eta_indicated=1.0, **model_file(ENGINES_FILE)["constants"])
     engine = reference_engine(service, idle_speed_rpm, peak_torque_speed_fraction, idle_torque_fraction)
     eta = willans_slope_for_standard(standard_for(service, model_year), literature, engine)
@@ -148,7 +244,16 @@ def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, p
 
 def engine_model_year(vehicle) -> int:
     """The model year whose engine standard applies to ``vehicle`` (VehicleSpec): its
-    ``engine_model_year`` column, else ``model_year``, else ``default_model_year``."""
+    ``engine_model_year`` column, else ``model_year``, else ``default_model_year``.
+
+    Parameters
+    ----------
+    vehicle : VehicleSpec
+
+    Returns
+    -------
+    int, the model year.
+    """
     for year in ((vehicle.extra or {}).get("engine_model_year"), vehicle.model_year):
         if year not in (None, "") and year == year:   # year == year: not NaN
             return int(year)
@@ -160,7 +265,19 @@ def heavy_duty_fuel_constants(vehicle, displacement_L: float, idle_speed_rpm: fl
                               idle_torque_fraction: float) -> HeavyDutyFuelConstants | None:
     """The fuel constants of a medium- or heavy-duty diesel ``vehicle`` (VehicleSpec) of
     ``displacement_L`` whose engine set (params.engine_defaults) has the given full-load
-    shape; None for any other vehicle (it keeps its set's constants)."""
+    shape; None for any other vehicle (it keeps its set's constants).
+
+    Parameters
+    ----------
+    vehicle : VehicleSpec
+    displacement_L : float, [L]
+    idle_speed_rpm : float, [rpm]
+    peak_torque_speed_fraction, idle_torque_fraction : float, the full-load shape [-]
+
+    Returns
+    -------
+    HeavyDutyFuelConstants or None.
+    """
     if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
         return None
     return heavy_duty_constants(service_class(displacement_L), engine_model_year(vehicle), idle_speed_rpm,
@@ -169,7 +286,19 @@ def heavy_duty_fuel_constants(vehicle, displacement_L: float, idle_speed_rpm: fl
 
 def bsfc_map_g_per_kWh(engine: ReferenceEngine, constants: HeavyDutyFuelConstants, speed_rpm, load_fraction):
     """Brake-specific fuel consumption [g/kWh] of ``engine`` on a grid of speeds [rpm] x load
-    fractions of full-load torque (the fuel map the docs quote), accessories excluded."""
+    fractions of full-load torque (the fuel map the docs quote), accessories excluded.
+
+    Parameters
+    ----------
+    engine : ReferenceEngine
+    constants : HeavyDutyFuelConstants
+    speed_rpm : array (S,), [rpm]
+    load_fraction : array (L,), of full-load torque [-]
+
+    Returns
+    -------
+    BSFC [g/kWh], array (S, L) (inf or NaN at zero torque).
+    """
     n = np.asarray(speed_rpm, float)[:, None]
     torque = _full_load(engine, n) * np.asarray(load_fraction, float)[None, :]
     fuel = _engine_fuel_g_per_s(engine, constants, n, torque)

@@ -26,10 +26,14 @@ def gem_coastdown_lbf(mass_kg, crr, cda_m2, air_density_kg_m3=AIR_DENSITY_KG_M3)
 
     Parameters
     ----------
-    mass_kg : regulatory (test) weight [kg].
-    crr : tyre coefficient of rolling resistance [-] (GEM's kg/t / 1000).
-    cda_m2 : drag area [m^2].
-    air_density_kg_m3 : air density [kg/m^3].
+    mass_kg : float or array, regulatory (test) weight [kg]
+    crr : float or array, tyre coefficient of rolling resistance [-] (GEM's kg/t / 1000)
+    cda_m2 : float or array, drag area [m^2]
+    air_density_kg_m3 : float, air density [kg/m^3]
+
+    Returns
+    -------
+    (A [lbf], B [lbf/mph], C [lbf/mph^2]) as float arrays.
     """
     a = np.asarray(crr, float) * np.asarray(mass_kg, float) * G_MPS2 / LBF_N
     c = 0.5 * air_density_kg_m3 * np.asarray(cda_m2, float) * MPH_TO_MPS ** 2 / LBF_N

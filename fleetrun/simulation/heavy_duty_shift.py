@@ -25,7 +25,19 @@ HEAVY_DUTIES = ("MD", "HD")
 
 def economy_shift_speeds_rpm(peak_torque_speed_rpm: float) -> EconomyShiftSpeeds:
     """Shift speeds [rpm] of a heavy diesel whose full-load torque peaks at
-    ``peak_torque_speed_rpm``."""
+    ``peak_torque_speed_rpm``.
+
+    Parameters
+    ----------
+    peak_torque_speed_rpm : float, [rpm]
+
+    Returns
+    -------
+    EconomyShiftSpeeds [rpm] (fractions of the peak-torque speed from models/heavy_duty/drivelines.toml).
+
+    >>> economy_shift_speeds_rpm(1200.0).shift_speed_min_rpm
+    1020.0
+    """
     k = model_file(DRIVELINES_FILE)["economy_shifting"]
     return EconomyShiftSpeeds(shift_speed_min_rpm=k["min_fraction"] * peak_torque_speed_rpm,
                               shift_speed_accel_rpm=k["accel_fraction"] * peak_torque_speed_rpm,
@@ -34,7 +46,17 @@ def economy_shift_speeds_rpm(peak_torque_speed_rpm: float) -> EconomyShiftSpeeds
 
 def heavy_duty_shift_speeds(vehicle, peak_torque_speed_rpm: float) -> EconomyShiftSpeeds | None:
     """The economy shift speeds of a medium- or heavy-duty diesel ``vehicle`` (VehicleSpec);
-    None for any other vehicle (it keeps its gearbox set's speeds)."""
+    None for any other vehicle (it keeps its gearbox set's speeds).
+
+    Parameters
+    ----------
+    vehicle : VehicleSpec
+    peak_torque_speed_rpm : float, [rpm]
+
+    Returns
+    -------
+    EconomyShiftSpeeds [rpm] or None.
+    """
     if vehicle.fuel != "diesel" or vehicle.duty_class not in HEAVY_DUTIES:
         return None
     return economy_shift_speeds_rpm(peak_torque_speed_rpm)

@@ -18,7 +18,7 @@ docs/simulation.md):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from operator import itemgetter
 from typing import Sequence
@@ -32,6 +32,7 @@ from fleetrun.resources import model_file, models_dir
 from fleetrun.simulation.engine import stroke_m
 from fleetrun.simulation.heavy_duty_engine import heavy_duty_fuel_constants
 from fleetrun.simulation.heavy_duty_shift import heavy_duty_shift_speeds
+from fleetrun.simulation.records import EngineSet, TransmissionSet
 from fleetrun.simulation.road_load import ROTATING_MASS_FRACTION, coastdown_to_si
 from fleetrun.simulation.technology import TECHNOLOGIES, parse_technology
 from fleetrun.simulation.tyre import rolling_radius_m
@@ -47,7 +48,7 @@ FUEL_CONSTANTS = ("eta_indicated", "high_load_factor", "fmep_0_kPa", "fmep_pisto
                   "fmep_peak_fraction", "pmep_throttle_kPa", "accessory_power_W", "transient_factor")
 
 
-def engine_defaults(fuel: str, duty_class: str) -> dict:
+def engine_defaults(fuel: str, duty_class: str) -> EngineSet:
     """The engine set of ``models/engines.toml`` for the fuel and duty class, with the fitted
     constants of ``models/engine_calibration.toml`` (``[<fuel>.<duty>.constants]``) on top."""
     sets = model_file("engines.toml")
@@ -62,15 +63,16 @@ def engine_defaults(fuel: str, duty_class: str) -> dict:
     if (models_dir() / CALIBRATION_FILE).exists():
         fitted = model_file(CALIBRATION_FILE).get(fuel, {}).get(duty, {}).get("constants", {})
         values.update({key: fitted[key]["value"] for key in FUEL_CONSTANTS if key in fitted})
-    return values
+    return EngineSet(**values)
 
 
-def transmission_defaults(gearbox_type: str) -> dict:
+def transmission_defaults(gearbox_type: str) -> TransmissionSet:
+    """The transmission set of ``models/transmissions.toml`` for the gearbox type."""
     sets = model_file("transmissions.toml")
     if gearbox_type not in sets:
         raise InputError(f"unknown gearbox_type '{gearbox_type}'", column="gearbox_type",
                          value=gearbox_type, hint="Use " + ", ".join(GEARBOX_TYPES))
-    return dict(sets[gearbox_type])
+    return TransmissionSet(**sets[gearbox_type])
 
 
 def gearbox_type(v: VehicleSpec) -> str:
@@ -244,9 +246,15 @@ def _ROW_CACHE(key) -> dict:
     return _row(key[0])
 
 
-def _with(defaults: dict, record) -> dict:
-    """``defaults`` with the fields of ``record`` (a heavy-duty record) on top; None: unchanged."""
-    return defaults if record is None else {**defaults, **asdict(record)}
+def _with(defaults, record):
+    """``defaults`` (an EngineSet or TransmissionSet) with the fields of ``record`` (a heavy-duty
+    record) on top; None: unchanged."""
+    return defaults if record is None else replace(defaults, **asdict(record))
+
+
+def _or(value: float | None, default: float) -> float:
+    """A set's value, or ``default`` where the set has none."""
+    return default if value is None else value
 
 
 def _row(v: VehicleSpec) -> dict:
@@ -259,23 +267,23 @@ def _row(v: VehicleSpec) -> dict:
     dual = cfg in DUAL_CONFIGURATIONS
     low = float(v.low_gear_ratio) if dual else 1.0
     T_peak = float(v.peak_engine_torque_Nm)
-    n_idle = _get(v, "idle_speed_rpm", eng["idle_speed_rpm"])
-    n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng["rated_speed_rpm"])
-    n_pk = _get(v, "peak_torque_speed_rpm", eng["peak_torque_speed_fraction"] * n_rated)
+    n_idle = _get(v, "idle_speed_rpm", eng.idle_speed_rpm)
+    n_rated = float(v.rated_speed_rpm) if v.rated_speed_rpm else _get(v, "rated_speed_rpm", eng.rated_speed_rpm)
+    n_pk = _get(v, "peak_torque_speed_rpm", eng.peak_torque_speed_fraction * n_rated)
     trn = _with(trn, heavy_duty_shift_speeds(v, n_pk))   # MD/HD diesels: models/heavy_duty/drivelines.toml
     P_rated = (float(v.rated_power_kW) if v.rated_power_kW else
-               eng["rated_power_factor"] * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
+               eng.rated_power_factor * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
-            4 * math.pi * T_peak / (eng["bmep_at_peak_kPa"] * 1e3) * 1e3)
-    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng["idle_speed_rpm"], eng["peak_torque_speed_fraction"],
-                                               eng["idle_torque_fraction"]))   # MD/HD diesels: models/heavy_duty/
+            4 * math.pi * T_peak / (eng.bmep_at_peak_kPa * 1e3) * 1e3)
+    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng.idle_speed_rpm, eng.peak_torque_speed_fraction,
+                                               eng.idle_torque_fraction))   # MD/HD diesels: models/heavy_duty/
     cylinders = _get(v, "cylinders", default_cylinders(disp))
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
         hi, lo = max(gears), min(gears)
         gears = tuple(hi * (lo / hi) ** (i / (CVT_STEPS - 1)) for i in range(CVT_STEPS)) if hi > lo else (hi,)
-    g_eff = _get(v, "gear_efficiency", trn["gear_efficiency"])
-    d_eff = _get(v, "direct_gear_efficiency", trn.get("direct_gear_efficiency", g_eff))
+    g_eff = _get(v, "gear_efficiency", trn.gear_efficiency)
+    d_eff = _get(v, "direct_gear_efficiency", _or(trn.direct_gear_efficiency, g_eff))
     combos = []
     for i, g in enumerate(gears):
         eff = d_eff if abs(g - 1.0) < 0.02 and box != "cvt" else g_eff
@@ -293,26 +301,26 @@ def _row(v: VehicleSpec) -> dict:
         fd=float(v.final_drive_ratio), low=low, kim=v.kim_torque_scale_Nm, combos=combos,
         auto=converter, cvt=box == "cvt", cvt_range=(max(gears), min(gears)),
         lockup_clutch=_yes_no(v, "converter_lockup", True),
-        spin=(_get(v, "spin_loss_Nm_at_0", trn["spin_loss_Nm_at_0"]),
-              _get(v, "spin_loss_Nm_per_krpm", trn["spin_loss_Nm_per_krpm"])),
+        spin=(_get(v, "spin_loss_Nm_at_0", trn.spin_loss_Nm_at_0),
+              _get(v, "spin_loss_Nm_per_krpm", trn.spin_loss_Nm_per_krpm)),
         stall_TR=_get(v, "stall_torque_ratio", v.converter_ratio if converter else 1.0),
         # a converter that stalls above the engine's torque band could never hold full
         # torque: the default stall speed is at most 3/4 of rated speed
-        stall_rpm=_get(v, "stall_speed_rpm", min(trn.get("stall_speed_rpm", 2000.0), 0.75 * n_rated)),
-        lockup=_get(v, "lockup_speed_rpm", trn.get("lockup_speed_rpm", 0.0)),
-        launch=_get(v, "launch_speed_rpm", trn.get("launch_speed_rpm", n_idle)),
+        stall_rpm=_get(v, "stall_speed_rpm", min(_or(trn.stall_speed_rpm, 2000.0), 0.75 * n_rated)),
+        lockup=_get(v, "lockup_speed_rpm", _or(trn.lockup_speed_rpm, 0.0)),
+        launch=_get(v, "launch_speed_rpm", _or(trn.launch_speed_rpm, n_idle)),
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
         n_pk=n_pk,
-        idle_T=_get(v, "idle_torque_fraction", eng["idle_torque_fraction"]),
+        idle_T=_get(v, "idle_torque_fraction", eng.idle_torque_fraction),
         disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
         throttled=v.fuel == "gasoline",
-        fuel_constants=tuple(_get(v, key, eng[key]) for key in FUEL_CONSTANTS),
-        lhv=_get(v, "lhv_MJ_per_kg", eng["lhv_MJ_per_kg"]),
-        rho=_get(v, "density_kg_per_L", eng["density_kg_per_L"]),
-        shift=_get(v, "shift_speed_min_rpm", trn.get("shift_speed_min_rpm", eng["shift_speed_min_rpm"])),
-        shift_accel=_get(v, "shift_speed_accel_rpm", trn.get("shift_speed_accel_rpm", 0.0)),
-        reserve=_get(v, "power_reserve", eng["power_reserve"]),
-        cut=_get(v, "fuel_cut_speed_rpm", eng["fuel_cut_speed_rpm"]),
+        fuel_constants=tuple(_get(v, key, getattr(eng, key)) for key in FUEL_CONSTANTS),
+        lhv=_get(v, "lhv_MJ_per_kg", eng.lhv_MJ_per_kg),
+        rho=_get(v, "density_kg_per_L", eng.density_kg_per_L),
+        shift=_get(v, "shift_speed_min_rpm", _or(trn.shift_speed_min_rpm, eng.shift_speed_min_rpm)),
+        shift_accel=_get(v, "shift_speed_accel_rpm", _or(trn.shift_speed_accel_rpm, 0.0)),
+        reserve=_get(v, "power_reserve", eng.power_reserve),
+        cut=_get(v, "fuel_cut_speed_rpm", eng.fuel_cut_speed_rpm),
         idle_fuel=_get(v, "idle_fuel_g_per_s", float("nan")),
         fuel=v.fuel,
         technology=_technology(v),

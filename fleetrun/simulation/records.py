@@ -250,3 +250,58 @@ class EconomyShiftSpeeds:
 
 
 __all__ += ["ReferenceEngine", "HeavyDutyFuelConstants", "EconomyShiftSpeeds"]
+
+
+@dataclass(frozen=True)
+class EngineSet:
+    """An engine parameter set of ``models/engines.toml`` (by fuel and duty class; the keys and
+    their sources are documented there), the fitted fuel constants of
+    ``models/engine_calibration.toml`` on top, and the fuel's properties (``models/fuels.toml``).
+    Each may be overridden per vehicle by a Vehicles column of the same name."""
+    eta_indicated: float
+    high_load_factor: float
+    fmep_0_kPa: float
+    fmep_piston_speed_kPa_s_per_m: float
+    fmep_peak_fraction: float
+    pmep_throttle_kPa: float
+    accessory_power_W: float
+    transient_factor: float
+    bmep_at_peak_kPa: float
+    rated_speed_rpm: float
+    idle_speed_rpm: float
+    peak_torque_speed_fraction: float
+    idle_torque_fraction: float
+    rated_power_factor: float
+    shift_speed_min_rpm: float
+    power_reserve: float
+    fuel_cut_speed_rpm: float
+    lhv_MJ_per_kg: float
+    density_kg_per_L: float
+
+
+@dataclass(frozen=True)
+class TransmissionSet:
+    """A transmission parameter set of ``models/transmissions.toml`` (by gearbox type; keys and
+    sources documented there). None: the set has no such value (the simulation's default)."""
+    gear_efficiency: float
+    spin_loss_Nm_at_0: float
+    spin_loss_Nm_per_krpm: float
+    direct_gear_efficiency: float | None = None
+    stall_speed_rpm: float | None = None
+    lockup_speed_rpm: float | None = None
+    launch_speed_rpm: float | None = None
+    shift_speed_min_rpm: float | None = None
+    shift_speed_accel_rpm: float | None = None
+
+
+@dataclass(frozen=True)
+class ElectricConstants:
+    """The battery-electric energy chain of ``models/electric.toml`` (sources there)."""
+    drive_efficiency: float          # battery -> wheels [-]
+    regen_efficiency: float          # wheels -> battery [-]
+    regen_share: float               # share of the braking energy the motor takes [-]
+    charging_efficiency: float       # wall -> battery [-]
+    accessory_power_W: float         # while the car is on [W]
+
+
+__all__ += ["EngineSet", "TransmissionSet", "ElectricConstants"]

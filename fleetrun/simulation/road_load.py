@@ -22,7 +22,19 @@ ROTATING_MASS_FRACTION = {"LD": 0.015, "MD": 0.03, "HD": 0.03}
 
 
 def coastdown_to_si(A_lbf, B_lbf_per_mph, C_lbf_per_mph2):
-    """EPA coefficients (lbf, lbf/mph, lbf/mph^2) -> (N, N s/m, N s^2/m^2)."""
+    """EPA coefficients (lbf, lbf/mph, lbf/mph^2) -> (N, N s/m, N s^2/m^2).
+
+    Parameters
+    ----------
+    A_lbf, B_lbf_per_mph, C_lbf_per_mph2 : float or array, the EPA target coefficients [lbf, lbf/mph, lbf/mph^2]
+
+    Returns
+    -------
+    (A [N], B [N s/m], C [N s^2/m^2]) as float arrays.
+
+    >>> [round(float(x), 4) for x in coastdown_to_si(30.0, 0.2, 0.02)]
+    [133.4466, 1.9901, 0.4452]
+    """
     A = np.asarray(A_lbf, float) * LBF_N
     B = np.asarray(B_lbf_per_mph, float) * LBF_N / MPH_TO_MPS
     C = np.asarray(C_lbf_per_mph2, float) * LBF_N / MPH_TO_MPS**2
@@ -31,7 +43,20 @@ def coastdown_to_si(A_lbf, B_lbf_per_mph, C_lbf_per_mph2):
 
 def coastdown_force_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
     """The coastdown polynomial A + B v + C v^2 [N], evaluated as A + v (B + C v) at any speed
-    (in place for arrays; Python floats work too, for the scalar re-drive loop)."""
+    (in place for arrays; Python floats work too, for the scalar re-drive loop).
+
+    Parameters
+    ----------
+    speed_mps : float or array, v [m/s] (an array is overwritten only if it is the result's own)
+    A_N, B_N_s_per_m, C_N_s2_per_m2 : float or array, the SI coefficients [N, N s/m, N s^2/m^2] (:func:`coastdown_to_si`)
+
+    Returns
+    -------
+    force [N], the broadcast shape (a float for float arguments).
+
+    >>> coastdown_force_N(10.0, 100.0, 2.0, 0.4)
+    160.0
+    """
     force = C_N_s2_per_m2 * speed_mps
     force += B_N_s_per_m
     force *= speed_mps
@@ -40,14 +65,40 @@ def coastdown_force_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
 
 
 def road_load_N(speed_mps, A_N, B_N_s_per_m, C_N_s2_per_m2):
-    """Coastdown road-load force [N] at ``speed_mps`` (0 at standstill: nothing rolls)."""
+    """Coastdown road-load force [N] at ``speed_mps`` (0 at standstill: nothing rolls).
+
+    Parameters
+    ----------
+    speed_mps : float or array, v [m/s]
+    A_N, B_N_s_per_m, C_N_s2_per_m2 : float or array, the SI coefficients [N, N s/m, N s^2/m^2]
+
+    Returns
+    -------
+    force [N], the broadcast shape.
+
+    >>> road_load_N([0.0, 10.0], 100.0, 2.0, 0.4).tolist()
+    [0.0, 160.0]
+    """
     v = np.asarray(speed_mps, float)
     force = coastdown_force_N(v, A_N, B_N_s_per_m, C_N_s2_per_m2)
     return force if (v > 0.0).all() else np.where(v > 0.0, force, 0.0)
 
 
 def grade_force_N(mass_kg, grade_pct):
-    """Gravity along the road, m g sin(atan(grade/100)) [N]; positive uphill."""
+    """Gravity along the road, m g sin(atan(grade/100)) [N]; positive uphill.
+
+    Parameters
+    ----------
+    mass_kg : float or array, test mass m [kg]
+    grade_pct : float or array, road grade [%] (rise / run x 100)
+
+    Returns
+    -------
+    force [N], the broadcast shape.
+
+    >>> round(float(grade_force_N(1500.0, 5.0)), 1)
+    734.6
+    """
     theta = np.arctan(np.asarray(grade_pct, float) / 100.0)
     return np.asarray(mass_kg, float) * STANDARD_GRAVITY_M_S2 * np.sin(theta)
 
@@ -58,6 +109,22 @@ def tractive_force_N(speed_mps, accel_mps2, grade_pct, mass_kg, rotating_mass_fr
 
     Inertia uses the effective mass m (1 + f_rot); grade uses the test mass. Negative means
     the vehicle must be slowed (engine overrun and brakes).
+
+    Parameters
+    ----------
+    speed_mps : float or array, v [m/s]
+    accel_mps2 : float or array, a [m/s^2]
+    grade_pct : float or array, grade [%]
+    mass_kg : float or array, test mass m [kg]
+    rotating_mass_fraction : float or array, f_rot [-] (:data:`ROTATING_MASS_FRACTION`)
+    A_N, B_N_s_per_m, C_N_s2_per_m2 : float or array, the SI coastdown coefficients [N, N s/m, N s^2/m^2]
+
+    Returns
+    -------
+    force [N], the broadcast shape (C order).
+
+    >>> round(float(tractive_force_N(10.0, 0.5, 0.0, 1500.0, 0.015, 100.0, 2.0, 0.4)), 2)
+    921.25
     """
     m = np.asarray(mass_kg, float)
     # inertia first: a new array (C order, for the simulation's sums) to add the rest in place

@@ -31,7 +31,19 @@ NONE = "none"
 
 
 def parse_technology(text) -> tuple[bool, ...]:
-    """A ``technology`` cell (comma list, blank or ``none``) -> one flag per TECHNOLOGIES name."""
+    """A ``technology`` cell (comma list, blank or ``none``) -> one flag per TECHNOLOGIES name.
+
+    Parameters
+    ----------
+    text : str, float (NaN: blank) or None, the cell
+
+    Returns
+    -------
+    tuple of bool, one per :data:`TECHNOLOGIES` name.
+
+    >>> parse_technology("start_stop, Turbo")
+    (True, False, False, False, False, False, True)
+    """
     if text is None or (isinstance(text, float) and np.isnan(text)):
         return (False,) * len(TECHNOLOGIES)
     names = {t.strip().lower().replace("-", "_").replace(" ", "_") for t in str(text).split(",")} - {"", NONE}
@@ -63,7 +75,12 @@ class TechnologyConstants:
 
 @lru_cache(maxsize=1)
 def technology_constants() -> TechnologyConstants:
-    """models/technology.toml as :class:`TechnologyConstants`."""
+    """models/technology.toml as :class:`TechnologyConstants`.
+
+    Returns
+    -------
+    TechnologyConstants (units in its field names; sources in models/technology.toml).
+    """
     m = model_file("technology.toml")
     h, a, d = m["hybrid"], m["atkinson"], m["cylinder_deactivation"]
     return TechnologyConstants(
@@ -75,58 +92,173 @@ def technology_constants() -> TechnologyConstants:
 
 
 def otto_efficiency(compression_ratio, gamma):
-    """Ideal Otto-cycle efficiency 1 - r^(1 - gamma) (Heywood 1988, Eq. 5.31)."""
+    """Ideal Otto-cycle efficiency 1 - r^(1 - gamma) (Heywood 1988, Eq. 5.31).
+
+    Parameters
+    ----------
+    compression_ratio : float or array, r [-]
+    gamma : float, ratio of specific heats [-]
+
+    Returns
+    -------
+    efficiency [-].
+
+    >>> round(float(otto_efficiency(10.0, 1.3)), 4)
+    0.4988
+    """
     return 1.0 - np.asarray(compression_ratio, float) ** (1.0 - gamma)
 
 
 def expansion_ratio_gain(compression_ratio, compression_ratio_base, gamma):
     """Brake-work multiplier of the Willans line for a higher expansion ratio: eta_otto(base) /
-    eta_otto(r) (< 1: less fuel per unit of brake work)."""
+    eta_otto(r) (< 1: less fuel per unit of brake work).
+
+    Parameters
+    ----------
+    compression_ratio : float or array, r [-] (the Atkinson/Miller engine's)
+    compression_ratio_base : float, r of the base engine [-]
+    gamma : float, ratio of specific heats [-]
+
+    Returns
+    -------
+    multiplier [-] of the brake-work terms.
+
+    >>> round(float(expansion_ratio_gain(13.0, 10.0, 1.3)), 4)
+    0.9293
+    """
     return otto_efficiency(compression_ratio_base, gamma) / otto_efficiency(compression_ratio, gamma)
 
 
 def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa):
     """Throttle-pumping share of a boosted engine: 1 - bmep / bmep_NA, 0 above (unthrottled).
 
-    bmep = 4 pi T / V_d (Heywood 1988, Eq. 2.19) [kPa with V_d in L]."""
+    bmep = 4 pi T / V_d (Heywood 1988, Eq. 2.19) [kPa with V_d in L].
+
+    Parameters
+    ----------
+    torque_Nm : float or array, brake torque [N m]
+    displacement_L : float or array, V_d [L]
+    na_bmep_kPa : float, the bmep a naturally aspirated engine reaches at wide-open throttle [kPa]
+
+    Returns
+    -------
+    share [-] in [0, 1], the broadcast shape.
+
+    >>> boosted_pumping_share([0.0, 100.0, 300.0], 2.0, 1000.0).round(4).tolist()
+    [1.0, 0.3717, 0.0]
+    """
     bmep_kPa = np.maximum(torque_Nm, 0.0) * (4.0 * np.pi) / np.asarray(displacement_L, float)
     return np.clip(1.0 - bmep_kPa / na_bmep_kPa, 0.0, 1.0)
 
 
 def atkinson_pumping_share(share, pumping_retained):
-    """Late intake-valve closing: the pumping share kept (``pumping_retained`` of it)."""
+    """Late intake-valve closing: the pumping share kept (``pumping_retained`` of it).
+
+    Parameters
+    ----------
+    share : float or array, the throttled engine's pumping share [-]
+    pumping_retained : float, the part late intake-valve closing keeps [-]
+
+    Returns
+    -------
+    share [-].
+    """
     return share * pumping_retained
 
 
 def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm, max_rpm):
     """Half the cylinders at twice the load: pumping of load 2L on half the displacement,
     0.5 max(1 - 2L, 0) in place of (1 - L) inside the window (load < ``max_load``, engine
-    speed within [min_rpm, max_rpm], moving); ``share`` outside it."""
+    speed within [min_rpm, max_rpm], moving); ``share`` outside it.
+
+    Parameters
+    ----------
+    share : array, the pumping share without deactivation [-]
+    load : array, load fraction L [-]
+    speed_rpm : array, engine speed [rpm]
+    moving : bool array, the vehicle moves
+    max_load : float, [-]
+    min_rpm, max_rpm : float, the speed window [rpm]
+
+    Returns
+    -------
+    share [-], the broadcast shape.
+    """
     window = moving & (load < max_load) & (speed_rpm >= min_rpm) & (speed_rpm <= max_rpm)
     return np.where(window, 0.5 * np.maximum(1.0 - 2.0 * load, 0.0), share)
 
 
 def engine_off_at_stop(moving, time_since_start_s, inhibit_s):
     """Steps with the engine off under start-stop: at standstill once ``inhibit_s`` have passed
-    since the (cold) start."""
+    since the (cold) start.
+
+    Parameters
+    ----------
+    moving : bool array, the vehicle moves
+    time_since_start_s : array, [s]
+    inhibit_s : float, no stop this soon after the start [s]
+
+    Returns
+    -------
+    bool array, True where the engine is off.
+    """
     return ~moving & (time_since_start_s >= inhibit_s)
 
 
 def engine_off_coasting(moving, drive):
-    """Hybrids: the engine is off (or decoupled and unfuelled) while moving without drive demand."""
+    """Hybrids: the engine is off (or decoupled and unfuelled) while moving without drive demand.
+
+    Parameters
+    ----------
+    moving : bool array, the vehicle moves
+    drive : bool array, the wheels ask for positive power
+
+    Returns
+    -------
+    bool array, True where the engine is off.
+    """
     return moving & ~drive
 
 
 def recovered_braking_energy_J(wheel_power_W, dt_s, motor_power_W, round_trip_efficiency):
     """Energy [J] per vehicle a hybrid returns from braking: sum of min(-P_wheel, P_motor) dt
-    over braking steps, times the round-trip efficiency (machine, inverter, battery, both ways)."""
+    over braking steps, times the round-trip efficiency (machine, inverter, battery, both ways).
+
+    Parameters
+    ----------
+    wheel_power_W : array (V, N), power at the wheels [W] (negative while braking)
+    dt_s : array (N,), step durations [s]
+    motor_power_W : array (V,), the e-machine's power [W]
+    round_trip_efficiency : float, [-]
+
+    Returns
+    -------
+    energy [J], array (V,).
+
+    >>> recovered_braking_energy_J([[-20000.0, 5000.0, -5000.0]], np.ones(3), np.array([10000.0]), 0.8).tolist()
+    [12000.0]
+    """
     braking = np.clip(-np.asarray(wheel_power_W, float), 0.0, np.asarray(motor_power_W, float)[:, None])
     return round_trip_efficiency * (braking * dt_s).sum(axis=1)
 
 
 def assist_share(recovered_J, positive_engine_work_J, max_share):
     """Share of the engine's positive work the e-machine supplies from recovered energy
-    (charge sustaining over the cycle), at most ``max_share``."""
+    (charge sustaining over the cycle), at most ``max_share``.
+
+    Parameters
+    ----------
+    recovered_J : float or array (V,), recovered energy [J]
+    positive_engine_work_J : float or array (V,), the engine's positive work over the cycle [J]
+    max_share : float, [-]
+
+    Returns
+    -------
+    share [-] in [0, max_share].
+
+    >>> float(assist_share(1e6, 1e7, 0.2)), float(assist_share(5e6, 1e7, 0.2))
+    (0.1, 0.2)
+    """
     with np.errstate(divide="ignore", invalid="ignore"):
         share = np.where(positive_engine_work_J > 0, recovered_J / positive_engine_work_J, 0.0)
     return np.clip(share, 0.0, max_share)

@@ -61,7 +61,12 @@ class ThermalConstants:
 
 @lru_cache(maxsize=None)
 def thermal_constants() -> ThermalConstants:
-    """``models/thermal.toml`` as :class:`ThermalConstants`."""
+    """``models/thermal.toml`` as :class:`ThermalConstants`.
+
+    Returns
+    -------
+    ThermalConstants (units in its field names; sources in models/thermal.toml).
+    """
     data = model_file("thermal.toml")
     engine, friction = data["engine"], data["friction"]
     oils = {fuel: walther_coefficients(o["nu1_cSt"], o["T1_K"], o["nu2_cSt"], o["T2_K"])
@@ -80,7 +85,17 @@ def thermal_constants() -> ThermalConstants:
 def engine_heat_capacity_J_per_K(displacement_L, capacity_J_per_K_per_L):
     """Heat capacity of the lumped engine node [J/K]: ``c_L x V_d`` (scaled with engine size).
 
-    Parameters: ``displacement_L`` [L]; ``capacity_J_per_K_per_L`` [J/(K L)].
+    Parameters
+    ----------
+    displacement_L : float or array, V_d [L]
+    capacity_J_per_K_per_L : float, c_L [J/(K L)]
+
+    Returns
+    -------
+    heat capacity [J/K].
+
+    >>> float(engine_heat_capacity_J_per_K(2.0, 15000.0))
+    30000.0
     """
     return np.asarray(displacement_L, float) * capacity_J_per_K_per_L
 
@@ -91,6 +106,20 @@ def warmed_temperature_C(start_temp_C, heat_J, heat_capacity_J_per_K, thermostat
 
     First law for one lumped node, losses to ambient neglected before the thermostat opens.
     An engine already above ``thermostat_temp_C`` stays where it is.
+
+    Parameters
+    ----------
+    start_temp_C : float or array, T0 [C]
+    heat_J : float or array, Q [J] into the node since the start
+    heat_capacity_J_per_K : float or array, C [J/K]
+    thermostat_temp_C : float, T_open [C]
+
+    Returns
+    -------
+    temperature [C], the broadcast shape.
+
+    >>> [round(float(warmed_temperature_C(20.0, q, 30000.0, 90.0)), 2) for q in (1.0e6, 3.0e6)]
+    [53.33, 90.0]
     """
     start = np.asarray(start_temp_C, float)
     warmed = start + np.asarray(heat_J, float) / heat_capacity_J_per_K
@@ -101,8 +130,19 @@ def soaked_temperature_C(end_temp_C, ambient_temp_C, soak_s, time_constant_s):
     """Engine temperature [C] after ``soak_s`` [s] parked: Newton cooling toward ambient,
     ``T_amb + (T_end - T_amb) exp(-t / tau)``; ``soak_s = inf`` gives ambient (a cold start).
 
-    Parameters: ``end_temp_C`` [C] when the engine stopped, ``ambient_temp_C`` [C],
-    ``soak_s`` [s], ``time_constant_s`` [s].
+    Parameters
+    ----------
+    end_temp_C : float or array, temperature when the engine stopped [C]
+    ambient_temp_C : float, [C]
+    soak_s : float, time parked [s] (``inf``: cold)
+    time_constant_s : float, tau [s]
+
+    Returns
+    -------
+    temperature [C], the shape of ``end_temp_C``.
+
+    >>> float(soaked_temperature_C(90.0, 20.0, float("inf"), 3600.0))
+    20.0
     """
     decay = math.exp(-soak_s / time_constant_s) if math.isfinite(soak_s) else 0.0
     return ambient_temp_C + (np.asarray(end_temp_C, float) - ambient_temp_C) * decay
@@ -110,7 +150,18 @@ def soaked_temperature_C(end_temp_C, ambient_temp_C, soak_s, time_constant_s):
 
 def oil_viscosity_ratio(temp_C, reference_temp_C, walther_A, walther_B):
     """Kinematic viscosity of the engine oil at ``temp_C`` over that at ``reference_temp_C``
-    (both [C]), Walther's equation with coefficients A, B (thesis Eq. 5.14)."""
+    (both [C]), Walther's equation with coefficients A, B (thesis Eq. 5.14).
+
+    Parameters
+    ----------
+    temp_C : float or array, oil temperature [C]
+    reference_temp_C : float, [C]
+    walther_A, walther_B : float, Walther's coefficients [-] (nu in cSt, T in K)
+
+    Returns
+    -------
+    nu(T) / nu(T_ref) [-], the shape of ``temp_C``.
+    """
     nu = walther_kinematic_viscosity_m2_s(np.asarray(temp_C, float) + KELVIN, walther_A, walther_B)
     return nu / walther_kinematic_viscosity_m2_s(reference_temp_C + KELVIN, walther_A, walther_B)
 
@@ -118,9 +169,16 @@ def oil_viscosity_ratio(temp_C, reference_temp_C, walther_A, walther_B):
 def cold_friction_torque_Nm(friction_torque_Nm, friction_share, viscosity_ratio, viscosity_exponent):
     """Extra friction torque of a cold engine [N m]: ``s T_f ((nu/nu_hot)^n - 1)``.
 
-    Parameters: ``friction_torque_Nm`` the warm friction torque T_f (FMEP) [N m];
-    ``friction_share`` s, its part in oil films; ``viscosity_ratio`` nu(T)/nu(T_open);
-    ``viscosity_exponent`` n (Burke et al. 2010: 0.52).
+    Parameters
+    ----------
+    friction_torque_Nm : float or array, the warm friction torque T_f (FMEP) [N m]
+    friction_share : float, s [-], its part in oil films
+    viscosity_ratio : float or array, nu(T) / nu(T_open) [-]
+    viscosity_exponent : float, n [-] (Burke et al. 2010: 0.52)
+
+    Returns
+    -------
+    extra friction torque [N m], the broadcast shape.
     """
     return friction_share * friction_torque_Nm * (np.asarray(viscosity_ratio, float) ** viscosity_exponent - 1.0)
 
@@ -129,7 +187,21 @@ def enrichment_fraction(temp_C, thermostat_temp_C, fraction_at_25C):
     """Cold enrichment as a share of the warm fuel rate: ``e_25 (T_open - T) / (T_open - 25)``,
     0 at and above ``thermostat_temp_C`` [C], rising linearly as the engine gets colder
     (Taylor & Stewart 2001, SAE 2001-01-0221: the bag 1 penalty grows linearly as ambient
-    falls)."""
+    falls).
+
+    Parameters
+    ----------
+    temp_C : float or array, engine temperature [C]
+    thermostat_temp_C : float, T_open [C]
+    fraction_at_25C : float, e_25 [-]
+
+    Returns
+    -------
+    enrichment [-] (share of the warm fuel rate), the shape of ``temp_C``.
+
+    >>> [float(enrichment_fraction(t, 90.0, 0.3)) for t in (25.0, 57.5, 95.0)]
+    [0.3, 0.15, 0.0]
+    """
     cold = (thermostat_temp_C - np.asarray(temp_C, float)) / (thermostat_temp_C - REFERENCE_COLD_C)
     return fraction_at_25C * np.maximum(cold, 0.0)
 
@@ -138,7 +210,18 @@ def enrichment_fraction(temp_C, thermostat_temp_C, fraction_at_25C):
 
 def start_temperature_C(first_soak_s, ambient_temp_C, constants: ThermalConstants | None = None):
     """Engine temperature [C] when a cycle starts: a warm engine (``T_open``) soaked for
-    ``first_soak_s`` [s] (``inf`` = a cold start at ambient; 0 = warm)."""
+    ``first_soak_s`` [s] (``inf`` = a cold start at ambient; 0 = warm).
+
+    Parameters
+    ----------
+    first_soak_s : float, soak before the start [s] (``inf``: cold)
+    ambient_temp_C : float, [C]
+    constants : ThermalConstants or None (None: models/thermal.toml)
+
+    Returns
+    -------
+    temperature [C].
+    """
     k = constants or thermal_constants()
     return float(soaked_temperature_C(k.thermostat_temp_C, ambient_temp_C, first_soak_s, k.soak_time_constant_s))
 
@@ -149,9 +232,19 @@ def engine_temperature_C(fuel_g, heat_capacity_J_per_K, lhv_MJ_per_kg, start_tem
     far (:func:`warmed_temperature_C`), Newton cooling in engine-off steps
     (:func:`soaked_temperature_C`; an engine-off step holds the temperature at its end).
 
-    Parameters: ``fuel_g`` (V, N) fuel burned in each step [g]; ``heat_capacity_J_per_K`` and
-    ``lhv_MJ_per_kg`` (V,); ``start_temp_C`` (V,) or scalar [C]; ``step_soak_s`` (N,) engine-off
-    time of each step [s] (0 while running); ``ambient_temp_C`` [C].
+    Parameters
+    ----------
+    fuel_g : array (V, N), fuel burned in each step [g]
+    heat_capacity_J_per_K : array (V,), [J/K]
+    lhv_MJ_per_kg : array (V,), [MJ/kg]
+    start_temp_C : float or array (V,), [C]
+    step_soak_s : array (N,), engine-off time of each step [s] (0 while running)
+    ambient_temp_C : float, [C]
+    constants : ThermalConstants or None (None: models/thermal.toml)
+
+    Returns
+    -------
+    temperature [C], array (V, N).
     """
     k = constants or thermal_constants()
     V, N = fuel_g.shape
@@ -190,6 +283,21 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     engine is below the thermostat on the warm fuel alone take part: more fuel only warms
     sooner, and once at ``T_open`` the rest of an engine run adds nothing and does not change
     the temperature (so the sub-problem on those steps is exact).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' simulation parameters
+    fuel_rate : array (V, N), the warm engine's fuel rate [g/s]
+    engine_speed_rpm : array (V, N), [rpm]
+    dt_s : array (N,), step durations [s]
+    step_soak_s : array (N,), soak before each step [s]
+    start_temp_C : float or array, engine temperature at the start [C]
+    ambient_temp_C : float, [C]
+    constants : ThermalConstants or None (None: models/thermal.toml)
+
+    Returns
+    -------
+    (extra fuel rate [g/s], engine temperature [C]), arrays (V, N).
     """
     k = constants or thermal_constants()
     capacity = engine_heat_capacity_J_per_K(va.displacement_L, k.heat_capacity_J_per_K_per_L)

@@ -31,7 +31,20 @@ MAX_SPEED_RATIO = 0.98        # slip that remains in the coupling range when unl
 
 
 def torque_ratio(speed_ratio, stall_torque_ratio):
-    """Converter torque ratio TR(SR): linear from TR_s at stall to 1 at the coupling point."""
+    """Converter torque ratio TR(SR): linear from TR_s at stall to 1 at the coupling point.
+
+    Parameters
+    ----------
+    speed_ratio : float or array, SR = n_turbine / n_pump [-]
+    stall_torque_ratio : float or array, TR_s [-]
+
+    Returns
+    -------
+    TR [-], the broadcast shape.
+
+    >>> torque_ratio([0.0, 0.425, 0.9], 2.0).tolist()
+    [2.0, 1.5, 1.0]
+    """
     sr = np.clip(speed_ratio, 0.0, 1.0)
     return np.where(sr < COUPLING_SPEED_RATIO,
                     stall_torque_ratio + (1.0 - stall_torque_ratio) * sr / COUPLING_SPEED_RATIO, 1.0)
@@ -43,6 +56,17 @@ def converter_speed_ratio(turbine_speed_rpm, turbine_torque_Nm, K_rpm_per_sqrtNm
     Solves TR(SR) (n_t / (SR K))^2 = T_t in closed form: in the coupling range
     SR = n_t / (K sqrt(T_t)); below it the quadratic T_t SR^2 - b SR - c TR_s = 0 with
     c = (n_t / K)^2 and b = c (1 - TR_s) / SR_c.
+
+    Parameters
+    ----------
+    turbine_speed_rpm : float or array, n_t [rpm]
+    turbine_torque_Nm : float or array, T_t [N m]
+    K_rpm_per_sqrtNm : float or array, capacity factor K [rpm / sqrt(N m)]
+    stall_torque_ratio : float or array, TR_s [-]
+
+    Returns
+    -------
+    SR [-] in [0, :data:`MAX_SPEED_RATIO`], the broadcast shape.
     """
     nt = np.maximum(turbine_speed_rpm, 0.0)
     Tt = np.maximum(turbine_torque_Nm, 1e-9)
@@ -55,7 +79,21 @@ def converter_speed_ratio(turbine_speed_rpm, turbine_torque_Nm, K_rpm_per_sqrtNm
 
 
 def capacity_factor(stall_speed_rpm, peak_torque_Nm, stall_torque_ratio=None):
-    """K [rpm / sqrt(N m)] so that peak engine torque holds the pump at ``stall_speed_rpm``."""
+    """K [rpm / sqrt(N m)] so that peak engine torque holds the pump at ``stall_speed_rpm``.
+
+    Parameters
+    ----------
+    stall_speed_rpm : float or array, [rpm]
+    peak_torque_Nm : float or array, T_peak [N m]
+    stall_torque_ratio : unused (kept for callers that pass it)
+
+    Returns
+    -------
+    K [rpm / sqrt(N m)].
+
+    >>> float(capacity_factor(2000.0, 400.0))
+    100.0
+    """
     return np.asarray(stall_speed_rpm, float) / np.sqrt(np.asarray(peak_torque_Nm, float))
 
 
@@ -67,6 +105,20 @@ def input_torque_Nm(output_torque_Nm, ratio, efficiency, spin_loss_Nm=0.0):
     The spin loss (:func:`spin_loss_Nm`) drags in either direction. This is the structure of
     EPA ALPHA's transmission model (gear-mesh efficiency times a speed-dependent spin and pump
     loss; Newman, Kargul & Barba, SAE 2015-01-1142) with one efficiency per gear kind.
+
+    Parameters
+    ----------
+    output_torque_Nm : float or array, T_out [N m] (negative on overrun)
+    ratio : float or array, r [-]
+    efficiency : float or array, eta [-]
+    spin_loss_Nm : float or array, T_spin [N m]
+
+    Returns
+    -------
+    T_in [N m], the broadcast shape.
+
+    >>> round(float(input_torque_Nm(300.0, 3.0, 0.98, 2.0)), 3)
+    104.041
     """
     T = np.asarray(output_torque_Nm, float)
     return T / ratio + (1.0 - efficiency) * np.abs(T) / (ratio * efficiency) + spin_loss_Nm
@@ -77,9 +129,17 @@ def spin_loss_Nm(input_speed_rpm, spin_loss_Nm_at_0, spin_loss_Nm_per_krpm):
 
     Parameters
     ----------
-    input_speed_rpm : gearbox input (turbine) speed n.
-    spin_loss_Nm_at_0 : a, the pump and drag torque extrapolated to zero speed.
-    spin_loss_Nm_per_krpm : b, its rise per 1000 rpm (oil churning and clutch drag).
+    input_speed_rpm : float or array, gearbox input (turbine) speed n [rpm]
+    spin_loss_Nm_at_0 : float or array, a [N m], the pump and drag torque extrapolated to zero speed
+    spin_loss_Nm_per_krpm : float or array, b [N m per 1000 rpm], its rise with speed (oil
+        churning and clutch drag)
+
+    Returns
+    -------
+    loss torque [N m], the broadcast shape.
+
+    >>> spin_loss_Nm([0.0, 2000.0], 2.0, 1.0).tolist()
+    [0.0, 4.0]
     """
     n = np.asarray(input_speed_rpm, float)
     return np.where(n > 0, spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0, 0.0)
@@ -93,6 +153,16 @@ def cvt_ratio(wheel_side_speed_rpm, required_engine_speed_rpm, max_ratio, min_ra
     [min_ratio, max_ratio] (the largest ratio at launch and at low speed). This is how
     backward simulators drive a CVT on an operating line (e.g. FASTSim's and ADVISOR's CVT:
     engine speed chosen for the power demand, ratio follows).
+
+    Parameters
+    ----------
+    wheel_side_speed_rpm : float or array, n_out, the output speed at ratio 1 [rpm]
+    required_engine_speed_rpm : float or array, n_req [rpm]
+    max_ratio, min_ratio : float or array, the variator's range [-]
+
+    Returns
+    -------
+    r [-], the broadcast shape.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
         r = np.asarray(required_engine_speed_rpm, float) / np.asarray(wheel_side_speed_rpm, float)
@@ -102,7 +172,19 @@ def cvt_ratio(wheel_side_speed_rpm, required_engine_speed_rpm, max_ratio, min_ra
 def converter_unlocked(first_gear, turbine_speed_rpm, lockup_speed_rpm, has_lockup):
     """Where an automatic's torque converter slips: always without a lock-up clutch (the EPA
     list's ``Transmission Lockup?`` = N), else in first gear (at launch) and below the lock-up
-    turbine speed."""
+    turbine speed.
+
+    Parameters
+    ----------
+    first_gear : bool array, in first gear (or a CVT at its largest ratio)
+    turbine_speed_rpm : float or array, [rpm]
+    lockup_speed_rpm : float or array, [rpm]
+    has_lockup : bool or array, the converter has a lock-up clutch
+
+    Returns
+    -------
+    bool array, True where the converter slips.
+    """
     return ~np.asarray(has_lockup, bool) | first_gear | (turbine_speed_rpm < lockup_speed_rpm)
 
 
@@ -114,6 +196,18 @@ def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_spee
     largest (first gear) down, padded with 0 beyond ``n_ratios``. A gear that would turn the
     engine above ``max_engine_speed_rpm`` (V x 1, rated speed) is not used while a lower
     one is available: at full demand that picks the gear nearest rated speed. Returns int (V x N).
+
+    Parameters
+    ----------
+    wheel_side_speed_rpm : array (V x N), [rpm]
+    required_engine_speed_rpm : array (V x N), [rpm]
+    max_engine_speed_rpm : array (V x 1), [rpm]
+    overall_ratios : array (V x K), [-]
+    n_ratios : int array (V,), the gears each vehicle has
+
+    Returns
+    -------
+    int array (V x N), the gear index (0 = first).
     """
     V, K = overall_ratios.shape
     # compare ratios with the ratio thresholds instead of engine speeds with the speeds:

@@ -35,6 +35,17 @@ def tire_diameter_m(size: str) -> float:
     Metric: D = rim + 2 x width x aspect (width in mm, rim in inches). Flotation: the first
     number is the diameter in inches. Inch truck sizes: aspect :data:`INCH_SIZE_ASPECT`.
     Raises :class:`InputError` for a code that does not parse.
+
+    Parameters
+    ----------
+    size : str, the sidewall size code
+
+    Returns
+    -------
+    diameter [m].
+
+    >>> round(tire_diameter_m("P235/75R15"), 4)
+    0.7335
     """
     text = str(size).strip()
     m = _METRIC.match(text)
@@ -54,5 +65,18 @@ def tire_diameter_m(size: str) -> float:
 
 
 def rolling_radius_m(size: str, factor: float = 1.0) -> float:
-    """Rolling radius [m]: half the nominal diameter times ``factor`` (thesis Sec. 7.2.1: constant)."""
+    """Rolling radius [m]: half the nominal diameter times ``factor`` (thesis Sec. 7.2.1: constant).
+
+    Parameters
+    ----------
+    size : str, the sidewall size code
+    factor : float, rolling radius / nominal radius [-]
+
+    Returns
+    -------
+    radius [m].
+
+    >>> round(rolling_radius_m("295/75R22.5", 0.97), 4)
+    0.4918
+    """
     return 0.5 * tire_diameter_m(size) * float(factor)
