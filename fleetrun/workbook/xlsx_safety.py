@@ -26,9 +26,11 @@ MAX_FILE_BYTES = 500_000_000            # the workbook file itself (a 100,000-ro
 MAX_TOTAL_UNCOMPRESSED = 1_000_000_000   # 1 GB: a 100,000-row fleet is ~0.1 GB of XML
 EXCEL_MAX_ROWS = 1_048_576               # Excel's own sheet limits (ECMA-376; Excel specifications)
 EXCEL_MAX_COLUMNS = 16_384               # XFD
-# rows x columns of a sheet's used range (~45 B each read): a 360,000-row fleet of 31 columns
-# (the size docs/benchmarks-run.md runs) is 11.2 M
-MAX_SHEET_CELLS = 12_000_000
+# rows x columns of a sheet's used range (~45 B each read, 0.7 GB at the limit): room for a
+# 400,000-row fleet of 40 columns; the 360,000-row fleet docs/benchmarks-run.md runs, with every
+# Vehicles column of the interface, is 12.2 M (a limit at its own size refused it once columns
+# were added)
+MAX_SHEET_CELLS = 16_000_000
 SPARSE_FLOOR_CELLS = 1_000_000           # a used range beyond this must be filled ...
 MIN_FILL = 1 / 16                        # ... at least this much: else a stray far cell
 MAX_TAG_BYTES = 64_000_000               # one XML tag or cell text
