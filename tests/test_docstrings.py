@@ -21,7 +21,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                                            "thermal", "climate", "technology", "heavy_duty_engine",
                                                            "heavy_duty_shift")] + [
     ROOT / "fleetrun" / name for name in ("effects/differential.py", "effects/vehicle.py",
-                                          "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py")]
+                                          "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
+                                          "simulation/effects.py")]
 
 
 def _public_functions(path: Path):
