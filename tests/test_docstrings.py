@@ -20,7 +20,7 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
     ROOT / "fleetrun" / "simulation" / f"{name}.py" for name in ("road_load", "tyre", "engine", "transmission", "electric",
                                                            "thermal", "climate", "technology", "heavy_duty_engine",
                                                            "heavy_duty_shift")] + [
-    ROOT / "fleetrun" / name for name in ("effects/differential.py", "effects/vehicle.py",
+    ROOT / "fleetrun" / name for name in ("effects/__init__.py", "effects/differential.py", "effects/vehicle.py",
                                           "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
                                           "simulation/effects.py")]
 
