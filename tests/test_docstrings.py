@@ -22,7 +22,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                                            "heavy_duty_shift")] + [
     ROOT / "fleetrun" / name for name in ("effects/__init__.py", "effects/differential.py", "effects/vehicle.py",
                                           "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
-                                          "simulation/effects.py", "simulation/diffmodes.py")]
+                                          "simulation/effects.py", "simulation/diffmodes.py",
+                                          "simulation/measured.py")]
 
 
 def _public_functions(path: Path):
