@@ -286,7 +286,7 @@ def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
     Returns
     -------
     VehicleArrays, the parameters as arrays of shape (V,) (SI units and rpm as the field names
-    say); a row the simulation refuses raises :class:`InputError`.
+    say); a row the simulation refuses raises a :class:`FleetrunError` (:func:`refused_vehicles`).
     """
     rows = [_row_cached(v) for v in vehicles]
     return _gather(rows)
