@@ -23,7 +23,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
     ROOT / "fleetrun" / name for name in ("effects/__init__.py", "effects/differential.py", "effects/vehicle.py",
                                           "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
                                           "simulation/effects.py", "simulation/diffmodes.py",
-                                          "simulation/measured.py", "simulation/params.py", "simulation/core.py")]
+                                          "simulation/measured.py", "simulation/params.py", "simulation/core.py",
+                                          "simulation/__init__.py", "differential/baselines.py")]
 
 
 def _public_functions(path: Path):
