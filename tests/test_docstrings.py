@@ -2,7 +2,9 @@
 
 Every public function of ``fleetrun/physics/`` (the small pure physics functions of the house
 style, docs/architecture.md) and of the simulation's physics families (road load, tyre, engine,
-transmission, electric, thermal, climate, technology, heavy-duty engine and shift) has a numpydoc ``Parameters`` section naming every argument and a
+transmission, electric, thermal, climate, technology, heavy-duty engine, shift, road load and GEM
+composite; the simulation core, differential modes, parameters, measured-number calibration and
+effects), of ``fleetrun/differential/`` and of ``fleetrun/effects/`` has a numpydoc ``Parameters`` section naming every argument and a
 ``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
 or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
@@ -24,7 +26,7 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                           "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
                                           "simulation/effects.py", "simulation/diffmodes.py",
                                           "simulation/measured.py", "simulation/params.py", "simulation/core.py",
-                                          "simulation/__init__.py", "differential/baselines.py")]
+                                          "simulation/__init__.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):
