@@ -1,11 +1,11 @@
 """The public model functions say what goes in and what comes out, with units.
 
 Every public function of ``fleetrun/physics/`` (the small pure physics functions of the house
-style, docs/architecture.md) and of the simulation's physics families (road load, tyre, engine,
-transmission, electric, thermal, climate, technology, heavy-duty engine, shift, road load and GEM
-composite; the simulation core, differential modes, parameters, measured-number calibration and
-effects), of ``fleetrun/differential/`` and of ``fleetrun/effects/`` has a numpydoc ``Parameters`` section naming every argument and a
-``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
+style, docs/architecture.md), of the simulation's physics families (road load, tyre, engine,
+transmission, electric, thermal, climate, technology, heavy-duty engine, shift and road load, GEM
+composite) and its machinery (core, differential modes, parameters, measured-number calibration,
+effects), of ``fleetrun/differential/`` and of ``fleetrun/effects/`` has a numpydoc ``Parameters``
+section naming every argument and a ``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
 or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
 """
