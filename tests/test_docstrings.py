@@ -26,7 +26,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                           "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
                                           "simulation/effects.py", "simulation/diffmodes.py",
                                           "simulation/measured.py", "simulation/params.py", "simulation/core.py",
-                                          "simulation/__init__.py", "cycles.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
+                                          "simulation/__init__.py", "cycles.py",
+                                          "epa/rules.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):
