@@ -27,7 +27,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                           "simulation/effects.py", "simulation/diffmodes.py",
                                           "simulation/measured.py", "simulation/params.py", "simulation/core.py",
                                           "simulation/__init__.py", "cycles.py",
-                                          "epa/rules.py", "registrations/turnover.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
+                                          "epa/rules.py", "registrations/turnover.py",
+                                          "budget/arithmetic.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):
