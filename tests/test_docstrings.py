@@ -28,7 +28,8 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                           "simulation/measured.py", "simulation/params.py", "simulation/core.py",
                                           "simulation/__init__.py", "cycles.py",
                                           "epa/rules.py", "registrations/turnover.py",
-                                          "budget/arithmetic.py", "budget/drivers.py", "budget/uncertainty.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
+                                          "budget/arithmetic.py", "budget/drivers.py", "budget/uncertainty.py",
+                                          "plausible.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):
