@@ -29,7 +29,7 @@ PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
                                           "simulation/__init__.py", "cycles.py",
                                           "epa/rules.py", "registrations/turnover.py",
                                           "budget/arithmetic.py", "budget/drivers.py", "budget/uncertainty.py",
-                                          "plausible.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
+                                          "budget/totals.py", "plausible.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):
