@@ -4,9 +4,10 @@ Every public function of ``fleetrun/physics/`` (the small pure physics functions
 style, docs/architecture.md), of the simulation's physics families (road load, tyre, engine,
 transmission, electric, thermal, climate, technology, heavy-duty engine, shift and road load, GEM
 composite) and its machinery (core, differential modes, parameters, measured-number calibration,
-effects), of ``fleetrun/differential/`` and of ``fleetrun/effects/`` has a numpydoc ``Parameters``
-section naming every argument and a ``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
-or array, n [rpm]`` (``[-]`` for a ratio).
+effects), of ``fleetrun/differential/`` and ``fleetrun/effects/``, and of the listed modules of
+cycles, plausibility checks, EPA import rules, turnover and budget arithmetic has a numpydoc
+``Parameters`` section naming every argument and a ``Returns`` section; every float parameter
+gives its unit in brackets, e.g. ``speed_rpm : float or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
 """
 from __future__ import annotations
