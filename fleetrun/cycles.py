@@ -197,7 +197,12 @@ def _shipped_files() -> dict[str, Path]:
 
 def shipped_cycles() -> list[str]:
     """Names of the shipped cycles: UDDS, HWFET, US06, NYCC, HD-UDDS first, then the others
-    in alphabetical order."""
+    in alphabetical order.
+
+    Returns
+    -------
+    list of str, the cycle names.
+    """
     names = list(_shipped_files())
     first = [n for n in PRIMARY_CYCLES if n in names]
     rest = sorted((n for n in names if n not in PRIMARY_CYCLES), key=str.upper)
@@ -307,6 +312,10 @@ def ftp_bag1_end_s() -> float:
     """End of FTP bag 1 [s] on the UDDS schedule: the first 505 s (40 CFR 86.135-12(a)), as
     the shipped FTP rule (inputs/cycles/FTP.toml) sets it; bag 2 is the rest of the UDDS.
 
+    Returns
+    -------
+    float, end of bag 1 [s].
+
     >>> ftp_bag1_end_s()
     505.0
     """
@@ -320,7 +329,18 @@ COMPOSITE_RULES = {"ftp": (("bag1", "bag2", "bag3"), ftp_weighted_per_mile)}
 def composite_per_mile(rule: str, amounts: dict, miles: dict):
     """An amount per mile over a composed cycle's phases: ``amounts`` and ``miles`` map phase
     names to values (arrays over vehicles). ``rule`` "" = total amount / total miles; otherwise
-    the :data:`COMPOSITE_RULES` entry (the FTP: :func:`ftp_weighted_per_mile`)."""
+    the :data:`COMPOSITE_RULES` entry (the FTP: :func:`ftp_weighted_per_mile`).
+
+    Parameters
+    ----------
+    rule : str, a :data:`COMPOSITE_RULES` name, or "" for total / total
+    amounts : dict, phase name -> amount per vehicle (e.g. fuel [g])
+    miles : dict, phase name -> miles driven per vehicle [mi]
+
+    Returns
+    -------
+    amount per mile [amount/mi], an array over vehicles.
+    """
     if not rule:
         return sum(amounts.values()) / sum(miles.values())
     names, weighting = COMPOSITE_RULES[rule]
@@ -329,7 +349,17 @@ def composite_per_mile(rule: str, amounts: dict, miles: dict):
 
 def read_composed_cycle(path, name: str | None = None) -> DriveCycle:
     """A composed cycle from its TOML (``inputs/cycles/FTP.toml`` documents the keys): the
-    phases' parts of shipped schedules joined on one time axis, soaks as engine-off gaps."""
+    phases' parts of shipped schedules joined on one time axis, soaks as engine-off gaps.
+
+    Parameters
+    ----------
+    path : str or Path, the composed cycle's TOML file
+    name : str or None, the cycle's name (None: the file stem)
+
+    Returns
+    -------
+    DriveCycle, with its phases, soaks and composite rule.
+    """
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -388,6 +418,15 @@ def read_cycle_csv(path, name: str | None = None) -> DriveCycle:
 
     ``name`` defaults to the file stem. Raises :class:`InputError` naming the file, row
     (header = row 1), column and offending value.
+
+    Parameters
+    ----------
+    path : str or Path, the drive-cycle CSV
+    name : str or None, the cycle's name (None: the file stem)
+
+    Returns
+    -------
+    DriveCycle, time [s], speed [m/s] and grade [%] per row.
     """
     path = Path(path)
     df = _read_csv_cells(path)
@@ -594,7 +633,17 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0) -> DriveCycle:
 
 
 def cycle_summary(cycle: DriveCycle) -> dict:
-    """Name, duration [s], distance [mi, km], max and mean speed [mph, km/h] of a cycle."""
+    """Name, duration [s], distance [mi, km], max and mean speed [mph, km/h] of a cycle.
+
+    Parameters
+    ----------
+    cycle : DriveCycle, a drive cycle
+
+    Returns
+    -------
+    dict, ``name``, ``duration_s`` [s], ``distance_mi`` [mi], ``distance_km`` [km],
+    ``max_speed_mph``/``mean_speed_mph`` [mph], ``max_speed_kph``/``mean_speed_kph`` [km/h].
+    """
     return {
         "name": cycle.name,
         "duration_s": cycle.duration_s,

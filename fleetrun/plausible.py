@@ -47,7 +47,19 @@ def _first(mask: np.ndarray) -> int:
 
 
 def check_speed(speed_mps, *, file, column, rows=None) -> None:
-    """InputError at the first speed above MAX_SPEED_MPS (values off by a unit)."""
+    """InputError at the first speed above MAX_SPEED_MPS (values off by a unit).
+
+    Parameters
+    ----------
+    speed_mps : float or array, speeds [m/s]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+    rows : sequence of int or None, the file's row number of each value (None: position + 2)
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     speed = np.asarray(speed_mps, dtype=float)
     bad = speed > MAX_SPEED_MPS
     if bad.any():
@@ -59,6 +71,19 @@ def check_speed(speed_mps, *, file, column, rows=None) -> None:
 
 
 def check_grade(grade_pct, *, file, column, rows=None) -> None:
+    """InputError at the first grade steeper than MAX_GRADE_PCT either way.
+
+    Parameters
+    ----------
+    grade_pct : float or array, grades [%]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+    rows : sequence of int or None, the file's row number of each value
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     grade = np.asarray(grade_pct, dtype=float)
     bad = np.abs(grade) > MAX_GRADE_PCT
     if bad.any():
@@ -69,7 +94,19 @@ def check_grade(grade_pct, *, file, column, rows=None) -> None:
 
 
 def check_time_steps(time_s, *, file, column, rows=None) -> None:
-    """InputError when the median step says the time is not in seconds."""
+    """InputError when the median step says the time is not in seconds.
+
+    Parameters
+    ----------
+    time_s : float or array, time stamps [s]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+    rows : sequence of int or None, the file's row number of each value
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     t = np.asarray(time_s, dtype=float)
     if len(t) < MIN_SAMPLES_FOR_STEP_CHECK:
         return
@@ -81,6 +118,19 @@ def check_time_steps(time_s, *, file, column, rows=None) -> None:
 
 
 def check_torque(torque_Nm, *, file, column, rows=None) -> None:
+    """InputError at the first torque beyond MAX_TORQUE_NM or not a number.
+
+    Parameters
+    ----------
+    torque_Nm : float or array, torques [N m]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+    rows : sequence of int or None, the file's row number of each value
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     torque = np.asarray(torque_Nm, dtype=float)
     bad = ~(np.abs(torque) <= MAX_TORQUE_NM)
     if bad.any():
@@ -91,7 +141,19 @@ def check_torque(torque_Nm, *, file, column, rows=None) -> None:
 
 
 def check_mpg(mpg, *, file, column, rows=None) -> None:
-    """InputError at the first fuel economy outside MPG_RANGE (km/L or L/100 km under ``mpg``)."""
+    """InputError at the first fuel economy outside MPG_RANGE (km/L or L/100 km under ``mpg``).
+
+    Parameters
+    ----------
+    mpg : float or array, fuel economies [mpg]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+    rows : sequence of int or None, the file's row number of each value
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     values = np.asarray(mpg, dtype=float)
     low, high = MPG_RANGE
     bad = ~((values >= low) & (values <= high))
@@ -104,7 +166,18 @@ def check_mpg(mpg, *, file, column, rows=None) -> None:
 
 def check_mpg_scale(measured_over_simulated, *, file, column) -> None:
     """InputError when a file's fuel economies are as a whole a unit off the simulation's (the
-    median ratio beyond MAX_MEDIAN_MPG_FACTOR either way: km/L, L/100 km under ``mpg``)."""
+    median ratio beyond MAX_MEDIAN_MPG_FACTOR either way: km/L, L/100 km under ``mpg``).
+
+    Parameters
+    ----------
+    measured_over_simulated : float or array, measured / simulated mpg [-]
+    file : str or Path, the file to name in the error
+    column : str, the column to name
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     ratio = float(np.median(np.asarray(measured_over_simulated, dtype=float)))
     if not 1 / MAX_MEDIAN_MPG_FACTOR <= ratio <= MAX_MEDIAN_MPG_FACTOR:
         raise InputError(f"the measured fuel economies are a median {ratio:.3g} times the simulated ones; "
@@ -113,7 +186,20 @@ def check_mpg_scale(measured_over_simulated, *, file, column) -> None:
 
 
 def check_budget(what: str, count: int, limit: int, *, file=None, hint: str = "") -> None:
-    """InputError when an input asks for more than a hard budget allows (before allocation)."""
+    """InputError when an input asks for more than a hard budget allows (before allocation).
+
+    Parameters
+    ----------
+    what : str, what is counted, for the message
+    count : int, how many the input asks for
+    limit : int, the most fleetrun handles
+    file : str or Path or None, the file to name in the error
+    hint : str, what to do instead
+
+    Returns
+    -------
+    None; raises :class:`InputError`.
+    """
     if count > limit:
         raise InputError(f"{what}: {count:,} is more than fleetrun handles ({limit:,})", file=file,
                          hint=hint or None)

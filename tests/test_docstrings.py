@@ -1,10 +1,13 @@
 """The public model functions say what goes in and what comes out, with units.
 
 Every public function of ``fleetrun/physics/`` (the small pure physics functions of the house
-style, docs/architecture.md) and of the simulation's physics families (road load, tyre, engine,
-transmission, electric, thermal, climate, technology, heavy-duty engine and shift) has a numpydoc ``Parameters`` section naming every argument and a
-``Returns`` section; every float parameter gives its unit in brackets, e.g. ``speed_rpm : float
-or array, n [rpm]`` (``[-]`` for a ratio).
+style, docs/architecture.md), of the simulation's physics families (road load, tyre, engine,
+transmission, electric, thermal, climate, technology, heavy-duty engine, shift and road load, GEM
+composite) and its machinery (core, differential modes, parameters, measured-number calibration,
+effects), of ``fleetrun/differential/`` and ``fleetrun/effects/``, and of the listed modules of
+cycles, plausibility checks, EPA import rules, turnover and budget arithmetic has a numpydoc
+``Parameters`` section naming every argument and a ``Returns`` section; every float parameter
+gives its unit in brackets, e.g. ``speed_rpm : float or array, n [rpm]`` (``[-]`` for a ratio).
 The examples in them run as doctests with the default suite (pyproject.toml ``testpaths``).
 """
 from __future__ import annotations
@@ -19,7 +22,15 @@ ROOT = Path(__file__).resolve().parents[1]
 PHYSICS = sorted((ROOT / "fleetrun" / "physics").glob("*.py")) + [
     ROOT / "fleetrun" / "simulation" / f"{name}.py" for name in ("road_load", "tyre", "engine", "transmission", "electric",
                                                            "thermal", "climate", "technology", "heavy_duty_engine",
-                                                           "heavy_duty_shift")]
+                                                           "heavy_duty_shift")] + [
+    ROOT / "fleetrun" / name for name in ("effects/__init__.py", "effects/differential.py", "effects/vehicle.py",
+                                          "simulation/heavy_duty_gem.py", "simulation/heavy_duty_road_load.py",
+                                          "simulation/effects.py", "simulation/diffmodes.py",
+                                          "simulation/measured.py", "simulation/params.py", "simulation/core.py",
+                                          "simulation/__init__.py", "cycles.py",
+                                          "epa/rules.py", "registrations/turnover.py",
+                                          "budget/arithmetic.py", "budget/drivers.py", "budget/uncertainty.py",
+                                          "budget/totals.py", "plausible.py")] + sorted((ROOT / "fleetrun" / "differential").glob("*.py"))
 
 
 def _public_functions(path: Path):

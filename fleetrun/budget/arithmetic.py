@@ -26,7 +26,12 @@ GRAMS_PER_TONNE = 1e6
 
 
 def constants() -> dict:
-    """``models/budget.toml``."""
+    """``models/budget.toml``.
+
+    Returns
+    -------
+    dict, the file's tables.
+    """
     return model_file("budget.toml")
 
 
@@ -44,12 +49,26 @@ def epa_label_gal_per_mile(cycle_gal_per_mile, intercept_gal_per_mile: float, sl
         City 0.003259, highway 0.001376 [gal/mi].
     slope : float
         City 1.1805, highway 1.3466 [-].
+
+    Returns
+    -------
+    on-road fuel per mile [gal/mi], the shape of ``cycle_gal_per_mile``.
     """
     return intercept_gal_per_mile + slope * np.asarray(cycle_gal_per_mile, dtype=float)
 
 
 def cycle_kind(name: str, mean_speed_kph: float) -> str:
-    """``city`` or ``highway``: which label formula a drive cycle gets (models/budget.toml)."""
+    """``city`` or ``highway``: which label formula a drive cycle gets (models/budget.toml).
+
+    Parameters
+    ----------
+    name : str, the drive cycle's name
+    mean_speed_kph : float, the cycle's mean speed [km/h] (used when the name is not listed)
+
+    Returns
+    -------
+    str, ``city`` or ``highway``.
+    """
     rules = constants()["onroad"]["cycle_kind"]
     upper = name.upper()
     if upper in {c.upper() for c in rules["city"]}:
@@ -60,7 +79,17 @@ def cycle_kind(name: str, mean_speed_kph: float) -> str:
 
 
 def onroad_label(setting) -> str:
-    """How a scenario turns cycle fuel into on-road fuel, in words for the reports."""
+    """How a scenario turns cycle fuel into on-road fuel, in words for the reports.
+
+    Parameters
+    ----------
+    setting : str or float, the scenario's ``onroad_adjustment``: ``epa_label``, ``none`` or a
+        factor [-]
+
+    Returns
+    -------
+    str, the sentence.
+    """
     if setting == "epa_label":
         return ("EPA label adjustment (40 CFR 600.210-12 derived 5-cycle: city 1/mpg = 0.003259 + "
                 "1.1805/mpg, highway 1/mpg = 0.001376 + 1.3466/mpg; light-duty only; EVs kWh / 0.7)")
@@ -77,11 +106,15 @@ def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.
     cycle_gal_per_mile : array_like
         Cycle fuel per mile of each vehicle [gal/mi] (kWh/mi for electric rows).
     setting : str or float
-        The scenario's ``onroad_adjustment``: ``epa_label``, ``none`` or a factor.
+        The scenario's ``onroad_adjustment``: ``epa_label``, ``none`` or a factor [-].
     kind : str
         ``city`` or ``highway`` (:func:`cycle_kind`).
     adjusted : array_like of bool
         Rows the EPA label formula applies to (light-duty); the others keep cycle fuel.
+
+    Returns
+    -------
+    on-road fuel per mile [gal/mi] (kWh/mi for electric rows), the shape of ``cycle_gal_per_mile``.
     """
     cycle = np.asarray(cycle_gal_per_mile, dtype=float)
     if setting == "none":
@@ -94,7 +127,17 @@ def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.
 
 
 def electric_onroad_factor(setting) -> float:
-    """On-road / dynamometer energy of an electric vehicle: 1 / 0.7 for the EPA label."""
+    """On-road / dynamometer energy of an electric vehicle: 1 / 0.7 for the EPA label.
+
+    Parameters
+    ----------
+    setting : str or float, the scenario's ``onroad_adjustment``: ``epa_label``, ``none`` or a
+        factor [-]
+
+    Returns
+    -------
+    float, on-road / dynamometer energy [-].
+    """
     if setting == "none":
         return 1.0
     if setting != "epa_label":
@@ -103,13 +146,32 @@ def electric_onroad_factor(setting) -> float:
 
 
 def label_adjusted_duty(duty_classes) -> np.ndarray:
-    """Which rows the EPA label formulas apply to (light-duty, models/budget.toml)."""
+    """Which rows the EPA label formulas apply to (light-duty, models/budget.toml).
+
+    Parameters
+    ----------
+    duty_classes : sequence of str, each row's duty class
+
+    Returns
+    -------
+    array of bool, the rows the label formulas apply to.
+    """
     adjusted = constants()["onroad"]["epa_label"]["duty_classes"]["adjusted"]
     return np.isin(np.asarray(duty_classes, dtype=object), adjusted)
 
 
 def tax_rates(scenario, fuels) -> tuple[np.ndarray, np.ndarray]:
-    """State and federal rates [$/gal] for each row's fuel, from the scenario's one owner."""
+    """State and federal rates [$/gal] for each row's fuel, from the scenario's one owner.
+
+    Parameters
+    ----------
+    scenario : Scenario, the scenario (fleetrun.workbook.reader)
+    fuels : sequence of str, each row's fuel
+
+    Returns
+    -------
+    (state rate [$/gal], federal rate [$/gal]), arrays of one entry per row.
+    """
     fuels = np.asarray(fuels, dtype=object)
     state = np.zeros(len(fuels))
     federal = np.zeros(len(fuels))
@@ -121,24 +183,61 @@ def tax_rates(scenario, fuels) -> tuple[np.ndarray, np.ndarray]:
 
 
 def co2_g_per_gal(fuel: str) -> float:
-    """Tailpipe CO2 per gallon burned (EPA-420-F-11-041, in models/fuels.toml); 0 for electric."""
+    """Tailpipe CO2 per gallon burned (EPA-420-F-11-041, in models/fuels.toml); 0 for electric.
+
+    Parameters
+    ----------
+    fuel : str, ``gasoline``, ``diesel`` or ``electric``
+
+    Returns
+    -------
+    float, CO2 per gallon [g/gal].
+    """
     return 0.0 if fuel == "electric" else fuel_properties(fuel).co2_g_per_gal
 
 
 def co2_t(fuel_gal, fuel: str):
-    """CO2 [t] from ``fuel_gal`` gallons of ``fuel``: gallons x g/gal / 1e6."""
+    """CO2 [t] from ``fuel_gal`` gallons of ``fuel``: gallons x g/gal / 1e6.
+
+    Parameters
+    ----------
+    fuel_gal : float or array, fuel burned [gal]
+    fuel : str, ``gasoline``, ``diesel`` or ``electric``
+
+    Returns
+    -------
+    CO2 [t], the shape of ``fuel_gal``.
+    """
     return np.asarray(fuel_gal, dtype=float) * co2_g_per_gal(fuel) / GRAMS_PER_TONNE
 
 
 def fiscal_years(scenario) -> list[int]:
-    """The fiscal year of each budget year (budget year numbers 1..Y without a first year)."""
+    """The fiscal year of each budget year (budget year numbers 1..Y without a first year).
+
+    Parameters
+    ----------
+    scenario : Scenario, the scenario (``first_fiscal_year``, ``budget_years``)
+
+    Returns
+    -------
+    list of int, one fiscal year per budget year.
+    """
     first = scenario.first_fiscal_year
     start = int(first) if first is not None else 1
     return [start + y for y in range(scenario.budget_years)]
 
 
 def year_shares(scenario) -> np.ndarray:
-    """Each budget year's share of the budget period's miles: (1+g)^(y-1) / sum_k (1+g)^(k-1)."""
+    """Each budget year's share of the budget period's miles: (1+g)^(y-1) / sum_k (1+g)^(k-1).
+
+    Parameters
+    ----------
+    scenario : Scenario, the scenario (``vmt_growth_pct_per_year`` [%/year], ``budget_years``)
+
+    Returns
+    -------
+    share of the period's miles [-] per budget year.
+    """
     g = scenario.vmt_growth_pct_per_year / 100.0
     weights = np.array([(1.0 + g) ** y for y in range(scenario.budget_years)])
     return weights / scenario.mile_factor()
@@ -146,7 +245,17 @@ def year_shares(scenario) -> np.ndarray:
 
 def exact_parts(parts, total: float) -> list[float]:
     """``parts`` with the last one moved by a few units in the last place so that
-    ``math.fsum(parts) == total`` exactly (the parts are shares of ``total`` computed apart)."""
+    ``math.fsum(parts) == total`` exactly (the parts are shares of ``total`` computed apart).
+
+    Parameters
+    ----------
+    parts : sequence of float, the parts [any unit]
+    total : float, their intended sum [the parts' unit]
+
+    Returns
+    -------
+    list of float, the parts with the last one adjusted.
+    """
     parts = [float(p) for p in parts]
     if not parts or not math.isfinite(total):
         return parts
@@ -162,7 +271,18 @@ def exact_parts(parts, total: float) -> list[float]:
 
 def display_round(value: float, low: float | None = None, high: float | None = None) -> float:
     """``value`` rounded to the digit the range can support: the power of ten at or below a
-    tenth of the range's width (4 significant digits without a range)."""
+    tenth of the range's width (4 significant digits without a range).
+
+    Parameters
+    ----------
+    value : float, the number to show [any unit]
+    low : float or None, the range's low end [the unit of value]
+    high : float or None, the range's high end [the unit of value]
+
+    Returns
+    -------
+    float, the rounded value (``value`` itself when None, 0 or not finite).
+    """
     if value is None or not math.isfinite(value) or value == 0:
         return value
     width = (high - low) if (low is not None and high is not None and math.isfinite(high - low)) else 0.0

@@ -80,7 +80,16 @@ class BudgetTables:
 
 @lru_cache(maxsize=64)
 def cycle_mean_speed_kph(cycle: str) -> float:
-    """A drive cycle's distance / duration, stops included [km/h]."""
+    """A drive cycle's distance / duration, stops included [km/h].
+
+    Parameters
+    ----------
+    cycle : str, a drive cycle name or path (fleetrun.cycles.load_cycle)
+
+    Returns
+    -------
+    float, mean speed [km/h].
+    """
     trace = load_cycle(cycle)
     hours = float(trace.time_s[-1] - trace.time_s[0]) / 3600.0
     return float(trace.miles) * METERS_PER_MILE / 1000.0 / hours
@@ -96,7 +105,22 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
     """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, on-road kWh per
     mile (electric rows) and the energies per mile. ``fuel_factor``: each row's cycle fuel per
     mile relative to its simulated vehicle (a registration cohort's model year,
-    docs/registrations.md); None: 1."""
+    docs/registrations.md); None: 1.
+
+    Parameters
+    ----------
+    s : Scenario, the scenario (its cycle mixes, ambient temperature [C], on-road adjustment)
+    duty_of : array of str, each row's duty class
+    fuel : array of str, each row's fuel
+    per_condition : dict, (cycle, ambient [C]) -> the simulation's per-vehicle sums (miles [mi],
+        fuel [gal], kWh, energies [J])
+    fuel_factor : array or None, each row's cycle fuel per mile relative to its simulated vehicle [-]
+
+    Returns
+    -------
+    dict of arrays, per row: ``fuel_gal_cycle`` and ``fuel_gal`` [gal/mi], ``kwh`` [kWh/mi] and each
+    energy [J/mi].
+    """
     n = len(duty_of)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
@@ -124,7 +148,18 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
 
 def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarray:
     """1 + the model's known fleet-level bias per row (measured / predicted gallons), the
-    centre's correction (docs/budget.md); 1 for electric rows and without an error model."""
+    centre's correction (docs/budget.md); 1 for electric rows and without an error model.
+
+    Parameters
+    ----------
+    duty_of : array of str, each row's duty class
+    fuel : array of str, each row's fuel
+    error_model : ErrorModel or None, the fleet-level error (fleetrun.budget.uncertainty)
+
+    Returns
+    -------
+    bias factor [-] per row.
+    """
     if error_model is None:
         return np.ones(len(duty_of))
     bias = np.zeros(len(duty_of))
@@ -170,12 +205,33 @@ class _Scenario:
 
 def row_scale(scales: dict, fuel: np.ndarray, duty: np.ndarray) -> np.ndarray:
     """Each row's calibration factor: its fuel and class group's (``scales[(fuel, "LD"|"HD")]``),
-    else its fuel's (``scales[(fuel, "all")]``), else 1."""
+    else its fuel's (``scales[(fuel, "all")]``), else 1.
+
+    Parameters
+    ----------
+    scales : dict, (fuel, ``all`` | ``LD`` | ``HD``) -> calibration factor [-]
+    fuel : array of str, each row's fuel
+    duty : array of str, each row's duty class
+
+    Returns
+    -------
+    calibration factor [-] per row.
+    """
     group = np.where(np.asarray(duty) == "LD", "LD", "HD")
     return np.array([scales.get((f, g), scales.get((f, "all"), 1.0)) for f, g in zip(fuel, group)], dtype=float)
 
 
 def calibrated_fuels(scales: dict) -> set:
+    """The fuels that have a calibration factor (of any class group).
+
+    Parameters
+    ----------
+    scales : dict, (fuel, class group) -> calibration factor [-]
+
+    Returns
+    -------
+    set of str, the fuels.
+    """
     return {fuel for fuel, _ in scales}
 
 
@@ -184,7 +240,17 @@ def fit_calibration(prepared: list, warnings: list) -> tuple[dict[tuple, float],
     into light duty and medium/heavy duty): observed / modelled gallons of the base fiscal year
     of the first scenario that gives observed gallons and says calibrate_to_observed = yes; and
     one row per scenario x fuel (x group) with observed gallons (the ratio reported, a warning
-    outside the band). Keys: (fuel, "all" | "LD" | "HD")."""
+    outside the band). Keys: (fuel, "all" | "LD" | "HD").
+
+    Parameters
+    ----------
+    prepared : list of _Scenario, the prepared scenarios
+    warnings : list of str, receives a warning for a ratio outside the band
+
+    Returns
+    -------
+    (dict (fuel, group) -> factor [-], DataFrame with one row per scenario x fuel (x group)).
+    """
     scales: dict[tuple, float] = {}
     fitted_on: dict[str, str] = {}
     rows = []
@@ -283,7 +349,19 @@ def _tax_total(gallons: np.ndarray, yearly: np.ndarray, fuel: np.ndarray, rates,
 
 
 def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[pd.DataFrame, dict]:
-    """One row per vehicle for a prepared scenario, and its per-year arrays."""
+    """One row per vehicle for a prepared scenario, and its per-year arrays.
+
+    Parameters
+    ----------
+    p : _Scenario, a prepared scenario
+    vehicles : sequence of VehicleSpec, the Vehicles rows
+    scales : dict, (fuel, group) -> calibration factor [-]
+    ratios : dict, fuel -> its fuel range (fleetrun.budget.ranges.fuel_ranges)
+
+    Returns
+    -------
+    (DataFrame with one row per vehicle (results.csv columns), dict of per-year arrays (rows x years)).
+    """
     s, fuel, count = p.s, p.fuel, p.count
     yearly = _yearly(p, vehicles, scales, ratios)
     miles_total = _total(p.miles)
@@ -332,7 +410,21 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
 def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: dict,
                        error_model=None, years=None) -> "BudgetTables":
     """One row per scenario x vehicle (budget totals over ``count`` vehicles and budget years),
-    the per-year arrays, the calibration table, the ranges and the tornado rows."""
+    the per-year arrays, the calibration table, the ranges and the tornado rows.
+
+    Parameters
+    ----------
+    vehicles : sequence of VehicleSpec, the Vehicles rows
+    scenarios : sequence of Scenario, the scenarios
+    per_condition : dict, (cycle, ambient [C]) -> the simulation's per-vehicle sums
+    error_model : ErrorModel or None, the fleet-level error (None: no ranges)
+    years : FleetYears or None, per-row miles by budget year and fuel factors
+        (fleetrun.registrations.expand; None: count x annual miles x growth)
+
+    Returns
+    -------
+    BudgetTables, results, per-year arrays, calibration, ranges, period ranges, tornado and warnings.
+    """
     from fleetrun.budget import ranges
 
     warnings: list[str] = []
@@ -377,7 +469,16 @@ def _fsum(values) -> float:
 
 
 def aggregate_classes(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per scenario x vehicle_class: exact sums of the vehicle rows."""
+    """One row per scenario x vehicle_class: exact sums of the vehicle rows.
+
+    Parameters
+    ----------
+    results : DataFrame, the vehicle rows (:func:`aggregate_vehicles`)
+
+    Returns
+    -------
+    DataFrame, one row per scenario x vehicle class (miles [mi], gallons [gal], taxes [$], mpg).
+    """
     rows = []
     for (scenario_id, vehicle_class), group in results.groupby(["scenario_id", "vehicle_class"], sort=False):
         total = {name: _fsum(group[name]) for name in
@@ -405,7 +506,16 @@ SCENARIO_TOTAL_COLUMNS = ["scenario_id", "vehicles", "miles_total", "fuel_gal_to
 
 
 def scenario_totals(classes: pd.DataFrame) -> pd.DataFrame:
-    """One row per scenario: the fleet totals (sums of the class rows)."""
+    """One row per scenario: the fleet totals (sums of the class rows).
+
+    Parameters
+    ----------
+    classes : DataFrame, the class rows (:func:`aggregate_classes`)
+
+    Returns
+    -------
+    DataFrame, one row per scenario.
+    """
     rows = []
     for scenario_id, group in classes.groupby("scenario_id", sort=False):
         miles = math.fsum(group["miles_total"])
@@ -442,7 +552,18 @@ def _fiscal_group(s, fuel: str, vehicle_class: str, group: pd.DataFrame, yearly:
 
 
 def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, yearly: dict) -> pd.DataFrame:
-    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv)."""
+    """One row per scenario x fiscal year x fuel x vehicle class (fiscal_summary.csv).
+
+    Parameters
+    ----------
+    results : DataFrame, the vehicle rows
+    scenarios : sequence of Scenario, the scenarios (their order is kept)
+    yearly : dict, scenario id -> per-year arrays (:func:`scenario_frame`)
+
+    Returns
+    -------
+    DataFrame, the fiscal_summary.csv rows.
+    """
     rows = []
     for s in scenarios:
         own = results[results.scenario_id == s.scenario_id]
@@ -457,7 +578,16 @@ def fiscal_summary(results: pd.DataFrame, scenarios: Sequence, yearly: dict) -> 
 
 def yearly_totals(fiscal: pd.DataFrame) -> pd.DataFrame:
     """Per scenario and fiscal year: the fleet's miles, gallons, CO2, kWh and revenue (exact
-    sums of the fiscal_summary rows)."""
+    sums of the fiscal_summary rows).
+
+    Parameters
+    ----------
+    fiscal : DataFrame, the fiscal_summary rows (:func:`fiscal_summary`)
+
+    Returns
+    -------
+    DataFrame, one row per scenario x fiscal year (miles [mi], gallons [gal], CO2 [t], kWh, revenue [$]).
+    """
     columns = ["miles", "fuel_gal", "fuel_gal_low", "fuel_gal_high", "co2_t", "kwh", "state_tax_usd",
                "federal_tax_usd", "ev_fee_usd"]
     rows = []
@@ -475,7 +605,17 @@ def change_decomposition(fiscal: pd.DataFrame) -> pd.DataFrame:
     """Per scenario and fiscal year, the fleet's fuel-burning miles, gallons and gallons per
     mile, and the change in gallons from the year before split exactly into VMT
     (change in miles x last year's gallons per mile) and gallons per mile (this year's miles x
-    the change in gallons per mile: turnover, the fleet's mix of model years)."""
+    the change in gallons per mile: turnover, the fleet's mix of model years).
+
+    Parameters
+    ----------
+    fiscal : DataFrame, the fiscal_summary rows (:func:`fiscal_summary`)
+
+    Returns
+    -------
+    DataFrame, one row per scenario x fiscal year (miles [mi], gallons [gal], gal/mi, mpg and the
+    change split into VMT and gallons per mile [gal]).
+    """
     burning = fiscal[fiscal["fuel"] != ELECTRIC]
     rows = []
     for scenario_id, group in burning.groupby("scenario_id", sort=False):

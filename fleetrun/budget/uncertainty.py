@@ -52,7 +52,16 @@ _NORMAL = statistics.NormalDist()
 
 
 def normal_cdf(x) -> np.ndarray:
-    """The standard normal distribution function, elementwise (no scipy on the run's path)."""
+    """The standard normal distribution function, elementwise (no scipy on the run's path).
+
+    Parameters
+    ----------
+    x : float or array, standard normal variate [-]
+
+    Returns
+    -------
+    Phi(x) [-], the shape of ``x``.
+    """
     return 0.5 * (1.0 + np.vectorize(math.erf, otypes=[float])(np.asarray(x, dtype=float) / math.sqrt(2.0)))
 
 
@@ -80,7 +89,19 @@ def _factor_table(df: float, p: float) -> tuple[np.ndarray, np.ndarray]:
 def half_width(a, b, df: float = math.inf, p: float = 0.95):
     """The p-quantile of a t_df + b z (t Student, z normal, independent; symmetric, so the central
     range of 2p - 1 is +- this); ``a``, ``b`` scalars or arrays. Normal (df = inf): sqrt(a^2 + b^2) z_p;
-    otherwise the convolution over 2,000 quantile points of t, tabulated in rho = a / sqrt(a^2 + b^2)."""
+    otherwise the convolution over 2,000 quantile points of t, tabulated in rho = a / sqrt(a^2 + b^2).
+
+    Parameters
+    ----------
+    a : float or array, scale of the t term [any unit]
+    b : float or array, scale of the normal term [the unit of a]
+    df : float, degrees of freedom of t [-] (inf: normal)
+    p : float, the quantile [-]
+
+    Returns
+    -------
+    half-width [the unit of a], the broadcast shape of ``a`` and ``b``.
+    """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     norm = np.hypot(a, b)
     if not math.isfinite(df):
@@ -279,7 +300,16 @@ def _heavy(models: Path) -> DutyError | None:
 
 def read_error_model(path: Path | None = None) -> ErrorModel | None:
     """The fleet-level error constants in ``path`` (default ``models/fleet_error.toml``); None
-    when the default file is absent (totals then carry only the drivers' range, and say so)."""
+    when the default file is absent (totals then carry only the drivers' range, and say so).
+
+    Parameters
+    ----------
+    path : Path or None, the error file (None: ``models/fleet_error.toml``)
+
+    Returns
+    -------
+    ErrorModel or None, the fleet-level error per duty class.
+    """
     models = models_dir()
     default = path is None
     path = Path(path) if path is not None else models / ERROR_FILE

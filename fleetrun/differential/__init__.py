@@ -49,11 +49,31 @@ def kim_torque_scale_Nm(peak_engine_torque_Nm, torque_converter_ratio, max_trans
 
 
 def physics_names() -> list[str]:
+    """The registered differential baselines (``--physics``).
+
+    Returns
+    -------
+    list of str, the baseline names.
+    """
     return PHYSICS.names()
 
 
 def check_inputs(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_ratio=None, axle_gear="high"):
-    """Validate the arguments of :func:`efficiency`; returns the canonical configuration id."""
+    """Validate the arguments of :func:`efficiency`; returns the canonical configuration id.
+
+    Parameters
+    ----------
+    configuration : str, a configuration id (any case, ``-`` or ``_``)
+    torque_fraction : float or array, input torque / Kim torque scale [-], >= 0
+    speed_rpm : float or array, differential input speed [rpm], >= 0
+    gear_ratio : float or array, final-drive ratio [-], > 0
+    low_gear_ratio : float or None, two-speed axle low ratio [-] (dual configurations)
+    axle_gear : str, ``high`` or ``low``
+
+    Returns
+    -------
+    str, the canonical configuration id; invalid arguments raise :class:`InputError`.
+    """
     config = canonical_configuration(configuration)
     g = np.asarray(gear_ratio, dtype=float)
     if not np.all(np.isfinite(g)) or np.any(g <= 0):

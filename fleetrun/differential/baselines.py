@@ -28,7 +28,16 @@ class ThesisBaseline:
 
 
 def vecto_generic_drag_torque_Nm(axle_ratio):
-    """VECTO generic axle: wheel-side drag torque at zero load, ``Td0 = 52.5 + 15 i`` [N m]."""
+    """VECTO generic axle: wheel-side drag torque at zero load, ``Td0 = 52.5 + 15 i`` [N m].
+
+    Parameters
+    ----------
+    axle_ratio : float or array, axle ratio i [-]
+
+    Returns
+    -------
+    wheel-side drag torque Td0 [N m], the shape of ``axle_ratio``.
+    """
     return 52.5 + 15 * np.asarray(axle_ratio, dtype=float)
 
 
@@ -39,6 +48,16 @@ def vecto_generic_output_torque_Nm(input_torque_Nm, output_speed_rpm, axle_ratio
     + |T_out| (1/0.98 - 1)``, and ``T_in i = T_out + T_loss``. For T_out >= 0 this solves to
     ``T_out = 0.98 (T_in i - 0.5 Td0 (1 + n_out/150))``; below zero the axle does not drive
     (returned as is, negative, so the caller can floor it).
+
+    Parameters
+    ----------
+    input_torque_Nm : float or array, axle input torque T_in [N m]
+    output_speed_rpm : float or array, axle output speed n_out [rpm]
+    axle_ratio : float or array, axle ratio i [-]
+
+    Returns
+    -------
+    output torque T_out [N m], negative where the drag exceeds the input.
     """
     td0 = vecto_generic_drag_torque_Nm(axle_ratio)
     drag = 0.5 * td0 + 0.5 * td0 * np.asarray(output_speed_rpm, dtype=float) / 150.0

@@ -88,7 +88,18 @@ _FLUIDS = ("mu_air", "rho_air", "nu_air", "mu_oil", "rho_oil", "nu_oil")
 
 @lru_cache(maxsize=1024)
 def resolved_stages(model_id: str, gear_ratio: float, oil_temp_C: float):
-    """The model's stages with every parameter evaluated to a number (cached)."""
+    """The model's stages with every parameter evaluated to a number (cached).
+
+    Parameters
+    ----------
+    model_id : str, a reference differential id (``models/differentials/``)
+    gear_ratio : float, final-drive ratio [-]
+    oil_temp_C : float, lubricant temperature [C]
+
+    Returns
+    -------
+    tuple of (component name, dict of parameters (units as the model file names them), split [-]).
+    """
     model = reference_model(model_id)
     names = model.resolve(gear_ratio, oil_temp_C)
     stages = []
@@ -114,6 +125,19 @@ def evaluate_stage_chain(model: ReferenceModel, torque_fraction, speed_rpm, gear
     run in order, and the output torque is renormalised as the code does:
     ``torque / capacity / g * output_shafts`` (B.1, B.2, B.4). If ``stage_losses`` is a
     list, (label, loss torque [N m]) of each loss stage is appended to it.
+
+    Parameters
+    ----------
+    model : ReferenceModel, the reference differential
+    torque_fraction : float or array, input torque / Kim torque scale [-]
+    speed_rpm : float or array, input speed [rpm]
+    gear_ratio : float, final-drive ratio [-]
+    oil_temp_C : float, lubricant temperature [C]
+    stage_losses : list or None, receives (label, loss torque [N m]) per loss stage
+
+    Returns
+    -------
+    (efficiency [-], output torque fraction [-], output speed [rpm]), arrays of the broadcast shape.
     """
     torque_fraction, speed_rpm = np.broadcast_arrays(np.asarray(torque_fraction, dtype=float),
                                                      np.asarray(speed_rpm, dtype=float))

@@ -18,17 +18,36 @@ AXLE_GEARS = ("low", "high")
 
 
 def configuration_ids() -> list[str]:
-    """The configuration ids in the order of ``models/configurations.toml`` (their one source)."""
+    """The configuration ids in the order of ``models/configurations.toml`` (their one source).
+
+    Returns
+    -------
+    list of str, the canonical ids.
+    """
     return list(configuration_table())
 
 
 def dual_configuration_ids() -> list[str]:
-    """The configurations with a two-speed (dual) axle, which need a low gear ratio."""
+    """The configurations with a two-speed (dual) axle, which need a low gear ratio.
+
+    Returns
+    -------
+    list of str, the canonical ids of the dual configurations.
+    """
     return [c for c in configuration_ids() if uses_two_speed_box(c)]
 
 
 def canonical_configuration(name: str) -> str:
-    """``ld-rwd``, ``LD_RWD``, ``Ld-Rwd`` -> ``LD_RWD``; unknown names raise InputError."""
+    """``ld-rwd``, ``LD_RWD``, ``Ld-Rwd`` -> ``LD_RWD``; unknown names raise InputError.
+
+    Parameters
+    ----------
+    name : str, a configuration id in any case, with ``-`` or ``_``
+
+    Returns
+    -------
+    str, the canonical id.
+    """
     key = str(name).strip().upper().replace("-", "_")
     table = configuration_table()
     if key not in table:
@@ -38,7 +57,16 @@ def canonical_configuration(name: str) -> str:
 
 
 def uses_two_speed_box(configuration: str) -> bool:
-    """True for the dual (two-speed) configurations, which need a low gear ratio."""
+    """True for the dual (two-speed) configurations, which need a low gear ratio.
+
+    Parameters
+    ----------
+    configuration : str, a configuration id
+
+    Returns
+    -------
+    bool.
+    """
     factors = configuration_table()[canonical_configuration(configuration)]["factors"]
     return any(reference_model(m).kind == "two_speed_box" for chain in factors for m in chain)
 
@@ -51,7 +79,16 @@ def _main_axle_model(configuration: str):
 
 
 def configuration_lubricant(configuration: str) -> str:
-    """The lubricant of the configuration's driving axle (ATF for a transaxle, else gear oil)."""
+    """The lubricant of the configuration's driving axle (ATF for a transaxle, else gear oil).
+
+    Parameters
+    ----------
+    configuration : str, a configuration id
+
+    Returns
+    -------
+    str, a lubricant name of ``models/lubricants.toml``.
+    """
     return _main_axle_model(configuration).lubricant
 
 
@@ -60,12 +97,35 @@ def reference_capacity_Nm(configuration: str) -> float:
 
     A torque fraction of 1 is this torque at the reference differential; used where a map
     needs absolute torque without a vehicle (VECTO baseline, effects in ``fleetrun map``).
+
+    Parameters
+    ----------
+    configuration : str, a configuration id
+
+    Returns
+    -------
+    float, torque capacity [N m].
     """
     return _main_axle_model(configuration).capacity_torque_Nm
 
 
 def evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio, axle_gear, oil_temp_C):
-    """Run a series of reference models; returns the product efficiency."""
+    """Run a series of reference models; returns the product efficiency.
+
+    Parameters
+    ----------
+    chain : sequence of str, reference model ids, run in order
+    torque_fraction : float or array, input torque / Kim torque scale [-]
+    speed_rpm : float or array, input speed [rpm]
+    gear_ratio : float, final-drive ratio [-]
+    low_gear_ratio : float or None, two-speed axle low ratio [-]
+    axle_gear : str, ``high`` or ``low``
+    oil_temp_C : float, lubricant temperature [C]
+
+    Returns
+    -------
+    efficiency [-], an array of the broadcast shape.
+    """
     eta_total = None
     tf, rpm = torque_fraction, speed_rpm
     for model_id in chain:
@@ -87,7 +147,22 @@ def evaluate_series(chain, torque_fraction, speed_rpm, gear_ratio, *, low_gear_r
 
 def thesis_efficiency(configuration, torque_fraction, speed_rpm, gear_ratio, *, low_gear_ratio=None,
                       axle_gear="high", oil_temp_C=70.0):
-    """Efficiency of a configuration for one scalar gear ratio (arrays of torque and speed)."""
+    """Efficiency of a configuration for one scalar gear ratio (arrays of torque and speed).
+
+    Parameters
+    ----------
+    configuration : str, a configuration id
+    torque_fraction : float or array, input torque / Kim torque scale [-]
+    speed_rpm : float or array, differential input speed [rpm]
+    gear_ratio : float, final-drive ratio [-]
+    low_gear_ratio : float or None, two-speed axle low ratio [-] (dual configurations)
+    axle_gear : str, ``high`` or ``low``
+    oil_temp_C : float, lubricant temperature [C] (70 C: thesis code B.7)
+
+    Returns
+    -------
+    efficiency [-], the product over the configuration's factors (thesis Ch. 5, Appendix B).
+    """
     config = configuration_table()[canonical_configuration(configuration)]
     eta = None
     for chain in config["factors"]:

@@ -27,7 +27,18 @@ _COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt,
 
 
 def evaluate(expression, namespace: dict, *, where: str = "") -> float:
-    """Evaluate a number or an expression string against ``namespace``."""
+    """Evaluate a number or an expression string against ``namespace``.
+
+    Parameters
+    ----------
+    expression : int, float or str, a number or an arithmetic expression
+    namespace : dict, the names the expression may use
+    where : str, the file and key to name in an error
+
+    Returns
+    -------
+    float, the value (in the units of the names it combines).
+    """
     if isinstance(expression, bool):
         raise InputError(f"{where}: expected a number or expression, got {expression!r}")
     if isinstance(expression, (int, float)):

@@ -91,7 +91,12 @@ def _load(path: Path) -> ReferenceModel:
 
 @lru_cache(maxsize=None)
 def reference_models() -> dict[str, ReferenceModel]:
-    """Every model in ``models/differentials/``, keyed by id."""
+    """Every model in ``models/differentials/``, keyed by id.
+
+    Returns
+    -------
+    dict of ReferenceModel, by id.
+    """
     out = {}
     for path in sorted((models_dir() / "differentials").glob("*.toml")):
         model = _load(path)
@@ -100,6 +105,16 @@ def reference_models() -> dict[str, ReferenceModel]:
 
 
 def reference_model(model_id: str) -> ReferenceModel:
+    """The reference differential ``model_id`` (a file of ``models/differentials/``).
+
+    Parameters
+    ----------
+    model_id : str, a reference differential id
+
+    Returns
+    -------
+    ReferenceModel; an unknown id raises the registry's unknown-name error.
+    """
     models = reference_models()
     if model_id not in models:
         raise unknown_name_error("reference differential", model_id, models)
@@ -108,5 +123,10 @@ def reference_model(model_id: str) -> ReferenceModel:
 
 @lru_cache(maxsize=None)
 def configuration_table() -> dict[str, dict]:
-    """``models/configurations.toml``: configuration id -> description, equation, factors."""
+    """``models/configurations.toml``: configuration id -> description, equation, factors.
+
+    Returns
+    -------
+    dict of dict, the ``configuration`` table by id.
+    """
     return model_file("configurations.toml")["configuration"]

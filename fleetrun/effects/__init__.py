@@ -31,11 +31,31 @@ __all__ = ["EFFECTS", "Effect", "Parameter", "get_effect", "effects_for_level", 
 
 
 def get_effect(name: str) -> Effect:
-    """The effect called ``name`` (case-insensitive, ``-`` for ``_``)."""
+    """The effect called ``name`` (case-insensitive, ``-`` for ``_``).
+
+    Parameters
+    ----------
+    name : str, an effect id of docs/effects.md
+
+    Returns
+    -------
+    Effect, the registered effect; an unknown name raises the registry's unknown-name error
+    listing the valid ids.
+    """
     return EFFECTS.get(name)
 
 
 def effects_for_level(level: str) -> list[Effect]:
+    """The registered effects of ``level`` (``differential`` or ``vehicle``).
+
+    Parameters
+    ----------
+    level : str, ``differential`` or ``vehicle``
+
+    Returns
+    -------
+    list of Effect, in registration order.
+    """
     return [e for e in EFFECTS.values() if e.level == level]
 
 
@@ -44,6 +64,15 @@ def parse_with(text: str | None) -> list[tuple[Effect, dict[str, float]]]:
 
     Unset parameters take the effect's defaults; values outside the declared bounds are
     refused with the bounds in the message.
+
+    Parameters
+    ----------
+    text : str or None, the ``--with`` value (None or blank: no effects)
+
+    Returns
+    -------
+    list of (Effect, dict of float), each effect with its full parameters in the units of its
+    catalogue entry.
     """
     if text is None or not str(text).strip():
         return []
@@ -80,7 +109,16 @@ def parse_with(text: str | None) -> list[tuple[Effect, dict[str, float]]]:
 
 def as_effect_list(effects) -> list[tuple[Effect, dict[str, float]]]:
     """``effects`` in any form the functions here accept (a ``--with`` string, ids, Effect
-    objects, (effect or id, params) pairs) as (Effect, full parameters) pairs."""
+    objects, (effect or id, params) pairs) as (Effect, full parameters) pairs.
+
+    Parameters
+    ----------
+    effects : str, sequence or None, any of the forms above
+
+    Returns
+    -------
+    list of (Effect, dict of float), each effect with its full parameters.
+    """
     return _as_effect_list(effects)
 
 
@@ -113,6 +151,18 @@ def steady_channels(input_torque_Nm, input_speed_rpm, gear_ratio, *, lubricant="
     operating temperature (``time_s`` = infinity), unless ``channels`` overrides any of them
     (e.g. ``{"oil_temp_C": 10.0, "ambient_temp_C": 10.0}`` or
     ``{"wheel_speed_difference_rad_s": 2.0}``).
+
+    Parameters
+    ----------
+    input_torque_Nm : float or array, pinion torque [N m]
+    input_speed_rpm : float or array, pinion speed [rpm]
+    gear_ratio : float, overall pinion-to-carrier ratio [-]
+    lubricant : str, a name of ``models/lubricants.toml``
+    channels : mapping or None, channels that override the steady-state ones
+
+    Returns
+    -------
+    dict, the channels of :mod:`fleetrun.effects.differential` (speed in [rad/s]).
     """
     t = np.asarray(input_torque_Nm, dtype=float)
     w = np.asarray(input_speed_rpm, dtype=float) * RAD_S_PER_RPM
@@ -125,7 +175,18 @@ def steady_channels(input_torque_Nm, input_speed_rpm, gear_ratio, *, lubricant="
 
 
 def differential_extra_torque_Nm(effects, channels: Mapping) -> np.ndarray:
-    """Sum of the extra pinion torque losses of differential-level ``effects``."""
+    """Sum of the extra pinion torque losses of differential-level ``effects``.
+
+    Parameters
+    ----------
+    effects : str, sequence or None, as for :func:`as_effect_list`; vehicle-level ones are skipped
+    channels : mapping, the channels of :mod:`fleetrun.effects.differential`
+        (e.g. :func:`steady_channels`)
+
+    Returns
+    -------
+    extra pinion torque [N m], an array of the channels' shape (0 without differential effects).
+    """
     total = 0.0
     for effect, params in _as_effect_list(effects):
         if effect.level != "differential":
@@ -140,7 +201,18 @@ def _default_lubricant(configuration: str) -> str:
 
 
 def overall_ratio(gear_ratio, low_gear_ratio=None, axle_gear="high") -> float:
-    """Pinion-to-carrier ratio: ``gear_ratio``, times ``low_gear_ratio`` in a dual's low gear."""
+    """Pinion-to-carrier ratio: ``gear_ratio``, times ``low_gear_ratio`` in a dual's low gear.
+
+    Parameters
+    ----------
+    gear_ratio : float, final-drive ratio [-]
+    low_gear_ratio : float or None, two-speed axle low ratio [-]
+    axle_gear : str, ``high`` or ``low``, the engaged range
+
+    Returns
+    -------
+    float, overall pinion-to-carrier ratio [-].
+    """
     if str(axle_gear).lower() == "low" and low_gear_ratio:
         return float(gear_ratio) * float(low_gear_ratio)
     return float(gear_ratio)
@@ -157,6 +229,23 @@ def efficiency_with_effects(configuration, torque_fraction, speed_rpm, gear_rati
     ``channels`` says otherwise (see :func:`steady_channels`). ``kim_torque_scale_Nm``: the
     vehicle's Kim scale, turning fractions into the effects' absolute torque (and passed on to
     baselines in absolute torque).
+
+    Parameters
+    ----------
+    configuration : str, a configuration id (docs/interface.md)
+    torque_fraction : float or array, input torque / Kim torque scale [-]
+    speed_rpm : float or array, differential input speed [rpm]
+    gear_ratio : float, final-drive ratio [-]
+    effects : str, sequence or None, as for :func:`as_effect_list`
+    kim_torque_scale_Nm : float, the vehicle's Kim scale [N m]
+    channels : mapping or None, channels overriding the steady state (:func:`steady_channels`)
+    lubricant : str or None, lubricant name (None: the configuration's driving axle's)
+    **model_kwargs : passed on to :func:`fleetrun.differential.efficiency` (``low_gear_ratio``,
+        ``axle_gear``, ``physics``, ``oil_temp_C``)
+
+    Returns
+    -------
+    efficiency [-], an array of the broadcast shape of ``torque_fraction`` and ``speed_rpm``.
     """
     model_kwargs["kim_torque_scale_Nm"] = kim_torque_scale_Nm
     tf = np.asarray(torque_fraction, dtype=float)
@@ -187,6 +276,21 @@ def vehicle_extra_fuel_g_per_s(effects, *, time_s, vehicle_speed_mps, vehicle_ma
     grade's extra work to steps that drive the wheels; ``engine_on`` is 0 where the engine is
     off. Extra work costs fuel at the engine's Willans-line slope ``eta_indicated`` (see
     :func:`fleetrun.effects.vehicle.marginal_fuel_g_per_J`).
+
+    Parameters
+    ----------
+    effects : str, sequence or None, as for :func:`as_effect_list`; differential-level ones are skipped
+    time_s : float or array, time since the (cold) start [s]
+    vehicle_speed_mps : float or array, vehicle speed [m/s]
+    vehicle_mass_kg : float, vehicle mass [kg]
+    fuel : str, ``gasoline`` or ``diesel``
+    eta_indicated : float, the engine's Willans-line slope [-]
+    engine_on : float or array, 1 while the engine runs, else 0 [-]
+    wheel_power_W : float or array or None, tractive power at the wheels [W]
+
+    Returns
+    -------
+    extra fuel rate [g/s], an array of the broadcast shape of ``time_s`` and ``vehicle_speed_mps``.
     """
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(vehicle_speed_mps, dtype=float)

@@ -44,6 +44,15 @@ def preload_drag_torque_Nm(input_speed_rad_s):
     Thesis Sec. 9.2.2 (seal pre-load) and Sec. 3.1.1.B (bearing loads): the printed bearing
     model (B.2-B.5, Khonsari & Booser Eq. 15.1 ``M_P = 5e-4 mu P d``) only has the
     torque-proportional part; a preloaded bearing keeps a drag at zero torque.
+
+    Parameters
+    ----------
+    input_speed_rad_s : float or array, pinion speed w_in [rad/s]
+
+    Returns
+    -------
+    drag direction per N m of preload drag [N m / N m], tanh(w_in / W_STOP_RAD_S): 1 turning
+    forward, 0 stopped, -1 turning backward.
     """
     return _rotating(input_speed_rad_s)
 
@@ -61,6 +70,17 @@ def cornering_extra_torque_Nm(input_torque_Nm, input_speed_rad_s, wheel_speed_di
     carrier torque and the wheel-speed difference, ``P_loss = k_c T_c |w_L - w_R|`` with
     ``T_c = G T_in`` (docs/interface.md). Referred to the pinion: ``dT_in = P_loss / w_in``.
     Zero when the pinion is (nearly) stopped, where the power balance is undefined.
+
+    Parameters
+    ----------
+    input_torque_Nm : float or array, pinion torque T_in [N m]
+    input_speed_rad_s : float or array, pinion speed w_in [rad/s]
+    wheel_speed_difference_rad_s : float or array, ``abs(w_L - w_R)`` at the wheels [rad/s]
+    gear_ratio : float, overall pinion-to-carrier ratio G [-]
+
+    Returns
+    -------
+    extra pinion torque per unit k_c [N m], 0 where ``|w_in| <= W_STOP_RAD_S``.
     """
     w_in = np.asarray(input_speed_rad_s, dtype=float)
     t_c = gear_ratio * np.abs(np.asarray(input_torque_Nm, dtype=float))
@@ -82,6 +102,14 @@ def inertia_torque_Nm(input_accel_rad_s2):
     Eqs 9-10 give the differential's reduced inertia ``I_dr`` and ``I_dr dw_r/dt``;
     referred to the pinion with Eq. 11. Negative while decelerating (the parts give back
     their energy).
+
+    Parameters
+    ----------
+    input_accel_rad_s2 : float or array, pinion angular acceleration dw_in/dt [rad/s^2]
+
+    Returns
+    -------
+    torque per kg m^2 of inertia referred to the pinion [N m / (kg m^2)], i.e. dw_in/dt.
     """
     return np.asarray(input_accel_rad_s2, dtype=float)
 
@@ -96,6 +124,17 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
 
     First-order warm-up towards the thesis operating temperature ``T_op = T_amb + 50 K``
     (thesis Sec. 3.1.2; docs/interface.md oil_warmup).
+
+    Parameters
+    ----------
+    time_s : float or array, time since the (cold) start [s]; negative times count as 0
+    ambient_temp_C : float or array, ambient temperature T_amb [C]
+    tau_s : float, warm-up time constant [s]
+    rise_K : float, steady rise of T_op over ambient [K] (50 K, thesis Sec. 3.1.2)
+
+    Returns
+    -------
+    sump temperature [C], the broadcast shape of ``time_s`` and ``ambient_temp_C``.
     """
     t = np.maximum(np.asarray(time_s, dtype=float), 0.0)
     t_amb = np.asarray(ambient_temp_C, dtype=float)
@@ -103,7 +142,17 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
 
 
 def viscosity_m2_s(temp_C, lubricant):
-    """Kinematic viscosity from Walther's equation (thesis Eqs 5.13-5.14, code B.7)."""
+    """Kinematic viscosity from Walther's equation (thesis Eqs 5.13-5.14, code B.7).
+
+    Parameters
+    ----------
+    temp_C : float or array, lubricant temperature [C]
+    lubricant : str, a name of ``models/lubricants.toml`` (e.g. ``80W90``)
+
+    Returns
+    -------
+    kinematic viscosity [m^2/s], the shape of ``temp_C``.
+    """
     return walther_viscosity_m2_s(temp_C, lubricant)
 
 
@@ -112,6 +161,17 @@ def warmup_viscosity_excess(oil_temp_C, ambient_temp_C, lubricant, rise_K=OPERAT
 
     Thesis Sec. 3.1.2 and 9.8: viscosity (Walther, B.7) governs the churning and film losses;
     the thesis evaluates it only at T_op. Clipped at 0: oil hotter than T_op is not modelled.
+
+    Parameters
+    ----------
+    oil_temp_C : float or array, sump temperature T_oil [C]
+    ambient_temp_C : float or array, ambient temperature T_amb [C]
+    lubricant : str, a name of ``models/lubricants.toml``
+    rise_K : float, rise of T_op over ambient [K] (50 K, thesis Sec. 3.1.2)
+
+    Returns
+    -------
+    viscosity excess ``max(nu(T_oil) / nu(T_op) - 1, 0)`` [-].
     """
     t_op = operating_temperature_C(ambient_temp_C, rise_K)
     ratio = viscosity_m2_s(oil_temp_C, lubricant) / viscosity_m2_s(t_op, lubricant)
@@ -136,6 +196,15 @@ def bearing_viscous_drag_Nm(input_speed_rad_s, reference_speed_rpm=1000.0):
     ``n nu`` with nu in m^2/s, so it always takes the constant branch (Eq. 15.4) and the
     speed dependence never activates (thesis Sec. 9.1 asks for the bearing model update).
     Here ``dT = c_b (n / 1000 rpm)^(2/3)``.
+
+    Parameters
+    ----------
+    input_speed_rad_s : float or array, pinion speed w_in [rad/s]
+    reference_speed_rpm : float, pinion speed at which the drag equals c_b [rpm]
+
+    Returns
+    -------
+    drag per N m of drag at the reference speed [N m / N m], signed with the direction of turning.
     """
     w = np.asarray(input_speed_rad_s, dtype=float)
     n_rpm = np.abs(w) * RPM_PER_RAD_S
@@ -152,6 +221,14 @@ def greenwood_tripp_F2(film_parameter):
 
     The quintic fit crosses zero near lambda = 1.95 (and is negative to lambda = 3); the
     asperity contact area cannot be negative, so it is clipped at 0.
+
+    Parameters
+    ----------
+    film_parameter : float or array, film parameter lambda = h_c0 / sigma [-]
+
+    Returns
+    -------
+    F_2(lambda) [-], clipped at 0 and 0 for lambda > 3.
     """
     lam = np.asarray(film_parameter, dtype=float)
     f2 = (-0.002 * lam ** 5 + 0.028 * lam ** 4 - 0.173 * lam ** 3 + 0.526 * lam ** 2
@@ -165,6 +242,15 @@ def boundary_share(input_speed_rad_s, speed_ref_rpm):
     Seed 004: film thickness h_c0 ~ U^0.68 (Eq. 9), film parameter lambda = h_c0 / sigma,
     asperity contact area ~ F_2(lambda) (Eqs 16-17), boundary friction f_b = tau_L A_a
     (Eq. 14). With lambda = (n / n_ref)^0.68 the share is ``F_2(lambda) / F_2(0)``.
+
+    Parameters
+    ----------
+    input_speed_rad_s : float or array, pinion speed [rad/s]
+    speed_ref_rpm : float, pinion speed at which lambda = 1 [rpm]
+
+    Returns
+    -------
+    share of the load carried by asperities, F_2(lambda) / F_2(0) [-].
     """
     n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S
     lam = (n_rpm / speed_ref_rpm) ** FILM_SPEED_EXPONENT
@@ -172,7 +258,18 @@ def boundary_share(input_speed_rad_s, speed_ref_rpm):
 
 
 def mixed_lubrication_torque_Nm(input_torque_Nm, input_speed_rad_s, speed_ref_rpm):
-    """Extra pinion torque per unit mu_b: ``|T_in| * boundary share`` (Stribeck, seed 004)."""
+    """Extra pinion torque per unit mu_b: ``|T_in| * boundary share`` (Stribeck, seed 004).
+
+    Parameters
+    ----------
+    input_torque_Nm : float or array, pinion torque T_in [N m]
+    input_speed_rad_s : float or array, pinion speed [rad/s]
+    speed_ref_rpm : float, pinion speed at which lambda = 1 [rpm]
+
+    Returns
+    -------
+    extra pinion torque per unit mu_b [N m], 0 where the pinion is stopped.
+    """
     return (np.abs(np.asarray(input_torque_Nm, dtype=float))
             * boundary_share(input_speed_rad_s, speed_ref_rpm)
             * (np.abs(np.asarray(input_speed_rad_s, dtype=float)) > W_STOP_RAD_S))
@@ -206,6 +303,14 @@ def hypoid_mesh_loss_share(input_speed_rad_s):
     Thesis Eq. 5.9 (code B.2/B.4): sliding speed from the pinion speed and geometry, Dudley's
     friction coefficient ``f = 0.8 / (v + 100)^0.5`` (Fig. 12.8 fit), efficiency after
     Dudley Eq. 12.36; geometry of the thesis's reference hypoid (GM 1500 rear axle).
+
+    Parameters
+    ----------
+    input_speed_rad_s : float or array, pinion speed [rad/s]
+
+    Returns
+    -------
+    mesh loss share ``1 - eta`` of the reference hypoid [-], the shape of ``input_speed_rad_s``.
     """
     p = _reference_stage("hypoid_mesh")
     n_rpm = np.abs(np.asarray(input_speed_rad_s, dtype=float)) * RPM_PER_RAD_S
@@ -224,6 +329,15 @@ def mesh_friction_torque_Nm(input_torque_Nm, input_speed_rad_s):
     in the coefficient (``f tan psi_p << cos phi_n``), that much more of the torque. Thesis
     Sec. 7.2: "published friction coefficient data for hypoid gears are not sufficiently high
     at low speed" to match measured LD RWD losses; Dudley's curve is one fit (Fig. 12.8).
+
+    Parameters
+    ----------
+    input_torque_Nm : float or array, pinion torque T_in [N m]
+    input_speed_rad_s : float or array, pinion speed [rad/s]
+
+    Returns
+    -------
+    extra pinion torque per unit friction_excess [N m], 0 where the pinion is stopped.
     """
     w = np.asarray(input_speed_rad_s, dtype=float)
     return (np.abs(np.asarray(input_torque_Nm, dtype=float)) * hypoid_mesh_loss_share(w)
@@ -243,6 +357,15 @@ def ring_gear_churning_torque_Nm(input_speed_rad_s, gear_ratio):
     ring-gear speed ``n_in / G``, referred to the pinion (``/ G``). Thesis Sec. 5.2.3: a
     "dipped" axle runs at X ~ 0.2 (the fill plug's height); "halfway" is 0.5 and "totally"
     1.0. Grows as the square of the speed. Reference ring gear: the GM 1500 rear axle's.
+
+    Parameters
+    ----------
+    input_speed_rad_s : float or array, pinion speed [rad/s]
+    gear_ratio : float or array, overall pinion-to-carrier ratio G [-]
+
+    Returns
+    -------
+    extra pinion torque per unit of extra immersed fraction X [N m], signed with the pinion speed.
     """
     p = _reference_stage("bevel_gear_windage", "ring")
     g = np.asarray(gear_ratio, dtype=float)

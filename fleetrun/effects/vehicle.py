@@ -22,12 +22,16 @@ def marginal_fuel_g_per_J(fuel: str, eta_indicated: float, drivetrain_efficiency
 
     Parameters
     ----------
-    fuel : ``gasoline`` or ``diesel`` (its lower heating value: models/fuels.toml).
-    eta_indicated : the engine's Willans-line slope [-], brake power per fuel power at the
+    fuel : str, ``gasoline`` or ``diesel`` (its lower heating value: models/fuels.toml).
+    eta_indicated : float, the engine's Willans-line slope [-], brake power per fuel power at the
         margin: the vehicle's ``eta_indicated`` as the simulation's fuel equation uses it
         (models/engines.toml, fitted in models/engine_calibration.toml, per-vehicle override;
         resolved by ``fleetrun.simulation.params``). This module keeps no value of its own.
-    drivetrain_efficiency : wheel work per crank work [-] (1: work at the crank).
+    drivetrain_efficiency : float, wheel work per crank work [-] (1: work at the crank).
+
+    Returns
+    -------
+    marginal fuel [g/J], ``1 / (eta_indicated * LHV * drivetrain_efficiency)``.
     """
     lhv_J_per_g = fuel_properties(fuel.lower()).lhv_MJ_per_kg * 1e3
     return 1.0 / (float(eta_indicated) * lhv_J_per_g * drivetrain_efficiency)
@@ -42,6 +46,16 @@ def cold_start_extra_fuel(time_s, tau_s, engine_on=1.0):
     Cold oil (thesis Sec. 3.1.2, 9.8: viscosity by Walther's equation, much higher when cold)
     and cold-start enrichment both fade with the engine's first-order warm-up; the Argonne
     cold/hot UDDS pairs (inputs/dyno) show the difference concentrated in the first phase.
+
+    Parameters
+    ----------
+    time_s : float or array, time since the start [s]; negative times count as 0
+    tau_s : float, decay time constant [s]
+    engine_on : float or array, 1 while the engine turns, else 0 [-]
+
+    Returns
+    -------
+    extra fuel rate per g/s of extra rate at the start [(g/s) / (g/s)], ``exp(-t/tau) * engine_on``.
     """
     t = np.maximum(np.asarray(time_s, dtype=float), 0.0)
     return np.exp(-t / tau_s) * np.asarray(engine_on, dtype=float)
@@ -53,6 +67,16 @@ def grade_extra_fuel(vehicle_speed_mps, vehicle_mass_kg, marginal_g_per_J):
 
     Downhill the engine cannot give fuel back below zero fuelling; the rate is not floored
     here because the baseline already floors the total.
+
+    Parameters
+    ----------
+    vehicle_speed_mps : float or array, vehicle speed v [m/s]
+    vehicle_mass_kg : float, vehicle mass m [kg]
+    marginal_g_per_J : float, marginal fuel per J of work [g/J] (:func:`marginal_fuel_g_per_J`)
+
+    Returns
+    -------
+    extra fuel rate per percent of grade [g/s per %].
     """
     v = np.asarray(vehicle_speed_mps, dtype=float)
     return vehicle_mass_kg * STANDARD_GRAVITY_M_S2 * v / 100.0 * marginal_g_per_J
@@ -64,13 +88,32 @@ def aero_drag_extra_fuel(vehicle_speed_mps, marginal_g_per_J):
     The road load's quadratic coefficient (EPA coastdown C, thesis Eq. 3.5) is aerodynamic,
     ``C = rho Cd A / 2``; a roof box, an open window or a trailer raises it. Only while the
     wheels are driven (``vehicle_speed_mps`` is zero elsewhere in the channels).
+
+    Parameters
+    ----------
+    vehicle_speed_mps : float or array, vehicle speed v [m/s]
+    marginal_g_per_J : float, marginal fuel per J of work [g/J] (:func:`marginal_fuel_g_per_J`)
+
+    Returns
+    -------
+    extra fuel rate per N s^2/m^2 of extra quadratic road-load coefficient [(g/s) / (N s^2/m^2)].
     """
     v = np.asarray(vehicle_speed_mps, dtype=float)
     return v * v * v * marginal_g_per_J
 
 
 def accessory_extra_fuel(engine_on, marginal_g_per_J):
-    """Extra fuel per kW of constant accessory power while the engine runs."""
+    """Extra fuel per kW of constant accessory power while the engine runs.
+
+    Parameters
+    ----------
+    engine_on : float or array, 1 while the engine runs, else 0 [-]
+    marginal_g_per_J : float, marginal fuel per J of crank work [g/J] (:func:`marginal_fuel_g_per_J`)
+
+    Returns
+    -------
+    extra fuel rate per kW of accessory power [(g/s) / kW].
+    """
     return 1000.0 * marginal_g_per_J * np.asarray(engine_on, dtype=float)
 
 

@@ -23,18 +23,41 @@ from fleetrun.resources import model_file
 
 
 def constants() -> dict:
-    """``models/turnover.toml``."""
+    """``models/turnover.toml``.
+
+    Returns
+    -------
+    dict, the file's tables.
+    """
     return model_file("turnover.toml")
 
 
 def class_info(fhwa_class: str) -> dict:
-    """The class's entry of models/turnover.toml ``[classes]``."""
+    """The class's entry of models/turnover.toml ``[classes]``.
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+
+    Returns
+    -------
+    dict, the class's survival curve, miles and trend names.
+    """
     return constants()["classes"][fhwa_class]
 
 
 @lru_cache(maxsize=16)
 def survival(fhwa_class: str) -> np.ndarray:
-    """S(a) for a = 0..max_age (S(0) = 1), then 0."""
+    """S(a) for a = 0..max_age (S(0) = 1), then 0.
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+
+    Returns
+    -------
+    S(a) [-] for a = 0..max_age (EPA OMEGA re-registration by age), shape (max_age + 1,).
+    """
     c = constants()
     curve = np.asarray(c["survival"][class_info(fhwa_class)["survival"]]["reregistered_by_age"], dtype=float)
     out = np.zeros(c["max_age"] + 1)
@@ -43,7 +66,17 @@ def survival(fhwa_class: str) -> np.ndarray:
 
 
 def survival_at(fhwa_class: str, ages) -> np.ndarray:
-    """S at integer ``ages`` (0 beyond the curve, 1 below 0: not yet built counts as new)."""
+    """S at integer ``ages`` (0 beyond the curve, 1 below 0: not yet built counts as new).
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+    ages : int or array of int, ages [years]
+
+    Returns
+    -------
+    S(ages) [-], the shape of ``ages``.
+    """
     s = survival(fhwa_class)
     ages = np.asarray(ages, dtype=np.int64)
     return np.where(ages < 0, 1.0, s[np.clip(ages, 0, len(s) - 1)] * (ages < len(s)))
@@ -51,7 +84,17 @@ def survival_at(fhwa_class: str, ages) -> np.ndarray:
 
 @lru_cache(maxsize=16)
 def miles_by_age(fhwa_class: str) -> np.ndarray:
-    """Annual miles per vehicle at age 0..max_age [mi]."""
+    """Annual miles per vehicle at age 0..max_age [mi].
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+
+    Returns
+    -------
+    annual miles per vehicle [mi] at age 0..max_age (EPA OMEGA VMT by age, or the class's flat
+    FHWA VM-1 figure).
+    """
     c = constants()
     info = class_info(fhwa_class)
     n = c["max_age"] + 1
@@ -62,13 +105,32 @@ def miles_by_age(fhwa_class: str) -> np.ndarray:
 
 
 def miles_at(fhwa_class: str, ages) -> np.ndarray:
-    """Annual miles per vehicle at integer ``ages`` (clipped to the curve)."""
+    """Annual miles per vehicle at integer ``ages`` (clipped to the curve).
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+    ages : int or array of int, ages [years]
+
+    Returns
+    -------
+    annual miles per vehicle [mi], the shape of ``ages``.
+    """
     m = miles_by_age(fhwa_class)
     return m[np.clip(np.asarray(ages, dtype=np.int64), 0, len(m) - 1)]
 
 
 def age_distribution(fhwa_class: str) -> np.ndarray:
-    """Default share of a class's vehicles at age 0..max_age: S(a) / sum S (constant sales)."""
+    """Default share of a class's vehicles at age 0..max_age: S(a) / sum S (constant sales).
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+
+    Returns
+    -------
+    share [-] at age 0..max_age, summing to 1.
+    """
     s = survival(fhwa_class)
     return s / s.sum()
 
@@ -81,7 +143,16 @@ def _trend_table(name: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def default_future_rate(name: str = "light_duty") -> float:
-    """Yearly fuel-economy change after the trend table: the mean of its last N published years."""
+    """Yearly fuel-economy change after the trend table: the mean of its last N published years.
+
+    Parameters
+    ----------
+    name : str, a trend table of ``[trend]`` (EPA Automotive Trends)
+
+    Returns
+    -------
+    float, yearly relative mpg change [1/year] (0 for an empty table).
+    """
     years, mpg = _trend_table(name)
     if not len(years):
         return 0.0
@@ -92,7 +163,19 @@ def default_future_rate(name: str = "light_duty") -> float:
 
 def trend_mpg(name: str, model_years, future_rate: float | None = None) -> np.ndarray:
     """New vehicles' mpg of each model year (interpolated in the table, the first value
-    before it, ``future_rate`` per year after it); NaN for a class without a trend."""
+    before it, ``future_rate`` per year after it); NaN for a class without a trend.
+
+    Parameters
+    ----------
+    name : str, a trend table of ``[trend]``
+    model_years : int or array, model years
+    future_rate : float or None, yearly relative mpg change after the table [1/year]
+        (None: :func:`default_future_rate`)
+
+    Returns
+    -------
+    new-vehicle fuel economy [mpg], the shape of ``model_years``.
+    """
     years, mpg = _trend_table(name)
     model_years = np.asarray(model_years, dtype=float)
     if not len(years):
@@ -105,7 +188,19 @@ def trend_mpg(name: str, model_years, future_rate: float | None = None) -> np.nd
 
 def fuel_factor(fhwa_class: str, model_years, reference_years, future_rate: float | None = None) -> np.ndarray:
     """Fuel per mile of each model year relative to its representing vehicle's model year:
-    mpg(reference) / mpg(model year) from the class's trend (1 without a trend)."""
+    mpg(reference) / mpg(model year) from the class's trend (1 without a trend).
+
+    Parameters
+    ----------
+    fhwa_class : str, a key of ``[classes]``
+    model_years : int or array, model years
+    reference_years : int or array, the representing vehicles' model years
+    future_rate : float or None, yearly relative mpg change after the table [1/year]
+
+    Returns
+    -------
+    fuel per mile relative to the reference [-], the broadcast shape.
+    """
     name = class_info(fhwa_class)["trend"]
     factor = trend_mpg(name, reference_years, future_rate) / trend_mpg(name, model_years, future_rate)
     return np.where(np.isfinite(factor), factor, 1.0)

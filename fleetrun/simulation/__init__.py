@@ -513,7 +513,19 @@ def phase_results(plan: ThermalPlan, sums: BlockSums, density_kg_per_L):
     name and its miles, fuel_g, fuel_gal and mpg: the cycle's miles driven, and fuel at the
     composite rate per mile (:func:`fleetrun.cycles.composite_per_mile`, for the FTP EPA's bag
     weighting, 40 CFR 86.144), so that ``mpg = miles / fuel_gal`` is the composite mpg and
-    fuel per mile is what a budget multiplies by miles."""
+    fuel per mile is what a budget multiplies by miles.
+
+    Parameters
+    ----------
+    plan : ThermalPlan, the composed cycle's phases and composite
+    sums : BlockSums, per-vehicle sums of fuel [g] and miles per phase
+    density_kg_per_L : float or array, fuel density per vehicle [kg/L]
+
+    Returns
+    -------
+    (dict of PhaseResult by phase name (miles, fuel [g], fuel [gal], mpg), the composite's name,
+    dict of the cycle's miles, fuel_g [g], fuel_gal [gal] and mpg per vehicle).
+    """
     to_gal = 1.0 / (1000.0 * np.asarray(density_kg_per_L, float) * LITERS_PER_GALLON)
     fuel, miles, phases = {}, {}, {}
     for k, phase in enumerate(plan.phases):

@@ -43,7 +43,16 @@ ACCEL_SHIFT_MPS2 = 0.1               # steps accelerating faster than this use s
 
 
 def power_speed_table(va: VehicleArrays) -> np.ndarray:
-    """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65)."""
+    """Engine speed at which full-load power reaches p x P_rated, p on a uniform 0..1 grid (V, 65).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters (engine speeds in [rpm], torque in [N m], power in [kW])
+
+    Returns
+    -------
+    engine speed [rpm], shape (V, N_POWER_TABLE).
+    """
     # rows depend on the engine only: compute each distinct engine once (fleets repeat types)
     engines = np.column_stack([va.n_idle, va.n_rated, va.T_peak, va.P_rated_kW, va.n_peak_torque, va.idle_T_frac])
     if va.n > 1 and np.isfinite(engines).all():
@@ -160,7 +169,23 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
                              col=lambda a: a, moving=True):
     """The fuel equation (engine.py) with each vehicle's constants and technology classes;
     ``col`` shapes the (V,) parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles
-    x steps arrays)."""
+    x steps arrays).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    torque_Nm : float or array, engine brake torque [N m]
+    speed_rpm : float or array, engine speed [rpm]
+    max_torque_Nm : float or array, full-load torque at ``speed_rpm`` [N m]
+    fueled : bool or array, False where fuel is cut off
+    inertial_power_W : float or array, the vehicle's inertial power m_eff a v [W] (transient term)
+    col : callable, shapes a (V,) parameter against ``torque_Nm``
+    moving : bool or array, the vehicle moves (cylinder deactivation)
+
+    Returns
+    -------
+    fuel rate [g/s], the shape of ``torque_Nm``.
+    """
     pumping, gain, load = _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
     terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
                                col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain, load)
@@ -168,6 +193,16 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
 
 
 def has_technology(va: VehicleArrays) -> bool:
+    """Whether any vehicle of ``va`` has a technology class (simulation/technology.py).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+
+    Returns
+    -------
+    bool.
+    """
     return va.technology is not None and bool(va.technology.any())
 
 
@@ -195,7 +230,21 @@ def _pick(va: VehicleArrays, a, rows):
 def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
     """The throttle-pumping share and brake-work multiplier of each vehicle's technology
     classes (simulation/technology.py) for :func:`engine.fuel_power_terms_W`; (None, None)
-    when no vehicle has any. Each class is evaluated on its own vehicles' rows only."""
+    when no vehicle has any. Each class is evaluated on its own vehicles' rows only.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    torque_Nm : float or array, engine brake torque [N m]
+    speed_rpm : float or array, engine speed [rpm]
+    max_torque_Nm : float or array, full-load torque [N m]
+    moving : bool or array, the vehicle moves
+    col : callable, shapes a (V,) parameter against ``torque_Nm``
+
+    Returns
+    -------
+    (throttle-pumping share [-], brake-work multiplier [-]) or (None, None).
+    """
     return _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)[:2]
 
 
@@ -230,7 +279,21 @@ def _technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_
 
 def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, engine_rpm, drive, wheel_power):
     """Hybrids' assist (engine torque after the e-machine's share of the positive work) and the
-    steps with the engine off (one mask): start-stop at warm stops, hybrids also while coasting."""
+    steps with the engine off (one mask): start-stop at warm stops, hybrids also while coasting.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    k : Kinematics, the step motion (:func:`kinematics`)
+    engine_torque : array, engine torque [N m], (V, N)
+    engine_rpm : array, engine speed [rpm], (V, N)
+    drive : bool or array, the driveline pulls, (V, N)
+    wheel_power : float or array, tractive power at the wheels [W], (V, N)
+
+    Returns
+    -------
+    (engine torque after the hybrid assist [N m] (V, N), engine-off mask (V, N)).
+    """
     c = tech.technology_constants()
     hybrid = _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid")
     torque = engine_torque
@@ -258,7 +321,17 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
 
 def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
     """Fuel rate (V, n) at standstill at the times ``time_since_start_s`` (n,) and the
-    engine-off mask: idle fuel, or under start-stop (and hybrids) once warm the fitted stop power."""
+    engine-off mask: idle fuel, or under start-stop (and hybrids) once warm the fitted stop power.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    time_since_start_s : array, time since the cycle's start [s], (n,)
+
+    Returns
+    -------
+    (fuel rate [g/s] (V, n), engine-off mask (V, n)).
+    """
     c = tech.technology_constants()
     stops = (_flag(va, "start_stop") | _flag(va, "mild_hybrid_48v") | _flag(va, "p2_hybrid"))[:, None]
     off = stops & tech.engine_off_at_stop(np.zeros(np.shape(time_since_start_s), bool), time_since_start_s,
@@ -269,7 +342,19 @@ def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
 
 def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None):
     """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``;
-    ``throttled=False``: the friction alone (no closed-throttle pumping)."""
+    ``throttled=False``: the friction alone (no closed-throttle pumping).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    speed_rpm : float or array, engine speed [rpm]
+    col : callable, shapes a (V,) parameter against ``speed_rpm``
+    throttled : bool or array or None, closed-throttle pumping (None: spark-ignition rows)
+
+    Returns
+    -------
+    motoring torque T_0 [N m] (positive), the shape of ``speed_rpm``.
+    """
     c = va.fuel_constants
     return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
                               col(c[:, 3]), col(c[:, 4]), col(c[:, 5]),
@@ -279,7 +364,16 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
     idle speed and zero load. Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which
-    its subsets carry; the vehicles' parameters do not change during a simulation)."""
+    its subsets carry; the vehicles' parameters do not change during a simulation).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+
+    Returns
+    -------
+    idle fuel rate [g/s], shape (V,).
+    """
     if va.idle_fuel_rate is None:
         t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
                                     va.idle_T_frac)
@@ -308,7 +402,20 @@ class Kinematics:
 
 
 def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
-    """Mean speed, acceleration and mean grade of each step; ``columns``: only these steps."""
+    """Mean speed, acceleration and mean grade of each step; ``columns``: only these steps.
+
+    Parameters
+    ----------
+    time_s : array, the cycle's time stamps [s], (N,)
+    speed_mps : array, vehicle speed at each time stamp [m/s], (V, N) or (1, N)
+    grade_pct : array, road grade at each time stamp [%], (N,)
+    columns : array of int or None, the steps to compute (None: all)
+
+    Returns
+    -------
+    Kinematics, dt [s], mean grade [%], time since start [s], mean speed [m/s], acceleration
+    [m/s^2] and the moving mask per step.
+    """
     N = speed_mps.shape[1]
     dt = np.concatenate([[0.0], np.diff(time_s)])[None, :]
     inv_dt = np.concatenate([[0.0], 1.0 / np.diff(time_s)])[None, :]  # step 0 has no time
@@ -334,7 +441,16 @@ def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
 
 def trace_kinematics(trace: Trace) -> Kinematics:
     """The step motion (dt, mean speed, acceleration, moving; (V, N)) of a simulated trace,
-    as the backward pass computed it: for checks of the per-step physics against the trace."""
+    as the backward pass computed it: for checks of the per-step physics against the trace.
+
+    Parameters
+    ----------
+    trace : Trace, a simulated trace (fleetrun.simulation.records)
+
+    Returns
+    -------
+    Kinematics, as :func:`kinematics` gives it for the trace's achieved speeds.
+    """
     return kinematics(trace.time_s[0], np.asarray(trace.vehicle_speed_mps), trace.grade_pct[0])
 
 
@@ -343,7 +459,18 @@ def _col(a):
 
 
 def wheel_demand(va: VehicleArrays, k: Kinematics):
-    """Road load + inertia + grade (road_load.py) -> tractive force, wheel torque and speed."""
+    """Road load + inertia + grade (road_load.py) -> tractive force, wheel torque and speed.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters (mass in [kg], road load A, B, C in SI units
+        [N], [N s/m], [N s^2/m^2], tyre radius in [m])
+    k : Kinematics, the step motion (:func:`kinematics`)
+
+    Returns
+    -------
+    (tractive force [N], wheel torque [N m], wheel speed [rad/s], wheel speed [rpm]), each (V, N).
+    """
     force = tractive_force_N(k.v_avg, k.accel, k.grade, _col(va.mass_kg), _col(va.rot_frac), _col(va.A_N),
                              _col(va.B_N), _col(va.C_N))
     force = k.at_rest(force, 0.0)  # at standstill the brakes hold the vehicle
@@ -356,6 +483,18 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     """Gear (and axle range): lowest engine speed with power reserve (transmission.py).
 
     Returns the transmission ratio, low axle range, gearbox efficiency and gear number per step.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    k : Kinematics, the step motion (:func:`kinematics`)
+    force : array, tractive force [N], (V, N)
+    wheel_rpm : array, wheel speed [rpm], (V, N)
+
+    Returns
+    -------
+    (transmission ratio [-], low axle range (bool), gearbox efficiency [-], gear number (0 at
+    standstill)), each (V, N).
     """
     p_need = force * k.v_avg
     np.maximum(p_need, 0.0, out=p_need)
@@ -397,6 +536,21 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
     The thesis chain is inverted by ``solver`` (any mode); the ``--with`` effects add their
     extra pinion torque on the drive-side input at |T_out| (so on overrun the drags still take
     energy from the flow and J dw/dt keeps its sign).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    k : Kinematics, the step motion (:func:`kinematics`)
+    solver : DifferentialSolver, the thesis chain's inversion in the run's mode
+    effects : CycleEffects, the ``--with`` effects (fleetrun/simulation/effects.py)
+    wheel_torque : array, total wheel torque [N m], (V, N)
+    wheel_rpm : array, wheel speed [rpm], (V, N)
+    axle_low : array of bool, the two-speed axle's low range is engaged, (V, N)
+    efficiency : bool, also return the step efficiency
+
+    Returns
+    -------
+    (input speed [rpm], input torque [N m], step efficiency [-] or None), each (V, N).
     """
     if (va.low_ratio > 1.0).any():
         G_tot = _col(va.final_drive) * np.where(axle_low, _col(va.low_ratio), 1.0)
@@ -428,7 +582,21 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
 
 
 def gearbox(va: VehicleArrays, k: Kinematics, diff_torque, diff_rpm, trans_ratio, gear_eff):
-    """Gearbox input (turbine) torque and speed: mesh efficiency and spin loss (transmission.py)."""
+    """Gearbox input (turbine) torque and speed: mesh efficiency and spin loss (transmission.py).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters (spin loss a [N m], b [N m per 1000 rpm])
+    k : Kinematics, the step motion (:func:`kinematics`)
+    diff_torque : array, differential input torque [N m], (V, N)
+    diff_rpm : array, differential input speed [rpm], (V, N)
+    trans_ratio : array, transmission ratio [-], (V, N)
+    gear_eff : array, gearbox mesh efficiency [-], (V, N)
+
+    Returns
+    -------
+    (gearbox input torque [N m], gearbox input (turbine) speed [rpm]), each (V, N).
+    """
     turbine_rpm = diff_rpm * trans_ratio
     spin = spin_loss_Nm(turbine_rpm, _col(va.spin_loss[:, 0]), _col(va.spin_loss[:, 1]))
     trans_torque = k.at_rest(input_torque_Nm(diff_torque, trans_ratio, gear_eff, spin), 0.0)
@@ -440,6 +608,18 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     automated manual).
 
     Returns engine speed, engine torque, the unlocked-converter mask and the drive mask.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    k : Kinematics, the step motion (:func:`kinematics`)
+    trans_torque : array, gearbox input torque [N m], (V, N)
+    turbine_rpm : array, gearbox input (turbine) speed [rpm], (V, N)
+    gear : array of int, gear number, (V, N)
+
+    Returns
+    -------
+    (engine speed [rpm], engine torque [N m], unlocked-converter mask, drive mask), each (V, N).
     """
     N = trans_torque.shape[1]
     idle = _col(va.n_idle)
@@ -480,7 +660,18 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
 
 def engine_limits(va: VehicleArrays, engine_rpm, engine_torque):
     """Full-load torque at ``engine_rpm`` (engine.py) and the steps whose demand lies above it
-    (infeasible: the vehicle cannot follow the trace there)."""
+    (infeasible: the vehicle cannot follow the trace there).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    engine_rpm : array, engine speed [rpm], (V, N)
+    engine_torque : array, demanded engine torque [N m], (V, N)
+
+    Returns
+    -------
+    (full-load torque [N m], infeasible mask), each (V, N).
+    """
     t_max = full_load_torque_Nm(engine_rpm, _col(va.T_peak), _col(va.P_rated_kW), _col(va.n_rated), _col(va.n_idle),
                                 _col(va.n_peak_torque), _col(va.idle_T_frac))
     return t_max, engine_torque > t_max * (1.0 + 1e-9)
@@ -496,6 +687,22 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
 
     Returns the engine torque, the fuel rate and the engine-off mask (None without technology
     classes).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    k : Kinematics, the step motion (:func:`kinematics`)
+    effects : CycleEffects, the ``--with`` effects
+    engine_rpm : array, engine speed [rpm], (V, N)
+    engine_torque : array, demanded engine torque [N m], (V, N)
+    t_max : array, full-load torque [N m], (V, N)
+    idling : array of bool, unlocked converter on overrun, (V, N)
+    wheel_power : float or array, tractive power at the wheels [W], (V, N)
+    drive : array of bool or None, the driveline pulls (None: engine torque > 0)
+
+    Returns
+    -------
+    (engine torque [N m], fuel rate [g/s], engine-off mask or None), arrays (V, N).
     """
     t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
@@ -530,7 +737,18 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
 
 def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
     """``fuel`` plus the A/C or cold-weather accessory load at the ambient temperature
-    (fleetrun/simulation/climate.py) while the engine burns fuel; electric rows keep theirs."""
+    (fleetrun/simulation/climate.py) while the engine burns fuel; electric rows keep theirs.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    ambient_temp_C : float, ambient temperature [C]
+    fuel : array, fuel rate [g/s], (V, N)
+
+    Returns
+    -------
+    fuel rate with the climate accessory load [g/s], (V, N).
+    """
     power = climate.accessory_power_W(float(ambient_temp_C))
     if power == 0.0:
         return fuel
@@ -541,7 +759,17 @@ def with_climate_load(va: VehicleArrays, ambient_temp_C, fuel):
 
 def idle_fuel_at_ambient_g_per_s(va: VehicleArrays, ambient_temp_C) -> np.ndarray:
     """Idle fuel (V,) [g/s] with the climate accessory load at ``ambient_temp_C``: the rate of
-    the standstill steps a run without a trace does not simulate one by one."""
+    the standstill steps a run without a trace does not simulate one by one.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    ambient_temp_C : float, ambient temperature [C]
+
+    Returns
+    -------
+    idle fuel rate [g/s], shape (V,).
+    """
     idle = idle_fuel_rate_g_per_s(va)
     power = climate.accessory_power_W(float(ambient_temp_C))
     if power == 0.0:
@@ -585,7 +813,24 @@ class Drivetrain:
 def backward_drivetrain(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: DifferentialSolver, columns=None,
                         effects: CycleEffects = CycleEffects(), losses: bool = True) -> Drivetrain:
     """The wheels-to-engine part of :func:`backward` (same arguments): enough to tell which
-    vehicles cannot follow ``speed_mps`` (``infeasible``) before their fuel is computed."""
+    vehicles cannot follow ``speed_mps`` (``infeasible``) before their fuel is computed.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    time_s : array, the cycle's time stamps [s], (N,)
+    speed_mps : array, vehicle speed [m/s], (V, N) or (1, N)
+    grade_pct : array, road grade [%], (N,)
+    solver : DifferentialSolver, the thesis chain's inversion in the run's mode
+    columns : array of int or None, the steps to compute
+    effects : CycleEffects, the ``--with`` effects
+    losses : bool, also the differential's step efficiency
+
+    Returns
+    -------
+    Drivetrain, the step motion and the wheel-to-engine chain (speeds [rpm], torques [N m],
+    force [N], power [W]).
+    """
     k = kinematics(time_s, speed_mps, grade_pct, columns)
     force, wheel_torque, wheel_omega, wheel_rpm = wheel_demand(va, k)
     wheel_power = wheel_torque * wheel_omega
@@ -611,6 +856,22 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
     ``losses``: also the differential's step efficiency and the power lost in the
     differential, gearbox and converter (the trace's). ``drivetrain``: the pass's
     :func:`backward_drivetrain` if the caller has it already (same arguments).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    time_s : array, the cycle's time stamps [s], (N,)
+    speed_mps : array, vehicle speed [m/s], (V, N) or (1, N)
+    grade_pct : array, road grade [%], (N,)
+    solver : DifferentialSolver, the thesis chain's inversion in the run's mode
+    columns : array of int or None, the steps to compute
+    effects : CycleEffects, the ``--with`` effects
+    losses : bool, also efficiency and power losses [W]
+    drivetrain : Drivetrain or None, the pass's :func:`backward_drivetrain`
+
+    Returns
+    -------
+    StepResults, the per-step quantities (fleetrun.simulation.records; units in the field names).
     """
     d = drivetrain or backward_drivetrain(va, time_s, speed_mps, grade_pct, solver, columns, effects, losses)
     k, wheel_power = d.k, d.wheel_power
@@ -644,7 +905,16 @@ REDRIVE_SPEED_GRID = np.linspace(0.0, 70.0, 281)  # m/s, 0.25 m/s steps, beyond 
 
 
 def converter_stall_point(va: VehicleArrays):
-    """Engine speed and torque at converter stall (V,): where (n/K)^2 meets full load."""
+    """Engine speed and torque at converter stall (V,): where (n/K)^2 meets full load.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters (capacity factor K_tc [rpm / sqrt(N m)])
+
+    Returns
+    -------
+    (engine speed [rpm], engine torque [N m]) at stall, each (V,).
+    """
     x = np.linspace(0.0, 1.0, 401)[None, :]
     n = va.n_idle[:, None] + x * (va.n_rated - va.n_idle)[:, None]
     T = full_load_torque_Nm(n, va.T_peak[:, None], va.P_rated_kW[:, None], va.n_rated[:, None],
@@ -674,6 +944,15 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     final drive and 0.95 for the axle; x ``margin``. Computed once per distinct drivetrain
     (vehicles that differ only in mass or road load share a row), as power_speed_table does
     per engine: element-wise arithmetic, so the values are the same bit for bit.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    margin : float, share of the full effort the driver uses [-]
+
+    Returns
+    -------
+    wheel force [N], shape (V, len(REDRIVE_SPEED_GRID)) (speeds [m/s] of the grid).
     """
     if va.n > 1:
         keys = _drivetrain_rows(va)
@@ -774,6 +1053,19 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     behind the trace are then walked one by one, vectorised over the vehicles behind. The same
     element-wise arithmetic either way: the speeds are those of a plain step loop, bit for bit.
     ``table``: the unscaled :func:`max_tractive_force_table` if already computed.
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    time_s : array, the cycle's time stamps [s], (N,)
+    target_mps : array, the trace's speed [m/s], (N,)
+    grade_pct : array, road grade [%], (N,)
+    margin : float, share of the full effort the driver uses [-]
+    table : array or None, :func:`max_tractive_force_table` with margin 1 [N]
+
+    Returns
+    -------
+    achieved speed [m/s], shape (V, N).
     """
     if table is None:
         table = max_tractive_force_table(va, 1.0)

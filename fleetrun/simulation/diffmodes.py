@@ -62,15 +62,44 @@ GEAR_GRID = {"LD": np.round(np.arange(2.0, 6.0001, 0.1), 6), "HD": np.round(np.a
 
 def lubricant_temp_C(ambient_temp_C) -> float:
     """Operating lubricant temperature (physics.lubricant.operating_temperature_C, thesis Sec.
-    3.1.2 and 7.1.1); None: the thesis code's fixed 70 C."""
+    3.1.2 and 7.1.1); None: the thesis code's fixed 70 C.
+
+    Parameters
+    ----------
+    ambient_temp_C : float or None, ambient temperature [C]
+
+    Returns
+    -------
+    float, lubricant temperature [C] (ambient + 50 K; 70 C for None).
+    """
     return THESIS_OPERATING_TEMP_C if ambient_temp_C is None else float(operating_temperature_C(ambient_temp_C))
 
 
 def duty_of(configuration: str) -> str:
+    """The duty (``LD`` or ``HD``) of a configuration id, from its prefix.
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id (``LD_RWD``, ``HD_DUAL``, ...)
+
+    Returns
+    -------
+    str, ``HD`` for ids starting with ``HD``, else ``LD``.
+    """
     return "HD" if configuration.startswith("HD") else "LD"
 
 
 def speed_grid(configuration: str) -> np.ndarray:
+    """The maps' differential input speed grid of the configuration's duty.
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+
+    Returns
+    -------
+    speeds [rpm], N_SPEED points from 0 to ``SPEED_MAX_RPM`` of the duty.
+    """
     return np.linspace(0.0, SPEED_MAX_RPM[duty_of(configuration)], N_SPEED)
 
 
@@ -83,7 +112,17 @@ SCALE_FREE_PHYSICS = ("thesis",)
 
 
 def map_torque_scale_Nm(physics, kim_torque_scale_Nm):
-    """The Kim scale a map depends on: None for scale-free physics, else the vehicle's."""
+    """The Kim scale a map depends on: None for scale-free physics, else the vehicle's.
+
+    Parameters
+    ----------
+    physics : str, the baseline name (``thesis``, ``vecto-generic``, ...)
+    kim_torque_scale_Nm : float, the vehicle's Kim scale [N m]
+
+    Returns
+    -------
+    float or None, the Kim scale [N m], or None for scale-free physics.
+    """
     if str(physics).strip().lower() in SCALE_FREE_PHYSICS:
         return None
     return float(kim_torque_scale_Nm)
@@ -96,6 +135,22 @@ def eta_forward(configuration, torque_fraction, speed_rpm, gear_ratio, low_gear_
     ``gear_ratio``/``low_gear_ratio`` may be arrays (the model groups by distinct pairs);
     ``axle_low`` is a bool (one range); ``kim_torque_scale_Nm`` is the vehicle's Kim scale, which
     baselines in absolute torque (vecto-generic) need.
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    torque_fraction : float or array, input torque / Kim scale [-]
+    speed_rpm : float or array, differential input speed [rpm]
+    gear_ratio : float or array, final-drive ratio [-]
+    low_gear_ratio : float or array or None, two-speed axle low ratio [-]
+    axle_low : bool, the low range is engaged
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C] (None: the baseline's own oil temperature)
+    kim_torque_scale_Nm : float or None, the vehicle's Kim scale [N m]
+
+    Returns
+    -------
+    efficiency [-], an array of the broadcast shape.
     """
     # thesis Sec. 3.1.2: the lubricant runs 50 K above ambient (20 C ambient -> the 70 C that
     # physics="thesis" assumes); None leaves the baseline its own temperature
@@ -113,6 +168,24 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
     ``out_frac`` = T_out / (kim G_tot) and the result T_in / kim, so eta = out / in.
     f(x) = eta(x) x - out is bracketed by [out, hi]: eta <= 1 makes f(out) <= 0; hi grows
     geometrically until f(hi) >= 0; scipy.optimize.elementwise.find_root finds each root.
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    out_frac : float or array, output torque fraction T_out / (kim G_tot) [-]
+    speed_rpm : float or array, differential input speed [rpm]
+    gear_ratio : float or array, final-drive ratio [-]
+    low_gear_ratio : float or array or None, two-speed axle low ratio [-]
+    axle_low : bool, the low range is engaged
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C]
+    kim_torque_scale_Nm : float or None, the vehicle's Kim scale [N m]
+    tol : float, tolerance on the torque fraction and on the output mismatch [-]
+    max_iter : int, iterations of the root search
+
+    Returns
+    -------
+    input torque fraction T_in / kim [-], a flat array of ``out_frac``'s size.
     """
     # zero output is met by any input up to the no-load loss; aim just above 0 so the
     # answer is that loss (continuous with small outputs, and what the maps give at 0)
@@ -164,7 +237,22 @@ def invert_direct(configuration, out_frac, speed_rpm, gear_ratio, low_gear_ratio
 # --------------------------------------------------------------------------- maps
 def inverse_map(configuration, gear_ratio, low_gear_ratio, axle_low, physics, ambient_temp_C=None,
                 kim_torque_scale_Nm=None):
-    """Inverse map T_in/kim on the (u = sqrt(T_out/(kim G_tot)), speed) grid, shape (N_U, N_SPEED)."""
+    """Inverse map T_in/kim on the (u = sqrt(T_out/(kim G_tot)), speed) grid, shape (N_U, N_SPEED).
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    gear_ratio : float, final-drive ratio [-]
+    low_gear_ratio : float or None, two-speed axle low ratio [-]
+    axle_low : bool, the low range is engaged
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C]
+    kim_torque_scale_Nm : float or None, the vehicle's Kim scale [N m]
+
+    Returns
+    -------
+    input torque fraction T_in / kim [-], shape (N_U, N_SPEED).
+    """
     n_grid = speed_grid(configuration)
     eta = eta_forward(configuration, TF_FORWARD[:, None], n_grid[None, :], gear_ratio, low_gear_ratio,
                       axle_low, physics, ambient_temp_C, kim_torque_scale_Nm)
@@ -208,7 +296,12 @@ CACHE_ENV = "FLEETRUN_CACHE_DIR"
 
 def default_cache_dir() -> Path:
     """Where cached efficiency maps live between runs: $FLEETRUN_CACHE_DIR, else
-    $XDG_CACHE_HOME/fleetrun, else ~/.cache/fleetrun."""
+    $XDG_CACHE_HOME/fleetrun, else ~/.cache/fleetrun.
+
+    Returns
+    -------
+    Path, the map cache directory.
+    """
     if os.environ.get(CACHE_ENV):
         return Path(os.environ[CACHE_ENV])
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "fleetrun"
@@ -220,6 +313,19 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
     Key: configuration, physics, lubricant temperature, low range ratio, grid, fleetrun
     version, and the Kim scale for physics that is not scale-free (``map_torque_scale_Nm``).
     Written atomically (temp file + os.replace) so concurrent runs never see half a file.
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    low_gear_ratio : float or None, two-speed axle low ratio [-]
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C]
+    cache_dir : str or Path or None, the cache directory (None: :func:`default_cache_dir`)
+    kim_torque_scale_Nm : float or None, the Kim scale [N m] (:func:`map_torque_scale_Nm`)
+
+    Returns
+    -------
+    (gear ratios [-] of ``GEAR_GRID``, input torque fractions [-] of shape (2, gears, N_U, N_SPEED)).
     """
     gears = GEAR_GRID[duty_of(configuration)]
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
@@ -265,13 +371,37 @@ def map3d(configuration, low_gear_ratio, physics, ambient_temp_C=20.0, cache_dir
 
 def outside_map3d_grid(configuration: str, gear_ratio: float) -> bool:
     """Whether ``gear_ratio`` lies beyond the cached map3d gear-ratio grid of the configuration's
-    duty (``GEAR_GRID``); map3d then uses maps built at the vehicle's own ratio (as map2d)."""
+    duty (``GEAR_GRID``); map3d then uses maps built at the vehicle's own ratio (as map2d).
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    gear_ratio : float, final-drive ratio [-]
+
+    Returns
+    -------
+    bool, the ratio lies outside the grid.
+    """
     gears = GEAR_GRID[duty_of(configuration)]
     return not gears[0] <= float(gear_ratio) <= gears[-1]
 
 
 def own_ratio_maps(configuration, gear_ratio, low_gear_ratio, physics, ambient_temp_C=None, kim_torque_scale_Nm=None):
-    """Inverse maps (2, N_U, N_SPEED) of both axle ranges at the vehicle's own gear ratio (map2d)."""
+    """Inverse maps (2, N_U, N_SPEED) of both axle ranges at the vehicle's own gear ratio (map2d).
+
+    Parameters
+    ----------
+    configuration : str, a canonical configuration id
+    gear_ratio : float, final-drive ratio [-]
+    low_gear_ratio : float or None, two-speed axle low ratio [-] (None: both ranges the same)
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C]
+    kim_torque_scale_Nm : float or None, the Kim scale [N m] (:func:`map_torque_scale_Nm`)
+
+    Returns
+    -------
+    input torque fractions [-], shape (2, N_U, N_SPEED) (high range, low range).
+    """
     high = inverse_map(configuration, gear_ratio, low_gear_ratio, False, physics, ambient_temp_C, kim_torque_scale_Nm)
     if low_gear_ratio is None:
         return np.stack([high, high])
@@ -289,6 +419,22 @@ def vehicle_maps(configurations, gear_ratios, low_ratios, mode, physics, ambient
     in G, and builds a vehicle's own maps as map2d does when G lies beyond the grid
     (:func:`outside_map3d_grid`; the run notes those vehicles in its warnings). ``kim_scales_Nm`` (V,): the vehicles' Kim scales, part of the key only for physics
     that is not scale-free (:func:`map_torque_scale_Nm`).
+
+    Parameters
+    ----------
+    configurations : sequence of str, canonical configuration id of each vehicle (V,)
+    gear_ratios : array, final-drive ratio of each vehicle [-], (V,)
+    low_ratios : array, two-speed axle low ratio [-], NaN for single-speed axles, (V,)
+    mode : str, ``map2d`` or ``map3d``
+    physics : str, the baseline name
+    ambient_temp_C : float or None, ambient temperature [C]
+    cache_dir : str or Path or None, the map3d cache directory
+    kim_scales_Nm : array or None, the vehicles' Kim scales [N m], (V,)
+
+    Returns
+    -------
+    (maps of input torque fractions [-] (M, 2, N_U, N_SPEED), map index per vehicle (V,),
+    top of each map's speed grid [rpm] (M,)).
     """
     V = len(configurations)
     lows = [None if low != low else low for low in np.asarray(low_ratios, float).tolist()]   # NaN: single speed
@@ -321,6 +467,20 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
 
     ``n_max`` is the top of each map's speed grid, per map (or per step with ``per_step``).
     Speed is clamped to the grid; the output-torque axis extrapolates linearly past 1.1.
+
+    Parameters
+    ----------
+    maps : array, inverse maps [-], (M, 2, N_U, N_SPEED) (:func:`vehicle_maps`)
+    n_max : array, top of the speed grid [rpm], per map (M,) or, with ``per_step``, per step
+    map_id : int or array, map index of each step
+    axle_low : bool or array, the low range is engaged
+    out_frac : float or array, output torque fraction T_out / (kim G_tot) [-]
+    speed_rpm : float or array, differential input speed [rpm]
+    per_step : bool, ``n_max`` is already given per step
+
+    Returns
+    -------
+    input torque fraction T_in / kim [-], the shape of ``out_frac``.
     """
     du = U_MAX / (N_U - 1)
     # in place where possible (the same arithmetic, fewer temporaries)

@@ -49,7 +49,17 @@ class CycleEffects:
 
 
 def cycle_effects(effects) -> CycleEffects:
-    """Split ``effects`` (a ``--with`` string, ids, or (effect, params) pairs) by level."""
+    """Split ``effects`` (a ``--with`` string, ids, or (effect, params) pairs) by level.
+
+    Parameters
+    ----------
+    effects : str, sequence or CycleEffects, a ``--with`` string (docs/effects.md), effect ids,
+        or (effect, params) pairs; empty or None for none
+
+    Returns
+    -------
+    CycleEffects, the differential-level and vehicle-level (effect, params) pairs.
+    """
     if not effects:
         return CycleEffects()
     if isinstance(effects, CycleEffects):
@@ -61,7 +71,16 @@ def cycle_effects(effects) -> CycleEffects:
 
 
 def describe_effects(effects) -> list[AppliedEffect]:
-    """The record of ``effects``: each one's id, level and parameters."""
+    """The record of ``effects``: each one's id, level and parameters.
+
+    Parameters
+    ----------
+    effects : str, sequence, CycleEffects or None, as for :func:`cycle_effects`
+
+    Returns
+    -------
+    list of AppliedEffect, one per effect (parameters in the units of the effect's catalogue entry).
+    """
     if isinstance(effects, CycleEffects):
         effects = effects.differential + effects.vehicle
     return [AppliedEffect(e.id, e.level, {k: float(v) for k, v in params.items()})
@@ -69,7 +88,16 @@ def describe_effects(effects) -> list[AppliedEffect]:
 
 
 def step_time_since_start_s(time_s) -> np.ndarray:
-    """Time since the start of the cycle at the middle of each step (step 0: 0)."""
+    """Time since the start of the cycle at the middle of each step (step 0: 0).
+
+    Parameters
+    ----------
+    time_s : array, the cycle's time stamps [s], shape (N,)
+
+    Returns
+    -------
+    time since the start at each step's middle [s], shape (N,).
+    """
     t = np.asarray(time_s, float)
     previous = np.concatenate([t[:1], t[:-1]])
     return 0.5 * (t + previous) - t[0]
@@ -88,6 +116,22 @@ def differential_extra_torque_Nm(effects: CycleEffects, configurations, base_inp
     Arrays are (V, N) (``time_since_start_s`` (N,) or (V, N), ``kim_torque_scale_Nm`` (V, 1)); row v
     belongs to ``configurations[v]``, whose lubricant the oil effects use. Solves
     ``T_in = T_base + dT(T_in)`` by fixed-point iteration to 1e-10 of the Kim scale.
+
+    Parameters
+    ----------
+    effects : CycleEffects, the effects of the call (:func:`cycle_effects`)
+    configurations : sequence of str, the differential configuration of each vehicle row
+    base_input_torque_Nm : array, thesis-chain pinion torque T_base [N m], (V, N)
+    input_speed_rpm : float or array, pinion speed [rpm], (V, N)
+    input_accel_rad_s2 : float or array, pinion angular acceleration [rad/s^2], (V, N)
+    time_since_start_s : float or array, time since the cycle's start [s], (N,) or (V, N)
+    ambient_temp_C : float, the scenario's ambient temperature [C]
+    overall_ratio : float or array, overall pinion-to-carrier ratio G_tot [-]
+    kim_torque_scale_Nm : float or array, the configuration's Kim torque scale [N m], (V, 1)
+
+    Returns
+    -------
+    extra pinion torque ``T_in - T_base`` [N m], (V, N); zeros without differential effects.
     """
     extra = effect_catalog.differential_extra_torque_Nm
     base = np.asarray(base_input_torque_Nm, float)
@@ -132,7 +176,21 @@ def vehicle_extra_fuel_g_per_s(effects: CycleEffects, va, time_since_start_s, ve
                                wheel_power_W, engine_on) -> np.ndarray:
     """Extra fuel rate [g/s] of the vehicle-level effects, (V, N); row v is vehicle v of the
     arrays ``va`` (params.VehicleArrays): its fuel, test weight and Willans slope
-    ``eta_indicated``, the one the fuel equation uses, so extra work costs what it costs there."""
+    ``eta_indicated``, the one the fuel equation uses, so extra work costs what it costs there.
+
+    Parameters
+    ----------
+    effects : CycleEffects, the effects of the call (:func:`cycle_effects`)
+    va : VehicleArrays, the vehicles' parameters (``fleetrun.simulation.params``)
+    time_since_start_s : float or array, time since the cycle's start [s], (N,) or (V, N)
+    vehicle_speed_mps : array, vehicle speed [m/s], (V, N)
+    wheel_power_W : float or array, tractive power at the wheels [W], (V, N)
+    engine_on : float or array, 1 where the engine burns fuel, else 0 [-], (V, N)
+
+    Returns
+    -------
+    extra fuel rate [g/s], (V, N); zeros without vehicle effects.
+    """
     extra = effect_catalog.vehicle_extra_fuel_g_per_s
 
     fuels, masses_kg, willans = va.fuel, va.mass_kg, willans_slope(va)

@@ -29,7 +29,17 @@ PARTS = ("transient", "cruise_55", "cruise_65")
 
 def gem_cycle_mix(vehicle_type: str) -> dict[str, float]:
     """{cycle name: share} of GEM's weighting for ``vehicle_type`` (a key of the file's
-    ``weights``, e.g. ``sleeper_cab``); cycles of zero weight left out."""
+    ``weights``, e.g. ``sleeper_cab``); cycles of zero weight left out.
+
+    Parameters
+    ----------
+    vehicle_type : str, a key of ``weights`` in ``models/heavy_duty/gem_cycles.toml``
+
+    Returns
+    -------
+    dict of float, {cycle name: weight [-]} (40 CFR 1037.510(c)); an unknown type raises the
+    registry's unknown-name error.
+    """
     data = model_file(GEM_FILE)
     if vehicle_type not in data["weights"]:
         raise unknown_name_error("GEM vehicle type", vehicle_type, tuple(data["weights"]))
@@ -38,7 +48,16 @@ def gem_cycle_mix(vehicle_type: str) -> dict[str, float]:
 
 
 def payload_short_tons(regulatory_class: str) -> float:
-    """The regulatory payload [short tons] of ``regulatory_class`` (40 CFR 1037.705(b))."""
+    """The regulatory payload [short tons] of ``regulatory_class`` (40 CFR 1037.705(b)).
+
+    Parameters
+    ----------
+    regulatory_class : str, a key of ``payload_short_tons`` in ``models/heavy_duty/gem_cycles.toml``
+
+    Returns
+    -------
+    float, regulatory payload [short tons].
+    """
     payloads = model_file(GEM_FILE)["payload_short_tons"]
     if regulatory_class not in payloads:
         raise unknown_name_error("regulatory class", regulatory_class, tuple(payloads))
@@ -52,11 +71,16 @@ def composite_g_co2_per_ton_mile(gallons_per_mile: dict[str, float], mix: dict[s
 
     Parameters
     ----------
-    gallons_per_mile : fuel per mile [gal/mi] of each cycle of ``mix``.
-    mix : {cycle: weight} (:func:`gem_cycle_mix`).
-    payload_tons : regulatory payload [short tons].
-    idle_gal_per_mile : the idle cycles' fuel per mile driven [gal/mi]
+    gallons_per_mile : dict of float, fuel per mile [gal/mi] of each cycle of ``mix``.
+    mix : dict of float, {cycle: weight [-]} (:func:`gem_cycle_mix`).
+    payload_tons : float, regulatory payload [short tons] (:func:`payload_short_tons`).
+    fuel : str, ``diesel`` or ``gasoline``: its CO2 per gallon (models/fuels.toml).
+    idle_gal_per_mile : float or array, the idle cycles' fuel per mile driven [gal/mi]
         (:func:`idle_gallons_per_mile`; 0 for tractors).
+
+    Returns
+    -------
+    composite CO2 [g CO2/ton-mile] (an array if ``idle_gal_per_mile`` or the per-cycle values are).
     """
     per_mile = sum(w * gallons_per_mile[c] for c, w in mix.items()) + idle_gal_per_mile
     return per_mile * fuel_properties(fuel).co2_g_per_gal / payload_tons
@@ -65,7 +89,16 @@ def composite_g_co2_per_ton_mile(gallons_per_mile: dict[str, float], mix: dict[s
 def idle_shares(vehicle_type: str) -> tuple[float, float, float]:
     """(drive idle, parked idle, average non-idle speed [mph]) of ``vehicle_type``: shares of
     operating time of GEM's idle cycles (gem_cycles.toml ``idle``); (0, 0, nan) for a type
-    without idle (tractors)."""
+    without idle (tractors).
+
+    Parameters
+    ----------
+    vehicle_type : str, a key of ``weights`` in ``models/heavy_duty/gem_cycles.toml``
+
+    Returns
+    -------
+    (drive idle share [-], parked idle share [-], average non-idle speed [mph]).
+    """
     idle = model_file(GEM_FILE).get("idle", {}).get(vehicle_type)
     if idle is None:
         gem_cycle_mix(vehicle_type)      # an unknown type is an error, not a type without idle
@@ -81,9 +114,13 @@ def idle_gallons_per_mile(drive_idle_gal_per_h, parked_idle_gal_per_h, drive_sha
 
     Parameters
     ----------
-    drive_idle_gal_per_h, parked_idle_gal_per_h : idle fuel rates [gal/h].
-    drive_share, parked_share : shares of operating time [-] (:func:`idle_shares`).
-    nonidle_speed_mph : average speed of the non-idle cycles [mph].
+    drive_idle_gal_per_h, parked_idle_gal_per_h : float or array, idle fuel rates [gal/h].
+    drive_share, parked_share : float, shares of operating time [-] (:func:`idle_shares`).
+    nonidle_speed_mph : float, average speed of the non-idle cycles [mph].
+
+    Returns
+    -------
+    idle fuel per mile driven [gal/mi], an array of the shape of the rates (zeros without idle).
     """
     if drive_share == 0.0 and parked_share == 0.0:
         return np.zeros_like(np.asarray(drive_idle_gal_per_h, float))
@@ -97,7 +134,17 @@ def idle_fuel_rates_g_per_s(va: VehicleArrays) -> tuple[np.ndarray, np.ndarray]:
     speed with, in drive, the torque the stalled converter's pump absorbs, (n_idle / K)^2
     (transmission.py's converter; a clutch is open, so manual and automated-manual
     gearboxes idle in drive as in neutral), and, parked, the standstill idle of the
-    simulation (no load beyond the accessories)."""
+    simulation (no load beyond the accessories).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters (``fleetrun.simulation.params``; engine
+        speeds n_idle in [rpm], converter capacity factor K_tc in [rpm / (N m)^0.5])
+
+    Returns
+    -------
+    (drive idle, parked idle) fuel rates [g/s], arrays of shape (V,).
+    """
     parked = idle_fuel_rate_g_per_s(va)
     pump_Nm = np.where(va.automatic, (va.n_idle / va.K_tc) ** 2, 0.0)
     t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,

@@ -47,7 +47,17 @@ def gem_aero_bin(tractor_type: str, measured_cda_m2: float) -> tuple[str, float]
     """(bin, GEM input CdA [m^2]) of a Phase 2 tractor of ``tractor_type`` (a key of
     ``models/heavy_duty/gem_aero_bins.toml``, e.g. ``high_roof_sleeper_cab``) whose measured
     drag area is ``measured_cda_m2`` (40 CFR 1037.520(b)(3)); the measured value is rounded
-    to one decimal first, as 1037.520(b) asks."""
+    to one decimal first, as 1037.520(b) asks.
+
+    Parameters
+    ----------
+    tractor_type : str, a key of ``input_m2`` in ``models/heavy_duty/gem_aero_bins.toml``
+    measured_cda_m2 : float, measured drag area CdA [m^2]
+
+    Returns
+    -------
+    (bin name, GEM input CdA [m^2]).
+    """
     data = model_file(AERO_BINS_FILE)
     if tractor_type not in data["input_m2"]:
         raise unknown_name_error("tractor type", tractor_type, tuple(data["input_m2"]))
@@ -59,7 +69,18 @@ def gem_aero_bin(tractor_type: str, measured_cda_m2: float) -> tuple[str, float]
 def gem_cda_input_m2(tractor_type: str, measured_cda_m2: float, model_year: int) -> float:
     """The drag area [m^2] GEM runs a Phase 2 tractor with: its bin's input CdA
     (:func:`gem_aero_bin`), less the standard trailer's rear fairing for high-roof tractors
-    from model year 2027 (40 CFR 1037.520(b)(4))."""
+    from model year 2027 (40 CFR 1037.520(b)(4)).
+
+    Parameters
+    ----------
+    tractor_type : str, a key of ``input_m2`` in ``models/heavy_duty/gem_aero_bins.toml``
+    measured_cda_m2 : float, measured drag area CdA [m^2]
+    model_year : int, the tractor's model year
+
+    Returns
+    -------
+    float, drag area GEM runs the tractor with [m^2].
+    """
     cda = gem_aero_bin(tractor_type, measured_cda_m2)[1]
     fairing = model_file(AERO_BINS_FILE)["trailer_fairing"]
     if tractor_type.startswith("high_roof") and model_year >= fairing["from_model_year"]:

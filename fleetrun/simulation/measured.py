@@ -23,12 +23,27 @@ FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
 
 
 def transfer_share() -> float:
-    """The share (in log) of a vehicle's calibration carried to other cycles (models/technology.toml)."""
+    """The share (in log) of a vehicle's calibration carried to other cycles (models/technology.toml).
+
+    Returns
+    -------
+    float, the transfer share s [-] (``fitted.transfer_share``).
+    """
     return float(model_file("technology.toml")["fitted"]["transfer_share"])
 
 
 def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
-    """(measured FTP, label combined) mpg per vehicle, NaN where blank."""
+    """(measured FTP, label combined) mpg per vehicle, NaN where blank.
+
+    Parameters
+    ----------
+    vehicles : sequence of vehicle records, with the optional attributes ``measured_ftp_mpg`` and
+        ``label_combined_mpg`` [mpg]
+
+    Returns
+    -------
+    (measured FTP [mpg], label combined [mpg]), float arrays of shape (V,).
+    """
     def column(name):
         return np.array([np.nan if getattr(v, name, None) is None else float(getattr(v, name)) for v in vehicles])
     return column("measured_ftp_mpg"), column("label_combined_mpg")
@@ -36,14 +51,31 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
 
 def label_formulas() -> tuple[tuple[float, float], tuple[float, float]]:
     """(intercept [gal/mi], slope) of EPA's city and highway label formulas (their owner:
-    models/budget.toml [onroad.epa_label])."""
+    models/budget.toml [onroad.epa_label]).
+
+    Returns
+    -------
+    ((city intercept [gal/mi], city slope [-]), (highway intercept [gal/mi], highway slope [-]))
+    (40 CFR 600.210-12).
+    """
     label = model_file("budget.toml")["onroad"]["epa_label"]
     return tuple((label[kind]["intercept_gal_per_mile"], label[kind]["slope"]) for kind in ("city", "highway"))
 
 
 def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
     """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
-    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k."""
+    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k.
+
+    Parameters
+    ----------
+    label_combined_mpg : float or array, the EPA label combined figure [mpg]
+    ftp_mpg : float or array, simulated FTP fuel economy [mpg]
+    hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
+
+    Returns
+    -------
+    fuel scale k [-], the broadcast shape of the arguments.
+    """
     city, highway = label_formulas()
     a = LABEL_CITY_SHARE * city[0] + (1 - LABEL_CITY_SHARE) * highway[0]
     b = LABEL_CITY_SHARE * city[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * highway[1] / hwfet_mpg
@@ -52,20 +84,53 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
 
 def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg):
     """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
-    from the label; NaN where neither figure is given."""
+    from the label; NaN where neither figure is given.
+
+    Parameters
+    ----------
+    measured_ftp_mpg : float or array, measured FTP composite [mpg] (NaN: not given)
+    label_combined_mpg : float or array, EPA label combined figure [mpg] (NaN: not given)
+    sim_ftp_mpg : float or array, simulated FTP fuel economy [mpg]
+    sim_hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
+
+    Returns
+    -------
+    fuel scale k [-] per vehicle, NaN where neither figure is given.
+    """
     with np.errstate(divide="ignore", invalid="ignore"):
         from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
         return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg))
 
 
 def carried_scale(k, exact, share):
-    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere."""
+    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere.
+
+    Parameters
+    ----------
+    k : float or array, fuel scale on the calibration test [-] (NaN: uncalibrated)
+    exact : bool or array, the cycle is the calibration test itself
+    share : float, the transfer share s [-] (:func:`transfer_share`)
+
+    Returns
+    -------
+    fuel multiplier [-], 1 where ``k`` is NaN.
+    """
     k = np.asarray(k, float)
     return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
 
 
 def scale_result(result, factor):
-    """A FleetCycleResult with its fuel (totals, phases, trace fuel rate) multiplied by ``factor`` (V,)."""
+    """A FleetCycleResult with its fuel (totals, phases, trace fuel rate) multiplied by ``factor`` (V,).
+
+    Parameters
+    ----------
+    result : FleetCycleResult, one cycle's simulation result (fleetrun.simulation.records)
+    factor : array, fuel multiplier per vehicle [-], (V,)
+
+    Returns
+    -------
+    FleetCycleResult, a copy with fuel [g], [gal] and fuel rate [g/s] times ``factor`` and mpg divided by it.
+    """
     phases = {name: replace(p, fuel_g=p.fuel_g * factor, fuel_gal=p.fuel_gal * factor, mpg=p.mpg / factor)
               for name, p in result.phases.items()}
     trace = (None if result.trace is None else

@@ -50,7 +50,17 @@ FUEL_CONSTANTS = ("eta_indicated", "high_load_factor", "fmep_0_kPa", "fmep_pisto
 
 def engine_defaults(fuel: str, duty_class: str) -> EngineSet:
     """The engine set of ``models/engines.toml`` for the fuel and duty class, with the fitted
-    constants of ``models/engine_calibration.toml`` (``[<fuel>.<duty>.constants]``) on top."""
+    constants of ``models/engine_calibration.toml`` (``[<fuel>.<duty>.constants]``) on top.
+
+    Parameters
+    ----------
+    fuel : str, ``gasoline`` or ``diesel``
+    duty_class : str, ``LD``, ``HD`` ... (a duty of the fuel's table; another falls back to ``LD``)
+
+    Returns
+    -------
+    EngineSet, the defaults with the fuel's lower heating value [MJ/kg] and density [kg/L].
+    """
     sets = model_file("engines.toml")
     if fuel not in sets:
         raise InputError(f"unknown fuel '{fuel}'", column="fuel", value=fuel,
@@ -67,7 +77,16 @@ def engine_defaults(fuel: str, duty_class: str) -> EngineSet:
 
 
 def transmission_defaults(gearbox_type: str) -> TransmissionSet:
-    """The transmission set of ``models/transmissions.toml`` for the gearbox type."""
+    """The transmission set of ``models/transmissions.toml`` for the gearbox type.
+
+    Parameters
+    ----------
+    gearbox_type : str, one of ``GEARBOX_TYPES``
+
+    Returns
+    -------
+    TransmissionSet, the type's defaults.
+    """
     sets = model_file("transmissions.toml")
     if gearbox_type not in sets:
         raise InputError(f"unknown gearbox_type '{gearbox_type}'", column="gearbox_type",
@@ -76,7 +95,16 @@ def transmission_defaults(gearbox_type: str) -> TransmissionSet:
 
 
 def gearbox_type(v: VehicleSpec) -> str:
-    """The optional ``gearbox_type`` column, else the documented ``transmission`` (docs/interface.md) (automatic/manual)."""
+    """The optional ``gearbox_type`` column, else the documented ``transmission`` (docs/interface.md) (automatic/manual).
+
+    Parameters
+    ----------
+    v : VehicleSpec, a Vehicles row
+
+    Returns
+    -------
+    str, one of ``GEARBOX_TYPES`` or the ``transmission`` value.
+    """
     value = column_value(v, "gearbox_type")
     if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
         return v.transmission
@@ -89,7 +117,17 @@ def gearbox_type(v: VehicleSpec) -> str:
 
 def column_value(v: VehicleSpec, key: str):
     """A Vehicles column's value: the VehicleSpec field of that name (schema columns, e.g. the
-    optional gearbox_type, converter_lockup, cylinders) or else the extra column, or None."""
+    optional gearbox_type, converter_lockup, cylinders) or else the extra column, or None.
+
+    Parameters
+    ----------
+    v : VehicleSpec, a Vehicles row
+    key : str, the column name
+
+    Returns
+    -------
+    the cell's value as read, or None.
+    """
     value = getattr(v, key, None) if key in VehicleSpec.__dataclass_fields__ else None
     return (v.extra or {}).get(key) if value is None else value
 
@@ -109,7 +147,16 @@ def _yes_no(v: VehicleSpec, key: str, default: bool) -> bool:
 
 def default_cylinders(displacement_L: float) -> int:
     """The nearest of 3, 4, 6, 8 cylinders to displacement / 0.55 L (light-duty practice:
-    0.45-0.65 L per cylinder)."""
+    0.45-0.65 L per cylinder).
+
+    Parameters
+    ----------
+    displacement_L : float, engine displacement [L]
+
+    Returns
+    -------
+    int, the number of cylinders.
+    """
     return min((3, 4, 6, 8), key=lambda c: abs(c - displacement_L / 0.55))
 
 
@@ -117,6 +164,16 @@ CVT_STEPS = 12  # a CVT's range as geometric steps for the full-load table and t
 
 
 def canonical(configuration: str) -> str:
+    """A configuration id in canonical spelling: upper case, ``_`` for ``-``.
+
+    Parameters
+    ----------
+    configuration : str, a configuration id in any case, with ``-`` or ``_``
+
+    Returns
+    -------
+    str, the canonical id.
+    """
     return str(configuration).strip().upper().replace("-", "_")
 
 
@@ -220,7 +277,17 @@ def _get(v: VehicleSpec, key: str, default):
 
 
 def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
-    """Check the rows and gather their parameters (defaults filled in) into arrays."""
+    """Check the rows and gather their parameters (defaults filled in) into arrays.
+
+    Parameters
+    ----------
+    vehicles : sequence of VehicleSpec, the Vehicles rows (V of them)
+
+    Returns
+    -------
+    VehicleArrays, the parameters as arrays of shape (V,) (SI units and rpm as the field names
+    say); a row the simulation refuses raises a :class:`FleetrunError` (:func:`refused_vehicles`).
+    """
     rows = [_row_cached(v) for v in vehicles]
     return _gather(rows)
 
@@ -228,7 +295,16 @@ def vehicle_arrays(vehicles: Sequence[VehicleSpec]) -> VehicleArrays:
 def willans_slope(vehicles: Sequence[VehicleSpec] | VehicleArrays) -> np.ndarray:
     """Each vehicle's ``eta_indicated`` (Willans-line slope of its fuel equation, defaults,
     calibration and per-vehicle overrides filled in): what extra engine work costs
-    (fleetrun.effects.vehicle.marginal_fuel_g_per_J)."""
+    (fleetrun.effects.vehicle.marginal_fuel_g_per_J).
+
+    Parameters
+    ----------
+    vehicles : sequence of VehicleSpec or VehicleArrays, the vehicles
+
+    Returns
+    -------
+    Willans-line slope ``eta_indicated`` [-] per vehicle, shape (V,).
+    """
     va = vehicles if isinstance(vehicles, VehicleArrays) else vehicle_arrays(vehicles)
     return va.fuel_constants[:, FUEL_CONSTANTS.index("eta_indicated")]
 
@@ -379,7 +455,16 @@ def _gather(rows: list) -> VehicleArrays:
 def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, FleetrunError]]:
     """(index, error) of each vehicle whose parameters the simulation refuses: what
     :func:`vehicle_arrays` would raise for it. Physically equal rows are checked once, so the
-    workbook reader can run this on every row (``fleetrun validate`` catches what ``run`` refuses)."""
+    workbook reader can run this on every row (``fleetrun validate`` catches what ``run`` refuses).
+
+    Parameters
+    ----------
+    vehicles : sequence of VehicleSpec, the Vehicles rows
+
+    Returns
+    -------
+    list of (int, FleetrunError), the index and error of each refused row (electric rows skipped).
+    """
     verdicts: dict = {}
     refused = []
     unseen = object()
