@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from epa_table import epa_fleet  # noqa: E402
 
-from fleetrun.cycles import ftp_weighted_per_mile, load_cycle  # noqa: E402
+from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402

@@ -169,7 +169,7 @@ def write_constants(c: dict, path: Path) -> None:
              "# (EPA 2022 Test Car List, each manufacturer predicted by constants fitted without it; drive-mode",
              "# pairs as one vehicle, validation/epa_technology.py). Cross-validated by manufacturer: `... cv`.",
              "# r = measured / predicted gallons - 1 on 55 % FTP / 45 % HWFET miles.", "",
-             "[LD]", f'source = "validation/fleet_error.py fit: EPA 2022 Test Car List, held out by manufacturer"',
+             "[LD]", 'source = "validation/fleet_error.py fit: EPA 2022 Test Car List, held out by manufacturer"',
              f'measured_on = "{datetime.date.today().isoformat()}"',
              f"n_vehicles = {c['n_vehicles']}", f"n_manufacturers = {c['n_manufacturers']}",
              f"bias = {c['bias']:.5f}        # gallons-weighted mean r: the centre is model x (1 + bias)",

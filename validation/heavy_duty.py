@@ -35,7 +35,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.resources import models_dir  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.physics.fuels import fuel_properties  # noqa: E402

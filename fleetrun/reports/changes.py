@@ -244,7 +244,7 @@ def describe(changes: RunChanges) -> list[str]:
             parts = [f"{c.cause} {c.amount:+,.0f}" for c in changes.causes
                      if c.scenario_id == row.scenario_id and c.total == row.total]
             if parts:
-                lines.append(f"  of which: " + "; ".join(parts))
+                lines.append("  of which: " + "; ".join(parts))
     return lines
 
 

@@ -18,7 +18,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from fleetrun.budget import periods
 from fleetrun.budget.result import AppliedEffect, CycleInfo, EfficiencyMap, RunResult
@@ -36,7 +35,7 @@ from fleetrun.simulation import simulate as simulate_vehicles
 from fleetrun.simulation.diffmodes import GEAR_GRID, outside_map3d_grid
 from fleetrun.simulation.electric import simulate_electric
 from fleetrun.vehicle import VehicleSpec
-from fleetrun.workbook.reader import Fleet, Scenario, file_sha256
+from fleetrun.workbook.reader import Fleet, file_sha256
 from fleetrun.workbook.schema import DUTY_CLASSES
 
 __all__ = ["run_fleet", "RunResult", "SimulationTask", "simulate_task", "CycleSums", "RESULTS_COLUMNS", "CLASS_COLUMNS"]

@@ -449,7 +449,7 @@ def _every_step(va, t, columns, out, effects, plan):
     """The warm engine's fuel rate and speed (V, N) in every step: the skipped steps idle (with
     the vehicle-level effects' fuel at rest), engine-off soak steps burn nothing and stand still.
     Sets the soak steps of ``out`` (a traced pass computes them as idle) to engine off."""
-    V, N = va.n, t.size
+    N = t.size
     off = plan.step_phase < 0
     if columns is None:
         out.fuel_rate_g_per_s[:, off] = 0.0

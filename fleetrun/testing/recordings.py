@@ -28,7 +28,7 @@ from fleetrun.physics.lubricant import OPERATING_RISE_K
 from fleetrun.resources import inputs_dir
 from fleetrun.simulation import simulate
 from fleetrun.simulation.params import willans_slope
-from fleetrun.units import RPM_PER_RAD_S, STANDARD_GRAVITY_M_S2
+from fleetrun.units import RPM_PER_RAD_S
 from fleetrun.workbook.vehicle_file import read_vehicle_toml
 
 

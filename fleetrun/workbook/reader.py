@@ -543,8 +543,8 @@ def _scenarios(table: _Table, problems: Problems, workbook_dir: Path):
         _warn_typed_truck_mixes(parsed, table, row_number, problems)
         shares = parsed.get("base_year_vmt_share_pct")
         if shares and max(shares.values()) < 1.0:
-            problems.warn(f"every share is below 1: these are percents (combination_truck:9.1 is 9.1 % of the "
-                          f"miles), not fractions; check them", sheet, row_number, col("base_year_vmt_share_pct"),
+            problems.warn("every share is below 1: these are percents (combination_truck:9.1 is 9.1 % of the "
+                          "miles), not fractions; check them", sheet, row_number, col("base_year_vmt_share_pct"),
                           "base_year_vmt_share_pct")
         _default_mixes(parsed)
         mixes = {}
