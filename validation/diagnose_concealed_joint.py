@@ -37,11 +37,11 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from validation.diagnose_concealed import SIZE_TOLERANCE, SIZES, concealed_fuel  # noqa: E402
+from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _effect_fuel, _write,  # noqa: E402
+                                          concealed_fuel)
 
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
-from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.resources import inputs_dir  # noqa: E402
 from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
 
@@ -99,25 +99,6 @@ def _data(spec_stem):
         df["time_s"] = df["time_s"] - df["time_s"].iloc[0]
     name = stem if run is None else f"{stem}_{run}"
     return name, df.reset_index(drop=True), (dyno / f"{stem}.toml").read_text(), read_vehicle_toml(dyno / f"{stem}.toml")
-
-
-def _write(df, meta_text, path: Path) -> Path:
-    df.to_csv(path, index=False, float_format="%.6g")
-    path.with_suffix(".toml").write_text(meta_text)
-    return path
-
-
-def _effect_fuel(d, effect: str, findings_only: bool = True) -> np.ndarray:
-    """The effect's fuel [g] per joined sample from its fitted parameters."""
-    pool = d.result["findings"] if findings_only else d.result["candidates"]
-    f = next((x for x in pool if x["effect"] == effect and x.get("parameters")), None)
-    if f is None:
-        return np.zeros(len(d.problem.time_s))
-    cand = next(c for c in d.problem.candidates if c.id == effect)
-    e = EFFECTS[effect]
-    shape = {p.name: f["parameters"][p.name] for p in e.shape}
-    col = cand.column_for(shape) if cand.column_for is not None and shape else cand.columns[0]
-    return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
 def _phase_masks(d) -> list[np.ndarray]:
@@ -191,7 +172,6 @@ def table(design: str, clean: dict, cases: list[JointCase]) -> str:
 
 
 # ----------------------------------------------------------------------------- why
-COMPARED = ("road_grade", "aero_drag", "accessory_load")
 
 
 @dataclass(frozen=True)

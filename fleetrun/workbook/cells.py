@@ -197,18 +197,23 @@ def parse_ratios(value) -> tuple[float, ...]:
     return tuple(ratios)
 
 
-def parse_cycle_mix(value) -> dict[str, float]:
-    """``UDDS:0.55,HWFET:0.45`` -> {"UDDS": 0.55, "HWFET": 0.45} (order kept)."""
-    text = parse_text(value)
-    mix: dict[str, float] = {}
-    for item in (p.strip() for p in re.split(r"[,;]", text)):
+def _named_items(value, example: str, what: str):
+    """The (name, number text) of each ``name:number`` item of a comma- or semicolon-separated
+    list cell; a problem naming ``example`` for an item without its ``:what``."""
+    for item in (p.strip() for p in re.split(r"[,;]", parse_text(value))):
         if not item:
             continue
-        name, sep, share_text = item.rpartition(":")
+        name, sep, number = item.rpartition(":")
         name = name.strip()
         if not sep or not name:
-            raise CellProblem(f"{show(value)} is not a list like UDDS:0.55,HWFET:0.45 "
-                              f"({show(item)} has no ':share')")
+            raise CellProblem(f"{show(value)} is not a list like {example} ({show(item)} has no ':{what}')")
+        yield name, number
+
+
+def parse_cycle_mix(value) -> dict[str, float]:
+    """``UDDS:0.55,HWFET:0.45`` -> {"UDDS": 0.55, "HWFET": 0.45} (order kept)."""
+    mix: dict[str, float] = {}
+    for name, share_text in _named_items(value, "UDDS:0.55,HWFET:0.45", "share"):
         try:
             share = parse_number(share_text)
         except CellProblem:
@@ -228,16 +233,9 @@ def parse_class_shares(value, classes) -> dict[str, float]:
     """``combination_truck:9.1, single_unit_truck:4.6`` -> {class: percent} (docs/registrations.md,
     "Miles by class"): each named class's percent of the base year's vehicle-miles; the names
     must be of ``classes`` and the percents add up to at most 100."""
-    text = parse_text(value)
     shares: dict[str, float] = {}
-    for item in (p.strip() for p in re.split(r"[,;]", text)):
-        if not item:
-            continue
-        name, sep, number = item.rpartition(":")
-        name = name.strip().lower()
-        if not sep or not name:
-            raise CellProblem(f"{show(value)} is not a list like combination_truck:9.1, single_unit_truck:4.6 "
-                              f"({show(item)} has no ':percent')")
+    for name, number in _named_items(value, "combination_truck:9.1, single_unit_truck:4.6", "percent"):
+        name = name.lower()
         if name not in classes:
             near = difflib.get_close_matches(name, list(classes), n=1, cutoff=0.4)
             guess = f" (did you mean {near[0]}?)" if near else ""
