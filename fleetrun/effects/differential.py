@@ -141,21 +141,6 @@ def oil_temperature_C(time_s, ambient_temp_C, tau_s, rise_K=OPERATING_RISE_K):
     return t_amb + rise_K - rise_K * np.exp(-t / tau_s)
 
 
-def viscosity_m2_s(temp_C, lubricant):
-    """Kinematic viscosity from Walther's equation (thesis Eqs 5.13-5.14, code B.7).
-
-    Parameters
-    ----------
-    temp_C : float or array, lubricant temperature [C]
-    lubricant : str, a name of ``models/lubricants.toml`` (e.g. ``80W90``)
-
-    Returns
-    -------
-    kinematic viscosity [m^2/s], the shape of ``temp_C``.
-    """
-    return walther_viscosity_m2_s(temp_C, lubricant)
-
-
 def warmup_viscosity_excess(oil_temp_C, ambient_temp_C, lubricant, rise_K=OPERATING_RISE_K):
     """``nu(T_oil) / nu(T_op) - 1``: how much thicker the oil is than at operating temperature.
 
@@ -174,7 +159,7 @@ def warmup_viscosity_excess(oil_temp_C, ambient_temp_C, lubricant, rise_K=OPERAT
     viscosity excess ``max(nu(T_oil) / nu(T_op) - 1, 0)`` [-].
     """
     t_op = operating_temperature_C(ambient_temp_C, rise_K)
-    ratio = viscosity_m2_s(oil_temp_C, lubricant) / viscosity_m2_s(t_op, lubricant)
+    ratio = walther_viscosity_m2_s(oil_temp_C, lubricant) / walther_viscosity_m2_s(t_op, lubricant)
     return np.maximum(ratio - 1.0, 0.0)
 
 
