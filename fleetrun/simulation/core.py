@@ -1084,33 +1084,74 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
 
 
 def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
-    """Re-compute, step by step, the speeds (in place) of the vehicles that start a step
-    behind the trace; ``speeds`` holds each step's trial speed (:func:`_trial_speeds`)."""
-    fails = speeds[:, 1:] != cap[1:]            # cannot follow step i even from the trace
-    fail_steps = np.flatnonzero(fails.any(axis=0)) + 1
-    behind = np.zeros(0, np.intp)
-    i, N = 1, cap.size
-    while i < N:
-        if behind.size == 0:                    # all on the trace: on to the next step someone fails
-            k = np.searchsorted(fail_steps, i)
-            if k == fail_steps.size:
-                return
-            i = int(fail_steps[k])
-            behind = np.flatnonzero(fails[:, i - 1])
+    """Re-compute, step by step, the speeds (in place) from each step some vehicle cannot
+    follow until every vehicle is back on the trace; ``speeds`` holds each step's trial speed
+    (:func:`_trial_speeds`). Every vehicle is stepped (views, no gathers, no bookkeeping of
+    who is behind): one on the trace at the start of a step gets its trial speed again, the
+    same arithmetic on the same numbers."""
+    fail_steps = np.flatnonzero((speeds[:, 1:] != cap[1:]).any(axis=0)) + 1   # someone cannot follow step i
+    step = _Stepper(m, dv, top)
+    N, k = cap.size, 0
+    while k < fail_steps.size:
+        i = int(fail_steps[k]) + 1            # speeds up to fail_steps[k] are right for everyone
+        v = speeds[:, i - 1]
+        while i < N:
+            v = step(v, m.grade_force[:, i - 1], cap[i], dt[i - 1])
+            speeds[:, i] = v
+            if (v == cap[i]).all():           # all back on the trace: trial speeds hold again
+                break
             i += 1
-            continue
-        # every vehicle behind (one that cannot hold the cycle's speed): views, no gathers
-        every = behind.size == fails.shape[0]
-        rows = slice(None) if every else behind
-        new = _full_effort_step(m if every else m.part(rows), m.grade_force[rows, i - 1], speeds[rows, i - 1], cap[i],
-                                dt[i - 1], dv, top)
-        speeds[rows, i] = new
-        still = new != cap[i]                   # still behind unless re-joined
-        if every:
-            if not still.all():
-                behind = still.nonzero()[0]
-        else:
-            mask = fails[:, i - 1].copy()      # on the trace at i - 1, but cannot follow step i
-            mask[behind] = still
-            behind = mask.nonzero()[0]
-        i += 1
+        k = np.searchsorted(fail_steps, i, side="right")
+
+
+class _Stepper:
+    """:func:`_full_effort_step` for every vehicle of ``m`` at one step, into buffers kept from
+    step to step (the same operations in the same order: the same numbers, fewer calls)."""
+
+    def __init__(self, m: _EffortModel, dv: float, top: float):
+        V = m.base.size
+        self.m, self.dv, self.top = m, dv, top
+        self.A, self.B, self.C, self.inv_m = m.per
+        self.x, self.w, self.lo, self.hi, self.tmp = (np.empty(V) for _ in range(5))
+        self.j = np.empty(V, np.intp)
+        self.guess, self.mid = np.empty(V), np.empty(V)
+
+    def accel(self, v, grade_force):
+        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``self.lo``."""
+        x, w, j, lo, hi, tmp = self.x, self.w, self.j, self.lo, self.hi, self.tmp
+        np.divide(v, self.dv, out=x)
+        np.minimum(x, self.top, out=x)
+        j[...] = x                            # truncation, as astype(np.intp)
+        np.subtract(x, j, out=w)
+        j += self.m.base
+        self.m.flat.take(j, out=lo)
+        np.subtract(1.0, w, out=tmp)
+        lo *= tmp
+        self.m.flat_next.take(j, out=hi)
+        hi *= w
+        lo += hi                              # force
+        np.maximum(v, 1e-3, out=tmp)          # coastdown_force_N: A + v (B + C v)
+        np.multiply(self.C, tmp, out=hi)
+        hi += self.B
+        hi *= tmp
+        hi += self.A
+        lo -= hi
+        lo -= grade_force
+        lo *= self.inv_m
+        return lo
+
+    def __call__(self, vp, grade_force, cap: float, dt: float):
+        guess = self.accel(vp, grade_force)
+        guess *= dt
+        guess += vp                           # vp + a dt (addition commutes bit for bit)
+        np.minimum(cap, guess, out=guess)
+        np.maximum(guess, 0.0, out=guess)
+        mid = self.mid
+        np.add(vp, guess, out=mid)
+        mid *= 0.5
+        new = self.accel(mid, grade_force)
+        new *= dt
+        new += vp
+        out = np.minimum(cap, new)
+        np.maximum(out, 0.0, out=out)
+        return out
