@@ -363,3 +363,34 @@ def test_a_vehicles_results_do_not_depend_on_who_falls_behind_with_it():
             # the car that follows, simulated without them beside one that follows too
             a, b = getattr(simulate([CAMRY, F150], cycle), name)[:1], getattr(together, name)[4:]
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (cycle, name)
+
+
+@pytest.mark.parametrize("trace", [False, True])
+def test_vehicles_above_full_load_at_the_start_skip_to_the_last_round_bit_for_bit(monkeypatch, trace):
+    # a vehicle above full load in the cycle's first two steps (step 0 at the trace's first
+    # speed is the same in every round) stays behind in every round but the last: it is not
+    # re-driven before it (simulation/__init__.py, _redrive_until_feasible). Its figures, and
+    # those beside it, must be those of re-driving it every round, bit for bit
+    import fleetrun.simulation as sim
+
+    weak = [dataclasses.replace(CIVIC, vehicle_id=f"w{i}", peak_engine_torque_Nm=40.0 + 10 * i, rated_power_kW=8.0 + 4 * i)
+            for i in range(4)]
+    n = 121
+    uphill = DriveCycle("uphill", np.arange(float(n)), np.r_[np.full(60, 30.0), np.linspace(30.0, 0.0, n - 60)],
+                        np.full(n, 4.0))
+    fleet = weak + [CAMRY, F150]
+    calls = []
+    real = sim.above_full_load_at_start
+    monkeypatch.setattr(sim, "above_full_load_at_start", lambda *a: calls.append(r := real(*a)) or r)
+    skipped = simulate(fleet, uphill, trace=trace)
+    assert any(c.any() for c in calls)          # some were skipped
+    monkeypatch.setattr(sim, "above_full_load_at_start", lambda va, *a: np.zeros(va.n, bool))
+    every_round = simulate(fleet, uphill, trace=trace)
+    assert (every_round.shortfall_time_s[:2] > 0).all()
+    for name in ("fuel_g", "miles", "mpg", "wheel_energy_J", "drivetrain_input_energy_J", "shortfall_time_s",
+                 "shortfall_steps", "shortfall_distance_m"):
+        a, b = getattr(skipped, name), getattr(every_round, name)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+    if trace:
+        for name in TRACE_COLUMNS:
+            assert np.array_equal(getattr(skipped.trace, name), getattr(every_round.trace, name)), name

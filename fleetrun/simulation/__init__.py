@@ -14,7 +14,8 @@ import numpy as np
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes, measured
-from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
+from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver,
+                                      above_full_load_at_start, backward,
                                       backward_drivetrain, has_technology,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
@@ -171,7 +172,13 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
 
     sums = None
     if V:  # first every vehicle drives the trace itself, then those that cannot follow it
-        sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run)
+        def stuck(rows, margin, table):
+            va_rows = va.subset(rows)
+            return above_full_load_at_start(va_rows, t, v_target, grade, solver.subset(rows, va_rows), margin,
+                                                 table, effects)
+
+        sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
+                                       stuck)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -222,12 +229,15 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     return measured.scale_result(result, factor)
 
 
-def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> BlockSums:
+def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run, stuck=None) -> BlockSums:
     """Vehicles that cannot follow the trace are re-driven (all together) at full effort, with
     a smaller margin on the estimated maximum effort each round, until the backward pass finds
     every step feasible; ``run(rows, speed, redriven_if_behind)`` simulates the vehicles
     ``rows`` at ``speed`` (``redriven_if_behind``: a block whose vehicles all fall behind
-    need not be summed, they are driven again: :func:`_run_block`)."""
+    need not be summed, they are driven again: :func:`_run_block`). ``stuck(rows, margin,
+    table)``: which of ``rows`` are above full load in the re-drive's first two steps
+    (:func:`core.above_full_load_at_start`); before the last round those stay behind
+    without being re-driven or summed (their sums would be replaced by the next round's)."""
     force_tables = None
     for margin in REDRIVE_MARGINS:
         behind = np.flatnonzero(sums.behind)
@@ -236,8 +246,13 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run) -> Blo
         if force_tables is None:  # the drivetrain's maximum effort, once per simulate
             force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+        last = margin == REDRIVE_MARGINS[-1]
+        if stuck is not None and not last:
+            behind = behind[~stuck(behind, margin, force_tables[behind])]
+            if behind.size == 0:
+                continue
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved, margin != REDRIVE_MARGINS[-1]), behind)
+        sums = _redriven(sums, run(behind, achieved, not last), behind)
     return sums
 
 

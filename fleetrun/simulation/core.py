@@ -1083,6 +1083,40 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     return speeds
 
 
+def above_full_load_at_start(va: VehicleArrays, time_s, target_mps, grade_pct, solver: DifferentialSolver,
+                             margin, table, effects: CycleEffects = CycleEffects()) -> np.ndarray:
+    """The vehicles (V,) whose re-drive at ``margin`` is above full load in the cycle's first
+    two steps (step 0 at the trace's first speed, step 1 from there at full effort), where the
+    backward pass computes them (the trace moves there): they stay behind in that round
+    whatever the rest of the cycle gives. The re-drive and the backward pass of those steps
+    alone, on the cycle's first two time stamps: every step is independent given the speed,
+    so these are the very numbers of the whole re-drive and pass (:func:`forward_redrive`,
+    :func:`backward_drivetrain`).
+
+    Parameters
+    ----------
+    va : VehicleArrays, the vehicles' parameters
+    time_s : array, the cycle's time stamps [s], (N,)
+    target_mps : array, the trace's speed [m/s], (N,)
+    grade_pct : array, road grade [%], (N,)
+    solver : DifferentialSolver, the thesis chain's inversion in the run's mode
+    margin : float, share of the full effort the driver uses [-]
+    table : array, :func:`max_tractive_force_table` with margin 1 [N]
+    effects : CycleEffects, the ``--with`` effects
+
+    Returns
+    -------
+    bool array (V,).
+    """
+    t, cap, grade = (np.asarray(a, float)[:2] for a in (time_s, target_mps, grade_pct))
+    columns = np.flatnonzero(0.5 * (cap + cap[:1]) > 0)      # the pass's steps: the trace moves
+    if columns.size == 0:
+        return np.zeros(va.n, bool)
+    speeds = forward_redrive(va, t, cap, grade, margin, table)
+    d = backward_drivetrain(va, t, speeds, grade, solver, columns, effects, losses=False)
+    return d.k.at_rest(d.infeasible, False).any(axis=1)
+
+
 def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
     """Re-compute, step by step, the speeds (in place) from each step some vehicle cannot
     follow until every vehicle is back on the trace; ``speeds`` holds each step's trial speed
