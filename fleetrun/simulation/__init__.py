@@ -172,13 +172,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
 
     sums = None
     if V:  # first every vehicle drives the trace itself, then those that cannot follow it
-        def stuck(rows, margin, table):
-            va_rows = va.subset(rows)
-            return above_full_load_at_start(va_rows, t, v_target, grade, solver.subset(rows, va_rows), margin,
-                                                 table, effects)
-
         sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
-                                       stuck)
+                                       _stuck_at_start(va, solver, t, v_target, grade, effects))
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
@@ -227,6 +222,16 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     factor = np.ones(len(vehicles))
     factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
     return measured.scale_result(result, factor)
+
+
+def _stuck_at_start(va, solver, t, v_target, grade, effects):
+    """``stuck(rows, margin, table)`` for :func:`_redrive_until_feasible`: which of the vehicles
+    ``rows`` are above full load in their re-drive's first two steps (core.above_full_load_at_start)."""
+    def stuck(rows, margin, table):
+        va_rows = va.subset(rows)
+        return above_full_load_at_start(va_rows, t, v_target, grade, solver.subset(rows, va_rows), margin, table,
+                                        effects)
+    return stuck
 
 
 def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run, stuck=None) -> BlockSums:
