@@ -170,10 +170,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
                                     v_target, grade, trace, effects, plan, redriven_if_behind))
         return _concatenate(parts)
 
-    sums = None
-    if V:  # first every vehicle drives the trace itself, then those that cannot follow it
-        sums = _redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
-                                       _stuck_at_start(va, solver, t, v_target, grade, effects))
+    # first every vehicle drives the trace itself, then those that cannot follow it
+    sums = (_redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
+                                    _stuck_at_start(va, solver, t, v_target, grade, effects)) if V else None)
     empty = np.zeros(0)
     totals = {key: (getattr(sums, key) if V else empty) for key in SUM_FIELDS}
     phases, composite = {}, ""
