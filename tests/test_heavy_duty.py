@@ -298,9 +298,10 @@ def test_light_duty_and_gasoline_rows_keep_their_engine_and_shifting():
 
 
 def test_force_table_once_per_drivetrain_is_bit_identical():
-    """max_tractive_force_table computes each distinct drivetrain once (the re-drive of heavy
-    trucks spent half its time there): the table of a fleet is the per-vehicle tables stacked,
-    bit for bit, for rows that share drivetrains and rows that do not."""
+    """max_tractive_force_table computes each distinct drivetrain once and keeps it for the
+    process (the re-drive of heavy trucks spent half its time there): the table of a fleet is
+    the per-vehicle tables stacked, bit for bit, for rows that share drivetrains and rows that
+    do not."""
     import dataclasses
 
     from fleetrun.simulation import core
@@ -310,9 +311,15 @@ def test_force_table_once_per_drivetrain_is_bit_identical():
     rows = [dataclasses.replace(v, vehicle_id=f"t{i}", test_weight_kg=v.test_weight_kg * (1 + 0.01 * i)) for i in range(4)]
     rows.append(dataclasses.replace(v, vehicle_id="axle", final_drive_ratio=3.08))
     va = vehicle_arrays(rows)
+    core._FORCE_TABLE_ROWS.clear()
     together = core.max_tractive_force_table(va, 0.9)
-    alone = np.vstack([core.max_tractive_force_table(va.subset([i]), 0.9) for i in range(va.n)])
-    assert np.array_equal(together, alone)
+    assert len(core._FORCE_TABLE_ROWS) == 2            # kept for the process, once per drivetrain
+    alone = []
+    for i in range(va.n):
+        core._FORCE_TABLE_ROWS.clear()
+        alone.append(core.max_tractive_force_table(va.subset([i]), 0.9))
+    assert np.array_equal(together, np.vstack(alone))
+    assert np.array_equal(core.max_tractive_force_table(va, 0.9), together)   # from the kept rows
     assert not np.array_equal(together[0], together[4])
 
 

@@ -935,6 +935,13 @@ def _drivetrain_rows(va: VehicleArrays) -> np.ndarray:
                             va.stall_TR])
 
 
+# each distinct drivetrain's unscaled force table (margin 1), by the bytes of its
+# _drivetrain_rows row: kept for the process (a fleet run simulates the same vehicles on
+# several cycles and scenarios); emptied when it holds FORCE_TABLE_CACHE_ROWS (2.2 kB each)
+_FORCE_TABLE_ROWS: dict[bytes, np.ndarray] = {}
+FORCE_TABLE_CACHE_ROWS = 4096
+
+
 def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     """Largest wheel force [N] the drivetrain can deliver, (V, len(REDRIVE_SPEED_GRID)).
 
@@ -942,8 +949,9 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     the launch speed; automatics in first gear: the converter slips up to its stall point and
     multiplies the stall torque by its torque ratio), times gearbox ratio and efficiency,
     final drive and 0.95 for the axle; x ``margin``. Computed once per distinct drivetrain
-    (vehicles that differ only in mass or road load share a row), as power_speed_table does
-    per engine: element-wise arithmetic, so the values are the same bit for bit.
+    (vehicles that differ only in mass or road load share a row) and kept for the process, as
+    power_speed_table does per engine: element-wise arithmetic, so the values are the same bit
+    for bit.
 
     Parameters
     ----------
@@ -954,12 +962,23 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     -------
     wheel force [N], shape (V, len(REDRIVE_SPEED_GRID)) (speeds [m/s] of the grid).
     """
-    if va.n > 1:
-        keys = _drivetrain_rows(va)
-        if np.isfinite(keys).all():
-            _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-            if first.size < va.n:
-                return max_tractive_force_table(va.subset(first), margin)[inverse.reshape(-1)]
+    names = [row.tobytes() for row in _drivetrain_rows(va)]
+    first = {}
+    for i, name in enumerate(names):
+        if name not in _FORCE_TABLE_ROWS:
+            first.setdefault(name, i)
+    if first:
+        rows = _unscaled_force_table(va.subset(np.fromiter(first.values(), np.intp, len(first))))
+        if len(_FORCE_TABLE_ROWS) + len(first) > FORCE_TABLE_CACHE_ROWS:
+            _FORCE_TABLE_ROWS.clear()
+        _FORCE_TABLE_ROWS.update(zip(first, rows))
+    if not names:
+        return np.zeros((0, REDRIVE_SPEED_GRID.size))
+    return margin * np.stack([_FORCE_TABLE_ROWS[name] for name in names])
+
+
+def _unscaled_force_table(va: VehicleArrays):
+    """:func:`max_tractive_force_table` at margin 1, computed for every row of ``va``."""
     v = REDRIVE_SPEED_GRID[None, :, None]
     col = lambda a: a[:, None, None]  # noqa: E731
     overall = (va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0))[:, None, :]
@@ -974,7 +993,7 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     T = np.where(auto & first, np.maximum(np.where(n_e < col(n_stall), T_conv, 0.0), T_lock), T_lock)
     F = T * overall * col(va.final_drive) * va.combo_gear_eff[:, None, :] * 0.95 / col(va.radius_m)
     F = np.where((va.combo_trans_ratio > 0)[:, None, :], F, 0.0)
-    return margin * F.max(axis=2)
+    return F.max(axis=2)
 
 
 # vehicles x steps per chunk of the re-drive's all-steps trial: its ~40 temporaries of
