@@ -30,7 +30,7 @@ from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, f
                                         full_load_torque_Nm, load_fraction, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.records import StepResults, Trace
-from fleetrun.simulation.road_load import coastdown_force_N, grade_force_N, tractive_force_N
+from fleetrun.simulation.road_load import coastdown_force_N, grade_force_factors, tractive_force_N
 from fleetrun.simulation import technology as tech
 from fleetrun.simulation.transmission import (choose_gear, converter_speed_ratio, converter_unlocked, cvt_ratio,
                                               input_torque_Nm, spin_loss_Nm, torque_ratio)
@@ -1004,21 +1004,31 @@ REDRIVE_CHUNK_STEPS = 22000
 @dataclass(frozen=True, eq=False)
 class _EffortModel:
     """What one full-effort step needs of each vehicle (:func:`forward_redrive`), (V,) arrays
-    and the (V, N - 1) grade force of each step; ``rows``: the same for some vehicles."""
+    and the sine of each step's grade (N - 1,); ``rows``: the same for some vehicles."""
 
     flat: np.ndarray              # the force tables x margin, one row of ``width`` per vehicle
     flat_next: np.ndarray         # flat[i + 1] at i (one index for both ends of an interval)
     base: np.ndarray              # each vehicle's first index in ``flat``
     per: np.ndarray               # (4, V): coastdown A, B, C and 1 / m_eff (one gather for a part)
-    grade_force: np.ndarray
+    weight: np.ndarray            # m g [N] (V,): the grade force is weight x sine (road_load.py)
+    sine: np.ndarray              # sin(atan(grade / 100)) of each step's mean grade (N - 1,)
 
     @staticmethod
-    def of(flat, base, A, B, C, inv_m, grade_force) -> "_EffortModel":
-        return _EffortModel(flat, np.append(flat[1:], 0.0), base, np.stack([A, B, C, inv_m]), grade_force)
+    def of(flat, base, A, B, C, inv_m, weight, sine) -> "_EffortModel":
+        return _EffortModel(flat, np.append(flat[1:], 0.0), base, np.stack([A, B, C, inv_m]), weight, sine)
 
     def part(self, rows) -> "_EffortModel":
-        """The vehicles ``rows`` (their ``grade_force`` rows are taken step by step)."""
-        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows], self.grade_force)
+        """The vehicles ``rows``."""
+        return _EffortModel(self.flat, self.flat_next, self.base[rows], self.per[:, rows], self.weight[rows],
+                            self.sine)
+
+    def grade_force(self, steps):
+        """The grade force [N] of these vehicles in ``steps`` (an index, or an array against
+        ``weight``'s shape); 0.0 where every such step is level (x - 0.0 is x, bit for bit)."""
+        sine = self.sine[steps]
+        if not (np.any(sine) or np.signbit(sine).any()):
+            return 0.0
+        return self.weight * sine
 
 
 def _full_effort_step(m: _EffortModel, grade_force, vp, cap, dt, dv: float, top: float):
@@ -1045,20 +1055,54 @@ def _full_effort_step(m: _EffortModel, grade_force, vp, cap, dt, dv: float, top:
     return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
 
 
+def _accelerates_everywhere(m: _EffortModel, cap, dv: float) -> np.ndarray:
+    """The vehicles (V,) whose full effort accelerates them at every speed up to the trace's
+    top speed on every grade of the cycle, with a margin beyond rounding: the least force of
+    the table's intervals up to that speed less a bound of the coastdown there (|A| + |B| v +
+    |C| v^2) and the largest grade force, above 1e-6 of their sum. On a step the trace does not
+    speed up (0 < trace(i) <= trace(i - 1)) such a vehicle reaches trace(i) from the trace:
+    v(i-1) + a dt >= v(i-1) >= trace(i) at the start and at every mean speed between."""
+    V = m.base.size
+    v_top = max(float(cap.max()), 1e-3)
+    width = m.flat.size // max(V, 1)
+    table = m.flat.reshape(V, width)[:, :min(int(v_top / dv) + 2, width)]
+    A, B, C, _ = np.abs(m.per)
+    least = table.min(axis=1)
+    coast = A + v_top * (B + C * v_top)
+    grade = m.weight * float(m.sine.max()) if m.sine.size else np.zeros(V)
+    return least - coast - grade > 1e-6 * (np.abs(least) + coast + np.abs(grade))
+
+
 def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
     vehicle that followed the trace to step i - 1 reaches this speed at step i. Steps that
-    end at rest are 0 without arithmetic (min(0, x) clipped at 0 is 0 for any finite x)."""
+    end at rest are 0 without arithmetic (min(0, x) clipped at 0 is 0 for any finite x);
+    steps the trace does not speed up are the trace's own speed without arithmetic for
+    vehicles that accelerate everywhere (:func:`_accelerates_everywhere`)."""
     V = m.base.size
     out = np.zeros((V, cap.size - 1))
-    steps = np.flatnonzero(cap[1:] > 0)
-    prev, now, dt = cap[steps][None, :], cap[steps + 1], dt[steps]
-    chunk = max(1, REDRIVE_CHUNK_STEPS // max(steps.size, 1))
-    for first in range(0, V, chunk):
-        r = np.arange(first, min(first + chunk, V))
-        out[r[:, None], steps] = _full_effort_step(m.part(r[:, None]), m.grade_force[r[:, None], steps], prev, now,
-                                                   dt, dv, top)
+    moving = cap[1:] > 0
+    rising = moving & (cap[1:] > cap[:-1])
+    sure = _accelerates_everywhere(m, cap, dv)
+    level = np.flatnonzero(moving & ~rising)
+    out[np.ix_(np.flatnonzero(sure), level)] = cap[1:][level]
+    _trial_part(m, np.arange(V), np.flatnonzero(rising if sure.any() else moving), cap, dt, dv, top, out)
+    if sure.any():
+        _trial_part(m, np.flatnonzero(~sure), level, cap, dt, dv, top, out)
     return out
+
+
+def _trial_part(m: _EffortModel, rows, steps, cap, dt, dv, top, out):
+    """:func:`_trial_speeds` of the vehicles ``rows`` in ``steps`` (indices of dt), into ``out``,
+    in chunks of REDRIVE_CHUNK_STEPS vehicle-steps."""
+    if rows.size == 0 or steps.size == 0:
+        return
+    prev, now, dt = cap[steps][None, :], cap[steps + 1], dt[steps]
+    chunk = max(1, REDRIVE_CHUNK_STEPS // steps.size)
+    for first in range(0, rows.size, chunk):
+        r = rows[first:first + chunk, None]
+        part = m.part(r)
+        out[r, steps] = _full_effort_step(part, part.grade_force(steps[None, :]), prev, now, dt, dv, top)
 
 
 def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.97, table=None):
@@ -1068,10 +1112,10 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     speed (:func:`_full_effort_step`): the vehicle falls behind on hard accelerations and
     re-joins the trace when it slows down. A vehicle on the trace at step i - 1 reaches the
     same speed at step i as any other on it, so every step is first computed from the trace's
-    own speed for all vehicles at once (:func:`_trial_speeds`); only the steps a vehicle starts
-    behind the trace are then walked one by one, vectorised over the vehicles behind. The same
-    element-wise arithmetic either way: the speeds are those of a plain step loop, bit for bit.
-    ``table``: the unscaled :func:`max_tractive_force_table` if already computed.
+    own speed for all vehicles at once (:func:`_trial_speeds`); only from the steps some
+    vehicle cannot follow are they then walked one by one, vectorised over the vehicles. The
+    same element-wise arithmetic either way: the speeds are those of a plain step loop, bit
+    for bit. ``table``: the unscaled :func:`max_tractive_force_table` if already computed.
 
     Parameters
     ----------
@@ -1090,10 +1134,10 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
         table = max_tractive_force_table(va, 1.0)
     dv = float(REDRIVE_SPEED_GRID[1] - REDRIVE_SPEED_GRID[0])
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
-    t, cap = np.asarray(time_s, float), np.asarray(target_mps, float)
+    t, cap, grade = np.asarray(time_s, float), np.asarray(target_mps, float), np.asarray(grade_pct, float)
+    weight, sine = grade_force_factors(va.mass_kg, 0.5 * (grade[1:] + grade[:-1]))
     m = _EffortModel.of(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
-                        C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)),
-                        grade_force=grade_force_N(va.mass_kg[:, None], 0.5 * (grade_pct[1:] + grade_pct[:-1])[None, :]))
+                        C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)), weight=weight, sine=sine)
     dt = np.diff(t)
     speeds = np.empty((va.n, t.size))
     speeds[:, 0] = cap[0]
@@ -1144,12 +1188,13 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
     same arithmetic on the same numbers."""
     fail_steps = np.flatnonzero((speeds[:, 1:] != cap[1:]).any(axis=0)) + 1   # someone cannot follow step i
     step = _Stepper(m, dv, top)
+    level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
     N, k = cap.size, 0
     while k < fail_steps.size:
         i = int(fail_steps[k]) + 1            # speeds up to fail_steps[k] are right for everyone
         v = speeds[:, i - 1]
         while i < N:
-            v = step(v, m.grade_force[:, i - 1], cap[i], dt[i - 1])
+            v = step(v, 0.0 if level[i - 1] else m.weight * m.sine[i - 1], cap[i], dt[i - 1])
             speeds[:, i] = v
             if (v == cap[i]).all():           # all back on the trace: trial speeds hold again
                 break

@@ -99,8 +99,25 @@ def grade_force_N(mass_kg, grade_pct):
     >>> round(float(grade_force_N(1500.0, 5.0)), 1)
     734.6
     """
+    weight, sine = grade_force_factors(mass_kg, grade_pct)
+    return weight * sine
+
+
+def grade_force_factors(mass_kg, grade_pct):
+    """The two factors of :func:`grade_force_N`, m g [N] and sin(atan(grade/100)) [-]: their
+    product is the grade force, bit for bit (for a caller that multiplies them step by step).
+
+    Parameters
+    ----------
+    mass_kg : float or array, test mass m [kg]
+    grade_pct : float or array, road grade [%] (rise / run x 100)
+
+    Returns
+    -------
+    (weight m g [N], sine of the road's angle [-]), each the shape of its argument.
+    """
     theta = np.arctan(np.asarray(grade_pct, float) / 100.0)
-    return np.asarray(mass_kg, float) * STANDARD_GRAVITY_M_S2 * np.sin(theta)
+    return np.asarray(mass_kg, float) * STANDARD_GRAVITY_M_S2, np.sin(theta)
 
 
 def tractive_force_N(speed_mps, accel_mps2, grade_pct, mass_kg, rotating_mass_fraction,
