@@ -155,7 +155,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
-    block = max(1, BLOCK_STEPS // t.size)
+    block = _block_rows(t.size)
 
     def run(rows, speed, redriven_if_behind=False):
         parts = []
@@ -252,12 +252,38 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run, stuck=
             force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
         last = margin == REDRIVE_MARGINS[-1]
         if stuck is not None and not last:
-            behind = behind[~stuck(behind, margin, force_tables[behind])]
+            behind = _without_stuck(behind, stuck(behind, margin, force_tables[behind]), _block_rows(t.size))
             if behind.size == 0:
                 continue
         achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
         sums = _redriven(sums, run(behind, achieved, not last), behind)
     return sums
+
+
+def _block_rows(steps: int) -> int:
+    """Vehicles per block of a cycle of ``steps`` time stamps (BLOCK_STEPS)."""
+    return max(1, BLOCK_STEPS // steps)
+
+
+def _alone(n: int, block: int) -> np.ndarray:
+    """Which of ``n`` vehicles run in blocks of ``block`` are alone in theirs (n,)."""
+    alone = np.zeros(n, bool)
+    if block == 1:
+        alone[:] = True
+    elif n % block == 1:
+        alone[-1] = True
+    return alone
+
+
+def _without_stuck(rows, stuck, block: int):
+    """``rows`` without the ``stuck`` ones, unless that would put a vehicle alone in its block
+    that was not, or the other way round: a block of one vehicle sums its steps in another
+    order than a larger one (numpy's pairwise sum of a contiguous row against the column
+    order of the steps gathered for several), so its figures would move in the last bit."""
+    keep = rows[~stuck]
+    if keep.size and stuck.any() and not np.array_equal(_alone(rows.size, block)[~stuck], _alone(keep.size, block)):
+        return rows
+    return keep
 
 
 def _concatenate(parts: list[BlockSums]) -> BlockSums:

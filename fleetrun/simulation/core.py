@@ -1187,15 +1187,16 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
     who is behind): one on the trace at the start of a step gets its trial speed again, the
     same arithmetic on the same numbers."""
     fail_steps = np.flatnonzero((speeds[:, 1:] != cap[1:]).any(axis=0)) + 1   # someone cannot follow step i
-    step = _Stepper(m, dv, top)
+    if fail_steps.size == 0:
+        return
+    step = _Stepper(m, dv, top, float(cap.max()))
     level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
     N, k = cap.size, 0
     while k < fail_steps.size:
         i = int(fail_steps[k]) + 1            # speeds up to fail_steps[k] are right for everyone
         v = speeds[:, i - 1]
         while i < N:
-            v = step(v, 0.0 if level[i - 1] else m.weight * m.sine[i - 1], cap[i], dt[i - 1])
-            speeds[:, i] = v
+            v = speeds[:, i] = step(v, None if level[i - 1] else m.weight * m.sine[i - 1], cap[i], dt[i - 1])
             if (v == cap[i]).all():           # all back on the trace: trial speeds hold again
                 break
             i += 1
@@ -1204,11 +1205,14 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
 
 class _Stepper:
     """:func:`_full_effort_step` for every vehicle of ``m`` at one step, into buffers kept from
-    step to step (the same operations in the same order: the same numbers, fewer calls)."""
+    step to step: the same operations on the same numbers, fewer calls. Left out where they
+    cannot change a bit: the clip at the table's end when no speed reaches it (speeds never
+    exceed the trace's top ``v_top``), and a grade force of 0.0 (``None``: x - 0.0 is x)."""
 
-    def __init__(self, m: _EffortModel, dv: float, top: float):
+    def __init__(self, m: _EffortModel, dv: float, top: float, v_top: float):
         V = m.base.size
         self.m, self.dv, self.top = m, dv, top
+        self.clip = not v_top / dv < top
         self.A, self.B, self.C, self.inv_m = m.per
         self.x, self.w, self.lo, self.hi, self.tmp = (np.empty(V) for _ in range(5))
         self.j = np.empty(V, np.intp)
@@ -1218,7 +1222,8 @@ class _Stepper:
         """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``self.lo``."""
         x, w, j, lo, hi, tmp = self.x, self.w, self.j, self.lo, self.hi, self.tmp
         np.divide(v, self.dv, out=x)
-        np.minimum(x, self.top, out=x)
+        if self.clip:
+            np.minimum(x, self.top, out=x)
         j[...] = x                            # truncation, as astype(np.intp)
         np.subtract(x, j, out=w)
         j += self.m.base
@@ -1234,7 +1239,8 @@ class _Stepper:
         hi *= tmp
         hi += self.A
         lo -= hi
-        lo -= grade_force
+        if grade_force is not None:
+            lo -= grade_force
         lo *= self.inv_m
         return lo
 
