@@ -1197,7 +1197,7 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
         v = speeds[:, i - 1]
         while i < N:
             v = speeds[:, i] = step(v, None if level[i - 1] else m.weight * m.sine[i - 1], cap[i], dt[i - 1])
-            if (v == cap[i]).all():           # all back on the trace: trial speeds hold again
+            if v.min() == cap[i]:             # all back on the trace (v <= cap): trial speeds hold again
                 break
             i += 1
         k = np.searchsorted(fail_steps, i, side="right")
