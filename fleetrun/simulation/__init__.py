@@ -158,18 +158,7 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     block = _block_rows(t.size)
 
     def run(rows, speed, redriven_if_behind=False):
-        parts = []
-        for first in range(0, rows.size, block):
-            sub = rows[first:first + block]
-            if sub.size == V:
-                va_sub, solver_sub = va, solver
-            else:
-                va_sub = va.subset(sub)
-                solver_sub = solver.subset(sub, va_sub)
-            parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
-                                    v_target, grade, trace, effects, plan, redriven_if_behind))
-        return _concatenate(parts)
-
+        return _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind)
     # first every vehicle drives the trace itself, then those that cannot follow it
     sums = (_redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
                                     _stuck_at_start(va, solver, t, v_target, grade, effects)) if V else None)
@@ -187,6 +176,27 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if not (calibrate and V):
         return result
     return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
+
+
+def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind):
+    """The vehicles ``rows`` of ``va`` at ``speed`` (their rows; None: on the trace) in blocks of
+    ``block`` (:func:`_run_block`); on the trace the hardest steps of every block are checked
+    in one pass first (:func:`_surely_behind_by_block`)."""
+    V = va.n
+    surely = (_surely_behind_by_block(va, solver, t, v_target, grade, effects, block)
+              if speed is None and redriven_if_behind and not trace and rows.size == V else None)
+    parts = []
+    for first in range(0, rows.size, block):
+        sub = rows[first:first + block]
+        if sub.size == V:
+            va_sub, solver_sub = va, solver
+        else:
+            va_sub = va.subset(sub)
+            solver_sub = solver.subset(sub, va_sub)
+        parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
+                                v_target, grade, trace, effects, plan, redriven_if_behind,
+                                True if surely is None else surely[first:first + block]))
+    return _concatenate(parts)
 
 
 _NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
@@ -327,8 +337,9 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     # Without a trace, steps where the trace stands still (and so every vehicle, which is
     # never ahead of it) are not simulated: they burn idle fuel, added below.
     target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
-    if redriven_if_behind and on_trace and precheck and not trace:
-        surely = _surely_behind(va, solver, t, v_target, grade, effects, target_avg)
+    if redriven_if_behind and on_trace and precheck is not False and not trace:
+        surely = (precheck if isinstance(precheck, np.ndarray)
+                  else _surely_behind(va, solver, t, v_target, grade, effects, target_avg))
         if surely.any() and (surely.all() or plan is None):
             return _without_rows_behind(va, solver, t, v_target, grade, effects, plan, surely)
     columns = None if trace else np.flatnonzero(target_avg > 0)
@@ -390,15 +401,41 @@ def _surely_behind(va, solver, t, v_target, grade, effects, target_avg) -> np.nd
     independent given the speed, so these are the very steps of the whole pass). Checked only
     where rated power is below twice the inertial power of the cycle's hardest step (a
     light-duty car on a light-duty cycle is not)."""
+    short, hard = _hard_steps(va, t, v_target, target_avg)
+    if not short.any():
+        return np.zeros(va.n, bool)
+    d = backward_drivetrain(va, t, v_target[None, :], grade, solver, hard, effects, losses=False)
+    return d.k.at_rest(d.infeasible, False).any(axis=1)
+
+
+def _hard_steps(va, t, v_target, target_avg):
+    """The vehicles (V,) :func:`_surely_behind` checks (none if the trace never speeds up) and
+    the trace's hardest steps."""
     accel = np.concatenate([[0.0], np.diff(v_target) / np.diff(t)])
     power = accel * target_avg                       # [W/kg]
     peak = power.max()
     short = va.P_rated_kW * 1e3 < 2.0 * va.mass_kg * (1.0 + va.rot_frac) * peak
-    if peak <= 0 or not short.any():
-        return np.zeros(va.n, bool)
-    hard = np.flatnonzero(power >= HARD_STEP_SHARE * peak)
-    d = backward_drivetrain(va, t, v_target[None, :], grade, solver, hard, effects, losses=False)
-    return d.k.at_rest(d.infeasible, False).any(axis=1)
+    if peak <= 0:
+        short[:] = False
+    return short, np.flatnonzero(power >= HARD_STEP_SHARE * peak)
+
+
+def _surely_behind_by_block(va, solver, t, v_target, grade, effects, block) -> np.ndarray:
+    """:func:`_surely_behind` of each block of ``block`` vehicles (V,), in one backward pass
+    over the blocks that have a vehicle to check, all of their vehicles (as each block would
+    check them; the same values: every vehicle and step is independent given the speed)."""
+    target_avg = 0.5 * (v_target + np.concatenate([v_target[:1], v_target[:-1]]))
+    short, hard = _hard_steps(va, t, v_target, target_avg)
+    surely = np.zeros(va.n, bool)
+    starts = np.arange(0, va.n, block)
+    checked = np.repeat(np.logical_or.reduceat(short, starts), np.diff(np.append(starts, va.n)))
+    rows = np.flatnonzero(checked)
+    if rows.size:
+        va_rows = va if rows.size == va.n else va.subset(rows)
+        solver_rows = solver if rows.size == va.n else solver.subset(rows, va_rows)
+        d = backward_drivetrain(va_rows, t, v_target[None, :], grade, solver_rows, hard, effects, losses=False)
+        surely[rows] = d.k.at_rest(d.infeasible, False).any(axis=1)
+    return surely
 
 
 def _without_rows_behind(va, solver, t, v_target, grade, effects, plan, surely) -> BlockSums:
