@@ -1055,40 +1055,52 @@ def _full_effort_step(m: _EffortModel, grade_force, vp, cap, dt, dv: float, top:
     return np.maximum(np.minimum(cap, vp + accel(0.5 * (vp + guess)) * dt), 0.0)
 
 
-def _accelerates_everywhere(m: _EffortModel, cap, dv: float) -> np.ndarray:
-    """The vehicles (V,) whose full effort accelerates them at every speed up to the trace's
-    top speed on every grade of the cycle, with a margin beyond rounding: the least force of
-    the table's intervals up to that speed less a bound of the coastdown there (|A| + |B| v +
-    |C| v^2) and the largest grade force, above 1e-6 of their sum. On a step the trace does not
-    speed up (0 < trace(i) <= trace(i - 1)) such a vehicle reaches trace(i) from the trace:
-    v(i-1) + a dt >= v(i-1) >= trace(i) at the start and at every mean speed between."""
+def _least_acceleration(m: _EffortModel, cap, dv: float) -> np.ndarray:
+    """A lower bound (V,) [m/s^2] of every full-effort acceleration :func:`_full_effort_step`
+    computes at speeds up to the trace's top speed on the cycle's grades, rounding included
+    (-inf where it would not be positive): the least force of the table's intervals up to
+    that speed less a bound of the coastdown there (|A| + |B| v + |C| v^2) and the largest
+    grade force, less 1e-9 of the largest force, coastdown and grade force (rounding is
+    ~1e-16 of them), over the effective mass, less 1e-9 of itself."""
     V = m.base.size
     v_top = max(float(cap.max()), 1e-3)
     width = m.flat.size // max(V, 1)
     table = m.flat.reshape(V, width)[:, :min(int(v_top / dv) + 2, width)]
     A, B, C, _ = np.abs(m.per)
-    least = table.min(axis=1)
     coast = A + v_top * (B + C * v_top)
     grade = m.weight * float(m.sine.max()) if m.sine.size else np.zeros(V)
-    return least - coast - grade > 1e-6 * (np.abs(least) + coast + np.abs(grade))
+    slack = 1e-9 * (table.max(axis=1) + coast + np.abs(grade))
+    least = (table.min(axis=1) - coast - grade - slack) * m.per[3] * (1.0 - 1e-9)
+    return np.where(least > 0, least, -np.inf)
 
 
 def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
-    vehicle that followed the trace to step i - 1 reaches this speed at step i. Steps that
-    end at rest are 0 without arithmetic (min(0, x) clipped at 0 is 0 for any finite x);
-    steps the trace does not speed up are the trace's own speed without arithmetic for
-    vehicles that accelerate everywhere (:func:`_accelerates_everywhere`)."""
+    vehicle that followed the trace to step i - 1 reaches this speed at step i. Without
+    arithmetic: steps that end at rest are 0 (min(0, x) clipped at 0 is 0 for any finite
+    x); steps the vehicle surely follows are the trace's speed: v(i-1) + a dt >= trace(i) at
+    the step's start and at every mean speed up to trace(i) with a at least
+    :func:`_least_acceleration` (those the trace does not speed up, for a vehicle whose bound
+    is positive; on the others where v(i-1) + bound dt >= trace(i), the same float operations)."""
     V = m.base.size
     out = np.zeros((V, cap.size - 1))
     moving = cap[1:] > 0
-    rising = moving & (cap[1:] > cap[:-1])
-    sure = _accelerates_everywhere(m, cap, dv)
-    level = np.flatnonzero(moving & ~rising)
+    rising = np.flatnonzero(moving & (cap[1:] > cap[:-1]))
+    level = np.flatnonzero(moving & ~(cap[1:] > cap[:-1]))
+    least = _least_acceleration(m, cap, dv)
+    sure = least > 0
     out[np.ix_(np.flatnonzero(sure), level)] = cap[1:][level]
-    _trial_part(m, np.arange(V), np.flatnonzero(rising if sure.any() else moving), cap, dt, dv, top, out)
-    if sure.any():
-        _trial_part(m, np.flatnonzero(~sure), level, cap, dt, dv, top, out)
+    _trial_part(m, np.flatnonzero(~sure), level, cap, dt, dv, top, out)
+    # the steps the trace speeds up: vehicles in the order of their bound, in chunks; a chunk
+    # computes the steps its smallest bound does not cover
+    order = np.argsort(least, kind="stable")
+    chunk = max(1, REDRIVE_CHUNK_STEPS // max(rising.size, 1))
+    prev, now, dt_r = cap[rising], cap[rising + 1], dt[rising]
+    for first in range(0, V, chunk):
+        rows = order[first:first + chunk]
+        covered = prev + least[rows[0]] * dt_r >= now
+        out[np.ix_(rows, rising[covered])] = now[covered]
+        _trial_part(m, rows, rising[~covered], cap, dt, dv, top, out)
     return out
 
 
