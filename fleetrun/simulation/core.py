@@ -963,18 +963,23 @@ def max_tractive_force_table(va: VehicleArrays, margin=0.97):
     wheel force [N], shape (V, len(REDRIVE_SPEED_GRID)) (speeds [m/s] of the grid).
     """
     names = [row.tobytes() for row in _drivetrain_rows(va)]
-    first = {}
+    if not names:
+        return np.zeros((0, REDRIVE_SPEED_GRID.size))
+    found, first = {}, {}
     for i, name in enumerate(names):
-        if name not in _FORCE_TABLE_ROWS:
-            first.setdefault(name, i)
+        if name not in found:
+            row = _FORCE_TABLE_ROWS.get(name)
+            if row is None:
+                first.setdefault(name, i)
+            else:
+                found[name] = row
     if first:
         rows = _unscaled_force_table(va.subset(np.fromiter(first.values(), np.intp, len(first))))
+        found.update(zip(first, rows))
         if len(_FORCE_TABLE_ROWS) + len(first) > FORCE_TABLE_CACHE_ROWS:
             _FORCE_TABLE_ROWS.clear()
         _FORCE_TABLE_ROWS.update(zip(first, rows))
-    if not names:
-        return np.zeros((0, REDRIVE_SPEED_GRID.size))
-    return margin * np.stack([_FORCE_TABLE_ROWS[name] for name in names])
+    return margin * np.stack([found[name] for name in names])   # this call's rows (another thread may clear the cache)
 
 
 def _unscaled_force_table(va: VehicleArrays):
