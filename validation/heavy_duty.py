@@ -10,7 +10,9 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
    give (issue 21);
 2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
    cycles and weighting, vocational vehicles with GEM's drive- and parked-idle cycles:
-   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106);
+   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106); and again
+   with DOE's MY2020 road-load inputs as NREL T3CO ships them, where T3CO has the class
+   (``models/heavy_duty/reference_inputs_doe_nrel.toml``, a sensitivity);
 3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes (the
    national VM-1 2010 split of combination-truck miles over road categories,
    inputs/state_statistics/vm1_truck_travel.toml): mpg against the national combination-truck
@@ -102,6 +104,16 @@ def reference_vehicles() -> tuple[dict, dict]:
     return data["defaults"], data["vehicles"]
 
 
+def doe_nrel_road_load() -> dict[str, dict]:
+    """{reference vehicle: {cda_m2, crr_kg_per_t}} of DOE's MY2020 no-program vehicles as NREL
+    T3CO ships them (models/heavy_duty/reference_inputs_doe_nrel.toml; only the vehicles T3CO
+    has a class for)."""
+    with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return {name: dict(cda_m2=v["drag_coef"] * v["frontal_area_m2"], crr_kg_per_t=v["wheel_rr_coef"] * 1000.0)
+            for name, v in data["vehicles"].items()}
+
+
 def idle_gallons_per_hour(specs: list) -> tuple[np.ndarray, np.ndarray]:
     """(drive idle, parked idle) fuel [gal/h] of each vehicle (heavy_duty_gem)."""
     g_per_gal = fuel_properties("diesel").density_kg_per_L * LITERS_PER_GALLON * 1e3
@@ -109,10 +121,13 @@ def idle_gallons_per_hour(specs: list) -> tuple[np.ndarray, np.ndarray]:
     return drive * 3600.0 / g_per_gal, parked * 3600.0 / g_per_gal
 
 
-def check_reference_vehicles(with_idle: bool = True) -> list[dict]:
+def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = None) -> list[dict]:
     """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
-    without the vocational idle cycles (as before 2026-11-25)."""
+    without the vocational idle cycles (as before 2026-11-25); ``road_load``: {vehicle:
+    {cda_m2, crr_kg_per_t}} in place of the reference file's (only those vehicles are run)."""
     defaults, vehicles = reference_vehicles()
+    if road_load is not None:
+        vehicles = {name: dict(vehicles[name], **inputs) for name, inputs in road_load.items()}
     specs = {name: vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"],
                                                      engine_model_year=defaults["standard_year"]), name), Path(name))
              for name, basis in vehicles.items()}
@@ -314,6 +329,7 @@ def main(argv=None) -> dict:
                   example_mix_sensitivity=check_example_mix_sensitivity(),
                   fhwa_class_defaults=check_fhwa_class_defaults())
     report["reference_error"] = error_groups(report["reference_vehicles"])
+    report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
     print(json.dumps(report, indent=1))
     if args.write:
         write_error_file(report["reference_vehicles"])
