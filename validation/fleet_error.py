@@ -93,48 +93,57 @@ def manufacturer_means(d: pd.DataFrame, bias: float, sigma: float) -> pd.DataFra
 
 def effect_nll(params, m: pd.DataFrame, df: float) -> float:
     """Negative log likelihood of the manufacturers' means: x_m ~ t_df (normal for df = inf)
-    with scale sqrt(tau_m^2 + s2_m), tau_m = tau (share_m / SHARE_REF)^-gamma (the sum of the
-    effect and its mean's sampling error taken as one t); params = (ln tau, gamma)."""
-    tau_m = math.exp(params[0]) * (m.share.to_numpy() / SHARE_REF) ** -params[1]
-    scale = np.sqrt(tau_m ** 2 + m.s2.to_numpy())
+    with scale sqrt(tau_m^2 + s2_m), tau_m^2 = tau^2 (share_m / SHARE_REF)^-2gamma + tau_size^2
+    SHARE_REF / share_m (the sum of the effect and its mean's sampling error taken as one t);
+    params = (ln tau, gamma, ln tau_size)."""
+    share = m.share.to_numpy() / SHARE_REF
+    tau2 = math.exp(2 * params[0]) * share ** (-2 * params[1]) + math.exp(2 * params[2]) / share
+    scale = np.sqrt(tau2 + m.s2.to_numpy())
     z = m.x.to_numpy() / scale
     logpdf = stats.norm.logpdf(z) if math.isinf(df) else stats.t.logpdf(z, df)
     return float(-(logpdf - np.log(scale)).sum())
 
 
 EFFECTS = {                       # manufacturer-effect families compared by `cv --effect` (docs/budget.md)
-    "normal": ((math.inf,), False),   # one normal spread tau, every manufacturer counted once (stored)
-    "t": (DF_GRID, False),            # heavier tails: Student t, df by likelihood
-    "share": ((math.inf,), True),     # small manufacturers err more: tau (share / SHARE_REF)^-gamma
-    "t+share": (DF_GRID, True),
+    "size": ((math.inf,), False, True),     # normal, variance tau^2 + tau_size^2 SHARE_REF / share (stored)
+    "normal": ((math.inf,), False, False),  # one normal spread tau, every manufacturer counted once
+    "t": (DF_GRID, False, False),           # heavier tails: Student t, df by likelihood
+    "share": ((math.inf,), True, False),    # small manufacturers err more: tau (share / SHARE_REF)^-gamma
+    "t+share": (DF_GRID, True, False),
 }
+DEFAULT_EFFECT = "size"
+_NO_SIZE = math.log(1e-6)        # ln tau_size where the family has no size term (held there)
 
 
-def fit_effect(m: pd.DataFrame, effect: str = "normal") -> tuple[float, float, float]:
-    """(tau, gamma, df) of the manufacturer effect by maximum likelihood (:func:`effect_nll`;
-    every manufacturer counts once): tau continuous, gamma in 0-2 where ``effect`` lets it vary
-    (else 0), df the best of the family's grid."""
-    grid, free_gamma = EFFECTS[effect]
-    best = (math.inf, 0.0, 0.0, math.inf)
+def fit_effect(m: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> tuple[float, float, float, float]:
+    """(tau, gamma, df, tau_size) of the manufacturer effect by maximum likelihood
+    (:func:`effect_nll`; every manufacturer counts once): tau continuous, gamma in 0-2 and
+    tau_size continuous where ``effect`` lets them vary (else 0), df the best of the family's grid."""
+    grid, free_gamma, free_size = EFFECTS[effect]
+    best = (math.inf, 0.0, 0.0, math.inf, 0.0)
+    size_bounds = (math.log(1e-4), math.log(0.5)) if free_size else (_NO_SIZE, _NO_SIZE)
     for df in grid:
-        o = optimize.minimize(effect_nll, [math.log(0.03), 0.2 if free_gamma else 0.0], args=(m, df),
+        o = optimize.minimize(effect_nll, [math.log(0.02 if free_size else 0.03), 0.2 if free_gamma else 0.0,
+                                           math.log(0.02) if free_size else _NO_SIZE], args=(m, df),
                               method="L-BFGS-B", bounds=[(math.log(1e-4), math.log(0.5)),
-                                                         (0.0, 2.0 if free_gamma else 0.0)])
+                                                         (0.0, 2.0 if free_gamma else 0.0), size_bounds])
         if o.fun < best[0]:
-            best = (float(o.fun), math.exp(o.x[0]), float(o.x[1]), df)
+            best = (float(o.fun), math.exp(o.x[0]), float(o.x[1]), df, math.exp(o.x[2]) if free_size else 0.0)
     return best[1:]
 
 
-def fit_constants(d: pd.DataFrame, effect: str = "normal") -> dict:
+def fit_constants(d: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> dict:
     """The fleet-level error of the fuel model from per-vehicle held-out errors (docs/budget.md):
 
     - ``bias``: the gallons-weighted mean of r over the list (measured / predicted total
       gallons - 1);
     - ``sigma``: the per-vehicle-type scatter about its manufacturer's mean (pooled within
       manufacturers, gallons-weighted means);
-    - ``tau``, ``share_exponent`` (gamma), ``df``: the manufacturer effect, Student t of scale
-      tau (share / SHARE_REF)^-gamma, by maximum likelihood over the manufacturers' means
-      (:func:`fit_effect`; each manufacturer counts once, its mean's own sampling error added);
+    - ``tau``, ``share_exponent`` (gamma), ``df``, ``tau_size``: the manufacturer effect,
+      Student t of squared scale tau^2 (share / SHARE_REF)^-2gamma + tau_size^2 SHARE_REF / share,
+      by maximum likelihood over the manufacturers' means (:func:`fit_effect`; each manufacturer
+      counts once, its mean's own sampling error added; the stored family ``size``: normal,
+      gamma 0);
     - ``market_share``: each manufacturer's share of the list's predicted gallons, and the
       list's make -> manufacturer table.
     """
@@ -144,11 +153,12 @@ def fit_constants(d: pd.DataFrame, effect: str = "normal") -> dict:
     mean_m = groups.gr.sum() / groups.pred_gpm.sum()
     resid = r - d.manufacturer.map(mean_m).to_numpy()
     sigma = float((resid ** 2).sum() / (len(r) - len(mean_m))) ** 0.5
-    tau, gamma, df = fit_effect(manufacturer_means(d, bias, sigma), effect)
+    tau, gamma, df, tau_size = fit_effect(manufacturer_means(d, bias, sigma), effect)
     makes = {}
     for make, maker in zip(d.make.str.strip().str.upper(), d.manufacturer):
         makes.setdefault(make, maker)
     return {"bias": bias, "sigma": sigma, "tau": tau, "share_exponent": gamma, "share_ref": SHARE_REF, "df": df,
+            "tau_size": tau_size,
             "n_vehicles": len(r), "n_manufacturers": len(mean_m),
             "market_share": (groups.pred_gpm.sum() / g.sum()).to_dict(), "makes": makes}
 
@@ -157,8 +167,8 @@ def duty_error(c: dict):
     """The budget's DutyError of fitted constants ``c``."""
     from fleetrun.budget.uncertainty import DutyError
 
-    return DutyError(bias=c["bias"], tau=c["tau"], sigma=c["sigma"], df=c["df"],
-                     share_exponent=c["share_exponent"], share_ref=c["share_ref"],
+    return DutyError(bias=c["bias"], tau=c["tau"], sigma=c["sigma"], df=c["df"], size_share=c.get("size_share", {}),
+                     share_exponent=c["share_exponent"], share_ref=c["share_ref"], tau_size=c["tau_size"],
                      market_share=c["market_share"], makes=c["makes"])
 
 
@@ -173,7 +183,8 @@ def write_constants(c: dict, path: Path) -> None:
              f'measured_on = "{datetime.date.today().isoformat()}"',
              f"n_vehicles = {c['n_vehicles']}", f"n_manufacturers = {c['n_manufacturers']}",
              f"bias = {c['bias']:.5f}        # gallons-weighted mean r: the centre is model x (1 + bias)",
-             f"tau = {c['tau']:.5f}         # manufacturer effect: sd (scale of a t if df is finite), max. likelihood",
+             f"tau = {c['tau']:.5f}         # manufacturer effect, the part every manufacturer has: sd (scale of a t if df is finite)",
+             f"tau_size = {c['tau_size']:.5f}    # plus variance tau_size^2 share_ref / W (averages out over a large manufacturer)",
              f"share_exponent = {c['share_exponent']:.4f}  # gamma: scale tau (W / share_ref)^-gamma, W the market share",
              f"share_ref = {c['share_ref']}",
              f"df = {c['df']:g}             # degrees of freedom of the t (inf: normal)",
@@ -241,16 +252,21 @@ def folds_of(d: pd.DataFrame, k: int = FOLDS) -> dict[str, int]:
     return {m: i % k for i, m in enumerate(ranked.index)}
 
 
-def cross_validate(d: pd.DataFrame, k: int = FOLDS, n: int = 1000, seed: int = 20, effect: str = "normal"):
+def cross_validate(d: pd.DataFrame, k: int = FOLDS, n: int = 1000, seed: int = 20, effect: str = DEFAULT_EFFECT):
     """Constants fitted on the manufacturers of k - 1 folds, coverage measured on random fleets
     of the held-out fold's manufacturers (from all of them, or from 1 or 3, uniformly or by
-    size): per fold, the fitted constants and the coverage table."""
+    size): per fold, the fitted constants and the coverage table.
+
+    The fleets' D compares their make-up with the market the centre (bias) was measured on, the
+    k - 1 training folds (a held-out manufacturer has W_m = 0 there, so its whole effect and the
+    training mean's own error count); a manufacturer's size (which sets its effect's scale) is
+    its share of the whole list, a fact an analyst knows of a real manufacturer."""
     fold = d.manufacturer.map(folds_of(d, k)).to_numpy()
     out = []
     for f in range(k):
         c = fit_constants(d[fold != f].reset_index(drop=True), effect)
-        whole = fit_constants(d)     # the market's make-up only (a fact of the list)
-        c = c | {"market_share": whole["market_share"], "makes": whole["makes"]}
+        whole = fit_constants(d)     # the manufacturers' sizes and makes only (facts of the list)
+        c = c | {"size_share": whole["market_share"], "makes": whole["makes"]}
         table = coverage(d[fold == f].reset_index(drop=True), duty_error(c), n=n, seed=seed + f)
         out.append({"fold": f, "constants": c, "held_out": sorted(d.manufacturer[fold == f].unique()),
                     "table": table})
@@ -264,7 +280,7 @@ def print_cv(folds) -> pd.DataFrame:
         c, t = f["constants"], f["table"]
         one = t[t.manufacturers == 1]
         print(f"fold {f['fold']}: held out {', '.join(f['held_out'])}")
-        print(f"  fitted on the others: bias {c['bias']:+.2%}, sigma {c['sigma']:.2%}, tau {c['tau']:.2%}, "
+        print(f"  fitted on the others: bias {c['bias']:+.2%}, sigma {c['sigma']:.2%}, tau {c['tau']:.2%}, tau_size {c['tau_size']:.2%}, "
               f"gamma {c['share_exponent']:.2f}, df {c['df']:g}; covered {t.covered.mean():.1%} (one manufacturer {one.covered.mean():.1%}); "
               f">= 100 types width ratio {t[t['size'] >= 100].width_ratio.min():.2f}-"
               f"{t[t['size'] >= 100].width_ratio.max():.2f}")
@@ -284,13 +300,17 @@ def summary(table: pd.DataFrame, label: str) -> None:
           f"by size {one[one.drawn == 'by vehicles'].covered.mean():.1%}); cells {table.covered.min():.1%}-"
           f"{table.covered.max():.1%}; whole pool >= 100 types: width ratio {large.width_ratio.min():.2f}-"
           f"{large.width_ratio.max():.2f}, all >= 100 types at most {table[table['size'] >= 100].width_ratio.max():.2f}")
+    kinds = table.groupby(["manufacturers", "drawn"], sort=False)
+    print("  per kind of draw (all sizes): " + "; ".join(
+        f"{m} {'' if m == 'all' else ('uniformly' if drawn == 'uniform' else 'by size') + ' '}{t.covered.mean():.1%} "
+        f"({t.covered.min():.1%}-{t.covered.max():.1%})" for (m, drawn), t in kinds))
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("step", choices=("heldout", "fit", "coverage", "cv"))
     ap.add_argument("--write", action="store_true")
-    ap.add_argument("--effect", choices=tuple(EFFECTS), default="normal", help="manufacturer-effect family")
+    ap.add_argument("--effect", choices=tuple(EFFECTS), default=DEFAULT_EFFECT, help="manufacturer-effect family")
     ap.add_argument("--fleets", type=int, default=1000, help="random fleets per cell")
     args = ap.parse_args(argv)
     if args.step == "heldout":
