@@ -4,6 +4,8 @@ budget's ranges cover it (docs/budget.md, "Ranges").
     PYTHONPATH=. python validation/fleet_error.py heldout      # simulate: write the per-vehicle errors
     PYTHONPATH=. python validation/fleet_error.py fit [--write] # the constants -> models/fleet_error.toml
     PYTHONPATH=. python validation/fleet_error.py coverage      # random fleets: coverage and width
+    PYTHONPATH=. python validation/fleet_error.py cv [--effect E] # the same, cross-validated by manufacturer
+    PYTHONPATH=. python validation/fleet_error.py diagnose      # why: scatter shape, effects by size
 
 ``heldout`` runs validation/epa_fuel_economy.py's manufacturer-held-out fit (each manufacturer
 predicted by the constants fitted without it) and writes one row per vehicle with its
@@ -306,9 +308,36 @@ def summary(table: pd.DataFrame, label: str) -> None:
         f"({t.covered.min():.1%}-{t.covered.max():.1%})" for (m, drawn), t in kinds))
 
 
+SIZE_GROUPS = (0.0, 0.015, 0.05, 1.0)     # manufacturers by share of the list's gallons (`diagnose`)
+
+
+def diagnose(d: pd.DataFrame) -> None:
+    """Why a range over- or under-covers: the per-type scatter's shape, the manufacturers'
+    effects by size against what each family of effect says, and each family's likelihood."""
+    c = fit_constants(d, "normal")
+    groups = d.assign(gr=d.pred_gpm * d.r).groupby("manufacturer")
+    resid = d.r - d.manufacturer.map(groups.gr.sum() / groups.pred_gpm.sum())
+    print(f"per vehicle type, within its manufacturer: sd {resid.std():.2%}, excess kurtosis "
+          f"{stats.kurtosis(resid):.2f}, 90 % of |r - mean| within {np.quantile(np.abs(resid), 0.9) / resid.std():.2f} sd "
+          f"(normal: {stats.norm.ppf(0.95):.2f})")
+    m = manufacturer_means(d, c["bias"], c["sigma"])
+    fits = {e: fit_constants(d, e) for e in EFFECTS}
+    for lo, hi in zip(SIZE_GROUPS[:-1], SIZE_GROUPS[1:]):
+        part = m[(m.share >= lo) & (m.share < hi)]
+        model = {e: math.sqrt(np.mean([duty_error(f).effect_variance(k) for k in part.index])) for e, f in fits.items()
+                 if math.isinf(f["df"])}
+        print(f"manufacturers with {lo:.1%}-{hi:.1%} of the gallons ({len(part)}): mean effect {part.x.mean():+.2%}, "
+              f"rms {math.sqrt((part.x ** 2).mean()):.2%} (sampling {math.sqrt(part.s2.mean()):.2%}); rms effect said by "
+              + ", ".join(f"{e} {v:.2%}" for e, v in model.items()))
+    for e, f in fits.items():
+        nll = effect_nll([math.log(f["tau"]), f["share_exponent"], math.log(max(f["tau_size"], 1e-6))], m, f["df"])
+        print(f"  {e}: log likelihood of the 22 means {-nll:.2f}, constants {int(len(EFFECTS[e][0]) > 1)} df + "
+              f"{1 + EFFECTS[e][1] + EFFECTS[e][2]} scale")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("step", choices=("heldout", "fit", "coverage", "cv"))
+    ap.add_argument("step", choices=("heldout", "fit", "coverage", "cv", "diagnose"))
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--effect", choices=tuple(EFFECTS), default=DEFAULT_EFFECT, help="manufacturer-effect family")
     ap.add_argument("--fleets", type=int, default=1000, help="random fleets per cell")
@@ -321,6 +350,8 @@ def main(argv=None):
         print({k: v for k, v in c.items() if k not in ("market_share", "makes")})
         if args.write:
             write_constants(c, ROOT / "models" / "fleet_error.toml")
+    elif args.step == "diagnose":
+        diagnose(read_heldout())
     elif args.step == "cv":
         print_cv(cross_validate(read_heldout(), n=args.fleets, effect=args.effect))
     else:
