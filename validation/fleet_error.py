@@ -329,6 +329,13 @@ def diagnose(d: pd.DataFrame) -> None:
         print(f"manufacturers with {lo:.1%}-{hi:.1%} of the gallons ({len(part)}): mean effect {part.x.mean():+.2%}, "
               f"rms {math.sqrt((part.x ** 2).mean()):.2%} (sampling {math.sqrt(part.s2.mean()):.2%}); rms effect said by "
               + ", ".join(f"{e} {v:.2%}" for e, v in model.items()))
+    size = duty_error(fits[DEFAULT_EFFECT])
+    share = size.market_share
+    big, small = max(share, key=share.get), min(share, key=share.get)
+    print(f"stored family ({DEFAULT_EFFECT}): effect sd {math.sqrt(size.tau ** 2 + size.tau_size ** 2):.2%} at "
+          f"{size.share_ref:.0%} of the gallons, {math.sqrt(size.effect_variance(big)):.2%} for {big} ({share[big]:.1%}), "
+          f"{math.sqrt(size.effect_variance(small)):.2%} for {small} ({share[small]:.2%}) and a manufacturer the list lacks; "
+          f"measured effect of {big} {m.x[big]:+.2%}")
     for e, f in fits.items():
         nll = effect_nll([math.log(f["tau"]), f["share_exponent"], math.log(max(f["tau_size"], 1e-6))], m, f["df"])
         print(f"  {e}: log likelihood of the 22 means {-nll:.2f}, constants {int(len(EFFECTS[e][0]) > 1)} df + "
@@ -339,27 +346,31 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("step", choices=("heldout", "fit", "coverage", "cv", "diagnose"))
     ap.add_argument("--write", action="store_true")
-    ap.add_argument("--effect", choices=tuple(EFFECTS), default=DEFAULT_EFFECT, help="manufacturer-effect family")
+    ap.add_argument("--effect", choices=tuple(EFFECTS), default=None,
+                    help=f"manufacturer-effect family [{DEFAULT_EFFECT}]; with coverage: fit it in sample "
+                         "instead of reading the stored constants")
     ap.add_argument("--fleets", type=int, default=1000, help="random fleets per cell")
     args = ap.parse_args(argv)
     if args.step == "heldout":
         out = write_heldout()
         print(f"{len(out)} vehicles -> {HELDOUT_CSV}")
     elif args.step == "fit":
-        c = fit_constants(read_heldout(), args.effect)
+        c = fit_constants(read_heldout(), args.effect or DEFAULT_EFFECT)
         print({k: v for k, v in c.items() if k not in ("market_share", "makes")})
         if args.write:
             write_constants(c, ROOT / "models" / "fleet_error.toml")
     elif args.step == "diagnose":
         diagnose(read_heldout())
     elif args.step == "cv":
-        print_cv(cross_validate(read_heldout(), n=args.fleets, effect=args.effect))
+        print_cv(cross_validate(read_heldout(), n=args.fleets, effect=args.effect or DEFAULT_EFFECT))
     else:
         from fleetrun.budget.uncertainty import read_error_model
 
-        table = coverage(read_heldout(), read_error_model().for_duty("LD"), n=args.fleets)
+        d = read_heldout()
+        error = duty_error(fit_constants(d, args.effect)) if args.effect else read_error_model().for_duty("LD")
+        table = coverage(d, error, n=args.fleets)
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-        summary(table, "stored constants, every manufacturer")
+        summary(table, f"{args.effect} fitted in sample" if args.effect else "stored constants, every manufacturer")
 
 
 if __name__ == "__main__":
