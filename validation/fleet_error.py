@@ -336,6 +336,9 @@ def diagnose(d: pd.DataFrame) -> None:
           f"{size.share_ref:.0%} of the gallons, {math.sqrt(size.effect_variance(big)):.2%} for {big} ({share[big]:.1%}), "
           f"{math.sqrt(size.effect_variance(small)):.2%} for {small} ({share[small]:.2%}) and a manufacturer the list lacks; "
           f"measured effect of {big} {m.x[big]:+.2%}")
+    t = np.random.default_rng(2).standard_t(2.0, (200_000, 3)).mean(axis=1)
+    print(f"t family's one-t range of a sum: the mean of three equal t_2 effects has its 95th percentile at "
+          f"{np.quantile(t, 0.95):.2f} scale, one t of the same D says {stats.t.ppf(0.95, 2.0) / math.sqrt(3):.2f} (200,000 draws)")
     for e, f in fits.items():
         nll = effect_nll([math.log(f["tau"]), f["share_exponent"], math.log(max(f["tau_size"], 1e-6))], m, f["df"])
         print(f"  {e}: log likelihood of the 22 means {-nll:.2f}, constants {int(len(EFFECTS[e][0]) > 1)} df + "
