@@ -5,6 +5,7 @@ vehicles x steps). See docs/simulation.md for the model and its choices.
 """
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, replace
 from typing import Sequence
@@ -15,7 +16,7 @@ from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.simulation import diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
-                                      backward_drivetrain, has_technology,
+                                      backward_drivetrain, has_technology, row_buffers,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
@@ -264,6 +265,17 @@ def _redriven(sums: BlockSums, again: BlockSums, behind) -> BlockSums:
     return replace(sums, trace=Trace(**columns))
 
 
+def _row_buffered(run_block):
+    """``run_block`` with numpy's ufunc buffer sized to the block's rows (core.row_buffers:
+    the same results, faster); the rows are about the steps where the trace moves."""
+    @functools.wraps(run_block)
+    def run(va, solver, t, speed, v_target, *args, **kwargs):
+        with row_buffers(np.count_nonzero(v_target)):
+            return run_block(va, solver, t, speed, v_target, *args, **kwargs)
+    return run
+
+
+@_row_buffered
 def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffects = CycleEffects(),
                plan: ThermalPlan | None = None, redriven_if_behind: bool = False, precheck: bool = True,
                distance_rows: int | None = None) -> BlockSums:
