@@ -142,7 +142,9 @@ def spin_loss_Nm(input_speed_rpm, spin_loss_Nm_at_0, spin_loss_Nm_per_krpm):
     [0.0, 4.0]
     """
     n = np.asarray(input_speed_rpm, float)
-    return np.where(n > 0, spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0, 0.0)
+    loss = spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0
+    turning = n > 0
+    return loss if turning.all() and np.shape(loss) == turning.shape else np.where(turning, loss, 0.0)
 
 
 def cvt_ratio(wheel_side_speed_rpm, required_engine_speed_rpm, max_ratio, min_ratio):
