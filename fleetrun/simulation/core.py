@@ -60,6 +60,10 @@ def row_buffers(steps: int):
     Parameters
     ----------
     steps : int, the length of the rows (steps per vehicle) the block's arrays have
+
+    Returns
+    -------
+    a context manager (nothing is yielded).
     """
     size = min(NUMPY_BUFFER_DEFAULT, max(16, int(steps) // 16 * 16))   # numpy wants a multiple of 16
     old = np.setbufsize(size)
