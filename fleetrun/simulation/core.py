@@ -248,11 +248,24 @@ def _flag(va: VehicleArrays, name: str) -> np.ndarray:
     return va.technology[:, tech.TECHNOLOGIES.index(name)]
 
 
+# _rows_with's answers for the technology arrays of the last blocks, by id, each with the array
+# itself (so that the id is not reused while the entry lives)
+_ROWS_SEEN: dict = {}
+
+
 def _rows_with(va: VehicleArrays, *names: str):
     """Indices of the vehicles that have any of the technology classes ``names`` (a full slice
-    when all have: no copies)."""
+    when all have: no copies); remembered per technology array (a block asks several times)."""
+    key = (id(va.technology), names)
+    seen = _ROWS_SEEN.get(key)
+    if seen is not None and seen[0] is va.technology:
+        return seen[1]
     rows = np.flatnonzero(np.logical_or.reduce([_flag(va, name) for name in names]))
-    return slice(None) if rows.size == va.n else rows
+    rows = slice(None) if rows.size == va.n else rows
+    if len(_ROWS_SEEN) > 64:
+        _ROWS_SEEN.clear()
+    _ROWS_SEEN[key] = (va.technology, rows)
+    return rows
 
 
 def _any(rows) -> bool:
@@ -363,7 +376,9 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         else:
             torque = engine_torque.copy()
             torque[rows] = assisted
-    off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
+    off = tech.engine_off_coasting(k.moving, drive)
+    if not (hybrid.all() and off.shape == engine_torque.shape):   # & True changes nothing
+        off = _col(hybrid) & off
     if not k.all_moving:   # (at standstill start-stop's stops; none when every step moves)
         off |= _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
                                                                                 c.inhibit_after_cold_start_s)
@@ -966,7 +981,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                                       wheel_power, d.drive)
     engine_rpm = d.engine_rpm
     if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
-        engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
+        engine_rpm = np.where(off, 0.0, engine_rpm)
+        np.copyto(engine_torque, 0.0, where=off)   # engine()'s own array
     fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}

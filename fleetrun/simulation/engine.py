@@ -225,7 +225,7 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
     -------
     fuel rate [g/s], the broadcast shape.
     """
-    shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
+    shape = np.broadcast(*terms, *coefficients).shape
     power = np.zeros(shape)
     scratch = np.empty(shape)
     small = 0.0     # terms that do not vary over the steps (e.g. the accessory load) add once
@@ -304,8 +304,7 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     """
     n = np.asarray(speed_rpm, float)
     rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)
-    shape = np.broadcast_shapes(rise.shape, np.shape(peak_torque_Nm), np.shape(rated_power_kW),
-                                np.shape(rated_speed_rpm), np.shape(idle_torque_fraction))
+    shape = np.broadcast(rise, peak_torque_Nm, rated_power_kW, rated_speed_rpm, idle_torque_fraction).shape
     torque = np.multiply(rise, 1.0 - idle_torque_fraction, out=np.empty(shape))
     torque += idle_torque_fraction
     torque *= peak_torque_Nm
