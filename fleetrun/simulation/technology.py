@@ -24,6 +24,7 @@ import numpy as np
 
 from fleetrun.errors import unknown_name_error
 from fleetrun.resources import model_file
+from fleetrun.simulation import bounds
 
 TECHNOLOGIES = ("start_stop", "mild_hybrid_48v", "p2_hybrid", "atkinson", "miller", "cylinder_deactivation", "turbo")
 HYBRIDS = ("mild_hybrid_48v", "p2_hybrid")
@@ -192,7 +193,7 @@ def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm,
     share [-], the broadcast shape.
     """
     window = moving & (load < max_load) & (speed_rpm >= min_rpm) & (speed_rpm <= max_rpm)
-    deactivated = 0.5 * np.maximum(1.0 - 2.0 * load, 0.0)
+    deactivated = 0.5 * bounds.maximum(1.0 - 2.0 * load, 0.0)
     if out is not None:
         np.copyto(out, deactivated, where=window)
         return out
