@@ -14,7 +14,7 @@ import numpy as np
 
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
-from fleetrun.simulation import diffmodes, measured
+from fleetrun.simulation import bounds, diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
                                       backward_drivetrain, has_technology, row_buffers,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
@@ -337,7 +337,7 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
         miles=miles, fuel_g=fuel_g, fuel_gal=fuel_gal, mpg=mpg,
         diff_input_energy_J=e(out.diff_input_torque_Nm * out.diff_input_speed_rpm * RAD_S_PER_RPM),
         diff_output_energy_J=wheel, drivetrain_input_energy_J=e(out.engine_power_W), wheel_energy_J=wheel,
-        engine_energy_J=(np.maximum(out.engine_power_W, 0.0) * dt).sum(axis=1),
+        engine_energy_J=(bounds.maximum(out.engine_power_W, 0.0) * dt).sum(axis=1),
         shortfall_time_s=shortfall_time_s, shortfall_distance_m=target_m - distance_m,
         shortfall_max_speed_mps=shortfall_max_speed_mps,
         shortfall_steps=out.infeasible.sum(axis=1), behind=out.infeasible.any(axis=1),

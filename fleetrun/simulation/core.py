@@ -639,7 +639,10 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
     diff_rpm = wheel_rpm * G_tot
     kim = _col(va.kim_torque_scale_Nm)
     active = k.moving & (diff_rpm > 0)
-    out_frac = np.abs(wheel_torque) / (kim * G_tot)
+    # T_out / (kim G_tot) with its sign: |T| / x is |T / x| and (T / x) kim is
+    # copysign(|T / x| kim, T) bit for bit (IEEE rounding is symmetric in the sign)
+    signed_frac = wheel_torque / (kim * G_tot)
+    out_frac = np.abs(signed_frac)
     diff_loss_Nm = solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active)
     diff_loss_Nm -= out_frac
     bounds.maximum(diff_loss_Nm, 0.0, out=diff_loss_Nm)
@@ -652,7 +655,8 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
         extra_Nm = differential_extra_torque_Nm(effects, va.configuration, out_Nm + diff_loss_Nm, diff_rpm,
                                                 pinion_accel, k.since_start, solver.ambient, G_tot, kim)
         diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
-    diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
+    diff_torque = np.multiply(signed_frac, kim, out=signed_frac)   # copysign(out_Nm, wheel_torque)
+    diff_torque += diff_loss_Nm
     if not efficiency:
         return diff_rpm, diff_torque, None
     with np.errstate(divide="ignore", invalid="ignore"):

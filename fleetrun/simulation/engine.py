@@ -165,13 +165,18 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     if not _ones_within(throttled, pumping_W):   # x 1 (every engine throttled) changes nothing
         pumping_W = pumping_W * throttled
     if brake_gain is not None:       # technology classes: a higher expansion ratio
-        brake_W = brake_W * brake_gain
+        brake_W = np.multiply(brake_W, brake_gain, out=brake_W if _fits(brake_W, brake_gain) else None)
     brake_high_load_W = brake_W * load
     c_m = mean_piston_speed_m_s(n, stroke_m) if piston_speed_m_s is None else piston_speed_m_s
     # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
     # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each
     return [brake_W, brake_high_load_W, mep, mep * c_m, np.asarray(peak_torque_Nm) * omega, pumping_W,
             np.float64(1.0), bounds.maximum(inertial_power_W, 0.0)]
+
+
+def _fits(values, other) -> bool:
+    """Whether ``values`` (an array of its own) can take the result of an operation with ``other`` in place."""
+    return isinstance(values, np.ndarray) and np.broadcast(values, other).shape == values.shape
 
 
 def _ones_within(flags, values) -> bool:
