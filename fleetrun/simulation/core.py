@@ -19,15 +19,16 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 
-from fleetrun.simulation import climate, diffmodes
+from fleetrun.simulation import bounds, climate, diffmodes
 from fleetrun.simulation.effects import (CycleEffects, differential_extra_torque_Nm, step_time_since_start_s,
                                          vehicle_extra_fuel_g_per_s)
 from fleetrun.simulation.engine import (fuel_coefficients, fuel_power_terms_W, fuel_rate_g_per_s,
-                                        full_load_torque_Nm, load_fraction, motoring_torque_Nm)
+                                        full_load_torque_Nm, load_fraction, mean_piston_speed_m_s, motoring_torque_Nm)
 from fleetrun.simulation.params import VehicleArrays
 from fleetrun.simulation.records import StepResults, Trace
 from fleetrun.simulation.road_load import coastdown_force_N, grade_force_factors, tractive_force_N
@@ -40,6 +41,36 @@ FOLLOW_TOL_MPS = 0.1                 # achieved speed below trace by more than t
 DRIVETRAIN_GUESS = 0.88              # engine -> wheel efficiency used only to pick the gear
 N_POWER_TABLE = 65
 ACCEL_SHIFT_MPS2 = 0.1               # steps accelerating faster than this use shift_speed_accel_rpm
+NUMPY_BUFFER_DEFAULT = 8192          # numpy's own ufunc buffer size (elements)
+
+
+@contextmanager
+def row_buffers(steps: int):
+    """numpy's ufunc buffer set to about one row of ``steps`` elements for the arrays of a
+    block (vehicles x steps), restored afterwards.
+
+    With numpy's default buffer (8,192 elements) an operation between a (V, N) array and a
+    per-vehicle (V, 1) or per-step (1, N) one is copied through the buffer several rows at a
+    time, and runs at about half the speed of the same operation on two (V, N) arrays
+    (numpy 2.4: 30 us instead of 16 us for 64 x 1,120 elements, a (V, 1) x (1, N) outer
+    product 35 us instead of 11 us). With a buffer of at most one row, numpy runs the rows
+    in place. Each element is computed the same way either way, so the results are the same
+    bit for bit; reductions over same-type arrays are not buffered (docs/benchmarks-simulation.md).
+
+    Parameters
+    ----------
+    steps : int, the length of the rows (steps per vehicle) the block's arrays have
+
+    Returns
+    -------
+    a context manager (nothing is yielded).
+    """
+    size = min(NUMPY_BUFFER_DEFAULT, max(16, int(steps) // 16 * 16))   # numpy wants a multiple of 16
+    old = np.setbufsize(size)
+    try:
+        yield
+    finally:
+        np.setbufsize(old)
 
 
 def power_speed_table(va: VehicleArrays) -> np.ndarray:
@@ -81,14 +112,18 @@ def power_speed_table(va: VehicleArrays) -> np.ndarray:
 
 
 def _lookup_rows(table, rows, frac):
-    """Row-wise linear lookup on a uniform 0..1 grid: table[rows](frac)."""
+    """Row-wise linear lookup on a uniform 0..1 grid: table[rows](frac); ``frac`` (a float
+    array) is overwritten. The cell index is kept as a float (whole numbers, exact) until the
+    gather: trunc(x) is the integer part int(x) gives for x >= 0, so the weight x - i is the same."""
     m = table.shape[1] - 1
-    x = np.clip(frac, 0.0, 1.0) * m
-    i = x.astype(np.intp)
-    np.minimum(i, m - 1, out=i)
+    x = np.clip(frac, 0.0, 1.0, out=frac)
+    x *= m
+    i = np.trunc(x)
+    bounds.minimum(i, m - 1.0, out=i)
     w = x - i
     flat = table.reshape(-1)
-    base = rows * (m + 1) + i
+    i += rows * (m + 1.0)
+    base = i.astype(np.intp)
     lo = flat.take(base)
     base += 1
     hi = flat.take(base)
@@ -166,7 +201,7 @@ class DifferentialSolver:
 
 
 def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, fueled, inertial_power_W=0.0,
-                             col=lambda a: a, moving=True):
+                             col=lambda a: a, moving=True, piston_speed_m_s=None):
     """The fuel equation (engine.py) with each vehicle's constants and technology classes;
     ``col`` shapes the (V,) parameters against ``torque_Nm`` (e.g. ``a[:, None]`` for vehicles
     x steps arrays).
@@ -181,14 +216,17 @@ def engine_fuel_rate_g_per_s(va: VehicleArrays, torque_Nm, speed_rpm, max_torque
     inertial_power_W : float or array, the vehicle's inertial power m_eff a v [W] (transient term)
     col : callable, shapes a (V,) parameter against ``torque_Nm``
     moving : bool or array, the vehicle moves (cylinder deactivation)
+    piston_speed_m_s : array or None, the mean piston speed at ``speed_rpm`` [m/s] if the caller has it
 
     Returns
     -------
     fuel rate [g/s], the shape of ``torque_Nm``.
     """
-    pumping, gain, load = _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)
+    positive = bounds.maximum(torque_Nm, 0.0)   # max(T, 0), once for every term that takes it
+    pumping, gain, load = _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col, positive)
     terms = fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, col(va.displacement_L), col(va.stroke_m),
-                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain, load)
+                               col(va.T_peak), col(va.throttled), inertial_power_W, pumping, gain, load, positive,
+                               piston_speed_m_s)
     return fuel_rate_g_per_s(terms, fuel_coefficients(*(col(c) for c in va.fuel_constants.T)), fueled, col(va.lhv))
 
 
@@ -210,11 +248,24 @@ def _flag(va: VehicleArrays, name: str) -> np.ndarray:
     return va.technology[:, tech.TECHNOLOGIES.index(name)]
 
 
+# _rows_with's answers for the technology arrays of the last blocks, by id, each with the array
+# itself (so that the id is not reused while the entry lives)
+_ROWS_SEEN: dict = {}
+
+
 def _rows_with(va: VehicleArrays, *names: str):
     """Indices of the vehicles that have any of the technology classes ``names`` (a full slice
-    when all have: no copies)."""
+    when all have: no copies); remembered per technology array (a block asks several times)."""
+    key = (id(va.technology), names)
+    seen = _ROWS_SEEN.get(key)
+    if seen is not None and seen[0] is va.technology:
+        return seen[1]
     rows = np.flatnonzero(np.logical_or.reduce([_flag(va, name) for name in names]))
-    return slice(None) if rows.size == va.n else rows
+    rows = slice(None) if rows.size == va.n else rows
+    if len(_ROWS_SEEN) > 64:
+        _ROWS_SEEN.clear()
+    _ROWS_SEEN[key] = (va.technology, rows)
+    return rows
 
 
 def _any(rows) -> bool:
@@ -248,29 +299,38 @@ def technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_N
     return _technology_fuel_inputs(va, torque_Nm, speed_rpm, max_torque_Nm, moving, col)[:2]
 
 
-def _technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a):
+def _technology_fuel_inputs(va: VehicleArrays, torque_Nm, speed_rpm, max_torque_Nm, moving=True, col=lambda a: a,
+                            positive_torque_Nm=None):
     """:func:`technology_fuel_inputs` and the load fraction it used (engine.load_fraction; None
-    without technology classes), for the fuel equation not to compute it again."""
+    without technology classes), for the fuel equation not to compute it again;
+    ``positive_torque_Nm``: max(T, 0) if the caller has it. A class on every vehicle updates
+    the share in place."""
     if not has_technology(va):
         return None, None, None
     c = tech.technology_constants()
-    load = load_fraction(torque_Nm, max_torque_Nm)
+    positive = bounds.maximum(torque_Nm, 0.0) if positive_torque_Nm is None else positive_torque_Nm
+    load = load_fraction(torque_Nm, max_torque_Nm, positive)
     rows = _rows_with(va, "turbo")
     if isinstance(rows, slice):   # every vehicle boosted: no (1 - L) to overwrite
-        share = tech.boosted_pumping_share(torque_Nm, col(va.displacement_L), c.na_bmep_kPa)
+        share = tech.boosted_pumping_share(torque_Nm, col(va.displacement_L), c.na_bmep_kPa, positive)
     else:
         share = 1.0 - load
         if rows.size:
             share[rows] = tech.boosted_pumping_share(_pick(va, torque_Nm, rows), col(va.displacement_L[rows]),
-                                                     c.na_bmep_kPa)
+                                                     c.na_bmep_kPa, _pick(va, positive, rows))
     rows = _rows_with(va, "atkinson", "miller")
-    if _any(rows):
+    if isinstance(rows, slice):
+        tech.atkinson_pumping_share(share, c.pumping_retained, out=share)
+    elif rows.size:
         share[rows] = tech.atkinson_pumping_share(share[rows], c.pumping_retained)
     rows = _rows_with(va, "cylinder_deactivation")
     if _any(rows):
-        share[rows] = tech.deactivated_pumping_share(share[rows], load[rows], _pick(va, speed_rpm, rows),
+        every = isinstance(rows, slice)
+        deactivated = tech.deactivated_pumping_share(share[rows], load[rows], _pick(va, speed_rpm, rows),
                                                      _pick(va, moving, rows), c.deac_max_load, c.deac_min_rpm,
-                                                     c.deac_max_rpm)
+                                                     c.deac_max_rpm, out=share if every else None)
+        if not every:
+            share[rows] = deactivated
     gain = np.ones(va.n)
     for name, ratio in (("atkinson", c.compression_ratio_atkinson), ("miller", c.compression_ratio_miller)):
         gain = np.where(_flag(va, name), tech.expansion_ratio_gain(ratio, c.compression_ratio_base, c.gamma), gain)
@@ -304,7 +364,11 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         recovered = tech.recovered_braking_energy_J(_pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows),
                                                     dt, motor_W, c.round_trip_efficiency)
         own = engine_torque[rows]
-        positive = (np.maximum(own, 0.0) * engine_rpm[rows] / RPM_PER_RAD_S * dt).sum(axis=1)
+        positive = bounds.maximum(own, 0.0)     # the engine's positive work over the cycle, in place:
+        positive *= engine_rpm[rows]
+        positive /= RPM_PER_RAD_S
+        positive *= dt
+        positive = positive.sum(axis=1)
         keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
         assisted = np.where(own > 0, own * keep[:, None], own)
         if isinstance(rows, slice):   # every vehicle a hybrid: no copy to write into
@@ -312,7 +376,9 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         else:
             torque = engine_torque.copy()
             torque[rows] = assisted
-    off = _col(hybrid) & tech.engine_off_coasting(k.moving, drive)
+    off = tech.engine_off_coasting(k.moving, drive)
+    if not (hybrid.all() and off.shape == engine_torque.shape):   # & True changes nothing
+        off = _col(hybrid) & off
     if not k.all_moving:   # (at standstill start-stop's stops; none when every step moves)
         off |= _col(_flag(va, "start_stop") | hybrid) & tech.engine_off_at_stop(k.moving, k.since_start,
                                                                                 c.inhibit_after_cold_start_s)
@@ -340,7 +406,7 @@ def standstill_fuel_rate_g_per_s(va: VehicleArrays, time_since_start_s):
     return rate, off
 
 
-def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None):
+def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, throttled=None, piston_speed_m_s=None):
     """Each vehicle's motoring torque (engine.motoring_torque_Nm) at ``speed_rpm``;
     ``throttled=False``: the friction alone (no closed-throttle pumping).
 
@@ -350,6 +416,7 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
     speed_rpm : float or array, engine speed [rpm]
     col : callable, shapes a (V,) parameter against ``speed_rpm``
     throttled : bool or array or None, closed-throttle pumping (None: spark-ignition rows)
+    piston_speed_m_s : array or None, the mean piston speed at ``speed_rpm`` [m/s] if the caller has it
 
     Returns
     -------
@@ -358,7 +425,7 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
     c = va.fuel_constants
     return motoring_torque_Nm(speed_rpm, col(va.displacement_L), col(va.stroke_m), col(va.T_peak), col(c[:, 2]),
                               col(c[:, 3]), col(c[:, 4]), col(c[:, 5]),
-                              col(va.throttled) if throttled is None else throttled)
+                              col(va.throttled) if throttled is None else throttled, piston_speed_m_s)
 
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
@@ -497,7 +564,7 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     standstill)), each (V, N).
     """
     p_need = force * k.v_avg
-    np.maximum(p_need, 0.0, out=p_need)
+    bounds.maximum(p_need, 0.0, out=p_need)
     p_need /= DRIVETRAIN_GUESS
     rows = np.arange(va.n)[:, None]
     # speed at which reserve x full-load power reaches the power needed (rated speed beyond)
@@ -506,16 +573,15 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
     p_need /= _col(va.power_reserve * va.P_rated_kW * 1e3)
     n_req = _lookup_rows(va.power_table, rows, p_need)  # n_power, then clamped in place:
     np.maximum(_col(va.shift_min_rpm), n_req, out=n_req)
-    # while accelerating, the schedule holds a gear up to a higher engine speed
-    np.maximum(np.where(k.accel > ACCEL_SHIFT_MPS2, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
+    _hold_while_accelerating(va, k, n_req)
     np.minimum(n_req, _col(va.n_rated), out=n_req)
     overall = va.combo_trans_ratio * np.where(va.combo_axle_low, va.low_ratio[:, None], 1.0)
     choice = choose_gear(wheel_rpm * _col(va.final_drive), n_req, _col(va.n_rated), overall, va.n_combos)
     flat_k = rows * overall.shape[1] + choice
-    trans_ratio = va.combo_trans_ratio.reshape(-1)[flat_k]
-    axle_low = va.combo_axle_low.reshape(-1)[flat_k] if va.combo_axle_low.any() else np.zeros(flat_k.shape, bool)
-    gear_eff = va.combo_gear_eff.reshape(-1)[flat_k]
-    gear = va.combo_gear.reshape(-1)[flat_k]
+    trans_ratio = va.combo_trans_ratio.reshape(-1).take(flat_k)
+    axle_low = va.combo_axle_low.reshape(-1).take(flat_k) if va.combo_axle_low.any() else np.zeros(flat_k.shape, bool)
+    gear_eff = va.combo_gear_eff.reshape(-1).take(flat_k)
+    gear = va.combo_gear.reshape(-1).take(flat_k)
     if va.cvt.any():  # a CVT meets the schedule's engine speed within its ratio range
         cvt = _col(va.cvt)
         ratio = cvt_ratio(wheel_rpm * _col(va.final_drive), n_req, _col(va.cvt_ratio_range[:, 0]),
@@ -526,6 +592,20 @@ def gear_choice(va: VehicleArrays, k: Kinematics, force, wheel_rpm):
         axle_low &= k.moving
         gear = np.where(k.moving, gear, 0)
     return trans_ratio, axle_low, gear_eff, gear
+
+
+def _hold_while_accelerating(va: VehicleArrays, k: Kinematics, n_req):
+    """While accelerating, the schedule holds a gear up to a higher engine speed: n_req (in
+    place) = max(shift_accel_rpm, n_req) in the steps accelerating faster than ACCEL_SHIFT_MPS2.
+    On the trace (one row of motion for all vehicles) only those steps are touched; the
+    others keep n_req, as max(0, n_req) does."""
+    hold = k.accel > ACCEL_SHIFT_MPS2
+    if hold.shape[0] == 1 and n_req.shape[0] > 1:
+        steps = np.flatnonzero(hold[0])
+        part = n_req[:, steps]
+        n_req[:, steps] = np.maximum(_col(va.shift_accel_rpm), part, out=part)
+    else:
+        np.maximum(np.where(hold, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
 
 
 def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
@@ -559,19 +639,24 @@ def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, e
     diff_rpm = wheel_rpm * G_tot
     kim = _col(va.kim_torque_scale_Nm)
     active = k.moving & (diff_rpm > 0)
-    out_frac = np.abs(wheel_torque) / (kim * G_tot)
+    # T_out / (kim G_tot) with its sign: |T| / x is |T / x| and (T / x) kim is
+    # copysign(|T / x| kim, T) bit for bit (IEEE rounding is symmetric in the sign)
+    signed_frac = wheel_torque / (kim * G_tot)
+    out_frac = np.abs(signed_frac)
     diff_loss_Nm = solver.input_fraction_2d(out_frac, diff_rpm, axle_low, active)
     diff_loss_Nm -= out_frac
-    np.maximum(diff_loss_Nm, 0.0, out=diff_loss_Nm)
+    bounds.maximum(diff_loss_Nm, 0.0, out=diff_loss_Nm)
     diff_loss_Nm *= kim
-    diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
+    if not active.all():
+        diff_loss_Nm[~active] = 0.0  # standstill: nothing turns, no loss
     out_Nm = out_frac * kim  # |T_out| / G_tot: output torque referred to the input
     if effects.differential:
         pinion_accel = k.accel / _col(va.radius_m) * G_tot
         extra_Nm = differential_extra_torque_Nm(effects, va.configuration, out_Nm + diff_loss_Nm, diff_rpm,
                                                 pinion_accel, k.since_start, solver.ambient, G_tot, kim)
         diff_loss_Nm = diff_loss_Nm + np.where(active, extra_Nm, 0.0)
-    diff_torque = np.copysign(out_Nm, wheel_torque) + diff_loss_Nm
+    diff_torque = np.multiply(signed_frac, kim, out=signed_frac)   # copysign(out_Nm, wheel_torque)
+    diff_torque += diff_loss_Nm
     if not efficiency:
         return diff_rpm, diff_torque, None
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -624,14 +709,32 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     N = trans_torque.shape[1]
     idle = _col(va.n_idle)
     auto = _col(va.automatic)
-    unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, _col(va.lockup_rpm), _col(va.has_lockup))
     drive = trans_torque > 0
     engine_rpm = turbine_rpm.copy()
     engine_torque = trans_torque.copy()
+    if not va.automatic.any():   # no converter in this block (the masks below would be all False)
+        unlocked = np.zeros(trans_torque.shape, bool)
+    else:
+        unlocked = auto & converter_unlocked(gear == 1, turbine_rpm, _col(va.lockup_rpm), _col(va.has_lockup))
+        _converter(va, N, unlocked, drive, turbine_rpm, trans_torque, engine_rpm, engine_torque)
+    if not va.automatic.all():   # manual gearboxes in this block
+        _clutch(va, drive, gear, turbine_rpm, engine_rpm, engine_torque)
+    if k.all_moving:
+        np.maximum(engine_rpm, idle, out=engine_rpm)
+    else:
+        engine_rpm = np.where(k.moving, np.maximum(engine_rpm, idle), idle)
+        engine_torque = np.where(k.moving, engine_torque, 0.0)
+    return engine_rpm, engine_torque, unlocked, drive
+
+
+def _converter(va: VehicleArrays, N, unlocked, drive, turbine_rpm, trans_torque, engine_rpm, engine_torque):
+    """The torque converter (:func:`converter_or_clutch`), in place on ``engine_rpm`` and
+    ``engine_torque``: the converter model where it slips, idle unloaded on overrun."""
+    idle = _col(va.n_idle)
     slipping = np.flatnonzero(unlocked & drive)  # the converter model only where it slips
     if slipping.size:
         vrow = slipping // N
-        nt, Tt = turbine_rpm.reshape(-1)[slipping], trans_torque.reshape(-1)[slipping]
+        nt, Tt = turbine_rpm.reshape(-1).take(slipping), trans_torque.reshape(-1).take(slipping)
         sr = converter_speed_ratio(nt, Tt, va.K_tc[vrow], va.stall_TR[vrow])
         with np.errstate(divide="ignore", invalid="ignore"):
             pump = np.maximum(np.where(sr > 0, nt / sr, va.n_idle[vrow]), va.n_idle[vrow])
@@ -640,22 +743,20 @@ def converter_or_clutch(va: VehicleArrays, k: Kinematics, trans_torque, turbine_
     coasting = unlocked & ~drive  # unlocked converter on overrun: the engine idles unloaded
     np.copyto(engine_rpm, np.maximum(idle, turbine_rpm), where=coasting)
     np.copyto(engine_torque, 0.0, where=coasting)
-    # manual: the clutch slips at take-off (first gear: engine held at launch speed) and is
-    # disengaged below idle on overrun; in a higher gear it is closed (a heavy diesel cruises
-    # below the launch speed, which is no slip)
-    manual = ~auto
+
+
+def _clutch(va: VehicleArrays, drive, gear, turbine_rpm, engine_rpm, engine_torque):
+    """Manual gearboxes (:func:`converter_or_clutch`), in place: the clutch slips at take-off
+    (first gear: engine held at launch speed) and is disengaged below idle on overrun; in a
+    higher gear it is closed (a heavy diesel cruises below the launch speed, which is no slip)."""
+    idle = _col(va.n_idle)
+    manual = ~_col(va.automatic)
     launch = _col(va.launch_rpm)
     slip = manual & drive & (gear == 1) & (turbine_rpm < launch)
     np.copyto(engine_rpm, launch, where=slip)
     declutch = manual & ~drive & (turbine_rpm < idle)
     np.copyto(engine_rpm, idle, where=declutch)
     np.copyto(engine_torque, 0.0, where=declutch)
-    if k.all_moving:
-        np.maximum(engine_rpm, idle, out=engine_rpm)
-    else:
-        engine_rpm = np.where(k.moving, np.maximum(engine_rpm, idle), idle)
-        engine_torque = np.where(k.moving, engine_torque, 0.0)
-    return engine_rpm, engine_torque, unlocked, drive
 
 
 def engine_limits(va: VehicleArrays, engine_rpm, engine_torque):
@@ -704,20 +805,22 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     -------
     (engine torque [N m], fuel rate [g/s], engine-off mask or None), arrays (V, N).
     """
-    t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col)
+    c_m = mean_piston_speed_m_s(engine_rpm, _col(va.stroke_m))   # for the motoring torque and the fuel
+    t_offset = engine_motoring_torque_Nm(va, engine_rpm, _col, piston_speed_m_s=c_m)
     engine_torque_fuel = np.minimum(engine_torque, t_max)
     overrun = engine_torque < 0
     # engine braking is limited to the motoring torque (friction and pumping); the brakes take
     # the rest, so the reported engine torque is never below -T_0
-    engine_torque = np.maximum(engine_torque, -t_offset)
+    engine_torque = np.maximum(engine_torque, np.negative(t_offset, out=t_offset))
     fueled = ~(overrun & (engine_rpm >= _col(va.fuel_cut_rpm)))
-    inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel * k.v_avg
+    inertial_W = _col(va.mass_kg * (1.0 + va.rot_frac)) * k.accel
+    inertial_W *= k.v_avg
     off = None
     if has_technology(va):
         engine_torque_fuel, off = technology_engine_state(
             va, k, engine_torque_fuel, engine_rpm, engine_torque > 0 if drive is None else drive, wheel_power)
         engine_torque = np.where(engine_torque > 0, engine_torque_fuel, engine_torque)
-    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving)
+    fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving, c_m)
     idle_fuel = _col(va.idle_fuel_g_s)
     if np.isfinite(idle_fuel).any():
         np.copyto(fuel, idle_fuel, where=idling & np.isfinite(idle_fuel))
@@ -725,7 +828,10 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
         fuel = np.where(k.moving, fuel, _col(idle_fuel_rate_g_per_s(va)))
     if off is not None:   # engine off: no fuel; start-stop's stops cost the fitted average power
         stop_W = tech.technology_constants().stop_fuel_power_W
-        fuel = np.where(off, 0.0 if k.all_moving else np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
+        if k.all_moving:
+            np.copyto(fuel, 0.0, where=off)
+        else:
+            fuel = np.where(off, np.where(k.moving, 0.0, stop_W / (_col(va.lhv) * 1e3)), fuel)
     if effects.vehicle:
         # extra fuel only while the engine burns fuel (idle counts; fuel cut-off does not)
         burning = ~k.moving | fueled
@@ -879,7 +985,8 @@ def backward(va: VehicleArrays, time_s, speed_mps, grade_pct, solver: Differenti
                                       wheel_power, d.drive)
     engine_rpm = d.engine_rpm
     if off is not None:   # technology classes: the engine stands still while off (trace speed 0)
-        engine_rpm, engine_torque = np.where(off, 0.0, engine_rpm), np.where(off, 0.0, engine_torque)
+        engine_rpm = np.where(off, 0.0, engine_rpm)
+        np.copyto(engine_torque, 0.0, where=off)   # engine()'s own array
     fuel = with_climate_load(va, solver.ambient, fuel)
     engine_power = _shaft_power_W(engine_torque, engine_rpm)
     losses_W = {}

@@ -46,6 +46,7 @@ from fleetrun.differential import efficiency
 from fleetrun.errors import FleetrunError
 from fleetrun.fileio import atomic_file
 from fleetrun.physics.lubricant import THESIS_OPERATING_TEMP_C, operating_temperature_C
+from fleetrun.simulation import bounds
 
 MODES = ("direct", "map2d", "map3d")
 ZERO_OUTPUT = 1e-8  # output torque fraction that stands for "zero" in the direct inversion
@@ -483,25 +484,27 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
     input torque fraction T_in / kim [-], the shape of ``out_frac``.
     """
     du = U_MAX / (N_U - 1)
-    # in place where possible (the same arithmetic, fewer temporaries)
-    u = np.asarray(np.maximum(out_frac, 0.0), float)
+    # in place where possible (the same arithmetic, fewer temporaries); the cell indices are
+    # kept as floats (whole numbers: trunc is the integer part the cast to int gives, so the
+    # weights are the same) and cast to int once, for the gather
+    u = np.asarray(bounds.maximum(out_frac, 0.0), float)
     np.sqrt(u, out=u)
     u /= du
-    i = u.astype(np.intp)
-    np.minimum(i, N_U - 2, out=i)
+    i = np.trunc(u)
+    bounds.minimum(i, N_U - 2.0, out=i)
     wu = u - i
     top = n_max if per_step else n_max[map_id]
     s = np.asarray(speed_rpm * ((N_SPEED - 1) / top), float)
-    np.minimum(s, N_SPEED - 1.0, out=s)
-    j = s.astype(np.intp)
-    np.minimum(j, N_SPEED - 2, out=j)
+    bounds.minimum(s, N_SPEED - 1.0, out=s)
+    j = np.trunc(s)
+    bounds.minimum(j, N_SPEED - 2.0, out=j)
     ws = s - j
     flat = maps.reshape(-1)
-    # flat index ((map_id * 2 + range) * N_U + i) * N_SPEED + j (integers: exact in any order)
-    base = i
-    base *= N_SPEED
-    base += j
-    base += (map_id * 2 + np.asarray(axle_low, np.intp)) * (N_U * N_SPEED)
+    # flat index ((map_id * 2 + range) * N_U + i) * N_SPEED + j (whole numbers: exact in any order)
+    i *= N_SPEED
+    i += j
+    i += (map_id * 2 + np.asarray(axle_low, np.intp)) * float(N_U * N_SPEED)
+    base = i.astype(np.intp)
     m00 = flat.take(base)
     base += 1
     m01 = flat.take(base)

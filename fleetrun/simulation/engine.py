@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleetrun.simulation import bounds
 from fleetrun.units import RAD_S_PER_RPM
 
 FUEL_TERMS = ("brake", "brake_high_load", "friction", "friction_piston_speed", "friction_peak_pressure",
@@ -106,13 +107,14 @@ def mep_power_W_per_kPa(speed_rpm, displacement_L):
     return (np.asarray(displacement_L, float) * (RAD_S_PER_RPM / (4.0 * np.pi))) * np.asarray(speed_rpm, float)
 
 
-def load_fraction(torque_Nm, max_torque_Nm):
+def load_fraction(torque_Nm, max_torque_Nm, positive_torque_Nm=None):
     """L = T_e / T_max in [0, 1] (0 on overrun).
 
     Parameters
     ----------
     torque_Nm : float or array, brake torque T_e [N m]
     max_torque_Nm : float or array, full-load torque at the same speed [N m]
+    positive_torque_Nm : array or None, max(T_e, 0) [N m] if the caller has it (not changed)
 
     Returns
     -------
@@ -121,12 +123,14 @@ def load_fraction(torque_Nm, max_torque_Nm):
     >>> load_fraction([-5.0, 50.0, 300.0], 200.0).tolist()
     [0.0, 0.25, 1.0]
     """
-    load = np.maximum(torque_Nm, 0.0) / np.maximum(max_torque_Nm, 1e-9)
-    return np.minimum(load, 1.0, out=load) if isinstance(load, np.ndarray) else min(load, 1.0)
+    positive = bounds.maximum(torque_Nm, 0.0) if positive_torque_Nm is None else positive_torque_Nm
+    load = positive / bounds.maximum(max_torque_Nm, 1e-9)
+    return bounds.minimum(load, 1.0, out=load) if isinstance(load, np.ndarray) else min(load, 1.0)
 
 
 def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stroke_m, peak_torque_Nm, throttled,
-                       inertial_power_W=0.0, pumping_share=None, brake_gain=None, load=None):
+                       inertial_power_W=0.0, pumping_share=None, brake_gain=None, load=None, positive_torque_Nm=None,
+                       piston_speed_m_s=None):
     """The eight terms of the fuel equation (module docstring), in the order of FUEL_TERMS.
 
     Parameters
@@ -141,6 +145,8 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
         fleetrun/simulation/technology.py); None: (1 - L).
     brake_gain : multiplier of the two brake-work terms (a higher expansion ratio); None: 1.
     load : :func:`load_fraction` of ``torque_Nm`` and ``max_torque_Nm`` if the caller has it.
+    positive_torque_Nm : max(T_e, 0) [N m] if the caller has it (not changed).
+    piston_speed_m_s : :func:`mean_piston_speed_m_s` at ``speed_rpm`` [m/s] if the caller has it.
 
     Returns
     -------
@@ -151,17 +157,34 @@ def fuel_power_terms_W(torque_Nm, speed_rpm, max_torque_Nm, displacement_L, stro
     """
     n = np.asarray(speed_rpm, float)
     omega = n * RAD_S_PER_RPM
-    brake_W = np.maximum(torque_Nm, 0.0) * omega
-    load = load_fraction(torque_Nm, max_torque_Nm) if load is None else load
+    positive = bounds.maximum(torque_Nm, 0.0) if positive_torque_Nm is None else positive_torque_Nm
+    brake_W = positive * omega
+    load = load_fraction(torque_Nm, max_torque_Nm, positive) if load is None else load
     mep = mep_power_W_per_kPa(n, displacement_L)
-    pumping_W = ((1.0 - load) if pumping_share is None else np.asarray(pumping_share, float)) * mep * throttled
+    pumping_W = ((1.0 - load) if pumping_share is None else np.asarray(pumping_share, float)) * mep
+    if not _ones_within(throttled, pumping_W):   # x 1 (every engine throttled) changes nothing
+        pumping_W = pumping_W * throttled
     if brake_gain is not None:       # technology classes: a higher expansion ratio
-        brake_W = brake_W * brake_gain
+        brake_W = np.multiply(brake_W, brake_gain, out=brake_W if _fits(brake_W, brake_gain) else None)
     brake_high_load_W = brake_W * load
+    c_m = mean_piston_speed_m_s(n, stroke_m) if piston_speed_m_s is None else piston_speed_m_s
     # the accessory term is 1 and the peak-pressure and transient terms keep their own shape:
     # they broadcast in fuel_rate_g_per_s instead of filling a vehicles x steps array each
-    return [brake_W, brake_high_load_W, mep, mep * mean_piston_speed_m_s(n, stroke_m),
-            np.asarray(peak_torque_Nm) * omega, pumping_W, np.float64(1.0), np.maximum(inertial_power_W, 0.0)]
+    return [brake_W, brake_high_load_W, mep, mep * c_m, np.asarray(peak_torque_Nm) * omega, pumping_W,
+            np.float64(1.0), bounds.maximum(inertial_power_W, 0.0)]
+
+
+def _fits(values, other) -> bool:
+    """Whether ``values`` (an array of its own) can take the result of an operation with ``other`` in place."""
+    return isinstance(values, np.ndarray) and np.broadcast(values, other).shape == values.shape
+
+
+def _ones_within(flags, values) -> bool:
+    """Whether multiplying ``values`` by the bool array ``flags`` would change nothing: every
+    flag true and ``values`` already of the broadcast shape."""
+    return (isinstance(flags, np.ndarray) and isinstance(values, np.ndarray) and flags.dtype == bool
+            and flags.ndim <= values.ndim and np.broadcast_shapes(flags.shape, values.shape) == values.shape
+            and bool(flags.all()))
 
 
 def fuel_coefficients(eta_indicated, high_load_factor, fmep_0_kPa, fmep_piston_speed_kPa_s_per_m,
@@ -207,7 +230,7 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
     -------
     fuel rate [g/s], the broadcast shape.
     """
-    shape = np.broadcast_shapes(*(np.shape(t) for t in terms), *(np.shape(c) for c in coefficients))
+    shape = np.broadcast(*terms, *coefficients).shape
     power = np.zeros(shape)
     scratch = np.empty(shape)
     small = 0.0     # terms that do not vary over the steps (e.g. the accessory load) add once
@@ -218,14 +241,16 @@ def fuel_rate_g_per_s(terms, coefficients, fueled, lhv_MJ_per_kg):
         else:
             small = small + np.multiply(term, c)
     power += small
-    np.maximum(power, 0.0, out=power)
+    bounds.maximum(power, 0.0, out=power)
     power /= np.asarray(lhv_MJ_per_kg, float) * 1e3
-    power *= fueled
+    if not _ones_within(fueled, power):   # x 1 (fuel nowhere cut off) changes nothing
+        power *= fueled
     return power
 
 
 def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep_0_kPa,
-                       fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction, pmep_throttle_kPa, throttled):
+                       fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction, pmep_throttle_kPa, throttled,
+                       piston_speed_m_s=None):
     """Torque [N m] to turn the unfuelled engine: friction plus closed-throttle pumping,
     (FMEP + PMEP(L=0)) V_d / (4 pi) with FMEP as in the module docstring.
 
@@ -238,6 +263,8 @@ def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep
     fmep_0_kPa, fmep_piston_speed_kPa_s_per_m, fmep_peak_fraction : float or array, f_0 [kPa], f_cm [kPa s/m], f_pk [-]
     pmep_throttle_kPa : float or array, p_th [kPa]
     throttled : bool or array, spark-ignition (gasoline) engine
+    piston_speed_m_s : array or None, :func:`mean_piston_speed_m_s` at ``speed_rpm`` [m/s] if the
+        caller has it (not changed)
 
     Returns
     -------
@@ -247,8 +274,11 @@ def motoring_torque_Nm(speed_rpm, displacement_L, stroke_m, peak_torque_Nm, fmep
     # c_m, f_cm c_m and the sum
     per_kPa = np.asarray(displacement_L, float) / (4.0 * np.pi)           # [N m per kPa]
     constant = (fmep_0_kPa + np.where(throttled, pmep_throttle_kPa, 0.0)) * per_kPa + fmep_peak_fraction * peak_torque_Nm
-    torque = mean_piston_speed_m_s(speed_rpm, stroke_m)
-    torque *= fmep_piston_speed_kPa_s_per_m * per_kPa
+    if piston_speed_m_s is None:
+        torque = mean_piston_speed_m_s(speed_rpm, stroke_m)
+        torque *= fmep_piston_speed_kPa_s_per_m * per_kPa
+    else:
+        torque = piston_speed_m_s * (fmep_piston_speed_kPa_s_per_m * per_kPa)
     torque += constant
     return torque
 
@@ -279,13 +309,12 @@ def full_load_torque_Nm(speed_rpm, peak_torque_Nm, rated_power_kW, rated_speed_r
     """
     n = np.asarray(speed_rpm, float)
     rise = np.clip((n - idle_speed_rpm) / np.maximum(peak_torque_speed_rpm - idle_speed_rpm, 1.0), 0.0, 1.0)
-    shape = np.broadcast_shapes(rise.shape, np.shape(peak_torque_Nm), np.shape(rated_power_kW),
-                                np.shape(rated_speed_rpm), np.shape(idle_torque_fraction))
+    shape = np.broadcast(rise, peak_torque_Nm, rated_power_kW, rated_speed_rpm, idle_torque_fraction).shape
     torque = np.multiply(rise, 1.0 - idle_torque_fraction, out=np.empty(shape))
     torque += idle_torque_fraction
     torque *= peak_torque_Nm
     power_cap = np.multiply(n, RAD_S_PER_RPM, out=np.empty(shape))
-    np.maximum(power_cap, 1e-9, out=power_cap)
+    bounds.maximum(power_cap, 1e-9, out=power_cap)
     np.divide(rated_power_kW * 1e3, power_cap, out=power_cap)
     np.minimum(torque, power_cap, out=torque)
     governor = np.subtract(1.1 * rated_speed_rpm, n, out=power_cap)

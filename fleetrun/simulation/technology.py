@@ -24,6 +24,7 @@ import numpy as np
 
 from fleetrun.errors import unknown_name_error
 from fleetrun.resources import model_file
+from fleetrun.simulation import bounds
 
 TECHNOLOGIES = ("start_stop", "mild_hybrid_48v", "p2_hybrid", "atkinson", "miller", "cylinder_deactivation", "turbo")
 HYBRIDS = ("mild_hybrid_48v", "p2_hybrid")
@@ -129,7 +130,7 @@ def expansion_ratio_gain(compression_ratio, compression_ratio_base, gamma):
     return otto_efficiency(compression_ratio_base, gamma) / otto_efficiency(compression_ratio, gamma)
 
 
-def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa):
+def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa, positive_torque_Nm=None):
     """Throttle-pumping share of a boosted engine: 1 - bmep / bmep_NA, 0 above (unthrottled).
 
     bmep = 4 pi T / V_d (Heywood 1988, Eq. 2.19) [kPa with V_d in L].
@@ -139,6 +140,7 @@ def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa):
     torque_Nm : float or array, brake torque [N m]
     displacement_L : float or array, V_d [L]
     na_bmep_kPa : float, the bmep a naturally aspirated engine reaches at wide-open throttle [kPa]
+    positive_torque_Nm : array or None, max(T, 0) [N m] if the caller has it (not changed)
 
     Returns
     -------
@@ -147,26 +149,31 @@ def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa):
     >>> boosted_pumping_share([0.0, 100.0, 300.0], 2.0, 1000.0).round(4).tolist()
     [1.0, 0.3717, 0.0]
     """
-    bmep_kPa = np.maximum(torque_Nm, 0.0) * (4.0 * np.pi) / np.asarray(displacement_L, float)
-    return np.clip(1.0 - bmep_kPa / na_bmep_kPa, 0.0, 1.0)
+    positive = np.maximum(torque_Nm, 0.0) if positive_torque_Nm is None else positive_torque_Nm
+    bmep_kPa = np.divide(positive * (4.0 * np.pi), np.asarray(displacement_L, float))
+    if not bmep_kPa.ndim:
+        return np.clip(1.0 - bmep_kPa / na_bmep_kPa, 0.0, 1.0)
+    bmep_kPa /= na_bmep_kPa      # the same arithmetic, in place
+    return np.clip(np.subtract(1.0, bmep_kPa, out=bmep_kPa), 0.0, 1.0, out=bmep_kPa)
 
 
-def atkinson_pumping_share(share, pumping_retained):
+def atkinson_pumping_share(share, pumping_retained, out=None):
     """Late intake-valve closing: the pumping share kept (``pumping_retained`` of it).
 
     Parameters
     ----------
     share : float or array, the throttled engine's pumping share [-]
     pumping_retained : float, the part late intake-valve closing keeps [-]
+    out : array or None, where to write the result (may be ``share``)
 
     Returns
     -------
     share [-].
     """
-    return share * pumping_retained
+    return np.multiply(share, pumping_retained, out=out)
 
 
-def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm, max_rpm):
+def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm, max_rpm, out=None):
     """Half the cylinders at twice the load: pumping of load 2L on half the displacement,
     0.5 max(1 - 2L, 0) in place of (1 - L) inside the window (load < ``max_load``, engine
     speed within [min_rpm, max_rpm], moving); ``share`` outside it.
@@ -179,13 +186,18 @@ def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm,
     moving : bool array, the vehicle moves
     max_load : float, [-]
     min_rpm, max_rpm : float, the speed window [rpm]
+    out : array or None, ``share`` itself to update it in place (the window's steps only)
 
     Returns
     -------
     share [-], the broadcast shape.
     """
     window = moving & (load < max_load) & (speed_rpm >= min_rpm) & (speed_rpm <= max_rpm)
-    return np.where(window, 0.5 * np.maximum(1.0 - 2.0 * load, 0.0), share)
+    deactivated = 0.5 * bounds.maximum(1.0 - 2.0 * load, 0.0)
+    if out is not None:
+        np.copyto(out, deactivated, where=window)
+        return out
+    return np.where(window, deactivated, share)
 
 
 def engine_off_at_stop(moving, time_since_start_s, inhibit_s):

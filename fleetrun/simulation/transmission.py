@@ -142,7 +142,9 @@ def spin_loss_Nm(input_speed_rpm, spin_loss_Nm_at_0, spin_loss_Nm_per_krpm):
     [0.0, 4.0]
     """
     n = np.asarray(input_speed_rpm, float)
-    return np.where(n > 0, spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0, 0.0)
+    loss = spin_loss_Nm_at_0 + spin_loss_Nm_per_krpm * n / 1000.0
+    turning = n > 0
+    return loss if turning.all() and np.shape(loss) == turning.shape else np.where(turning, loss, 0.0)
 
 
 def cvt_ratio(wheel_side_speed_rpm, required_engine_speed_rpm, max_ratio, min_ratio):
@@ -222,16 +224,21 @@ def choose_gear(wheel_side_speed_rpm, required_engine_speed_rpm, max_engine_spee
         np.greater_equal(overall_ratios[:, k:k + 1], need, out=hit)
         np.add(count, hit.view(np.int8), out=count)
     top = np.asarray(n_ratios)[:, None] - 1
-    if (np.ndim(need) == 2 and need.shape == limit.shape and (overall_ratios[:, :-1] >= overall_ratios[:, 1:]).all()
+    if (K < 128 and np.ndim(need) == 2 and need.shape == limit.shape
+            and (overall_ratios[:, :-1] >= overall_ratios[:, 1:]).all()
             and (need <= limit).all()):
         # ratios sorted and need <= limit: the gears above the limit are the first ``over`` of
         # the ``count`` gears at or above need (over <= count), so max(count - 1, over) is count
         # where the last of those is above the limit (or count is 0), else count - 1
-        res = count.astype(np.intp) - 1
-        last = np.maximum(res, 0)
+        # (in int8 up to the gather index and the result: K < 128 gears, the same whole numbers)
+        res = count - np.int8(1)
+        last = np.maximum(res, np.int8(0)).astype(np.intp)
         last += np.arange(V)[:, None] * K
-        res += (count == 0) | (overall_ratios.reshape(-1).take(last) > limit)
-        return np.minimum(res, top)
+        above = overall_ratios.reshape(-1).take(last) > limit
+        above |= count == 0
+        res += above.view(np.int8)
+        np.minimum(res, top.astype(np.int8), out=res)
+        return res.astype(np.intp)
     over = np.zeros(np.shape(wheel_side_speed_rpm), dtype=np.int8)
     for k in range(K):
         over += overall_ratios[:, k:k + 1] > limit
