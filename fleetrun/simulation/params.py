@@ -330,17 +330,24 @@ def willans_slope(vehicles: Sequence[VehicleSpec] | VehicleArrays) -> np.ndarray
     return va.fuel_constants[:, FUEL_CONSTANTS.index("eta_indicated")]
 
 
-def _row_cached(v: VehicleSpec) -> dict:
+ROW_CACHE_SIZE = 65536   # vehicles whose checked parameters a process keeps (the oldest go first)
+_ROWS: dict = {}         # VehicleSpec.physics_key() -> _row's parameters
+
+
+def _row_cached(v: VehicleSpec, key: tuple | None = None) -> dict:
+    """``_row(v)``, once per physically distinct vehicle (``key``: its physics_key, what decides
+    how it drives; _row reads nothing else but the id its errors name, and errors are not kept)."""
     try:
-        key = (v, tuple(sorted((v.extra or {}).items())))
-        return _ROW_CACHE(key)
-    except TypeError:   # unhashable (e.g. a list in ``extra``): not cached
+        key = v.physics_key() if key is None else key
+        row = _ROWS.get(key)
+    except TypeError:   # unhashable (e.g. a list where a tuple belongs): not cached
         return _row(v)
-
-
-@lru_cache(maxsize=65536)
-def _ROW_CACHE(key) -> dict:
-    return _row(key[0])
+    if row is None:
+        row = _row(v)
+        if len(_ROWS) >= ROW_CACHE_SIZE:
+            del _ROWS[next(iter(_ROWS))]
+        _ROWS[key] = row
+    return row
 
 
 def _with(defaults, record):
@@ -508,7 +515,7 @@ def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, Fleetru
         verdict = verdicts.get(key, unseen)
         if verdict is unseen:
             try:
-                _row_cached(v)
+                _row_cached(v, key)
                 verdict = None
             except FleetrunError as exc:
                 verdict = exc
