@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
-from operator import itemgetter
+from operator import attrgetter, itemgetter
 from typing import Sequence
 
 import numpy as np
@@ -280,6 +280,8 @@ class VehicleArrays:
 
 
 _SPEC_FIELDS = frozenset(VehicleSpec.__dataclass_fields__)
+assert not _SPEC_FIELDS & set(FUEL_CONSTANTS)   # _row reads them from the set or the extra columns only
+_fuel_constants_of = attrgetter(*FUEL_CONSTANTS)   # an EngineSet's, in FUEL_CONSTANTS order
 
 
 def _get(v: VehicleSpec, key: str, default):
@@ -381,7 +383,9 @@ def _row(v: VehicleSpec) -> dict:
             4 * math.pi * T_peak / (eng.bmep_at_peak_kPa * 1e3) * 1e3)
     eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng.idle_speed_rpm, eng.peak_torque_speed_fraction,
                                                eng.idle_torque_fraction))   # MD/HD diesels: models/heavy_duty/
-    cylinders = _get(v, "cylinders", default_cylinders(disp))
+    cylinders = _get(v, "cylinders", None)
+    if cylinders is None:
+        cylinders = default_cylinders(disp)
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
         hi, lo = max(gears), min(gears)
@@ -418,7 +422,8 @@ def _row(v: VehicleSpec) -> dict:
         idle_T=_get(v, "idle_torque_fraction", eng.idle_torque_fraction),
         disp=disp, cylinders=cylinders, bore_stroke=_get(v, "bore_stroke_ratio", 1.0),   # the stroke in _gather
         throttled=v.fuel == "gasoline",
-        fuel_constants=tuple(_get(v, key, getattr(eng, key)) for key in FUEL_CONSTANTS),
+        fuel_constants=(tuple(_get(v, key, getattr(eng, key)) for key in FUEL_CONSTANTS) if v.extra
+                        else _fuel_constants_of(eng)),   # no extra column: the set's (none is a field)
         lhv=_get(v, "lhv_MJ_per_kg", eng.lhv_MJ_per_kg),
         rho=_get(v, "density_kg_per_L", eng.density_kg_per_L),
         shift=_get(v, "shift_speed_min_rpm", _or(trn.shift_speed_min_rpm, eng.shift_speed_min_rpm)),
