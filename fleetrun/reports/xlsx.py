@@ -135,7 +135,7 @@ class Sheet:
 
 def _texts(values: list) -> bool:
     """Whether a column holds texts (each written by :meth:`Book.text`, with its own Format)."""
-    return any(type(v) is str for v in values)
+    return str in set(map(type, values))
 
 
 class Book:
