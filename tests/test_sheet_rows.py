@@ -63,6 +63,11 @@ def test_block_rows_refused_where_not_exact(tmp_path):
     assert not sheet_rows.write_rows(sheet.ws, 1, [[1.0] * 10], [None])
     assert not sheet_rows.write_rows(sheet.ws, 1, [["<r>rich</r>"] * 10], [lambda v: None])
     assert not sheet_rows.write_rows(sheet.ws, 1, [[1.0, "x"] * 5], [None])
+    # a text longer than half XlsxWriter's cell limit (its own path checks and truncates it),
+    # in a text column beside a number column: cell by cell
+    long = "y" * (sheet.ws.xls_strmax // 2 + 1)
+    assert not sheet_rows.write_rows(sheet.ws, 10, [[1.0] * 10, ["x"] * 9 + [long]], [None, lambda v: None])
+    assert sheet_rows.write_rows(sheet.ws, 10, [[1.0] * 10, ["x"] * 10], [None, lambda v: None])   # the same, short: in one piece
     book.close()
 
 

@@ -166,7 +166,8 @@ def _fits_here(ws, first_row: int, rows: int, columns: list[list], kinds: list) 
         return False
     if None in kinds:
         return False
-    if any(type(v) is str and len(v) > ws.xls_strmax // 2 for values in columns for v in values):
+    limit = ws.xls_strmax // 2   # texts are only in "text" columns ("number" ones hold floats and ints)
+    if any(type(v) is str and len(v) > limit for values, kind in zip(columns, kinds) if kind == "text" for v in values):
         return False
     return _xml(ws, lambda: ws._write_row(first_row, None)) == f'<row r="{first_row + 1}">'
 

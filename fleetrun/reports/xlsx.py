@@ -20,11 +20,13 @@ user edits the cell.
 from __future__ import annotations
 
 import math
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import xlsxwriter
+import xlsxwriter.workbook
 from xlsxwriter.utility import xl_col_to_name
 
 from fleetrun.budget.result import EfficiencyMap, RunResult
@@ -67,6 +69,10 @@ FORMATS = {
 
 WORKBOOK_OPTIONS = {"constant_memory": True, "strings_to_formulas": False, "strings_to_urls": False,
                     "strings_to_numbers": False, "nan_inf_to_errors": False}
+#: zlib level of report.xlsx's zip package: the sheets' XML (9 MB for the 7,600-row fleet of
+#: benchmarks/bench_end_to_end.py) deflates 3x faster at 1 than at zlib's default 6, into a file
+#: ~18 % larger (2.1 MB instead of 1.8 MB there); the XML in it is the same (docs/benchmarks-run.md).
+PACKAGE_COMPRESSLEVEL = 1
 #: Per-vehicle rows a report.xlsx copies (ByVehicle; the Vehicles in Inputs): ~20 columns x
 #: 20,000 rows is a ~5 MB workbook that opens in seconds. Beyond it the sheet says where the
 #: rows are: results.csv and results.parquet hold every row at any size (docs/report.md).
@@ -129,7 +135,7 @@ class Sheet:
 
 def _texts(values: list) -> bool:
     """Whether a column holds texts (each written by :meth:`Book.text`, with its own Format)."""
-    return any(type(v) is str for v in values)
+    return str in set(map(type, values))
 
 
 class Book:
@@ -183,7 +189,22 @@ class Book:
             ws.write_string(row, column, value, cell_format)
 
     def close(self) -> None:
-        self.workbook.close()
+        """Package the workbook, deflated at :data:`PACKAGE_COMPRESSLEVEL` (XlsxWriter has no
+        option for it: its ZipFile is swapped for the one call)."""
+        packaging = xlsxwriter.workbook.ZipFile
+        xlsxwriter.workbook.ZipFile = _PackageZipFile
+        try:
+            self.workbook.close()
+        finally:
+            xlsxwriter.workbook.ZipFile = packaging
+
+
+class _PackageZipFile(zipfile.ZipFile):
+    """The report's zip package at :data:`PACKAGE_COMPRESSLEVEL`."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("compresslevel", PACKAGE_COMPRESSLEVEL)
+        super().__init__(*args, **kwargs)
 
 
 def _widths(sheet: Sheet, names, minimum=10, maximum=40):

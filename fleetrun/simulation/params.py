@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
-from operator import itemgetter
+from operator import attrgetter, itemgetter
 from typing import Sequence
 
 import numpy as np
@@ -61,6 +61,13 @@ def engine_defaults(fuel: str, duty_class: str) -> EngineSet:
     -------
     EngineSet, the defaults with the fuel's lower heating value [MJ/kg] and density [kg/L].
     """
+    return _engine_set(fuel, duty_class)
+
+
+@lru_cache(maxsize=64)
+def _engine_set(fuel: str, duty_class: str) -> EngineSet:
+    """engine_defaults, once per (fuel, duty class) in a process (the files are read once too,
+    resources.model_file; an EngineSet is frozen)."""
     sets = model_file("engines.toml")
     if fuel not in sets:
         raise InputError(f"unknown fuel '{fuel}'", column="fuel", value=fuel,
@@ -87,6 +94,12 @@ def transmission_defaults(gearbox_type: str) -> TransmissionSet:
     -------
     TransmissionSet, the type's defaults.
     """
+    return _transmission_set(gearbox_type)
+
+
+@lru_cache(maxsize=64)
+def _transmission_set(gearbox_type: str) -> TransmissionSet:
+    """transmission_defaults, once per gearbox type in a process (a TransmissionSet is frozen)."""
     sets = model_file("transmissions.toml")
     if gearbox_type not in sets:
         raise InputError(f"unknown gearbox_type '{gearbox_type}'", column="gearbox_type",
@@ -266,8 +279,18 @@ class VehicleArrays:
         return VehicleArrays(**values)
 
 
+_SPEC_FIELDS = frozenset(VehicleSpec.__dataclass_fields__)
+assert not _SPEC_FIELDS & set(FUEL_CONSTANTS)   # _row reads them from the set or the extra columns only
+_fuel_constants_of = attrgetter(*FUEL_CONSTANTS)   # an EngineSet's, in FUEL_CONSTANTS order
+
+
 def _get(v: VehicleSpec, key: str, default):
-    value = column_value(v, key)
+    """The number in the column ``key`` (column_value), else ``default`` (blank or NaN)."""
+    value = getattr(v, key) if key in _SPEC_FIELDS else None
+    if value is None:
+        if not v.extra:   # most rows: no extra column, the default (column_value without the calls)
+            return default
+        value = v.extra.get(key)
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return default
     try:
@@ -309,17 +332,24 @@ def willans_slope(vehicles: Sequence[VehicleSpec] | VehicleArrays) -> np.ndarray
     return va.fuel_constants[:, FUEL_CONSTANTS.index("eta_indicated")]
 
 
-def _row_cached(v: VehicleSpec) -> dict:
+ROW_CACHE_SIZE = 65536   # vehicles whose checked parameters a process keeps (the oldest go first)
+_ROWS: dict = {}         # VehicleSpec.physics_key() -> _row's parameters
+
+
+def _row_cached(v: VehicleSpec, key: tuple | None = None) -> dict:
+    """``_row(v)``, once per physically distinct vehicle (``key``: its physics_key, what decides
+    how it drives; _row reads nothing else but the id its errors name, and errors are not kept)."""
     try:
-        key = (v, tuple(sorted((v.extra or {}).items())))
-        return _ROW_CACHE(key)
-    except TypeError:   # unhashable (e.g. a list in ``extra``): not cached
+        key = v.physics_key() if key is None else key
+        row = _ROWS.get(key)
+    except TypeError:   # unhashable (e.g. a list where a tuple belongs): not cached
         return _row(v)
-
-
-@lru_cache(maxsize=65536)
-def _ROW_CACHE(key) -> dict:
-    return _row(key[0])
+    if row is None:
+        row = _row(v)
+        if len(_ROWS) >= ROW_CACHE_SIZE:
+            del _ROWS[next(iter(_ROWS))]
+        _ROWS[key] = row
+    return row
 
 
 def _with(defaults, record):
@@ -353,7 +383,9 @@ def _row(v: VehicleSpec) -> dict:
             4 * math.pi * T_peak / (eng.bmep_at_peak_kPa * 1e3) * 1e3)
     eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng.idle_speed_rpm, eng.peak_torque_speed_fraction,
                                                eng.idle_torque_fraction))   # MD/HD diesels: models/heavy_duty/
-    cylinders = _get(v, "cylinders", default_cylinders(disp))
+    cylinders = _get(v, "cylinders", None)
+    if cylinders is None:
+        cylinders = default_cylinders(disp)
     gears = tuple(float(g) for g in v.transmission_gear_ratios)
     if box == "cvt":  # the variator's range as geometric steps (first guess and full-load table)
         hi, lo = max(gears), min(gears)
@@ -372,8 +404,8 @@ def _row(v: VehicleSpec) -> dict:
         cfg=cfg,
         mass=float(v.test_weight_kg),
         rot=_get(v, "rotating_mass_fraction", ROTATING_MASS_FRACTION.get(v.duty_class, 0.015)),
-        coast=coastdown_to_si(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),
-        radius=rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
+        coast=(v.coastdown_A_lbf, v.coastdown_B_lbf_per_mph, v.coastdown_C_lbf_per_mph2),   # SI in _gather
+        radius=_rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
         fd=float(v.final_drive_ratio), low=low, kim=v.kim_torque_scale_Nm, combos=combos,
         auto=converter, cvt=box == "cvt", cvt_range=(max(gears), min(gears)),
         lockup_clutch=_yes_no(v, "converter_lockup", True),
@@ -388,9 +420,10 @@ def _row(v: VehicleSpec) -> dict:
         T_peak=T_peak, P=P_rated, n_rated=n_rated, n_idle=n_idle,
         n_pk=n_pk,
         idle_T=_get(v, "idle_torque_fraction", eng.idle_torque_fraction),
-        disp=disp, stroke=stroke_m(disp, cylinders, _get(v, "bore_stroke_ratio", 1.0)),
+        disp=disp, cylinders=cylinders, bore_stroke=_get(v, "bore_stroke_ratio", 1.0),   # the stroke in _gather
         throttled=v.fuel == "gasoline",
-        fuel_constants=tuple(_get(v, key, getattr(eng, key)) for key in FUEL_CONSTANTS),
+        fuel_constants=(tuple(_get(v, key, getattr(eng, key)) for key in FUEL_CONSTANTS) if v.extra
+                        else _fuel_constants_of(eng)),   # no extra column: the set's (none is a field)
         lhv=_get(v, "lhv_MJ_per_kg", eng.lhv_MJ_per_kg),
         rho=_get(v, "density_kg_per_L", eng.density_kg_per_L),
         shift=_get(v, "shift_speed_min_rpm", _or(trn.shift_speed_min_rpm, eng.shift_speed_min_rpm)),
@@ -405,16 +438,27 @@ def _row(v: VehicleSpec) -> dict:
 
 def _technology(v: VehicleSpec) -> tuple[bool, ...]:
     """The ``technology`` column as flags (simulation/technology.py); errors name the vehicle."""
+    text = column_value(v, "technology")
     try:
-        return parse_technology(column_value(v, "technology"))
+        return _technology_flags(text) if type(text) is str else parse_technology(text)
     except FleetrunError as exc:
         raise InputError(f"vehicle '{v.vehicle_id}': {exc.message}", column="technology",
                          value=column_value(v, "technology"), hint=exc.hint) from None
 
 
+_technology_flags = lru_cache(maxsize=256)(parse_technology)   # a technology text, parsed once
+
+
+def _rolling_radius_m(tire_size, factor: float) -> float:
+    """tyre.rolling_radius_m, once per (size, factor) text in a process."""
+    return _radius_of_size(tire_size, factor) if type(tire_size) is str else rolling_radius_m(tire_size, factor)
+
+
+_radius_of_size = lru_cache(maxsize=4096)(rolling_radius_m)
+
 _NUMBERS = ("mass", "rot", "radius", "fd", "low", "kim", "stall_TR", "stall_rpm", "lockup", "launch", "T_peak", "P",
-            "n_rated", "n_idle", "n_pk", "idle_T", "disp", "stroke", "lhv", "rho", "shift", "shift_accel", "reserve",
-            "cut", "idle_fuel")
+            "n_rated", "n_idle", "n_pk", "idle_T", "disp", "cylinders", "bore_stroke", "lhv", "rho", "shift",
+            "shift_accel", "reserve", "cut", "idle_fuel")
 _NO_COMBO = (0.0, False, 1, 1.0)   # padding beyond a vehicle's combos: ratio 0, high range, gear 1, efficiency 1
 
 
@@ -429,7 +473,8 @@ def _gather(rows: list) -> VehicleArrays:
     numbers = np.array([itemgetter(*_NUMBERS)(r) for r in rows], float).reshape(V, len(_NUMBERS))
     columns = dict(zip(_NUMBERS, np.ascontiguousarray(numbers.T)))
     a = columns.__getitem__
-    coast = np.array([r["coast"] for r in rows], float).reshape(V, 3)
+    # per vehicle as in the row, the conversions once over the arrays (the same operations element by element)
+    coast = np.array(coastdown_to_si(*np.array([r["coast"] for r in rows], float).reshape(V, 3).T)).T
     T_peak = a("T_peak")
     return VehicleArrays(
         n=V, configuration=[r["cfg"] for r in rows], mass_kg=a("mass"), rot_frac=a("rot"),
@@ -444,7 +489,7 @@ def _gather(rows: list) -> VehicleArrays:
         K_tc=a("stall_rpm") / np.sqrt(T_peak), lockup_rpm=a("lockup"), launch_rpm=a("launch"),
         T_peak=T_peak, P_rated_kW=a("P"), n_rated=a("n_rated"), n_idle=a("n_idle"),
         n_peak_torque=a("n_pk"), idle_T_frac=a("idle_T"), displacement_L=a("disp"),
-        stroke_m=a("stroke"), throttled=np.array([r["throttled"] for r in rows], bool),
+        stroke_m=stroke_m(a("disp"), a("cylinders"), a("bore_stroke")), throttled=np.array([r["throttled"] for r in rows], bool),
         fuel_constants=np.array([r["fuel_constants"] for r in rows], float).reshape(V, len(FUEL_CONSTANTS)),
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
@@ -475,7 +520,7 @@ def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, Fleetru
         verdict = verdicts.get(key, unseen)
         if verdict is unseen:
             try:
-                _row_cached(v)
+                _row_cached(v, key)
                 verdict = None
             except FleetrunError as exc:
                 verdict = exc

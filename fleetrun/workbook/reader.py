@@ -384,7 +384,7 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     ok = True
     blanks: list[tuple[Column, int]] = []
     uncached, width = table.uncached, len(values)
-    for column, index, low, high, known in _plan(table):
+    for column, index, low, high, known, whole in _plan(table):
         raw = values[index - 1] if index <= width else None
         if uncached and (row_number, index) in uncached:
             problem, raw = rows.scanned_cell(column, uncached[(row_number, index)], raw)
@@ -393,8 +393,12 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
                 ok = False
                 continue
         if type(raw) is float and low <= raw <= high:   # a number within its range: rows.parse_value's fast path
-            parsed[column.name] = raw
-            continue
+            if not whole:
+                parsed[column.name] = raw
+                continue
+            if raw.is_integer():   # an integer column's whole number (what rows.parse_value gives it)
+                parsed[column.name] = int(raw)
+                continue
         value = known.get(raw, _UNSEEN) if type(raw) is str else _UNSEEN   # a text seen before in this column
         if value is not _UNSEEN and not isinstance(value, CellProblem):
             parsed[column.name] = value
@@ -425,13 +429,14 @@ def _names(schema) -> tuple[str, ...]:
     return tuple(c.name for c in schema)
 
 
-def _plan(table: _Table) -> list[tuple[Column, int, float, float, dict]]:
-    """Per schema column present: (column, index, low, high, texts), the range a float cell may
-    take without further parsing (rows.parse_value's own fast path; an empty range for the
-    others) and the column's parsed texts (:func:`_parsed_value`)."""
+def _plan(table: _Table) -> list[tuple[Column, int, float, float, dict, bool]]:
+    """Per schema column present: (column, index, low, high, texts, whole), the range a float
+    cell may take without further parsing (rows.parse_value's own fast path; for an integer
+    column (whole) a whole number in it is taken as int; an empty range for the others) and the
+    column's parsed texts (:func:`_parsed_value`)."""
     if table.plan is None:
-        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind == "number" else (math.inf, -math.inf)),
-                       table.texts.setdefault(i, {})) for c, i in table.present]
+        table.plan = [(c, i, *(rows.number_bounds(c) if c.kind in ("number", "integer") else (math.inf, -math.inf)),
+                       table.texts.setdefault(i, {}), c.kind == "integer") for c, i in table.present]
     return table.plan
 
 

@@ -137,8 +137,10 @@ def _greater(value: bytes, first: int, last: int) -> bytes:
 
 @lru_cache(maxsize=64)
 def _letters_above(letters: bytes) -> re.Pattern:
-    """A reference whose column has as many letters as ``letters`` and comes after it."""
-    return re.compile(_REF_HEAD + rb"(?:%s)[0-9]+\"" % _greater(letters.upper(), ord("A"), ord("Z")), re.IGNORECASE)
+    """A reference whose column has as many letters as ``letters`` and comes after it (letters
+    of either case; the ``r="`` before them as written, so that the search skims: a pattern
+    ignoring case throughout made it 7x slower)."""
+    return re.compile(_REF_HEAD + rb"(?i:%s)[0-9]+\"" % _greater(letters.upper(), ord("A"), ord("Z")))
 
 
 @lru_cache(maxsize=64)
