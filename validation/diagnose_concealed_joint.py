@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -60,6 +60,18 @@ DESIGNS = {
            (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
            (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
 }
+# pre-registered (docs/diagnose-realdata.md, 1d): J3's and J2's recordings, noise-weighted windows
+DESIGNS["W"] = DESIGNS["J3"]
+DESIGNS["W2"] = DESIGNS["J2"]
+#: design -> window weighting of fleetrun.diagnose.joint.joint_diagnosis
+WEIGHTING = {"W": "noise", "W2": "noise"}
+# chosen after W had been measured (not blind): W with every target declared a hot start
+DESIGNS["Wh"] = DESIGNS["J3"]
+WEIGHTING["Wh"] = "noise"
+# its control (also after W): J3 declared hot starts, windows unweighted
+DESIGNS["J3h"] = DESIGNS["J3"]
+#: designs whose targets are all declared hot starts (no warm-up candidate)
+HOT_STARTS = {"Wh", "J3h"}
 
 
 @dataclass(frozen=True)
@@ -118,7 +130,9 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
-    clean = joint_diagnosis(clean_paths, refs)
+    kw = {"weights": WEIGHTING.get(design, "none"),
+          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None}
+    clean = joint_diagnosis(clean_paths, refs, **kw)
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -135,7 +149,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
                 sub.mkdir(exist_ok=True)
                 paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
             extra = np.concatenate(extras)
-            d = joint_diagnosis(paths, refs)
+            d = joint_diagnosis(paths, refs, **kw)
             names = tuple(f["effect"] for f in d.result["findings"])
             bg = np.zeros(len(extra))
             if effect in names and effect not in [f["effect"] for f in clean.result["findings"]]:
