@@ -86,6 +86,8 @@ class JointCase:
     phase_error_before_g: float
     phase_error_after_g: float
     parameters: dict
+    #: the first round's two best held-out gains and the ambiguities reported (why not named)
+    why: str = ""
 
     @property
     def named(self) -> bool:
@@ -162,8 +164,16 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
             cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
                                    float((extra * dt).sum()), raw, raw - float(bg.sum()) if effect in names else 0.0,
-                                   before, after, {"concealed": param, **params}))
+                                   before, after, {"concealed": param, **params}, _why(d.result)))
     return clean.result, cases
+
+
+def _why(result: dict) -> str:
+    """The first selection round's two best held-out gains and the ambiguities reported."""
+    rounds = result["method"]["rounds"]
+    gains = sorted(rounds[0]["gains"].items(), key=lambda kv: -kv[1])[:2] if rounds else []
+    amb = "; ".join(" / ".join(a["effects"]) for a in result["ambiguities"])
+    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else ""))
 
 
 def table(design: str, clean: dict, cases: list[JointCase]) -> str:
@@ -172,14 +182,15 @@ def table(design: str, clean: dict, cases: list[JointCase]) -> str:
              f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
              f"{clean['unexplained']['significant']}", "",
              "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
-             "less clean background g | phase error g before -> after | parameter (concealed / fitted) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "less clean background g | phase error g before -> after | parameter (concealed / fitted) | "
+             "first round's best gains; ambiguities |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for c in cases:
         fitted = {k: v for k, v in c.parameters.items() if k != "concealed"}
         lines.append(f"| {c.effect} | {c.size:g} | {100 * c.share_of_fuel:.1f} % | "
                      f"{', '.join(c.findings) or 'none'} | {c.concealed_g:.1f} | {c.fitted_raw_g:.1f} | "
                      f"{c.fitted_g:.1f} | {c.phase_error_before_g:.1f} -> {c.phase_error_after_g:.1f} | "
-                     f"{c.parameters['concealed']:.3g} / {fitted} |")
+                     f"{c.parameters['concealed']:.3g} / {fitted} | {c.why} |")
     ok = sum(c.named and c.size_ok and c.phases_ok for c in cases)
     lines.append(f"\n{ok}/{len(cases)} named, sized within 25 % and with the phase error at least halved")
     return "\n".join(lines)
