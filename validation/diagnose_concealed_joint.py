@@ -220,8 +220,9 @@ def separation(design: str, workdir=None) -> JointSeparation:
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
-    clean = joint_diagnosis(paths, refs)
-    J = clean.problem.coarse
+    clean = joint_diagnosis(paths, refs, weights=WEIGHTING.get(design, "none"),
+                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None)
+    J = clean.problem.coarse   # weighted rows where the design weights its windows
     cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
     warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})
             for f in clean.result["findings"] if f["effect"].startswith("warmup")]
