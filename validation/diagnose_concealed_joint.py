@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -60,6 +60,18 @@ DESIGNS = {
            (("camry2018_hwfet", "second"), ("camry2018_hwfet", "first")),
            (("camry2018_us06", "second"), ("camry2018_us06", "first"))],
 }
+# pre-registered (docs/diagnose-realdata.md, 1d): J3's and J2's recordings, noise-weighted windows
+DESIGNS["W"] = DESIGNS["J3"]
+DESIGNS["W2"] = DESIGNS["J2"]
+#: design -> window weighting of fleetrun.diagnose.joint.joint_diagnosis
+WEIGHTING = {"W": "noise", "W2": "noise"}
+# chosen after W had been measured (not blind): W with every target declared a hot start
+DESIGNS["Wh"] = DESIGNS["J3"]
+WEIGHTING["Wh"] = "noise"
+# its control (also after W): J3 declared hot starts, windows unweighted
+DESIGNS["J3h"] = DESIGNS["J3"]
+#: designs whose targets are all declared hot starts (no warm-up candidate)
+HOT_STARTS = {"Wh", "J3h"}
 
 
 @dataclass(frozen=True)
@@ -74,6 +86,8 @@ class JointCase:
     phase_error_before_g: float
     phase_error_after_g: float
     parameters: dict
+    #: the first round's two best held-out gains and the ambiguities reported (why not named)
+    why: str = ""
 
     @property
     def named(self) -> bool:
@@ -118,7 +132,9 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
-    clean = joint_diagnosis(clean_paths, refs)
+    kw = {"weights": WEIGHTING.get(design, "none"),
+          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None}
+    clean = joint_diagnosis(clean_paths, refs, **kw)
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -135,7 +151,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
                 sub.mkdir(exist_ok=True)
                 paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
             extra = np.concatenate(extras)
-            d = joint_diagnosis(paths, refs)
+            d = joint_diagnosis(paths, refs, **kw)
             names = tuple(f["effect"] for f in d.result["findings"])
             bg = np.zeros(len(extra))
             if effect in names and effect not in [f["effect"] for f in clean.result["findings"]]:
@@ -148,8 +164,16 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
             cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
                                    float((extra * dt).sum()), raw, raw - float(bg.sum()) if effect in names else 0.0,
-                                   before, after, {"concealed": param, **params}))
+                                   before, after, {"concealed": param, **params}, _why(d.result)))
     return clean.result, cases
+
+
+def _why(result: dict) -> str:
+    """The first selection round's two best held-out gains and the ambiguities reported."""
+    rounds = result["method"]["rounds"]
+    gains = sorted(rounds[0]["gains"].items(), key=lambda kv: -kv[1])[:2] if rounds else []
+    amb = "; ".join(" / ".join(a["effects"]) for a in result["ambiguities"])
+    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else ""))
 
 
 def table(design: str, clean: dict, cases: list[JointCase]) -> str:
@@ -158,14 +182,15 @@ def table(design: str, clean: dict, cases: list[JointCase]) -> str:
              f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
              f"{clean['unexplained']['significant']}", "",
              "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
-             "less clean background g | phase error g before -> after | parameter (concealed / fitted) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "less clean background g | phase error g before -> after | parameter (concealed / fitted) | "
+             "first round's best gains; ambiguities |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for c in cases:
         fitted = {k: v for k, v in c.parameters.items() if k != "concealed"}
         lines.append(f"| {c.effect} | {c.size:g} | {100 * c.share_of_fuel:.1f} % | "
                      f"{', '.join(c.findings) or 'none'} | {c.concealed_g:.1f} | {c.fitted_raw_g:.1f} | "
                      f"{c.fitted_g:.1f} | {c.phase_error_before_g:.1f} -> {c.phase_error_after_g:.1f} | "
-                     f"{c.parameters['concealed']:.3g} / {fitted} |")
+                     f"{c.parameters['concealed']:.3g} / {fitted} | {c.why} |")
     ok = sum(c.named and c.size_ok and c.phases_ok for c in cases)
     lines.append(f"\n{ok}/{len(cases)} named, sized within 25 % and with the phase error at least halved")
     return "\n".join(lines)
@@ -195,8 +220,9 @@ def separation(design: str, workdir=None) -> JointSeparation:
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
-    clean = joint_diagnosis(paths, refs)
-    J = clean.problem.coarse
+    clean = joint_diagnosis(paths, refs, weights=WEIGHTING.get(design, "none"),
+                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None)
+    J = clean.problem.coarse   # weighted rows where the design weights its windows
     cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
     warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})
             for f in clean.result["findings"] if f["effect"].startswith("warmup")]

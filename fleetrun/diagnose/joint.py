@@ -19,7 +19,7 @@ joined problem (docs/diagnose.md, "Several recordings of one vehicle").
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -32,7 +32,8 @@ from fleetrun.diagnose.records import Integral
 from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
-from fleetrun.errors import InputError
+from fleetrun.diagnose.weighting import noise_weighted
+from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import JsonDocument
 
 
@@ -176,11 +177,35 @@ def join(problems: Sequence[Problem], names: Sequence[str]) -> tuple[Problem, tu
     return joined, pieces
 
 
-def join_coarse(problems: Sequence[Problem], names: Sequence[str], window: int) -> Problem:
+#: How the selection weights each recording's windows (``joint_diagnosis(weights=...)``):
+#: ``none`` every window alike; ``noise`` by the inverse of its noise variance, estimated per
+#: recording (:func:`fleetrun.diagnose.weighting.noise_weighted`).
+WEIGHTS = ("none", "noise")
+
+
+def join_coarse(problems: Sequence[Problem], names: Sequence[str], window: int,
+                weights: str = "none") -> Problem:
     """``join`` of the recordings' coarse problems; a recording without one is windowed
-    (:func:`fleetrun.diagnose.engine.windowed`) over ``window`` samples."""
+    (:func:`fleetrun.diagnose.engine.windowed`) over ``window`` samples. With ``weights``
+    ``noise`` each recording's windows are weighted by their own noise before joining."""
+    if weights not in WEIGHTS:
+        raise unknown_name_error("window weighting", weights, WEIGHTS)
     coarse = [p.coarse if p.coarse is not None else windowed(p, window) for p in problems]
+    if weights == "noise":
+        coarse = [noise_weighted(c) for c in coarse]
     return join(coarse, names)[0]
+
+
+def without_warmup(problem: Problem, names: Sequence[str]) -> Problem:
+    """``problem`` without the warm-up candidates of the recordings ``names`` (hot starts: a
+    cold-start penalty cannot be there, and a slow warm-up would otherwise stand in for a
+    constant load, docs/diagnose-realdata.md, 1d)."""
+    drop = {f"warmup{PER_RECORDING_SEP}{n}" for n in names}
+    missing = drop - {c.id for c in problem.candidates}
+    if missing:
+        raise InputError(f"no warm-up candidate to drop for {sorted(missing)}",
+                         hint="name recordings of this joint problem")
+    return replace(problem, candidates=[c for c in problem.candidates if c.id not in drop])
 
 
 @dataclass(frozen=True)
@@ -220,19 +245,32 @@ def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece
 
 def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str = "thesis",
                     settings: Settings | None = None, residual: str = "auto",
-                    window_s: float | None = None) -> JointDiagnosis:
+                    window_s: float | None = None, weights: str = "none",
+                    hot_starts: Sequence[bool] | None = None) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,
-    :data:`fleetrun.diagnose.vehicle.SAME_TRACE_WINDOW_S`) for every recording."""
+    :data:`fleetrun.diagnose.vehicle.SAME_TRACE_WINDOW_S`) for every recording, each window
+    weighted as ``weights`` says (:data:`WEIGHTS`; docs/diagnose.md, "Several recordings of
+    one vehicle"). With ``noise`` the held-out errors and ``baseline.heldout_rmse`` are of
+    the weighted windows; the fitted effects, ``after`` and the integrals are in g/s and g
+    as without. ``hot_starts[i]`` True declares recording ``i`` a hot start (the engine warm
+    from its first second, as the test protocol says): it gets no ``warmup`` candidate
+    (:func:`without_warmup`)."""
     if len(references) != len(recordings):
         raise InputError("give one reference (or None) per recording")
+    if hot_starts is not None and len(hot_starts) != len(recordings):
+        raise InputError("give one hot-start flag per recording")
     problems = [build(r, None, ref, physics, residual) for r, ref in zip(recordings, references)]
     names = [Path(r).stem for r in recordings]
     joined, pieces = join(problems, names)
     dt = float(np.median(np.diff(problems[0].time_s)))
     window = max(1, int(round((window_s or SAME_TRACE_WINDOW_S) / dt)))
-    joined.coarse = join_coarse(problems, names, window)
+    joined.coarse = join_coarse(problems, names, window, weights)
+    hot = [n for n, h in zip(names, hot_starts or []) if h]
+    if hot:
+        joined = without_warmup(joined, hot)
+        joined.coarse = without_warmup(joined.coarse, hot)
     result, fitted = analyse(joined, settings)
     entries = piece_integrals(joined, fitted, pieces)
     result["integrals"] = [{"recording": name, **e.as_json()} for name, e in entries]
