@@ -19,6 +19,7 @@ import argparse
 import datetime
 import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,8 @@ from scipy import optimize, stats
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from fleetrun.budget.uncertainty import DutyError  # noqa: E402  (after the path: the repo's package)
 
 HELDOUT_CSV = ROOT / "validation" / "data" / "epa_heldout_errors.csv"
 TESTS = ("FTP", "HWFET", "US06")
@@ -95,19 +98,21 @@ def manufacturer_means(d: pd.DataFrame, bias: float, sigma: float) -> pd.DataFra
 
 def effect_nll(params, m: pd.DataFrame, df: float) -> float:
     """Negative log likelihood of the manufacturers' means: x_m ~ t_df (normal for df = inf)
-    with scale sqrt(tau_m^2 + s2_m), tau_m^2 = tau^2 (share_m / SHARE_REF)^-2gamma + tau_size^2
-    SHARE_REF / share_m (the sum of the effect and its mean's sampling error taken as one t);
-    params = (ln tau, gamma, ln tau_size)."""
+    about b0 + b_size sqrt(SHARE_REF / share_m) with scale sqrt(tau_m^2 + s2_m), tau_m^2 = tau^2
+    (share_m / SHARE_REF)^-2gamma + tau_size^2 SHARE_REF / share_m (the sum of the effect and its
+    mean's sampling error taken as one t); params = (ln tau, gamma, ln tau_size[, b0, b_size])."""
     share = m.share.to_numpy() / SHARE_REF
     tau2 = math.exp(2 * params[0]) * share ** (-2 * params[1]) + math.exp(2 * params[2]) / share
     scale = np.sqrt(tau2 + m.s2.to_numpy())
-    z = m.x.to_numpy() / scale
+    centre = params[3] + params[4] / np.sqrt(share) if len(params) > 3 else 0.0
+    z = (m.x.to_numpy() - centre) / scale
     logpdf = stats.norm.logpdf(z) if math.isinf(df) else stats.t.logpdf(z, df)
     return float(-(logpdf - np.log(scale)).sum())
 
 
 EFFECTS = {                       # manufacturer-effect families compared by `cv --effect` (docs/budget.md)
     "size": ((math.inf,), False, True),     # normal, variance tau^2 + tau_size^2 SHARE_REF / share (stored)
+    "size+centre": ((math.inf,), False, True, True),  # and mean b0 + b_size sqrt(SHARE_REF / share)
     "normal": ((math.inf,), False, False),  # one normal spread tau, every manufacturer counted once
     "t": (DF_GRID, False, False),           # heavier tails: Student t, df by likelihood
     "share": ((math.inf,), True, False),    # small manufacturers err more: tau (share / SHARE_REF)^-gamma
@@ -117,20 +122,24 @@ DEFAULT_EFFECT = "size"
 _NO_SIZE = math.log(1e-6)        # ln tau_size where the family has no size term (held there)
 
 
-def fit_effect(m: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> tuple[float, float, float, float]:
-    """(tau, gamma, df, tau_size) of the manufacturer effect by maximum likelihood
-    (:func:`effect_nll`; every manufacturer counts once): tau continuous, gamma in 0-2 and
-    tau_size continuous where ``effect`` lets them vary (else 0), df the best of the family's grid."""
-    grid, free_gamma, free_size = EFFECTS[effect]
-    best = (math.inf, 0.0, 0.0, math.inf, 0.0)
+def fit_effect(m: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> tuple:
+    """(tau, gamma, df, tau_size, b0, b_size) of the manufacturer effect by maximum likelihood
+    (:func:`effect_nll`; every manufacturer counts once): tau continuous, gamma in 0-2, tau_size
+    and the centre's b0, b_size continuous where ``effect`` lets them vary (else 0), df the best
+    of the family's grid."""
+    grid, free_gamma, free_size, *centre = EFFECTS[effect]
+    free_centre = bool(centre and centre[0])
+    best = (math.inf, 0.0, 0.0, math.inf, 0.0, 0.0, 0.0)
     size_bounds = (math.log(1e-4), math.log(0.5)) if free_size else (_NO_SIZE, _NO_SIZE)
+    centre_bounds = [(-0.5, 0.5)] * 2 if free_centre else [(0.0, 0.0)] * 2
     for df in grid:
         o = optimize.minimize(effect_nll, [math.log(0.02 if free_size else 0.03), 0.2 if free_gamma else 0.0,
-                                           math.log(0.02) if free_size else _NO_SIZE], args=(m, df),
+                                           math.log(0.02) if free_size else _NO_SIZE, 0.0, 0.0], args=(m, df),
                               method="L-BFGS-B", bounds=[(math.log(1e-4), math.log(0.5)),
-                                                         (0.0, 2.0 if free_gamma else 0.0), size_bounds])
+                                                         (0.0, 2.0 if free_gamma else 0.0), size_bounds, *centre_bounds])
         if o.fun < best[0]:
-            best = (float(o.fun), math.exp(o.x[0]), float(o.x[1]), df, math.exp(o.x[2]) if free_size else 0.0)
+            best = (float(o.fun), math.exp(o.x[0]), float(o.x[1]), df, math.exp(o.x[2]) if free_size else 0.0,
+                    float(o.x[3]), float(o.x[4]))
     return best[1:]
 
 
@@ -145,7 +154,8 @@ def fit_constants(d: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> dict:
       Student t of squared scale tau^2 (share / SHARE_REF)^-2gamma + tau_size^2 SHARE_REF / share,
       by maximum likelihood over the manufacturers' means (:func:`fit_effect`; each manufacturer
       counts once, its mean's own sampling error added; the stored family ``size``: normal,
-      gamma 0);
+      gamma 0; ``size+centre`` adds a mean b0 + b_size sqrt(SHARE_REF / share), of which the
+      budget's centre uses b_size: ``bias_size``, the intercept cancelling against ``bias``);
     - ``market_share``: each manufacturer's share of the list's predicted gallons, and the
       list's make -> manufacturer table.
     """
@@ -155,23 +165,56 @@ def fit_constants(d: pd.DataFrame, effect: str = DEFAULT_EFFECT) -> dict:
     mean_m = groups.gr.sum() / groups.pred_gpm.sum()
     resid = r - d.manufacturer.map(mean_m).to_numpy()
     sigma = float((resid ** 2).sum() / (len(r) - len(mean_m))) ** 0.5
-    tau, gamma, df, tau_size = fit_effect(manufacturer_means(d, bias, sigma), effect)
+    tau, gamma, df, tau_size, b0, bias_size = fit_effect(manufacturer_means(d, bias, sigma), effect)
     makes = {}
     for make, maker in zip(d.make.str.strip().str.upper(), d.manufacturer):
         makes.setdefault(make, maker)
     return {"bias": bias, "sigma": sigma, "tau": tau, "share_exponent": gamma, "share_ref": SHARE_REF, "df": df,
-            "tau_size": tau_size,
+            "tau_size": tau_size, "bias_b0": b0, "bias_size": bias_size,
             "n_vehicles": len(r), "n_manufacturers": len(mean_m),
             "market_share": (groups.pred_gpm.sum() / g.sum()).to_dict(), "makes": makes}
 
 
-def duty_error(c: dict):
-    """The budget's DutyError of fitted constants ``c``."""
-    from fleetrun.budget.uncertainty import DutyError
+@dataclass(frozen=True)
+class CentredError(DutyError):
+    """The measured alternative ``size+centre`` (not in the budget: its cross-validation failed,
+    docs/budget.md): a manufacturer's effect has mean b0 + bias_size sqrt(share_ref / W_m), so a
+    row of manufacturer m is centred at bias + bias_size (sqrt(share_ref / W_m) - sum_k W_k
+    sqrt(share_ref / W_k)) (the market's own mix keeps ``bias``; b0 cancels), a row without one
+    at ``bias`` (the market's expectation), a manufacturer the market lacks sized as its smallest."""
+    bias_size: float = 0.0
 
-    return DutyError(bias=c["bias"], tau=c["tau"], sigma=c["sigma"], df=c["df"], size_share=c.get("size_share", {}),
-                     share_exponent=c["share_exponent"], share_ref=c["share_ref"], tau_size=c["tau_size"],
-                     market_share=c["market_share"], makes=c["makes"])
+    def row_bias(self, makers) -> np.ndarray:
+        sizes = self.size_share or self.market_share
+        floor = min(sizes.values())
+        def f(maker):
+            return math.sqrt(self.share_ref / max(sizes.get(maker, floor), floor))
+
+        mean = sum(w * f(m) for m, w in self.market_share.items())
+        names = [self.manufacturer_of(m) for m in makers]
+        return np.array([self.bias if n is None else self.bias + self.bias_size * (f(n) - mean) for n in names])
+
+    def centre(self, gallons, makers=None) -> float:
+        """The relative correction of a total's centre: the gallons-weighted :meth:`row_bias`
+        (make-up unknown: ``bias``)."""
+        gallons = np.asarray(gallons, dtype=float)
+        if makers is None or gallons.sum() <= 0:
+            return self.bias
+        return float((gallons * self.row_bias(list(makers))).sum() / gallons.sum())
+
+
+def centre_of(error, gallons, makers) -> float:
+    """A fleet's corrected centre (relative): the budget's one ``bias``, or :class:`CentredError`'s."""
+    return error.centre(gallons, makers) if isinstance(error, CentredError) else error.bias
+
+
+def duty_error(c: dict):
+    """The budget's DutyError of fitted constants ``c`` (:class:`CentredError` where the fit has a
+    size-dependent centre)."""
+    kind, extra = (CentredError, {"bias_size": c["bias_size"]}) if c.get("bias_size") else (DutyError, {})
+    return kind(bias=c["bias"], tau=c["tau"], sigma=c["sigma"], df=c["df"], size_share=c.get("size_share", {}),
+                share_exponent=c["share_exponent"], share_ref=c["share_ref"], tau_size=c["tau_size"],
+                market_share=c["market_share"], makes=c["makes"], **extra)
 
 
 def write_constants(c: dict, path: Path) -> None:
@@ -212,7 +255,7 @@ def random_fleets(d: pd.DataFrame, error, size: int, makers, n: int, rng, by_sha
     names = d.manufacturer.unique()
     counts = d.manufacturer.value_counts().reindex(names).to_numpy(float)
     g, r, maker = d.pred_gpm.to_numpy(), d.r.to_numpy(), d.manufacturer.to_numpy()
-    e, scales = np.empty(n), np.empty((n, 2))
+    e, scales, centre = np.empty(n), np.empty((n, 2)), np.empty(n)
     for k in range(n):
         pool = np.arange(len(d))
         if makers:
@@ -223,12 +266,13 @@ def random_fleets(d: pd.DataFrame, error, size: int, makers, n: int, rng, by_sha
         gallons = g[types] * repeats
         e[k] = (gallons * r[types]).sum() / gallons.sum()
         scales[k] = error.scales(gallons, maker[types])
-    return e, half_width(scales[:, 0], scales[:, 1], error.df)
+        centre[k] = centre_of(error, gallons, maker[types])
+    return e, half_width(scales[:, 0], scales[:, 1], error.df), centre
 
 
 def coverage(d: pd.DataFrame, error, n: int = 1000, seed: int = 20) -> pd.DataFrame:
-    """Per fleet size and manufacturer draw: how often the 90 % range (bias-corrected centre
-    +- its half-width) holds the held-out error, its mean width and the measured 5-95 % interval."""
+    """Per fleet size and manufacturer draw: how often the 90 % range (the fleet's corrected
+    centre, :func:`centre_of`, +- its half-width) holds the held-out error, its mean width and the measured 5-95 % interval."""
     rng = np.random.default_rng(seed)
     rows = []
     n_makers = d.manufacturer.nunique()
@@ -237,11 +281,11 @@ def coverage(d: pd.DataFrame, error, n: int = 1000, seed: int = 20) -> pd.DataFr
             if (by_share and makers is None) or (makers or 0) >= n_makers:
                 continue
             for size in SIZES:
-                e, h = random_fleets(d, error, size, makers, n, rng, by_share)
+                e, h, centre = random_fleets(d, error, size, makers, n, rng, by_share)
                 p05, p95 = np.quantile(e, [0.05, 0.95])
                 rows.append({"size": size, "manufacturers": makers or "all",
                              "drawn": "by vehicles" if by_share else "uniform",
-                             "covered": float(np.mean(np.abs(e - error.bias) <= h)),
+                             "covered": float(np.mean(np.abs(e - centre) <= h)),
                              "range_width": float(np.mean(2 * h)), "measured_p05": p05,
                              "measured_p95": p95, "width_ratio": float(np.mean(2 * h) / (p95 - p05))})
     return pd.DataFrame(rows)
@@ -283,7 +327,7 @@ def print_cv(folds) -> pd.DataFrame:
         one = t[t.manufacturers == 1]
         print(f"fold {f['fold']}: held out {', '.join(f['held_out'])}")
         print(f"  fitted on the others: bias {c['bias']:+.2%}, sigma {c['sigma']:.2%}, tau {c['tau']:.2%}, tau_size {c['tau_size']:.2%}, "
-              f"gamma {c['share_exponent']:.2f}, df {c['df']:g}; covered {t.covered.mean():.1%} (one manufacturer {one.covered.mean():.1%}); "
+              f"gamma {c['share_exponent']:.2f}, df {c['df']:g}, bias_size {c.get('bias_size', 0.0):+.2%}; covered {t.covered.mean():.1%} (one manufacturer {one.covered.mean():.1%}); "
               f">= 100 types width ratio {t[t['size'] >= 100].width_ratio.min():.2f}-"
               f"{t[t['size'] >= 100].width_ratio.max():.2f}")
         rows.append(t.assign(fold=f["fold"]))
@@ -340,9 +384,11 @@ def diagnose(d: pd.DataFrame) -> None:
     print(f"t family's one-t range of a sum: the mean of three equal t_2 effects has its 95th percentile at "
           f"{np.quantile(t, 0.95):.2f} scale, one t of the same D says {stats.t.ppf(0.95, 2.0) / math.sqrt(3):.2f} (200,000 draws)")
     for e, f in fits.items():
-        nll = effect_nll([math.log(f["tau"]), f["share_exponent"], math.log(max(f["tau_size"], 1e-6))], m, f["df"])
+        nll = effect_nll([math.log(f["tau"]), f["share_exponent"], math.log(max(f["tau_size"], 1e-6)), f["bias_b0"],
+                          f["bias_size"]], m, f["df"])
         print(f"  {e}: log likelihood of the 22 means {-nll:.2f}, constants {int(len(EFFECTS[e][0]) > 1)} df + "
-              f"{1 + EFFECTS[e][1] + EFFECTS[e][2]} scale")
+              f"{1 + EFFECTS[e][1] + EFFECTS[e][2]} scale + {2 * int(len(EFFECTS[e]) > 3)} centre"
+              + (f" (b0 {f['bias_b0']:+.2%}, b_size {f['bias_size']:+.2%})" if len(EFFECTS[e]) > 3 else ""))
 
 
 def main(argv=None):
@@ -360,6 +406,8 @@ def main(argv=None):
     elif args.step == "fit":
         c = fit_constants(read_heldout(), args.effect or DEFAULT_EFFECT)
         print({k: v for k, v in c.items() if k not in ("market_share", "makes")})
+        if args.write and c["bias_size"]:
+            ap.error(f"--effect {args.effect} is a measured alternative the budget does not read (docs/budget.md)")
         if args.write:
             write_constants(c, ROOT / "models" / "fleet_error.toml")
     elif args.step == "diagnose":
