@@ -13,7 +13,7 @@ import numpy as np
 
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
-from fleetrun.simulation import diffmodes, measured
+from fleetrun.simulation import coastdown_driveline, diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver, backward,
                                       backward_drivetrain, has_technology,
                                       standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
@@ -108,7 +108,8 @@ def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
              physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None,
-             thermal: ThermalConstants | None = None, calibrate: bool = True) -> FleetCycleResult:
+             thermal: ThermalConstants | None = None, calibrate: bool = True,
+             coastdown_driveline_removed: str | None = None) -> FleetCycleResult:
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
@@ -129,6 +130,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     thermal : the cold-start constants (None: ``models/thermal.toml``)
     calibrate : bool, apply the vehicles' measured figures (``measured_ftp_mpg``,
         ``label_combined_mpg``; docs/simulation.md)
+    coastdown_driveline_removed : str or None, the driveline spin loss taken out of the coastdown
+        road load (``none``, ``differential``, ``differential_gearbox``; None: models/road_load.toml;
+        fleetrun/simulation/coastdown_driveline.py)
 
     Returns
     -------
@@ -152,6 +156,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if V:  # once for the whole call, shared by the blocks: the power table and idle fuel (kept in va)
         va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
     solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
+    va = coastdown_driveline.remove_driveline_spin(va, solver, coastdown_driveline_removed
+                                                   or coastdown_driveline.default_variant())
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
     block = max(1, BLOCK_STEPS // t.size)
