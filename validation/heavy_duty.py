@@ -10,7 +10,10 @@ Run from the checkout root (``PYTHONPATH=$PWD``). Three checks, each against a p
    give (issue 21);
 2. the Phase 2 reference vehicles of ``models/heavy_duty/gem_reference_vehicles.toml`` on GEM's
    cycles and weighting, vocational vehicles with GEM's drive- and parked-idle cycles:
-   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106);
+   g CO2/ton-mile against the standard each is set at (40 CFR 1037.105, 1037.106); and again
+   with DOE's MY2020 road-load inputs as NREL T3CO ships them, where T3CO has the class
+   (``models/heavy_duty/reference_inputs_doe_nrel.toml``, a sensitivity), and the tractors with
+   their CdA read as measured and run at its GEM bin's input (1037.520(b)(3), a sensitivity);
 3. the example fleet's combination trucks over their scenarios' heavy-duty cycle mixes (the
    national VM-1 2010 split of combination-truck miles over road categories,
    inputs/state_statistics/vm1_truck_travel.toml): mpg against the national combination-truck
@@ -43,7 +46,7 @@ from fleetrun.simulation.heavy_duty_gem import (composite_g_co2_per_ton_mile, ge
                                                 payload_short_tons)
 from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
 from fleetrun.units import LITERS_PER_GALLON  # noqa: E402
-from fleetrun.simulation.heavy_duty_road_load import gem_coastdown_lbf  # noqa: E402
+from fleetrun.simulation.heavy_duty_road_load import gem_cda_input_m2, gem_coastdown_lbf  # noqa: E402
 from fleetrun.workbook import read_fleet  # noqa: E402
 from fleetrun.workbook.vehicle_file import vehicle_from_mapping  # noqa: E402
 
@@ -102,6 +105,16 @@ def reference_vehicles() -> tuple[dict, dict]:
     return data["defaults"], data["vehicles"]
 
 
+def doe_nrel_road_load() -> dict[str, dict]:
+    """{reference vehicle: {cda_m2, crr_kg_per_t}} of DOE's MY2020 no-program vehicles as NREL
+    T3CO ships them (models/heavy_duty/reference_inputs_doe_nrel.toml; only the vehicles T3CO
+    has a class for)."""
+    with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return {name: dict(cda_m2=v["drag_coef"] * v["frontal_area_m2"], crr_kg_per_t=v["wheel_rr_coef"] * 1000.0)
+            for name, v in data["vehicles"].items()}
+
+
 def idle_gallons_per_hour(specs: list) -> tuple[np.ndarray, np.ndarray]:
     """(drive idle, parked idle) fuel [gal/h] of each vehicle (heavy_duty_gem)."""
     g_per_gal = fuel_properties("diesel").density_kg_per_L * LITERS_PER_GALLON * 1e3
@@ -109,10 +122,27 @@ def idle_gallons_per_hour(specs: list) -> tuple[np.ndarray, np.ndarray]:
     return drive * 3600.0 / g_per_gal, parked * 3600.0 / g_per_gal
 
 
-def check_reference_vehicles(with_idle: bool = True) -> list[dict]:
-    """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
-    without the vocational idle cycles (as before 2026-11-25)."""
+# GEM's aerodynamic bin tables per reference tractor (gem_aero_bins.toml keys)
+TRACTOR_AERO_TYPES = {"class8_sleeper_high_roof": "high_roof_sleeper_cab", "class8_day_high_roof": "high_roof_day_cab",
+                      "class7_day_high_roof": "high_roof_day_cab"}
+
+
+def gem_bin_road_load() -> dict[str, dict]:
+    """{reference tractor: {cda_m2, crr_kg_per_t}} with the reference CdA read as a measured
+    drag area and replaced by its bin's GEM input (40 CFR 1037.520(b)(3), model year of the
+    standard)."""
     defaults, vehicles = reference_vehicles()
+    return {name: dict(cda_m2=gem_cda_input_m2(kind, vehicles[name]["cda_m2"], defaults["standard_year"]),
+                       crr_kg_per_t=vehicles[name]["crr_kg_per_t"]) for name, kind in TRACTOR_AERO_TYPES.items()}
+
+
+def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = None) -> list[dict]:
+    """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
+    without the vocational idle cycles (as before 2026-11-25); ``road_load``: {vehicle:
+    {cda_m2, crr_kg_per_t}} in place of the reference file's (only those vehicles are run)."""
+    defaults, vehicles = reference_vehicles()
+    if road_load is not None:
+        vehicles = {name: dict(vehicles[name], **inputs) for name, inputs in road_load.items()}
     specs = {name: vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"],
                                                      engine_model_year=defaults["standard_year"]), name), Path(name))
              for name, basis in vehicles.items()}
@@ -314,6 +344,8 @@ def main(argv=None) -> dict:
                   example_mix_sensitivity=check_example_mix_sensitivity(),
                   fhwa_class_defaults=check_fhwa_class_defaults())
     report["reference_error"] = error_groups(report["reference_vehicles"])
+    report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
+    report["reference_tractors_gem_bin_cda"] = check_reference_vehicles(road_load=gem_bin_road_load())
     print(json.dumps(report, indent=1))
     if args.write:
         write_error_file(report["reference_vehicles"])

@@ -42,6 +42,9 @@ VM4_ROADS = {"interstate": ["Interstate"], "arterial": ["OthFwyExp", "OthPrinArt
 SHARE_CLASSES = ("single_unit_truck", "combination_truck", "bus", "motorcycle")
 KM_PER_MILE = 1.609344
 GASOLINE_TOLERANCE, DIESEL_TOLERANCE = 0.05, 0.10      # the issue's targets
+# A forecast year is the same statistics' later year without registrations (2014 -> 2016: no 2015
+# motor-fuel table was in reach); never a base year of another series (2000 -> 2014).
+FORECAST_YEARS_AHEAD = 2
 # Published yearly change of fleet on-road mpg [%/yr]: FHWA VM-1 all motor vehicles 1990-2002
 # (16.4 -> 17.0 mpg, BTS NTS Table 4-9) as the low end; EPA Automotive Trends new light-duty
 # vehicles 2004-2022 (19.3 -> 26.0 mpg) as the most a fleet that replaces its vehicles can gain.
@@ -67,26 +70,38 @@ def vm4_class_shares() -> pd.DataFrame:
     return (100 * total.div(total.sum(axis=1), axis=0)).rename(columns=VM4_CLASSES)
 
 
-def share_text(shares: pd.Series | None) -> str | None:
+def share_text(shares: pd.Series | None, row: pd.Series) -> str | None:
+    """The ``base_year_vmt_share_pct`` cell: the VM-4 share of each class the registrations count
+    (no motorcycle share where the table has no motorcycle count: their miles stay with light duty)."""
     if shares is None:
         return None
-    return ", ".join(f"{name}:{shares[name]:.3f}" for name in SHARE_CLASSES)
+    counted = [name for name in SHARE_CLASSES if name != "motorcycle" or pd.notna(row.mv1_motorcycles)]
+    return ", ".join(f"{name}:{shares[name]:.3f}" for name in counted)
+
+
+def vmt_million_mi(row: pd.Series) -> float:
+    """The state-year's vehicle-miles [millions]: the table's miles where it gives miles (the 2000
+    briefing sheets), else its vehicle-kilometres (VM-2M, VM-3M) / 1.609344."""
+    miles = row.get("vmt_million_mi")
+    return float(miles) if pd.notna(miles) else row.vmt_million_km / KM_PER_MILE
 
 
 def workbook(path: Path, row: pd.Series, years: int, growth_pct: float, shares: pd.Series | None = None) -> Path:
     """Registrations (MV-1) and one scenario (VM-2 miles, default mixes; with ``shares``, the
-    state's VM-4 class shares of the miles)."""
+    state's VM-4 class shares of the miles). A class the table does not count (no motorcycles in
+    the 2000 briefing sheets) gets no row."""
     wb = openpyxl.Workbook()
     ws = wb.active
     ws.title = "Registrations"
     ws.append(["vehicle_class", "count"])
     for name, column in (("automobile", "mv1_automobiles"), ("bus", "mv1_buses"), ("truck", "mv1_trucks"),
                          ("motorcycle", "mv1_motorcycles")):
-        ws.append([name, int(row[column])])
+        if pd.notna(row[column]):
+            ws.append([name, int(row[column])])
     sc = wb.create_sheet("Scenarios")
     sc.append(SCENARIO)
     sc.append([f"{row.state} {row.year}", 20, "default", years, growth_pct, 0.2, 0.2, 0.184, 0.244, int(row.year),
-               row.vmt_million_km / KM_PER_MILE, share_text(shares)])
+               vmt_million_mi(row), share_text(shares, row)])
     wb.save(path)
     return path
 
@@ -106,13 +121,13 @@ def run_state(row: pd.Series, later: pd.Series | None, folder: Path, shares: pd.
     from fleetrun.workbook import read_fleet
 
     years = 1 + (int(later.year) - int(row.year) if later is not None else 1)
-    growth = 100 * ((later.vmt_million_km / row.vmt_million_km) ** (1 / (years - 1)) - 1) if later is not None else 0.0
+    growth = 100 * ((vmt_million_mi(later) / vmt_million_mi(row)) ** (1 / (years - 1)) - 1) if later is not None else 0.0
     variant = "mv1" if shares is None else "mv1+vm4"
     fleet = read_fleet(workbook(folder / f"{row.state}-{row.year}-{variant}.xlsx", row, years, growth, shares))
     result = run_fleet(fleet, error_model=None)
     gallons = by_fuel_year(result.fiscal)
     base = int(row.year)
-    out = {"state": row.state, "year": base, "inputs": variant, "vmt_million_mi": row.vmt_million_km / KM_PER_MILE}
+    out = {"state": row.state, "year": base, "inputs": variant, "vmt_million_mi": vmt_million_mi(row)}
     if shares is not None:
         out.update({f"vm4_{name}_pct": float(shares[name]) for name in SHARE_CLASSES})
     for fuel, column, tol in (("gasoline", "highway_gasoline_kgal", GASOLINE_TOLERANCE),
@@ -125,7 +140,7 @@ def run_state(row: pd.Series, later: pd.Series | None, folder: Path, shares: pd.
         if later is not None:
             scale = observed / model
             predicted = gallons[(int(later.year), fuel)] * scale
-            naive = observed * later.vmt_million_km / row.vmt_million_km
+            naive = observed * vmt_million_mi(later) / vmt_million_mi(row)
             actual = later[column] * 1e3
             out[f"{fuel}_forecast_error_pct"] = 100 * (predicted / actual - 1)
             out[f"{fuel}_naive_error_pct"] = 100 * (naive / actual - 1)
@@ -160,14 +175,14 @@ def _summarize(table: pd.DataFrame) -> None:
 
 def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
     """The table of docs/validation-state-fuel.md (and the README's columns) from a run with
-    both input variants: per state, the observed fuel, the VM-4 shares, each variant's errors."""
-    mv1, vm4 = (table[table.inputs == v].set_index("state") for v in ("mv1", "mv1+vm4"))
+    both input variants: per state-year, the observed fuel, the VM-4 shares, each variant's errors."""
+    mv1, vm4 = (table[table.inputs == v].set_index(["state", "year"]) for v in ("mv1", "mv1+vm4"))
     base = data.set_index(["state", "year"])
-    lines = ["| state | VMT (M mi) | MF-27 gasoline (M gal) | MF-27 special fuels | special fuels per 1,000 mi | "
-             "VM-4 combination / single-unit % of miles | gasoline error %: MV-1 only | with VM-4 | "
-             "special fuels error %: MV-1 only | with VM-4 | 2016 gasoline forecast % (naive) | "
-             "2016 special fuels forecast % (naive) |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| state | year | VMT (M mi) | highway gasoline (M gal) | special fuels (M gal) | special fuels per 1,000 mi | "
+             "VM-4 2010 combination / single-unit % of miles | gasoline error %: MV-1 only | with VM-4 | "
+             "special fuels error %: MV-1 only | with VM-4 | gasoline forecast to 2016 % (naive) | "
+             "special fuels forecast to 2016 % (naive) |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 
     def err(row, fuel):
         return f"{row[f'{fuel}_error_pct']:+.1f}" + (" hit" if row[f"{fuel}_hit"] else "")
@@ -176,14 +191,32 @@ def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
         value = row[f"{fuel}_forecast_error_pct"] if f"{fuel}_forecast_error_pct" in row else float("nan")
         return "" if pd.isna(value) else f"{value:+.1f} ({row[f'{fuel}_naive_error_pct']:+.1f})"
 
-    for state, r in mv1.iterrows():
-        q, b = vm4.loc[state], base.loc[(state, int(r.year))]
-        per_1000 = 1e6 * b.special_fuels_kgal / (b.vmt_million_km / KM_PER_MILE * 1e6)
-        lines.append(f"| {state} | {r.vmt_million_mi:,.0f} | {r.gasoline_observed_Mgal:,.0f} | "
+    for key, r in mv1.iterrows():
+        q, b = vm4.loc[key], base.loc[key]
+        per_1000 = 1e3 * b.special_fuels_kgal / (vmt_million_mi(b) * 1e6) * 1e3
+        lines.append(f"| {key[0]} | {key[1]} | {r.vmt_million_mi:,.0f} | {r.gasoline_observed_Mgal:,.0f} | "
                      f"{r.diesel_observed_Mgal:,.0f} | {per_1000:.1f} | {q.vm4_combination_truck_pct:.1f} / "
                      f"{q.vm4_single_unit_truck_pct:.1f} | {err(r, 'gasoline')} | {err(q, 'gasoline')} | "
                      f"{err(r, 'diesel')} | {err(q, 'diesel')} | {forecast(q, 'gasoline')} | {forecast(q, 'diesel')} |")
     return "\n".join(lines)
+
+
+def later_year(data: pd.DataFrame, row: pd.Series) -> pd.Series | None:
+    """The state's forecast year: a later year of the same statistics without registrations (2016
+    for 2014), at most :data:`FORECAST_YEARS_AHEAD` years on; None when there is none."""
+    later = data[(data.state == row.state) & (data.year > row.year) & data.mv1_automobiles.isna()
+                 & (data.year <= row.year + FORECAST_YEARS_AHEAD)].sort_values("year")
+    return later.iloc[0] if len(later) else None
+
+
+def print_row(r: dict) -> None:
+    print(f"[{r['inputs']}] {r['state']} {r['year']}: gasoline {r['gasoline_error_pct']:+.1f} % "
+          f"({'hit' if r['gasoline_hit'] else 'miss'}), special fuels {r['diesel_error_pct']:+.1f} % "
+          f"({'hit' if r['diesel_hit'] else 'miss'}), LD mpg {r['ld_mpg_change_pct_per_year']:+.2f} %/yr"
+          + (f"; forecast gasoline {r['gasoline_forecast_error_pct']:+.1f} % (naive "
+             f"{r['gasoline_naive_error_pct']:+.1f} %), special fuels {r['diesel_forecast_error_pct']:+.1f} % "
+             f"(naive {r['diesel_naive_error_pct']:+.1f} %)" if "gasoline_forecast_error_pct" in r else ""),
+          flush=True)
 
 
 def main(argv=None) -> pd.DataFrame:
@@ -193,26 +226,21 @@ def main(argv=None) -> pd.DataFrame:
     parser.add_argument("--markdown", action="store_true", help="also print the docs page's table")
     parser.add_argument("--variants", default="mv1,mv1+vm4",
                         help="mv1: registrations only; mv1+vm4: plus the state's VM-4 class shares of the miles")
+    parser.add_argument("--years", default="", help="comma list of base years (default: every year with registrations)")
     args = parser.parse_args(argv)
     data = pd.read_csv(DATA)
     bases = data[data.mv1_automobiles.notna()]
     if args.states:
         bases = bases[bases.state.isin(args.states.split(","))]
+    if args.years:
+        bases = bases[bases.year.isin([int(y) for y in args.years.split(",")])]
     rows = []
     vm4 = vm4_class_shares()
     with tempfile.TemporaryDirectory() as tmp:
         for variant, (_, row) in ((v, r) for v in args.variants.split(",") for r in bases.iterrows()):
-            later = data[(data.state == row.state) & (data.year > row.year)]
             shares = vm4.loc[row.postal] if variant == "mv1+vm4" else None
-            rows.append(run_state(row, later.iloc[0] if len(later) else None, Path(tmp), shares))
-            r = rows[-1]
-            print(f"[{variant}] {r['state']} {r['year']}: gasoline {r['gasoline_error_pct']:+.1f} % "
-                  f"({'hit' if r['gasoline_hit'] else 'miss'}), special fuels {r['diesel_error_pct']:+.1f} % "
-                  f"({'hit' if r['diesel_hit'] else 'miss'}), LD mpg {r['ld_mpg_change_pct_per_year']:+.2f} %/yr"
-                  + (f"; forecast gasoline {r['gasoline_forecast_error_pct']:+.1f} % (naive "
-                     f"{r['gasoline_naive_error_pct']:+.1f} %), special fuels {r['diesel_forecast_error_pct']:+.1f} % "
-                     f"(naive {r['diesel_naive_error_pct']:+.1f} %)" if "gasoline_forecast_error_pct" in r else ""),
-                  flush=True)
+            rows.append(run_state(row, later_year(data, row), Path(tmp), shares))
+            print_row(rows[-1])
     table = pd.DataFrame(rows)
     summarize(table)
     if args.markdown and set(table.inputs) == {"mv1", "mv1+vm4"}:

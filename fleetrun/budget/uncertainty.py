@@ -4,22 +4,27 @@ A fleet total's relative error (measured / predicted gallons - 1) is modelled as
 
     E = bias + sum_m (w_m - W_m) u_m + sum_i g_i eps_i,
     u_m = tau_m t_m, t_m ~ Student t (df degrees of freedom; df = inf: normal) per manufacturer,
-    tau_m = tau (W_m / share_ref)^-gamma (small manufacturers err more), eps_i ~ N(0, sigma^2)
+    tau_m^2 = tau^2 (W_m / share_ref)^-2gamma + tau_size^2 share_ref / W_m, eps_i ~ N(0, sigma^2)
     per vehicle type,
 
 with ``g_i`` a vehicle type's share of the fleet's predicted gallons, ``w_m`` a manufacturer's
 share in the fleet and ``W_m`` in the market the constants were measured on (the EPA list).
 The known ``bias`` is corrected in the centre (gallons x (1 + bias)); the spread has two parts,
 
-    E - bias = a t + b z,  a = tau sqrt(D),  b = sigma sqrt(sum_i g_i^2),
-    D = sum_m (w_m - W_m)^2 (tau_m / tau)^2,
+    E - bias = a t + b z,  a = sqrt(D),  b = sigma sqrt(sum_i g_i^2),
+    D = sum_m (w_m - W_m)^2 tau_m^2,
 
 (the manufacturers' sum of t terms taken as one t of scale a: exact for a fleet of one
 manufacturer, which is where the tails matter), z standard normal,
 
 and where the fleet's manufacturers are not known (rows without ``make`` / ``manufacturer``),
-``D = sum_i g_i^2 sum_m W_m (1 - W_m) (tau_m / tau)^2``: the expected D of vehicle types drawn
+``D = sum_i g_i^2 sum_m W_m (1 - W_m) tau_m^2``: the expected D of vehicle types drawn
 from the market.
+
+The stored light-duty effect is normal (sums of manufacturers exact) with ``tau_size`` > 0 and
+gamma = 0: a part every manufacturer shares (tau) and a part that averages out over a larger
+manufacturer's many engine families and models, its variance inversely proportional to the
+manufacturer's share (docs/budget.md, "Ranges").
 
 The constants are data: ``models/fleet_error.toml`` (written by validation/fleet_error.py from
 the manufacturer-held-out EPA predictions); the light-duty centre uses the fleet-level bias of
@@ -126,6 +131,8 @@ class DutyError:
     df: float = math.inf        # degrees of freedom of the manufacturer effect (inf: normal)
     share_exponent: float = 0.0  # gamma: a manufacturer's effect scale is tau (W_m / share_ref)^-gamma
     share_ref: float = 0.01
+    tau_size: float = 0.0       # plus an effect of variance tau_size^2 share_ref / W_m (averages out with size)
+    size_share: dict = field(default_factory=dict)  # shares that size the effects, if not market_share's
     components: tuple = ()      # shared (mean, sd) per test, mixed by an unknown share (heavy duty)
 
     def mixture_error(self, uniform, normal):
@@ -145,13 +152,16 @@ class DutyError:
         h = self.half_width90(gallons, makers)
         return -h, h
 
-    def effect_scale(self, maker: str) -> float:
-        """Relative scale of a manufacturer's effect, (W_m / share_ref)^-gamma, W_m its market
-        share (unknown to the market or below its smallest share: the smallest share)."""
-        if not self.share_exponent:
-            return 1.0
-        floor = min(self.market_share.values())
-        return (max(self.market_share.get(maker, floor), floor) / self.share_ref) ** -self.share_exponent
+    def effect_variance(self, maker: str) -> float:
+        """tau_m^2, the variance (squared scale) of a manufacturer's effect: tau^2 (W_m /
+        share_ref)^-2gamma + tau_size^2 share_ref / W_m, W_m its market share (unknown to the
+        market or below its smallest share: the smallest share)."""
+        if not self.share_exponent and not self.tau_size:
+            return self.tau ** 2
+        sizes = self.size_share or self.market_share
+        floor = min(sizes.values())
+        share = max(sizes.get(maker, floor), floor)
+        return self.tau ** 2 * (share / self.share_ref) ** (-2 * self.share_exponent) + self.tau_size ** 2 * self.share_ref / share
 
     def scales(self, gallons, makers=None) -> tuple[float, float]:
         """(a, b): the scales of the manufacturer part (t) and the per-vehicle part (normal) of
@@ -163,10 +173,10 @@ class DutyError:
             return 0.0, 0.0
         g = gallons / total
         per_vehicle = float((g ** 2).sum())
-        d = 1.0 if self.shared else self._make_up(g, makers)
+        d = self.tau ** 2 if self.shared else self._make_up(g, makers)
         if d is None:      # types drawn from the market: E (w_m - W_m)^2 = W_m (1 - W_m) sum g^2
-            d = sum(w * (1.0 - w) * self.effect_scale(m) ** 2 for m, w in self.market_share.items()) * per_vehicle
-        return self.tau * math.sqrt(d), self.sigma * math.sqrt(per_vehicle)
+            d = sum(w * (1.0 - w) * self.effect_variance(m) for m, w in self.market_share.items()) * per_vehicle
+        return math.sqrt(d), self.sigma * math.sqrt(per_vehicle)
 
     def half_width90(self, gallons, makers=None) -> float:
         """Half the 90 % range of the relative error of the total (about the bias)."""
@@ -191,7 +201,7 @@ class DutyError:
         for name, part in zip(names, g):
             share[name] = share.get(name, 0.0) + float(part)
         everyone = set(share) | set(self.market_share)
-        return float(sum((share.get(m, 0.0) - self.market_share.get(m, 0.0)) ** 2 * self.effect_scale(m) ** 2
+        return float(sum((share.get(m, 0.0) - self.market_share.get(m, 0.0)) ** 2 * self.effect_variance(m)
                          for m in everyone))
 
 
@@ -208,8 +218,10 @@ class ErrorModel:
     def describe(self) -> str:
         light = self.duty["LD"]
         effect = f"Student t, {light.df:g} degrees of freedom, scale" if math.isfinite(light.df) else "sd"
+        size = (f" plus {light.tau_size:.1%} at {light.share_ref:.0%} of the market, shrinking with the "
+                "square root of a manufacturer's share" if light.tau_size else "")
         parts = [f"light duty: bias {light.bias:+.2%} corrected in the centre, between manufacturers "
-                 f"{effect} {light.tau:.1%}, per vehicle type {light.sigma:.1%} ({light.source}"
+                 f"{effect} {light.tau:.1%}{size}, per vehicle type {light.sigma:.1%} ({light.source}"
                  + (f"; {light.note}" if light.note else "") + ")"]
         heavy = self.duty.get("HD")
         if heavy is light:
@@ -253,8 +265,11 @@ def _duty_error(table, path: Path, name: str, bias_override: float | None = None
     if not isinstance(gamma, (int, float)) or not 0 <= gamma <= 2 or not isinstance(ref, (int, float)) or not 0 < ref <= 1:
         raise InputError(f"[{name}] share_exponent must be 0-2 and share_ref a share (0-1], got {gamma!r}, {ref!r}",
                          file=path)
+    tau_size = table.get("tau_size", 0.0)
+    if not isinstance(tau_size, (int, float)) or not 0 <= tau_size < 1:
+        raise InputError(f"[{name}] tau_size must be a relative error (0 to 1), got {tau_size!r}", file=path)
     return DutyError(bias=bias, tau=float(table["tau"]), sigma=float(table["sigma"]), df=float(df),
-                     share_exponent=float(gamma), share_ref=float(ref),
+                     share_exponent=float(gamma), share_ref=float(ref), tau_size=float(tau_size),
                      market_share={str(k): float(v) for k, v in table.get("market_share", {}).items()},
                      makes={str(k).upper(): str(v) for k, v in table.get("makes", {}).items()},
                      source=str(table.get("source", path.name)),
