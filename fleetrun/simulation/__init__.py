@@ -130,9 +130,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     thermal : the cold-start constants (None: ``models/thermal.toml``)
     calibrate : bool, apply the vehicles' measured figures (``measured_ftp_mpg``,
         ``label_combined_mpg``; docs/simulation.md)
-    coastdown_driveline_removed : str or None, the driveline spin loss taken out of the coastdown
-        road load (``none``, ``differential``, ``differential_gearbox``; None: models/road_load.toml;
-        fleetrun/simulation/coastdown_driveline.py)
+    coastdown_driveline_removed : str or None, driveline spin loss taken out of the road load (a variant
+        of simulation/coastdown_driveline.py; None: models/road_load.toml, ``none``)
 
     Returns
     -------
@@ -151,13 +150,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
     effects = cycle_effects(effects)
     name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C, thermal)
-    va = vehicle_arrays(vehicles)
+    va, solver = _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_driveline_removed)
     V = va.n
-    if V:  # once for the whole call, shared by the blocks: the power table and idle fuel (kept in va)
-        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
-    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
-    va = coastdown_driveline.remove_driveline_spin(va, solver, coastdown_driveline_removed
-                                                   or coastdown_driveline.default_variant())
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
     block = max(1, BLOCK_STEPS // t.size)
@@ -192,6 +186,17 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     if not (calibrate and V):
         return result
     return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
+
+
+def _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_removed):
+    """The vehicles' arrays (power table and idle fuel filled once for the whole call, shared by
+    the blocks; the coastdown's driveline part removed as chosen) and the differential solver."""
+    va = vehicle_arrays(vehicles)
+    if va.n:
+        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
+    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
+    variant = coastdown_removed or coastdown_driveline.default_variant()
+    return coastdown_driveline.remove_driveline_spin(va, solver, variant), solver
 
 
 _NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
