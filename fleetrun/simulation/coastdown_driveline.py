@@ -12,10 +12,11 @@ of those losses is in the simulation twice.
 ``remove_driveline_spin`` takes, per vehicle, the drivetrain model's own loss at zero output
 torque over the coastdown's speed range (the differential by its thesis chain itself, the
 ``direct`` model, not a map's interpolation at zero), as a force at the wheels, fits it as
-a + b v and subtracts a from A and b from B (B may be negative, as in the coastdown's own fit). Variants (``models/road_load.toml``):
+a + b v and subtracts a from A and b from B (B may be negative, as in the coastdown's own
+fit). Variants (``models/road_load.toml``):
 
 - ``none``: the road load as given (the default);
-- ``differential``: the differential's no-load loss as the run's differential solver computes it;
+- ``differential``: the differential's no-load loss by the thesis chain (run's physics, ambient);
 - ``differential_gearbox``: plus the gearbox spin loss a + b n with the gearbox input turning
   at top gear (fleetrun's in-gear spin loss standing in for the neutral drag EPA measured).
 """
