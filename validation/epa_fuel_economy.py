@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
+from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
@@ -58,6 +59,7 @@ REPORTED = ("FTP", "HWFET", "US06")
 BAGS = ("bag1", "bag2", "bag3")
 CHUNK = 150
 MODE = "auto"
+COASTDOWN_DRIVELINE = None  # None: models/road_load.toml (--coastdown-driveline)
 AMBIENT_C = 25.0            # EPA's nominal test-cell temperature (40 CFR 86.130: 20-30 C)
 THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enrichment_gasoline": (0.05, 0.1, 0.15, 0.2, 0.3)}
 
@@ -105,7 +107,8 @@ def cycle_sums(specs, cycle):
     parts = {}
     for a in range(0, len(specs), CHUNK):
         chunk = specs[a:a + CHUNK]
-        r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C)
+        r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C,
+                     coastdown_driveline_removed=COASTDOWN_DRIVELINE)
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
@@ -587,7 +590,11 @@ def main(argv=None):
     ap.add_argument("--ablation", action="store_true", help="refit without each fuel term")
     ap.add_argument("--candidates", action="store_true", help="refit with each candidate term added")
     ap.add_argument("--thermal", action="store_true", help="fit the cold start on bag 1 / bag 3 (16 FTP runs)")
+    ap.add_argument("--coastdown-driveline", choices=VARIANTS,
+                    help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
+    global COASTDOWN_DRIVELINE
+    COASTDOWN_DRIVELINE = args.coastdown_driveline
 
     specs, table = epa_fleet()
     if args.thermal:

@@ -53,6 +53,7 @@ from epa_alpha import alpha_table  # noqa: E402
 from epa_table import epa_fleet  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
+from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
@@ -482,7 +483,10 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
+    ap.add_argument("--coastdown-driveline", choices=VARIANTS,
+                    help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
+    efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)

@@ -14,7 +14,7 @@ import numpy as np
 
 from fleetrun.cycles import composite_per_mile, load_cycle
 from fleetrun.errors import InputError, unknown_name_error
-from fleetrun.simulation import bounds, diffmodes, measured
+from fleetrun.simulation import bounds, coastdown_driveline, diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver,
                                       above_full_load_at_start, backward,
                                       backward_drivetrain, has_technology, row_buffers,
@@ -110,7 +110,8 @@ def _cycle_arrays(cycle, ambient_temp_C=None, thermal=None):
 
 def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: float = 20.0,
              physics: str = "thesis", effects=(), trace: bool = False, cache_dir=None,
-             thermal: ThermalConstants | None = None, calibrate: bool = True) -> FleetCycleResult:
+             thermal: ThermalConstants | None = None, calibrate: bool = True,
+             coastdown_driveline_removed: str | None = None) -> FleetCycleResult:
     """Simulate ``vehicles`` (VehicleSpec rows) over ``cycle`` (a DriveCycle, or a shipped
     cycle name / CSV path for ``fleetrun.cycles.load_cycle``) together.
 
@@ -131,6 +132,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     thermal : the cold-start constants (None: ``models/thermal.toml``)
     calibrate : bool, apply the vehicles' measured figures (``measured_ftp_mpg``,
         ``label_combined_mpg``; docs/simulation.md)
+    coastdown_driveline_removed : str or None, driveline spin loss taken out of the road load (a variant
+        of simulation/coastdown_driveline.py; None: models/road_load.toml, ``none``)
 
     Returns
     -------
@@ -149,11 +152,8 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
         raise unknown_name_error("mode", str(mode), MODES + ("auto",))
     effects = cycle_effects(effects)
     name, t, v_target, grade, plan = _cycle_arrays(cycle, ambient_temp_C, thermal)
-    va = vehicle_arrays(vehicles)
+    va, solver = _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_driveline_removed)
     V = va.n
-    if V:  # once for the whole call, shared by the blocks: the power table and idle fuel (kept in va)
-        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
-    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
     # Vehicles go through in blocks: each block's vehicles x steps arrays stay in the CPU
     # cache, which is several times faster than one pass over the whole fleet.
     block = _block_rows(t.size)
@@ -198,6 +198,17 @@ def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows,
                                 v_target, grade, trace, effects, plan, redriven_if_behind,
                                 True if surely is None else surely[first:first + block]))
     return _concatenate(parts)
+
+
+def _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_removed):
+    """The vehicles' arrays (power table and idle fuel filled once for the whole call, shared by
+    the blocks; the coastdown's driveline part removed as chosen) and the differential solver."""
+    va = vehicle_arrays(vehicles)
+    if va.n:
+        va.power_table, _ = power_speed_table(va), idle_fuel_rate_g_per_s(va)
+    solver = DifferentialSolver(va, mode, physics, ambient_temp_C, cache_dir)
+    variant = coastdown_removed or coastdown_driveline.default_variant()
+    return coastdown_driveline.remove_driveline_spin(va, solver, variant), solver
 
 
 _NOMINAL_MPG: dict = {}   # (physics key, cycle, mode, physics) -> simulated mpg at 25 C, per process
