@@ -20,6 +20,7 @@ user edits the cell.
 from __future__ import annotations
 
 import math
+import threading
 import zipfile
 from pathlib import Path
 
@@ -190,13 +191,18 @@ class Book:
 
     def close(self) -> None:
         """Package the workbook, deflated at :data:`PACKAGE_COMPRESSLEVEL` (XlsxWriter has no
-        option for it: its ZipFile is swapped for the one call)."""
-        packaging = xlsxwriter.workbook.ZipFile
-        xlsxwriter.workbook.ZipFile = _PackageZipFile
-        try:
-            self.workbook.close()
-        finally:
-            xlsxwriter.workbook.ZipFile = packaging
+        option for it: its ZipFile is swapped for the one call, under a lock so that reports
+        closed in threads at once never leave XlsxWriter with the swapped class)."""
+        with _PACKAGING_LOCK:
+            packaging = xlsxwriter.workbook.ZipFile
+            xlsxwriter.workbook.ZipFile = _PackageZipFile
+            try:
+                self.workbook.close()
+            finally:
+                xlsxwriter.workbook.ZipFile = packaging
+
+
+_PACKAGING_LOCK = threading.Lock()
 
 
 class _PackageZipFile(zipfile.ZipFile):
