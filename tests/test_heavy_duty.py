@@ -213,9 +213,11 @@ def test_doe_nrel_vehicles_carry_gems_standard_payload():
 
 @pytest.mark.xfail(strict=True, reason=(
     "not reached: class 8 sleeper +10.8 %, day cab +9.4 % over their MY2021 standards on GEM's "
-    "cycles (graded cruise; +5.3 / +5.8 % on level cruise); the reference tractors' CdA, tyre Crr "
-    "and axle ratio are representative values, not the technology package EPA set the MY2021 "
-    "standards at, and fleetrun brakes down the grade's descents (docs/validation-heavy-duty.md)"))
+    "cycles (graded cruise; +5.3 / +5.8 % on level cruise). Decomposed (docs/validation-heavy-duty.md): "
+    "the engine meets its SET standard on the ramped-modal cycle to -0.04 %; with the reference road load "
+    "the standard needs 43.6 % (sleeper) / 39.8 % (day cab) from fuel to wheels, against 39.3 / 36.4 % "
+    "modelled, more than a single-axle driveline and an engine at its SET average give; the rest is EPA's "
+    "MY2021 package and GEM's percentage inputs (1037.520(j)), not found as numbers"))
 def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(reference_rows):
     """Issue 21's done-when: the Phase 2 reference tractors within 5 % of their standards."""
     class8 = _tractors(reference_rows, "class8")
@@ -229,6 +231,18 @@ def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(referen
 def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
     vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
     assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
+
+
+def test_grade_by_distance_is_the_shipped_grade_for_a_truck_on_the_trace():
+    """Appendix IV gives GEM's grade by distance; read at the distance driven it is the shipped
+    per-time-stamp grade for a vehicle that holds the set speed, and it shifts later for one that
+    falls behind (validation/heavy_duty.py's sensitivity)."""
+    cycle = load_cycle("CRUISE-65-GRADE")
+    same = hd_validation.grade_by_distance(cycle, cycle.speed_mps)
+    assert np.allclose(same.grade_pct, cycle.grade_pct, atol=1e-9)
+    slower = hd_validation.grade_by_distance(cycle, 0.9 * cycle.speed_mps)
+    x = np.arange(cycle.time_s.size) * float(cycle.speed_mps[0])
+    assert np.allclose(slower.grade_pct, np.interp(0.9 * x, x, cycle.grade_pct), atol=1e-9)
 
 
 def test_vocational_idle_adds_gems_idle_cycles(reference_rows):
