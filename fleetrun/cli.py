@@ -27,7 +27,7 @@ from fleetrun.errors import FleetrunError
 from fleetrun.fileio import write_error_log
 
 EXIT_INTERNAL = 4
-# The cyclic garbage collector in a command's process (docs/benchmarks-run.md, "Process start"):
+# The cyclic garbage collector in a command's process (docs/benchmarks-run.md, "Fourth pass"):
 # a young generation collected every 50,000 new objects instead of 700 (a command allocates
 # millions, nearly all freed by reference counting; 510 collections took 0.16 s of a 7,600-row
 # run, 5 take 0.04 s), and the modules a command imports frozen out of the collector's view.
