@@ -47,6 +47,7 @@ QUANTITIES = {"N1": ("hot Willans slope (brake, high load, acceleration)", "B"),
               "N4": ("road load (Willans fuel of the target A, B v, C v^2 work)", "R"),
               "N5": ("whole warm engine (every warm term, cold start untouched)", "BFPAS")}
 SHARE_GRID = np.round(np.arange(0.0, 1.5001, 0.01), 2)
+CAP_GRID = (0.05, 0.1, 0.15, 0.2, 0.3, np.inf)
 COLD_GRID = np.r_[np.arange(0.0, 10.0, 0.25), np.arange(10.0, 80.1, 2.0)]
 
 
@@ -64,7 +65,7 @@ def prepare(specs, table):
     parts = split_parts(d, folds, specs)
     g_per_gal = d.groupby("vehicle").rho.first() * efe.GAL_L * 1000.0
     return dict(err=err, parts=parts, paired=paired, g_per_gal=g_per_gal,
-                manufacturer=table.manufacturer.to_numpy()[err.index])
+                manufacturer=table.manufacturer.to_numpy()[err.index], gearbox=table.gearbox_type.to_numpy()[err.index])
 
 
 def split_parts(d, folds, specs):
@@ -219,8 +220,43 @@ def report(r):
             results[(key, split_name)] = e
         lines.append(f"     {gallons_line(results[(key, '22 folds')], r['paired'])}")
     lines += choice_lines(err, fams, mf, five, results)
+    lines += second_round(r, five, results)
     lines += label_lines(r)
     return lines, results
+
+
+def capped_share(err, s, cap):
+    """S1: the other tests' mpg divided by exp(s x clip(log(1 + e_FTP), -cap, cap)); FTP exact."""
+    carried = np.exp(s * np.clip(np.log1p(err["FTP"].to_numpy()), -cap, cap))
+    out = pd.DataFrame({t: (1.0 + err[t].to_numpy()) / carried - 1.0 for t in TESTS}, index=err.index)
+    out["FTP"] = 0.0
+    out.loc[err["FTP"].isna(), :] = np.nan
+    return out
+
+
+def second_round(r, five, results):
+    """S1 (capped share) and S2 (one share per gearbox type), held out as the first round."""
+    err, mf, lines = r["err"], r["manufacturer"], []
+    family = dict(grid=[(s, c) for s in SHARE_GRID[::2] for c in CAP_GRID],
+                  apply=lambda p: capped_share(err, *p))
+    for split_name, groups in (("22 folds", mf), ("5 folds", five)):
+        e, chosen = fit_held_out(err, groups, family)
+        results[("S1", split_name)] = e
+        lines.append(f"S1   share with a cap [{split_name}]: {describe(e)}; (s, cap) chosen "
+                     + ", ".join(f"({a}, {b})" for a, b in sorted(set(chosen.values()))))
+    lines.append(f"     {gallons_line(results[('S1', '22 folds')], r['paired'])}")
+    for split_name, groups in (("22 folds", mf), ("5 folds", five)):
+        out, shares = err * np.nan, {}
+        for box in np.unique(r["gearbox"].astype(str)):
+            rows = r["gearbox"].astype(str) == box
+            sub = err[rows]
+            e, chosen = fit_held_out(sub, groups[rows], dict(grid=SHARE_GRID, apply=lambda s, x=sub: share_carry(x, s)))
+            out.loc[rows] = e.to_numpy()
+            shares[box] = f"{min(chosen.values())}..{max(chosen.values())}"
+        results[("S2", split_name)] = out
+        lines.append(f"S2   share per gearbox type [{split_name}]: {describe(out)}; shares {shares}")
+    lines.append(f"     {gallons_line(results[('S2', '22 folds')], r['paired'])}")
+    return lines
 
 
 def choice_lines(err, fams, mf, five, results):
