@@ -214,8 +214,8 @@ def report(r):
     for key, (text, family) in fams.items():
         for split_name, groups in (("22 folds", mf), ("5 folds", five)):
             e, chosen = fit_held_out(err, groups, family)
-            vals = [v for v in chosen.values() if v is not None]
-            spread = "" if not vals else f"; constant over folds {min(vals)}..{max(vals)}"
+            vals = sorted({tuple(np.atleast_1d(v).tolist()) for v in chosen.values() if v is not None})
+            spread = "" if not vals else f"; constant over folds {vals[0]}..{vals[-1]}"
             lines.append(f"{key:4s} {text} [{split_name}]: {describe(e)}{spread}")
             results[(key, split_name)] = e
         lines.append(f"     {gallons_line(results[(key, '22 folds')], r['paired'])}")
@@ -252,7 +252,7 @@ def second_round(r, five, results):
             sub = err[rows]
             e, chosen = fit_held_out(sub, groups[rows], dict(grid=SHARE_GRID, apply=lambda s, x=sub: share_carry(x, s)))
             out.loc[rows] = e.to_numpy()
-            shares[box] = f"{min(chosen.values())}..{max(chosen.values())}"
+            shares[str(box)] = f"{min(chosen.values())}..{max(chosen.values())}"
         results[("S2", split_name)] = out
         lines.append(f"S2   share per gearbox type [{split_name}]: {describe(out)}; shares {shares}")
     lines.append(f"     {gallons_line(results[('S2', '22 folds')], r['paired'])}")
