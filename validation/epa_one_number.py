@@ -205,10 +205,31 @@ def gallons_line(e, paired):
             f"{b['fleets'][0]:+.2%}..{b['fleets'][1]:+.2%}")
 
 
+def ftp_only_bound(err):
+    """In sample, the best any function of the FTP error alone can do for HWFET: each vehicle's
+    HWFET log error predicted by the median of its bin of FTP log error (5-40 equal-count bins);
+    and the residual spread after the least-squares share."""
+    lf, lh = np.log1p(err["FTP"].to_numpy()), np.log1p(err["HWFET"].to_numpy())
+    ok = np.isfinite(lf) & np.isfinite(lh)
+    lf, lh = lf[ok], lh[ok]
+    shares = {}
+    for bins in (5, 10, 20, 40):
+        med = pd.Series(lh).groupby(pd.qcut(lf, bins, labels=False)).transform("median").to_numpy()
+        shares[bins] = float(np.mean(np.abs(np.expm1(lh - med)) <= 0.05))
+    s = float(np.sum(lf * lh) / np.sum(lf ** 2))
+    res = lh - s * lf
+    robust = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+    return (f"FTP error alone, in sample: HWFET within 5 % by bins of the FTP error "
+            + ", ".join(f"{b} bins {v:.1%}" for b, v in shares.items())
+            + f"; share {s:.3f} {np.mean(np.abs(np.expm1(res)) <= 0.05):.1%}; correlation {np.corrcoef(lf, lh)[0, 1]:.3f}; "
+            f"residual log sd {res.std():.4f} (robust {robust:.4f})")
+
+
 def report(r):
     err, mf = r["err"], r["manufacturer"]
     five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
-    lines = [f"{len(err)} vehicles (pairs merged); physics + technology held out: " + describe(err, TESTS)]
+    lines = [f"{len(err)} vehicles (pairs merged); physics + technology held out: " + describe(err, TESTS),
+             ftp_only_bound(err)]
     results = {}
     fams = candidates(r)
     for key, (text, family) in fams.items():
