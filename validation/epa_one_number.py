@@ -12,6 +12,10 @@ receive it in their own proportions. Global constants (a share, the cold start's
 choice of quantity) are fitted by least squares of the HWFET and US06 log errors on the other
 manufacturers: 22 leave-one-manufacturer-out folds and 5 folds by manufacturer
 (validation/fleet_error.folds_of). Predictions, pairs and folds are epa_technology.py's.
+Second round (pre-registered after the first): the share with a cap (S1), one share per
+gearbox type (S2). Label form: EPA's derived label combined figure of the measured FTP and
+HWFET (L1 as `simulate` applies it, L2 carried by a quantity, L1r in whole mpg, L3 the highway
+label). Also printed: the in-sample bound of any function of the FTP error alone on HWFET.
 """
 from __future__ import annotations
 
