@@ -240,6 +240,7 @@ def report(r):
         for split_name, groups in (("22 folds", mf), ("5 folds", five)):
             e, chosen = fit_held_out(err, groups, family)
             vals = sorted({tuple(np.atleast_1d(v).tolist()) for v in chosen.values() if v is not None})
+            vals = [v[0] if len(v) == 1 else v for v in vals]
             spread = "" if not vals else f"; constant over folds {vals[0]}..{vals[-1]}"
             lines.append(f"{key:4s} {text} [{split_name}]: {describe(e)}{spread}")
             results[(key, split_name)] = e
