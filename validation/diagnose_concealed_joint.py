@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -41,6 +41,8 @@ from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _eff
                                           concealed_fuel)
 
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
+from fleetrun.diagnose.select import effect_of  # noqa: E402
+from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
 from fleetrun.resources import inputs_dir  # noqa: E402
 from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
@@ -72,6 +74,13 @@ WEIGHTING["Wh"] = "noise"
 DESIGNS["J3h"] = DESIGNS["J3"]
 #: designs whose targets are all declared hot starts (no warm-up candidate)
 HOT_STARTS = {"Wh", "J3h"}
+# pre-registered (docs/diagnose-realdata.md, 1e): Wh with a grade located along each target's
+# route (fleetrun.diagnose.route)
+DESIGNS["G"] = DESIGNS["J3"]
+WEIGHTING["G"] = "noise"
+HOT_STARTS.add("G")
+#: designs with a distance-located grade profile per target (``joint_diagnosis(grade_profile=True)``)
+GRADE_PROFILE = {"G"}
 
 
 @dataclass(frozen=True)
@@ -133,8 +142,10 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
-          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None}
+          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
+          "grade_profile": design in GRADE_PROFILE}
     clean = joint_diagnosis(clean_paths, refs, **kw)
+    clean_ids = [f["effect"] for f in clean.result["findings"]]
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -152,20 +163,45 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
                 paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
             extra = np.concatenate(extras)
             d = joint_diagnosis(paths, refs, **kw)
-            names = tuple(f["effect"] for f in d.result["findings"])
+            found = tuple(f["effect"] for f in d.result["findings"])
+            # the effect's findings: itself, or per target (road_grade@<target>, design G)
+            ids = [i for i in found if effect_of(i) == effect]
+            names = tuple(dict.fromkeys(effect if i in ids else i for i in found))
             bg = np.zeros(len(extra))
-            if effect in names and effect not in [f["effect"] for f in clean.result["findings"]]:
-                bg = _effect_fuel(clean, effect, False)
+            for i in ids:
+                if i not in clean_ids:
+                    bg = bg + _fuel_of(clean, i, False)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
             after = sum(abs(float((extra * dt - added)[m].sum())) for m in masks)
-            raw = float(_effect_fuel(d, effect).sum()) if effect in names else 0.0
-            params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
+            raw = float(sum(_fuel_of(d, i).sum() for i in ids))
+            params = {i: f["parameters"] for f in d.result["findings"] for i in ids if f["effect"] == i}
+            params = next(iter(params.values())) if list(params) == [effect] else params
             cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
-                                   float((extra * dt).sum()), raw, raw - float(bg.sum()) if effect in names else 0.0,
+                                   float((extra * dt).sum()), raw, raw - float(bg.sum()) if ids else 0.0,
                                    before, after, {"concealed": param, **params}, _why(d.result)))
     return clean.result, cases
+
+
+def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
+    """Fuel [g] per sample of the candidate ``cid`` (an effect id, or ``effect@recording``)
+    at its fitted parameters: as a finding, or (``findings_only`` False) as the candidate's
+    own fit whatever its status."""
+    if cid in EFFECTS:
+        return _effect_fuel(d, cid, findings_only)
+    pool = d.result["findings"] if findings_only else d.result["candidates"]
+    f = next((x for x in pool if x["effect"] == cid and x.get("parameters")), None)
+    if f is None:
+        return np.zeros(len(d.problem.time_s))
+    cand = next(c for c in d.problem.candidates if c.id == cid)
+    e = EFFECTS[effect_of(cid)]
+    shape = {k: float(f["parameters"][k]) for k in cand.shapes[0]} if cand.shapes[0] else {}
+    if shape and cand.column_for is not None:
+        col = cand.column_for(shape)
+    else:
+        col = cand.columns[cand.shapes.index(shape) if shape in cand.shapes else 0]
+    return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
 def _why(result: dict) -> str:
@@ -221,7 +257,8 @@ def separation(design: str, workdir=None) -> JointSeparation:
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     clean = joint_diagnosis(paths, refs, weights=WEIGHTING.get(design, "none"),
-                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None)
+                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None,
+                            grade_profile=design in GRADE_PROFILE)
     J = clean.problem.coarse   # weighted rows where the design weights its windows
     cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
     warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})

@@ -135,7 +135,11 @@ def _params(cand: Candidate, shape: dict, coef: float) -> dict:
     effect = EFFECTS[effect_of(cand.id)]
     out = {effect.linear: float(coef)}
     out.update({k: float(v) for k, v in shape.items()})
-    return {p.name: round(out[p.name], 6) for p in effect.parameters if p.name in out}
+    names = [p.name for p in effect.parameters if p.name in out]
+    # a shape the catalogue entry does not list (a candidate built beyond the catalogue,
+    # fleetrun.diagnose.route's profile direction) is reported after the entry's own
+    names += [k for k in shape if k not in names]
+    return {k: round(out[k], 6) for k in names}
 
 
 def explanation(effect_id: str, params: dict[str, float], before: float, after: float, units: str) -> str:
