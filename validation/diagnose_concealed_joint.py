@@ -83,6 +83,13 @@ HOT_STARTS.add("G")
 GRADE_PROFILE = {"G"}
 
 
+#: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
+#: with designs Wh and G; scored as ``road_grade`` by the fuel it moves (its absolute sum).
+ROUTE_SIZES = {"road_profile": (0.5, 1.0)}
+SCORED_AS = {"road_profile": "road_grade"}
+MOVED = {"road_profile"}
+
+
 @dataclass(frozen=True)
 class JointCase:
     effect: str
@@ -100,7 +107,7 @@ class JointCase:
 
     @property
     def named(self) -> bool:
-        return self.effect in self.findings
+        return SCORED_AS.get(self.effect, self.effect) in self.findings
 
     @property
     def size_ok(self) -> bool:
@@ -165,8 +172,9 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             d = joint_diagnosis(paths, refs, **kw)
             found = tuple(f["effect"] for f in d.result["findings"])
             # the effect's findings: itself, or per target (road_grade@<target>, design G)
-            ids = [i for i in found if effect_of(i) == effect]
-            names = tuple(dict.fromkeys(effect if i in ids else i for i in found))
+            scored = SCORED_AS.get(effect, effect)
+            ids = [i for i in found if effect_of(i) == scored]
+            names = tuple(dict.fromkeys(scored if i in ids else i for i in found))
             bg = np.zeros(len(extra))
             for i in ids:
                 if i not in clean_ids:
@@ -176,10 +184,18 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
             after = sum(abs(float((extra * dt - added)[m].sum())) for m in masks)
             raw = float(sum(_fuel_of(d, i).sum() for i in ids))
+            concealed = float((extra * dt).sum())
+            if effect in MOVED:
+                # the fuel the grade moves: sums of absolute fuel per sample
+                fit = sum((_fuel_of(d, i) for i in ids), np.zeros(len(extra)))
+                raw, concealed = float(np.abs(fit).sum()), float(np.abs(extra * dt).sum())
+                bg = np.zeros(len(extra)) if not ids else bg
+                moved_bg = float(np.abs(bg).sum())
             params = {i: f["parameters"] for f in d.result["findings"] for i in ids if f["effect"] == i}
             params = next(iter(params.values())) if list(params) == [effect] else params
-            cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
-                                   float((extra * dt).sum()), raw, raw - float(bg.sum()) if ids else 0.0,
+            less = (moved_bg if effect in MOVED else float(bg.sum())) if ids else 0.0
+            cases.append(JointCase(effect, size, concealed / total, names,
+                                   concealed, raw, raw - less if ids else 0.0,
                                    before, after, {"concealed": param, **params}, _why(d.result)))
     return clean.result, cases
 
@@ -304,6 +320,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--route", action="store_true", help="design R: a real road's grade profile "
+                    "concealed (run with --design Wh --design G)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
                     "columns on the clean targets")
     args = ap.parse_args(argv)
@@ -314,7 +332,7 @@ def main(argv=None) -> int:
         out = Path(args.out) / design if args.out else None
         if out:
             out.mkdir(parents=True, exist_ok=True)
-        clean, cases = run(design, out)
+        clean, cases = run(design, out, ROUTE_SIZES) if args.route else run(design, out)
         print(table(design, clean, cases), flush=True)
         print()
     return 0
