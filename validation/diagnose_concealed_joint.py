@@ -163,8 +163,10 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             for (tn, td, tm, spec), _ in pairs:
                 extra, param = concealed_fuel(effect, size, td, spec)
                 hidden = td.copy()
-                hidden["fuel_rate_g_per_s"] = td["fuel_rate_g_per_s"] + extra
-                extras.append(extra)
+                # a descent cannot take the measured fuel below zero (design R; the other
+                # concealments only add fuel, so nothing changes for them)
+                hidden["fuel_rate_g_per_s"] = np.maximum(td["fuel_rate_g_per_s"] + extra, 0.0)
+                extras.append((hidden["fuel_rate_g_per_s"] - td["fuel_rate_g_per_s"]).to_numpy())
                 sub = workdir / f"{effect}_{size:g}"
                 sub.mkdir(exist_ok=True)
                 paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
