@@ -105,6 +105,25 @@ def test_real_camry_warm_runs_noise_weighted():
         assert all(c.named for c in cases if c.effect == "aero_drag")
 
 
+@pytest.mark.slow
+def test_real_camry_grade_located_along_the_route():
+    """Designs G and R of validation/diagnose_concealed_joint.py (docs/diagnose-realdata.md,
+    1e, both pre-registered): with a grade profile per target (G) the clean targets name
+    nothing, no profile is named where a drag or an accessory load was concealed, every named
+    effect is sized within 25 %, and the measured floor holds (3 of 6); a real road's grade
+    concealed (R) is never taken for a drag or an accessory load."""
+    from validation.diagnose_concealed_joint import ROUTE_SIZES, run
+
+    clean, cases = run("G")
+    assert clean["findings"] == []
+    assert all(c.size_ok for c in cases if c.named)
+    assert sum(c.named and c.size_ok and c.phases_ok for c in cases) >= 3
+    assert not any(f.startswith("road_grade") for c in cases if c.effect != "road_grade" for f in c.findings)
+    for design in ("Wh", "G"):
+        _, route = run(design, sizes=ROUTE_SIZES)
+        assert all(set(c.findings) <= {"road_grade"} for c in route)
+
+
 def test_join_refuses_two_recordings_of_one_name():
     with pytest.raises(InputError, match="distinct"):
         join([_problem(7, 0.0, 0.0, 5.0), _problem(8, 0.0, 0.0, 5.0)], ["run", "run"])
