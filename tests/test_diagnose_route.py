@@ -9,7 +9,7 @@ import numpy as np
 
 from fleetrun.diagnose.engine import IntegralSpec, Problem, Settings, select
 from fleetrun.diagnose.joint import join, join_coarse
-from fleetrun.diagnose.route import half_sphere_directions, with_grade_profiles
+from fleetrun.diagnose.route import half_sphere_directions, road_knots, with_grade_profiles, with_road
 from fleetrun.diagnose.select import Candidate
 from fleetrun.effects.vehicle import route_grade_shape
 
@@ -78,3 +78,52 @@ def test_noise_alone_names_no_profile():
     for seed in (3, 5, 7):
         joined = _joined([_problem(seed, None, 0.0), _problem(seed + 1, None, 0.0)], ["one", "two"])
         assert not select(joined.coarse, Settings(n_shifts=50)).findings
+
+
+def _road_problem(seed: int, road_amp: float, drag: float = 0.0) -> Problem:
+    """A recording driven over a hilly road (grade ``road_amp`` x sin of distance, 3-km
+    wavelength) from its start, at its own speeds, plus white noise and a drag if asked."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(N, dtype=float)
+    speed = (8.0 + 4.0 * seed % 7) * (1 + 0.5 * np.sin(2 * np.pi * t / (150.0 + 20 * seed)))
+    dist = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]))])
+    grade_col, drag_col = 0.01 * speed, 1e-4 * speed ** 3
+    grade = road_amp * np.sin(2 * np.pi * dist / 3000.0)
+    residual = grade * grade_col + drag * drag_col + rng.normal(0.0, 0.02, N)
+    cands = [Candidate("road_grade", [grade_col], [{}], -15.0, 15.0),
+             Candidate("aero_drag", [drag_col], [{}], 0.0, 5.0)]
+    return Problem("vehicle", "fuel_rate_g_per_s", t, residual, np.zeros(N), cands, {},
+                   driver_channels={"speed": speed}, units="g/s",
+                   initial_terms=[(np.ones(N), -0.01, 0.01)],
+                   integral=IntegralSpec(moving=speed > 0.1, speed_mps=speed, weight=np.ones(N), unit="g"))
+
+
+def _road(problems, names):
+    joined, _ = join(problems, names)
+    joined.coarse = join_coarse(problems, names, 10)
+    return with_road(joined, problems, names, 10, "none")
+
+
+def test_one_road_under_every_recording_is_named_and_follows_the_road():
+    problems = [_road_problem(1, 0.5), _road_problem(2, 0.5), _road_problem(3, 0.5)]
+    joined = _road(problems, ["a", "b", "c"])
+    road = joined.coarse.candidates[-1]
+    assert road.id == "road_grade@road" and road.block.shape[0] == len(road_knots(problems))
+    sel = select(joined.coarse, Settings(n_shifts=50))
+    found = {f.effect: f.parameters for f in sel.findings}
+    assert "road_grade@road" in found and "aero_drag" not in found
+    # the fitted knots follow the road's grade (0.5 % x sin, 3 km): correlation and size
+    p = found["road_grade@road"]
+    knots = road_knots(problems)
+    fitted = p["grade_pct"] * np.array([p[f"w{i}"] for i in range(len(knots))])
+    true = 0.5 * np.sin(2 * np.pi * knots / 3000.0)
+    inside = knots < min(road_knots([q]).max() for q in problems)
+    assert np.corrcoef(fitted[inside], true[inside])[0, 1] > 0.9
+
+
+def test_a_drag_is_not_taken_for_a_road_and_noise_names_no_road():
+    problems = [_road_problem(4, 0.0, 0.5), _road_problem(5, 0.0, 0.5), _road_problem(6, 0.0, 0.5)]
+    sel = select(_road(problems, ["a", "b", "c"]).coarse, Settings(n_shifts=50))
+    assert [f.effect for f in sel.findings] == ["aero_drag"]
+    problems = [_road_problem(7, 0.0), _road_problem(8, 0.0), _road_problem(9, 0.0)]
+    assert not select(_road(problems, ["a", "b", "c"]).coarse, Settings(n_shifts=50)).findings

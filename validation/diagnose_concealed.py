@@ -116,6 +116,9 @@ def concealed_fuel(effect: str, size: float, data, spec) -> tuple[np.ndarray, fl
         return (_simulated(heavier, t, v) - base) * on, float(c_si)
     if effect == "road_profile":
         return (_simulated(spec, t, v, size * road_profile_grade(t, v)) - base) * on, size
+    if effect == "road_profile_reversed":
+        grade = road_profile_grade(t, v, reversed_=True)
+        return (_simulated(spec, t, v, size * grade) - base) * on, size
     raise ValueError(effect)
 
 
@@ -124,9 +127,10 @@ def concealed_fuel(effect: str, size: float, data, spec) -> tuple[np.ndarray, fl
 ROAD_PROFILE = "CRUISE-55-GRADE"
 
 
-def road_profile_grade(time_s, speed_mps) -> np.ndarray:
+def road_profile_grade(time_s, speed_mps, reversed_: bool = False) -> np.ndarray:
     """Grade [%] of the road profile at the distance travelled since the first sample (the
-    trapezoidal integral of ``speed_mps``), the profile's own distance being its cycle's."""
+    trapezoidal integral of ``speed_mps``), the profile's own distance being its cycle's;
+    ``reversed_``: the road driven the other way from its end (grade -profile(L - s))."""
     import pandas as pd
 
     prof = pd.read_csv(inputs_dir() / "cycles" / f"{ROAD_PROFILE}.csv")
@@ -136,6 +140,8 @@ def road_profile_grade(time_s, speed_mps) -> np.ndarray:
     s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
     if s[-1] > ps[-1]:
         raise ValueError(f"the route ({s[-1]:.0f} m) is longer than the road profile ({ps[-1]:.0f} m)")
+    if reversed_:
+        return -np.interp(ps[-1] - s, ps, prof["grade_pct"].to_numpy())
     return np.interp(s, ps, prof["grade_pct"].to_numpy())
 
 

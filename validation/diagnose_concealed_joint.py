@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -81,13 +81,22 @@ WEIGHTING["G"] = "noise"
 HOT_STARTS.add("G")
 #: designs with a distance-located grade profile per target (``joint_diagnosis(grade_profile=True)``)
 GRADE_PROFILE = {"G"}
+# pre-registered (docs/diagnose-realdata.md, 1f): Wh with one road under every target
+DESIGNS["L"] = DESIGNS["J3"]
+WEIGHTING["L"] = "noise"
+HOT_STARTS.add("L")
+#: designs with one road under every target (``joint_diagnosis(road=True)``)
+ROAD = {"L"}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
 #: with designs Wh and G; scored as ``road_grade`` by the fuel it moves (its absolute sum).
 ROUTE_SIZES = {"road_profile": (0.5, 1.0)}
-SCORED_AS = {"road_profile": "road_grade"}
-MOVED = {"road_profile"}
+#: Design L's cases: the six, R's two, and the road driven the other way (not looked at
+#: before L was registered)
+L_SIZES = {**SIZES, **ROUTE_SIZES, "road_profile_reversed": (0.35, 0.7)}
+SCORED_AS = {"road_profile": "road_grade", "road_profile_reversed": "road_grade"}
+MOVED = {"road_profile", "road_profile_reversed"}
 
 
 @dataclass(frozen=True)
@@ -150,7 +159,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
-          "grade_profile": design in GRADE_PROFILE}
+          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
     dt = np.gradient(clean.problem.time_s)
@@ -215,6 +224,9 @@ def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
     cand = next(c for c in d.problem.candidates if c.id == cid)
     e = EFFECTS[effect_of(cid)]
     shape = {k: float(f["parameters"][k]) for k in cand.shapes[0]} if cand.shapes[0] else {}
+    if cand.block is not None:
+        # a block candidate (one road's knots): its weights are the parameters w0, w1, ...
+        shape = {f"w{i}": float(f["parameters"][f"w{i}"]) for i in range(cand.block.shape[0])}
     if shape and cand.column_for is not None:
         col = cand.column_for(shape)
     else:
@@ -334,7 +346,8 @@ def main(argv=None) -> int:
         out = Path(args.out) / design if args.out else None
         if out:
             out.mkdir(parents=True, exist_ok=True)
-        clean, cases = run(design, out, ROUTE_SIZES) if args.route else run(design, out)
+        sizes = ROUTE_SIZES if args.route else L_SIZES if design in ROAD else SIZES
+        clean, cases = run(design, out, sizes)
         print(table(design, clean, cases), flush=True)
         print()
     return 0

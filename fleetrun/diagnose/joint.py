@@ -33,7 +33,7 @@ from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
 from fleetrun.diagnose.weighting import noise_weighted
-from fleetrun.diagnose.route import with_grade_profiles
+from fleetrun.diagnose.route import with_grade_profiles, with_road
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import JsonDocument
 
@@ -248,7 +248,7 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
                     settings: Settings | None = None, residual: str = "auto",
                     window_s: float | None = None, weights: str = "none",
                     hot_starts: Sequence[bool] | None = None,
-                    grade_profile: bool = False) -> JointDiagnosis:
+                    grade_profile: bool = False, road: bool = False) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,
@@ -259,7 +259,9 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     as without. ``hot_starts[i]`` True declares recording ``i`` a hot start (the engine warm
     from its first second, as the test protocol says): it gets no ``warmup`` candidate
     (:func:`without_warmup`). ``grade_profile`` True adds a grade located along each
-    recording's route, ``road_grade@<recording>`` (:func:`fleetrun.diagnose.route.with_grade_profiles`)."""
+    recording's route, ``road_grade@<recording>`` (:func:`fleetrun.diagnose.route.with_grade_profiles`);
+    ``road`` True one road under every recording, ``road_grade@road``
+    (:func:`fleetrun.diagnose.route.with_road`)."""
     if len(references) != len(recordings):
         raise InputError("give one reference (or None) per recording")
     if hot_starts is not None and len(hot_starts) != len(recordings):
@@ -272,6 +274,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     joined.coarse = join_coarse(problems, names, window, weights)
     if grade_profile:
         joined = with_grade_profiles(joined, problems, names, window, weights)
+    if road:
+        joined = with_road(joined, problems, names, window, weights)
     hot = [n for n, h in zip(names, hot_starts or []) if h]
     if hot:
         joined = without_warmup(joined, hot)
