@@ -190,49 +190,6 @@ def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = No
     return rows
 
 
-def measured_idle() -> dict[str, dict]:
-    """The measured no-load idle fuel of diesel trucks (models/heavy_duty/idle_fuel_measured.toml,
-    DOE VTO Fact #861) and the reference vehicles each is compared with."""
-    with open(HD_DIR / "idle_fuel_measured.toml", "rb") as fh:
-        return tomllib.load(fh)["trucks"]
-
-
-def model_no_load_idle_gal_per_h() -> dict[str, float]:
-    """{reference vehicle: its engine's idle fuel [gal/h] at idle speed, no load and no
-    accessories}: the light-load end of the fuel map, as Fact #861 measured trucks."""
-    defaults, vehicles = reference_vehicles()
-    specs = [vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"], accessory_power_W=0.0,
-                                               engine_model_year=defaults["standard_year"]), name), Path(name))
-             for name, basis in vehicles.items()]
-    return {name: float(g) for name, g in zip(vehicles, idle_gallons_per_hour(specs)[1])}
-
-
-def check_idle_fuel() -> list[dict]:
-    """Each reference vehicle's no-load idle fuel against the measured truck of its class
-    (idle_fuel_measured.toml): model / measured."""
-    model = model_no_load_idle_gal_per_h()
-    rows = []
-    for truck, m in measured_idle().items():
-        rows += [dict(vehicle=name, measured_truck=truck, measured_gal_per_h=m["idle_gal_per_h"],
-                      model_gal_per_h=round(model[name], 3), ratio=round(model[name] / m["idle_gal_per_h"], 3))
-                 for name in m["reference"]]
-    return rows
-
-
-def measured_idle_additions() -> dict[str, float]:
-    """{reference vehicle: measured - model no-load idle [gal/h]}: what the idle cycles would
-    burn more if the engine idled as Fact #861's trucks (a sensitivity)."""
-    return {r["vehicle"]: r["measured_gal_per_h"] - r["model_gal_per_h"] for r in check_idle_fuel()}
-
-
-def doe_nrel_accessories() -> dict[str, dict]:
-    """{reference vehicle: {accessory_power_W}} of DOE's vehicles as NREL T3CO ships them
-    (reference_inputs_doe_nrel.toml ``aux_kw``; a sensitivity)."""
-    with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
-        data = tomllib.load(fh)
-    return {name: dict(accessory_power_W=v["aux_kw"] * 1000.0) for name, v in data["vehicles"].items()}
-
-
 def _mix_gal_per_mile(trucks, mix: dict[str, float], ambient_temp_C: float = 20.0) -> np.ndarray:
     """Gallons per mile of each truck over a cycle mix (shares of miles)."""
     gal_per_mile = np.zeros(len(trucks))
@@ -345,6 +302,49 @@ def check_fhwa_class_defaults() -> list[dict]:
     return rows
 
 
+def measured_idle() -> dict[str, dict]:
+    """The measured no-load idle fuel of diesel trucks (models/heavy_duty/idle_fuel_measured.toml,
+    DOE VTO Fact #861) and the reference vehicles each is compared with."""
+    with open(HD_DIR / "idle_fuel_measured.toml", "rb") as fh:
+        return tomllib.load(fh)["trucks"]
+
+
+def model_no_load_idle_gal_per_h() -> dict[str, float]:
+    """{reference vehicle: its engine's idle fuel [gal/h] at idle speed, no load and no
+    accessories}: the light-load end of the fuel map, as Fact #861 measured trucks."""
+    defaults, vehicles = reference_vehicles()
+    specs = [vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"], accessory_power_W=0.0,
+                                               engine_model_year=defaults["standard_year"]), name), Path(name))
+             for name, basis in vehicles.items()]
+    return {name: float(g) for name, g in zip(vehicles, idle_gallons_per_hour(specs)[1])}
+
+
+def check_idle_fuel() -> list[dict]:
+    """Each reference vehicle's no-load idle fuel against the measured truck of its class
+    (idle_fuel_measured.toml): model / measured."""
+    model = model_no_load_idle_gal_per_h()
+    rows = []
+    for truck, m in measured_idle().items():
+        rows += [dict(vehicle=name, measured_truck=truck, measured_gal_per_h=m["idle_gal_per_h"],
+                      model_gal_per_h=round(model[name], 3), ratio=round(model[name] / m["idle_gal_per_h"], 3))
+                 for name in m["reference"]]
+    return rows
+
+
+def measured_idle_additions() -> dict[str, float]:
+    """{reference vehicle: measured - model no-load idle [gal/h]}: what the idle cycles would
+    burn more if the engine idled as Fact #861's trucks (a sensitivity)."""
+    return {r["vehicle"]: r["measured_gal_per_h"] - r["model_gal_per_h"] for r in check_idle_fuel()}
+
+
+def doe_nrel_accessories() -> dict[str, dict]:
+    """{reference vehicle: {accessory_power_W}} of DOE's vehicles as NREL T3CO ships them
+    (reference_inputs_doe_nrel.toml ``aux_kw``; a sensitivity)."""
+    with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return {name: dict(accessory_power_W=v["aux_kw"] * 1000.0) for name, v in data["vehicles"].items()}
+
+
 def error_summary(errors) -> dict:
     e = np.asarray(errors, float)
     return dict(n=int(e.size), mean=round(float(e.mean()), 4), median=round(float(np.median(e)), 4),
@@ -403,12 +403,12 @@ def main(argv=None) -> dict:
                   example_combination_trucks_gem=check_example_trucks_on_gem_weighting(),
                   example_mix_sensitivity=check_example_mix_sensitivity(),
                   fhwa_class_defaults=check_fhwa_class_defaults())
-    report["reference_error"] = error_groups(report["reference_vehicles"])
-    report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
-    report["reference_tractors_gem_bin_cda"] = check_reference_vehicles(road_load=gem_bin_road_load())
     report["idle_fuel_vs_measured"] = check_idle_fuel()
     report["reference_vehicles_measured_idle"] = check_reference_vehicles(idle_add_gal_per_h=measured_idle_additions())
     report["reference_vehicles_doe_nrel_accessories"] = check_reference_vehicles(columns=doe_nrel_accessories())
+    report["reference_error"] = error_groups(report["reference_vehicles"])
+    report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
+    report["reference_tractors_gem_bin_cda"] = check_reference_vehicles(road_load=gem_bin_road_load())
     print(json.dumps(report, indent=1))
     if args.write:
         write_error_file(report["reference_vehicles"])
