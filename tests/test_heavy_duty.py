@@ -61,7 +61,8 @@ from fleetrun.resources import model_file  # noqa: E402
 from fleetrun.cycles import load_cycle  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.heavy_duty_engine import (bsfc_map_g_per_kWh, heavy_duty_constants,  # noqa: E402
-                                                   reference_engine, set_co2_g_per_hp_hr, standard_for)
+                                                   reference_engine, set_co2_g_per_hp_hr, set_ramped_co2_g_per_hp_hr,
+                                                   standard_for)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "validation"))
 import heavy_duty as hd_validation  # noqa: E402
@@ -80,6 +81,30 @@ def test_reference_engine_meets_its_set_standard(year):
     engine, constants = _reference_engine(year=year)
     co2 = set_co2_g_per_hp_hr(constants, engine)
     assert co2 == pytest.approx(standard_for("heavy", year), rel=1e-9)
+
+
+@pytest.mark.parametrize("service", ["heavy", "medium"])
+def test_reference_engine_meets_its_standard_on_the_ramped_set(service):
+    """The SET is run as a ramped-modal cycle and rated as total CO2 over total work (40 CFR
+    1036.510(a), (g); 1065.650). The slope is anchored on the 13 modes with their weights, which
+    lump each 20 s ramp into a mode; run as the test runs it, ramps included, the engine must
+    still meet its standard within 0.5 % (measured: -0.04 %), else the modes, their order or
+    weights are wrong."""
+    engine, constants = _reference_engine(service=service)
+    co2 = set_ramped_co2_g_per_hp_hr(constants, engine)
+    assert co2 == pytest.approx(standard_for(service, 2021), rel=0.005)
+
+
+def test_set_weights_are_the_ramped_cycles_times_in_mode():
+    """Each SET weight is (time in mode + one 20 s ramp) / 2,400 s of the ramped-modal cycle
+    (1036.505 Table 1); idle holds the first and the last mode."""
+    data = model_file("heavy_duty/engines.toml")
+    ramped, weights = data["set_ramped"], [m["weight"] for m in data["set_modes"]]
+    seconds = list(ramped["mode_seconds"])
+    seconds[0] += ramped["final_idle_seconds"]
+    total = sum(seconds) + ramped["ramp_seconds"] * len(seconds)
+    assert total == 2400.0
+    assert [(s + ramped["ramp_seconds"]) / total for s in seconds] == pytest.approx(weights, abs=1e-12)
 
 
 def test_heavy_engine_peak_efficiency_is_a_current_heavy_diesels():
@@ -188,13 +213,34 @@ def test_doe_nrel_vehicles_carry_gems_standard_payload():
 
 @pytest.mark.xfail(strict=True, reason=(
     "not reached: class 8 sleeper +10.8 %, day cab +9.4 % over their MY2021 standards on GEM's "
-    "cycles (graded cruise; +5.3 / +5.8 % on level cruise); the reference tractors' CdA, tyre Crr "
-    "and axle ratio are representative values, not the technology package EPA set the MY2021 "
-    "standards at, and fleetrun brakes down the grade's descents (docs/validation-heavy-duty.md)"))
+    "cycles (graded cruise; +5.3 / +5.8 % on level cruise). Decomposed (docs/validation-heavy-duty.md): "
+    "the engine meets its SET standard on the ramped-modal cycle to -0.04 %; with the reference road load "
+    "the standard needs 43.6 % (sleeper) / 39.8 % (day cab) from fuel to wheels, against 39.3 / 36.4 % "
+    "modelled (a single drive axle gives 40.6 / 37.6 %; the sleeper's would need an engine above its SET "
+    "average); the rest is EPA's "
+    "MY2021 package and GEM's percentage inputs (1037.520(j)), not found as numbers"))
 def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(reference_rows):
     """Issue 21's done-when: the Phase 2 reference tractors within 5 % of their standards."""
     class8 = _tractors(reference_rows, "class8")
     assert class8 and all(abs(r["co2_error"]) <= 0.05 for r in class8), class8
+
+
+def test_sleeper_standard_needs_more_than_an_engine_at_its_standard_gives():
+    """Why the class 8 sleeper stays out (docs/validation-heavy-duty.md): with the reference road
+    load and GEM's cycles, the fuel-to-wheel efficiency its MY2021 standard needs exceeds what a
+    single-drive-axle driveline (1037.520(g)(2)) and an engine averaging its SET standard's
+    efficiency (447 g/hp-hr, 40 CFR 1036.108) give together, so no sourced engine or driveline
+    change can bring it within 5 %; the gap is the MY2021 package the standard was set with."""
+    from fleetrun.physics.fuels import fuel_properties
+    from fleetrun.simulation.heavy_duty_engine import HP_W, co2_g_per_g_fuel
+
+    name = "class8_sleeper_high_roof"
+    shipped = hd_validation.tractor_composite(name)
+    single = hd_validation.tractor_composite(name, configuration="HD_RWD")
+    driveline = single["wheel_kWh_per_mile"] / single["engine_kWh_per_mile"]
+    fuel_g_per_kWh = standard_for("heavy", 2021) / (HP_W / 1000.0) / co2_g_per_g_fuel()
+    engine_at_standard = 3.6e3 / (fuel_g_per_kWh * fuel_properties("diesel").lhv_MJ_per_kg)
+    assert shipped["wheel_to_fuel_at_standard"] > engine_at_standard * driveline > shipped["wheel_to_fuel"]
 
 
 @pytest.mark.xfail(strict=True, reason=(
@@ -206,6 +252,18 @@ def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(referen
 def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
     vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
     assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
+
+
+def test_grade_by_distance_is_the_shipped_grade_for_a_truck_on_the_trace():
+    """Appendix IV gives GEM's grade by distance; read at the distance driven it is the shipped
+    per-time-stamp grade for a vehicle that holds the set speed, and it shifts later for one that
+    falls behind (validation/heavy_duty.py's sensitivity)."""
+    cycle = load_cycle("CRUISE-65-GRADE")
+    same = hd_validation.grade_by_distance(cycle, cycle.speed_mps)
+    assert np.allclose(same.grade_pct, cycle.grade_pct, atol=1e-9)
+    slower = hd_validation.grade_by_distance(cycle, 0.9 * cycle.speed_mps)
+    x = np.arange(cycle.time_s.size) * float(cycle.speed_mps[0])
+    assert np.allclose(slower.grade_pct, np.interp(0.9 * x, x, cycle.grade_pct), atol=1e-9)
 
 
 def test_vocational_idle_adds_gems_idle_cycles(reference_rows):

@@ -142,6 +142,60 @@ def set_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngi
     return float(np.sum(weight * fuel)) * 3600.0 * co2_g_per_g_fuel() / work_hp_h
 
 
+def set_ramped_schedule(engine: ReferenceEngine, step_s: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Speed [rpm] and torque [N m] of ``engine`` over the ramped-modal SET, every ``step_s``:
+    the modes of engines.toml in order, each held for its ``set_ramped`` seconds, the final
+    idle, and linear ramps of speed and of percent torque (of the full load at the ramp's
+    speed) between consecutive modes (40 CFR 1036.510(a); times: 1036.505 Table 1, 2016 text).
+
+    Parameters
+    ----------
+    engine : ReferenceEngine
+    step_s : float, sampling interval [s]
+
+    Returns
+    -------
+    (speed [rpm], torque [N m]), arrays of one sample per ``step_s`` (sample midpoints).
+    """
+    labels, loads, _ = _set_modes()
+    ramped = model_file(ENGINES_FILE)["set_ramped"]
+    speed, _, _ = set_points(engine)
+    speeds, fractions = list(speed) + [speed[0]], list(loads) + [loads[0]]
+    held = list(ramped["mode_seconds"]) + [ramped["final_idle_seconds"]]
+    n_parts, f_parts = [], []
+    for k, seconds in enumerate(held):
+        t = np.arange(0.5 * step_s, seconds, step_s)
+        n_parts.append(np.full(t.size, speeds[k]))
+        f_parts.append(np.full(t.size, fractions[k]))
+        if k + 1 < len(held):
+            s = np.arange(0.5 * step_s, ramped["ramp_seconds"], step_s) / ramped["ramp_seconds"]
+            n_parts.append(speeds[k] + s * (speeds[k + 1] - speeds[k]))
+            f_parts.append(fractions[k] + s * (fractions[k + 1] - fractions[k]))
+    n, f = np.concatenate(n_parts), np.concatenate(f_parts)
+    return n, f * _full_load(engine, n)
+
+
+def set_ramped_co2_g_per_hp_hr(constants: HeavyDutyFuelConstants, engine: ReferenceEngine) -> float:
+    """Brake-specific CO2 [g/hp-hr] of ``engine`` over the ramped-modal SET as the test
+    computes it: total CO2 mass over total positive work of the interval (40 CFR 1036.510(g),
+    1065.650), ramps included, no accessory load. The check of :func:`set_co2_g_per_hp_hr`'s
+    modal weighting, which the Willans slope is anchored on.
+
+    Parameters
+    ----------
+    constants : HeavyDutyFuelConstants
+    engine : ReferenceEngine
+
+    Returns
+    -------
+    brake-specific CO2 [g/hp-hr].
+    """
+    speed, torque = set_ramped_schedule(engine)
+    fuel_g = float(np.sum(_engine_fuel_g_per_s(engine, constants, speed, torque)))
+    work_hp_h = float(np.sum(np.maximum(torque, 0.0) * speed * RAD_S_PER_RPM)) / HP_W / 3600.0
+    return fuel_g * co2_g_per_g_fuel() / work_hp_h
+
+
 def willans_slope_for_standard(standard_g_per_hp_hr: float, constants: HeavyDutyFuelConstants,
                                engine: ReferenceEngine) -> float:
     """The eta_indicated at which ``engine`` meets the SET standard exactly. Every term of the
