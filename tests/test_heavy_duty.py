@@ -549,3 +549,22 @@ def test_measured_idle_and_doe_accessory_sensitivities_only_add_fuel(reference_r
             assert r["model_g_per_ton_mile"] == base[r["vehicle"]], r
     for r in hd_validation.check_reference_vehicles(columns=hd_validation.doe_nrel_accessories()):
         assert r["model_g_per_ton_mile"] > base[r["vehicle"]], r
+
+
+def test_stops_in_drive_charge_the_converter_at_the_transient_cycles_stops(reference_rows):
+    """The stops-in-drive sensitivity: an automatic stopped in gear burns its drive-idle rate at
+    the drive cycles' stops (GEM's baseline; neutral idle is an improvement input, 40 CFR
+    1037.520(h)(2)(ii)). The transient cycle's stops (37.6 s per mile of the ARB transient, none
+    on the cruise cycles) add (drive - parked idle) x stopped time per mile to the automatics
+    (the vocational vehicles) only; the tractors' manual clutch is open at a stop."""
+    assert hd_validation.stopped_hours_per_mile("ARB-TRANSIENT") * 3600.0 == pytest.approx(37.6, abs=0.1)
+    assert hd_validation.stopped_hours_per_mile("CRUISE-65-GRADE") == 0.0
+    base = {r["vehicle"]: r for r in reference_rows}
+    stopped_h = hd_validation.stopped_hours_per_mile("ARB-TRANSIENT")
+    for r in hd_validation.check_reference_vehicles(stops_in_drive=True):
+        b = base[r["vehicle"]]
+        extra = (b["drive_idle_gal_per_h"] - b["parked_idle_gal_per_h"]) * stopped_h
+        assert 1.0 / r["mpg_by_cycle"]["ARB-TRANSIENT"] == pytest.approx(
+            1.0 / b["mpg_by_cycle"]["ARB-TRANSIENT"] + extra, rel=2e-3), r
+        assert r["mpg_by_cycle"]["CRUISE-65-GRADE"] == b["mpg_by_cycle"]["CRUISE-65-GRADE"]
+        assert (r["model_g_per_ton_mile"] > b["model_g_per_ton_mile"]) == r["gem_type"].startswith("vocational")
