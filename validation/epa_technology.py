@@ -169,7 +169,7 @@ def split_transfer(split, err, weights):
     cold start's weight 1): the correction reaches each test in proportion to the parts it has."""
     B, O, C = (split[k].loc[err.index, list(TESTS)].to_numpy() for k in "BOC")
     pred = B + O + C
-    meas = pred / (1.0 + err[list(TESTS)].to_numpy())  # g/mi measured = predicted / (1 + mpg error)
+    meas = pred * (1.0 + err[list(TESTS)].to_numpy())  # g/mi measured = predicted x (1 + mpg error)
     part = weights[0] * B + weights[1] * O + C
     delta = (meas[:, :1] - pred[:, :1]) / part[:, :1]
     return pd.DataFrame(meas / (pred + part * delta) - 1.0, index=err.index, columns=list(TESTS))
