@@ -150,14 +150,15 @@ def gem_bin_road_load() -> dict[str, dict]:
 
 
 def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = None, columns: dict | None = None,
-                             idle_add_gal_per_h: dict | None = None) -> list[dict]:
+                             idle_add_gal_per_h: dict | None = None, stops_in_drive: bool = False) -> list[dict]:
     """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
     without the vocational idle cycles (as before 2026-11-25); ``road_load``: {vehicle:
     {cda_m2, crr_kg_per_t}} in place of the reference file's (only those vehicles are run);
     ``columns``: {vehicle: {Vehicles column: value}} added to its row (e.g. accessory_power_W;
     only those vehicles are run); ``idle_add_gal_per_h``: {vehicle: gal/h} added to its drive-
-    and parked-idle fuel rates and, at the drive cycles' stops, to what the vehicle burns there
-    (sensitivities, docs/validation-heavy-duty.md)."""
+    and parked-idle fuel rates; ``stops_in_drive``: the drive cycles' stops burn the drive-idle
+    rate (an automatic held in gear) instead of the simulation's no-load idle (sensitivities,
+    docs/validation-heavy-duty.md)."""
     defaults, vehicles = reference_vehicles()
     if road_load is not None:
         vehicles = {name: dict(vehicles[name], **inputs) for name, inputs in road_load.items()}
@@ -174,7 +175,8 @@ def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = No
             gal_per_mile.setdefault(name, {})[cycle] = float(r.fuel_gal[i] / r.miles[i])
     drive_gph, parked_gph = idle_gallons_per_hour(list(specs.values()))
     added = np.array([(idle_add_gal_per_h or {}).get(name, 0.0) for name in specs])
-    _add_at_stops(gal_per_mile, dict(zip(specs, added)))
+    if stops_in_drive:   # the stops burn the (added-to) drive idle instead of the simulation's no-load idle
+        _stops_in_drive(gal_per_mile, dict(zip(specs, drive_gph + added - parked_gph)))
     drive_gph, parked_gph = drive_gph + added, parked_gph + added
     rows = []
     for i, (name, basis) in enumerate(vehicles.items()):
@@ -205,9 +207,11 @@ def stopped_hours_per_mile(cycle_name: str) -> float:
     return float(np.diff(c.time_s)[still].sum()) / 3600.0 / miles
 
 
-def _add_at_stops(gal_per_mile: dict, extra_gal_per_h: dict) -> None:
-    """Add, in place, each vehicle's extra idle rate [gal/h] over the stops of each cycle to its
-    gallons per mile (a sensitivity's idle, burnt at the drive cycles' stops as well)."""
+def _stops_in_drive(gal_per_mile: dict, extra_gal_per_h: dict) -> None:
+    """Add, in place, each vehicle's drive-minus-parked idle rate [gal/h] over the stops of each
+    cycle to its gallons per mile: GEM simulates an automatic stopped in the transient cycle in
+    gear (neutral idle is an improvement input, 40 CFR 1037.520(h)(2)(ii)), fleetrun's
+    simulation idles it with no load."""
     for name, cycles in gal_per_mile.items():
         for cycle in cycles:
             cycles[cycle] = float(cycles[cycle] + extra_gal_per_h[name] * stopped_hours_per_mile(cycle))
@@ -524,6 +528,9 @@ def main(argv=None) -> dict:
     report["idle_fuel_vs_measured"] = check_idle_fuel()
     report["reference_vehicles_measured_idle"] = check_reference_vehicles(idle_add_gal_per_h=measured_idle_additions())
     report["reference_vehicles_doe_nrel_accessories"] = check_reference_vehicles(columns=doe_nrel_accessories())
+    report["reference_vehicles_stops_in_drive"] = check_reference_vehicles(stops_in_drive=True)
+    report["reference_vehicles_stops_in_drive_measured_idle"] = check_reference_vehicles(
+        stops_in_drive=True, idle_add_gal_per_h=measured_idle_additions())
     report["reference_error"] = error_groups(report["reference_vehicles"])
     report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
     report["reference_tractors_gem_bin_cda"] = check_reference_vehicles(road_load=gem_bin_road_load())

@@ -429,11 +429,9 @@ def engine_motoring_torque_Nm(va: VehicleArrays, speed_rpm, col=lambda a: a, thr
 
 
 def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
-    """Fuel rate at standstill in a drive cycle (V,): ``idle_fuel_g_per_s`` if given, else the
-    fuel equation at idle speed and the torque the vehicle holds at a stop (``va.stop_torque_Nm``:
-    a medium- or heavy-duty automatic's stalled converter, params._stop_torque_Nm; zero for the
-    others). Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which its subsets carry;
-    the vehicles' parameters do not change during a simulation).
+    """Fuel rate at standstill (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation at
+    idle speed and zero load. Computed once per ``va`` (kept in ``va.idle_fuel_rate``, which
+    its subsets carry; the vehicles' parameters do not change during a simulation).
 
     Parameters
     ----------
@@ -444,30 +442,11 @@ def idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
     idle fuel rate [g/s], shape (V,).
     """
     if va.idle_fuel_rate is None:
-        va.idle_fuel_rate = _idle_fuel_g_per_s(va, va.stop_torque_Nm)
+        t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
+                                    va.idle_T_frac)
+        idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n), va.n_idle, t_max, True)
+        va.idle_fuel_rate = np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
     return va.idle_fuel_rate
-
-
-def parked_idle_fuel_rate_g_per_s(va: VehicleArrays) -> np.ndarray:
-    """Fuel rate idling in neutral (V,): ``idle_fuel_g_per_s`` if given, else the fuel equation
-    at idle speed and zero load (accessories only).
-
-    Parameters
-    ----------
-    va : VehicleArrays, the vehicles' parameters
-
-    Returns
-    -------
-    idle fuel rate [g/s], shape (V,).
-    """
-    return idle_fuel_rate_g_per_s(va) if va.stop_torque_Nm is None else _idle_fuel_g_per_s(va, None)
-
-
-def _idle_fuel_g_per_s(va: VehicleArrays, torque_Nm) -> np.ndarray:
-    t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
-                                va.idle_T_frac)
-    idle = engine_fuel_rate_g_per_s(va, np.zeros(va.n) if torque_Nm is None else torque_Nm, va.n_idle, t_max, True)
-    return np.where(np.isfinite(va.idle_fuel_g_s), va.idle_fuel_g_s, idle)
 
 
 @dataclass(frozen=True, eq=False)

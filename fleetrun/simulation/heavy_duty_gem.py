@@ -19,7 +19,7 @@ import numpy as np
 from fleetrun.errors import unknown_name_error
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file
-from fleetrun.simulation.core import engine_fuel_rate_g_per_s, parked_idle_fuel_rate_g_per_s
+from fleetrun.simulation.core import engine_fuel_rate_g_per_s, idle_fuel_rate_g_per_s
 from fleetrun.simulation.engine import full_load_torque_Nm
 from fleetrun.simulation.params import VehicleArrays
 
@@ -133,9 +133,8 @@ def idle_fuel_rates_g_per_s(va: VehicleArrays) -> tuple[np.ndarray, np.ndarray]:
     """(drive idle, parked idle) fuel rates [g/s] of each vehicle: the fuel equation at idle
     speed with, in drive, the torque the stalled converter's pump absorbs, (n_idle / K)^2
     (transmission.py's converter; a clutch is open, so manual and automated-manual
-    gearboxes idle in drive as in neutral), and, parked, the idle in neutral (no load beyond
-    the accessories; core.parked_idle_fuel_rate_g_per_s). The drive-idle rate is also what a
-    medium- or heavy-duty automatic burns at the drive cycles' stops (core.idle_fuel_rate_g_per_s).
+    gearboxes idle in drive as in neutral), and, parked, the standstill idle of the
+    simulation (no load beyond the accessories).
 
     Parameters
     ----------
@@ -146,7 +145,7 @@ def idle_fuel_rates_g_per_s(va: VehicleArrays) -> tuple[np.ndarray, np.ndarray]:
     -------
     (drive idle, parked idle) fuel rates [g/s], arrays of shape (V,).
     """
-    parked = parked_idle_fuel_rate_g_per_s(va)
+    parked = idle_fuel_rate_g_per_s(va)
     pump_Nm = np.where(va.automatic, (va.n_idle / va.K_tc) ** 2, 0.0)
     t_max = full_load_torque_Nm(va.n_idle, va.T_peak, va.P_rated_kW, va.n_rated, va.n_idle, va.n_peak_torque,
                                 va.idle_T_frac)

@@ -260,7 +260,6 @@ class VehicleArrays:
     technology: np.ndarray | None = None   # (V, len(TECHNOLOGIES)) bool (simulation/technology.py)
     power_table: np.ndarray | None = None   # filled by the simulation on first use
     idle_fuel_rate: np.ndarray | None = None   # [g/s] idem (simulation.core.idle_fuel_rate_g_per_s)
-    stop_torque_Nm: np.ndarray | None = None   # engine torque at standstill in gear (None: 0 for every row)
 
     def subset(self, rows) -> "VehicleArrays":
         """The same parameters for the vehicles ``rows`` only."""
@@ -382,9 +381,8 @@ def _row(v: VehicleSpec) -> dict:
                eng.rated_power_factor * T_peak * n_rated * RAD_S_PER_RPM / 1e3)
     disp = (float(v.engine_displacement_L) if v.engine_displacement_L else
             4 * math.pi * T_peak / (eng.bmep_at_peak_kPa * 1e3) * 1e3)
-    heavy = heavy_duty_fuel_constants(v, disp, eng.idle_speed_rpm, eng.peak_torque_speed_fraction,
-                                      eng.idle_torque_fraction)
-    eng = _with(eng, heavy)   # MD/HD diesels: models/heavy_duty/
+    eng = _with(eng, heavy_duty_fuel_constants(v, disp, eng.idle_speed_rpm, eng.peak_torque_speed_fraction,
+                                               eng.idle_torque_fraction))   # MD/HD diesels: models/heavy_duty/
     cylinders = _get(v, "cylinders", None)
     if cylinders is None:
         cylinders = default_cylinders(disp)
@@ -410,7 +408,6 @@ def _row(v: VehicleSpec) -> dict:
         radius=_rolling_radius_m(v.tire_size, _get(v, "tire_rolling_radius_factor", 1.0)),
         fd=float(v.final_drive_ratio), low=low, kim=v.kim_torque_scale_Nm, combos=combos,
         auto=converter, cvt=box == "cvt", cvt_range=(max(gears), min(gears)),
-        stop_in_gear=converter and heavy is not None,   # see _stop_torque_Nm
         lockup_clutch=_yes_no(v, "converter_lockup", True),
         spin=(_get(v, "spin_loss_Nm_at_0", trn.spin_loss_Nm_at_0),
               _get(v, "spin_loss_Nm_per_krpm", trn.spin_loss_Nm_per_krpm)),
@@ -479,7 +476,6 @@ def _gather(rows: list) -> VehicleArrays:
     # per vehicle as in the row, the conversions once over the arrays (the same operations element by element)
     coast = np.array(coastdown_to_si(*np.array([r["coast"] for r in rows], float).reshape(V, 3).T)).T
     T_peak = a("T_peak")
-    K_tc = a("stall_rpm") / np.sqrt(T_peak)
     return VehicleArrays(
         n=V, configuration=[r["cfg"] for r in rows], mass_kg=a("mass"), rot_frac=a("rot"),
         A_N=coast[:, 0], B_N=coast[:, 1], C_N=coast[:, 2], radius_m=a("radius"),
@@ -490,7 +486,7 @@ def _gather(rows: list) -> VehicleArrays:
         cvt_ratio_range=np.array([r["cvt_range"] for r in rows], float).reshape(V, 2),
         has_lockup=np.array([r["lockup_clutch"] for r in rows], bool),
         spin_loss=np.array([r["spin"] for r in rows], float).reshape(V, 2), stall_TR=a("stall_TR"),
-        K_tc=K_tc, lockup_rpm=a("lockup"), launch_rpm=a("launch"),
+        K_tc=a("stall_rpm") / np.sqrt(T_peak), lockup_rpm=a("lockup"), launch_rpm=a("launch"),
         T_peak=T_peak, P_rated_kW=a("P"), n_rated=a("n_rated"), n_idle=a("n_idle"),
         n_peak_torque=a("n_pk"), idle_T_frac=a("idle_T"), displacement_L=a("disp"),
         stroke_m=stroke_m(a("disp"), a("cylinders"), a("bore_stroke")), throttled=np.array([r["throttled"] for r in rows], bool),
@@ -498,34 +494,7 @@ def _gather(rows: list) -> VehicleArrays:
         lhv=a("lhv"), density=a("rho"), shift_min_rpm=a("shift"), shift_accel_rpm=a("shift_accel"), power_reserve=a("reserve"),
         fuel_cut_rpm=a("cut"), idle_fuel_g_s=a("idle_fuel"), fuel=[r["fuel"] for r in rows],
         technology=np.array([r["technology"] for r in rows], bool).reshape(V, len(TECHNOLOGIES)),
-        stop_torque_Nm=_stop_torque_Nm(np.array([r["stop_in_gear"] for r in rows], bool), a("n_idle"), K_tc),
     )
-
-
-def _stop_torque_Nm(in_gear, n_idle_rpm, K_tc):
-    """The engine torque [N m] at standstill: an automatic held in gear loads its idling engine
-    with the stalled converter's pump torque (n_idle / K)^2 (transmission.py's converter);
-    None where no row does.
-
-    Only medium- and heavy-duty diesels whose engine comes from EPA's engine standards
-    (heavy_duty_engine.py) stop in gear: their engine is anchored on the engine dynamometer, so
-    nothing else carries the converter's load at the drive cycles' stops (GEM's baseline: neutral
-    idle is an improvement input, 40 CFR 1037.520(h)(2)(ii)); the light-duty engine constants
-    are fitted to vehicles driving the cycles, stops included, and keep the no-load idle.
-
-    Parameters
-    ----------
-    in_gear : array of bool (V,), the row stops in gear with a torque converter
-    n_idle_rpm : array (V,), idle speed [rpm]
-    K_tc : array (V,), converter capacity factor [rpm / (N m)^0.5]
-
-    Returns
-    -------
-    array (V,) [N m] or None.
-    """
-    if not in_gear.any():
-        return None
-    return np.where(in_gear, (n_idle_rpm / K_tc) ** 2, 0.0)
 
 
 def refused_vehicles(vehicles: Sequence[VehicleSpec]) -> list[tuple[int, FleetrunError]]:
