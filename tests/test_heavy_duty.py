@@ -244,9 +244,11 @@ def test_sleeper_standard_needs_more_than_an_engine_at_its_standard_gives():
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "not reached: vocational reference vehicles -9 to -34 % below their MY2021 40 CFR 1037.105 "
-    "standards with GEM's idle and graded cycles (-16 to -37 % level, no idle); their CdA, mass, gear sets and axle "
-    "ratios are estimates, not GEM's vocational defaults (docs/validation-heavy-duty.md)"))
+    "not reached: vocational reference vehicles -9 to -18 % below their MY2021 40 CFR 1037.105 "
+    "standards with GEM's idle and graded cycles (heavy HD -12.7 / -10.6 / -9.1 %, medium HD -17.8 / -13.9 / "
+    "-13.4 % regional / multi-purpose / urban; -9 to -34 % before the medium HD vehicles took DOE's box-truck "
+    "road load); the heavy HD CdA, the gear sets and axle ratios are estimates, not GEM's vocational defaults, "
+    "and the engine's no-load idle is 40-67 % of measured trucks' (docs/validation-heavy-duty.md)"))
 def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
     vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
     assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
@@ -503,3 +505,66 @@ def test_example_combination_trucks_average_within_vm1_on_their_mixes():
     assert len(averages) == 3
     low, high = hd_validation.VM1_COMBINATION_MPG
     assert all(low <= mpg <= high for mpg in averages.values()), averages
+
+
+def test_medium_vocational_road_load_is_does_box_truck():
+    """The medium HD vocational reference vehicles drive with the CdA and Crr of DOE's class 7
+    box truck (NREL T3CO), the file that owns those numbers (no copy in the reference file); its
+    9 m^2 frontal area is the box body 40 CFR 1037.520(m)(1) names for vocational aerodynamic
+    devices (at least 8 m^2), not the 3.4 m^2 drag area the first reference file guessed."""
+    doe = _load("reference_inputs_doe_nrel.toml")["vehicles"]
+    raw = _load("gem_reference_vehicles.toml")["vehicles"]
+    _, vehicles = hd_validation.reference_vehicles()
+    for name in ("mhd_vocational_regional", "mhd_vocational_multipurpose", "mhd_vocational_urban"):
+        assert "cda_m2" not in raw[name] and raw[name]["road_load_source"] == "reference_inputs_doe_nrel"
+        assert vehicles[name]["cda_m2"] == pytest.approx(doe[name]["drag_coef"] * doe[name]["frontal_area_m2"])
+        assert vehicles[name]["crr_kg_per_t"] == pytest.approx(doe[name]["wheel_rr_coef"] * 1000.0)
+        assert doe[name]["frontal_area_m2"] >= 8.0
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "not reached: the heavy-duty fuel equation idles with no load on 0.18 gal/h (6.7 L at 750 r/min) and "
+    "0.22 / 0.33 gal/h (11 / 15 L at 600 r/min), 40 / 45 / 67 % of the 0.44 gal/h of DOE Fact #861's medium "
+    "heavy diesel truck and the 0.49 gal/h of its combination truck: the Willans line with friction is short "
+    "at the light-load end of the map (docs/validation-heavy-duty.md, section 2)"))
+def test_heavy_diesel_no_load_idle_within_25pct_of_measured_trucks():
+    """Each reference engine's no-load idle fuel (idle speed, no torque, no accessories) against
+    the measured no-load idle of its class (models/heavy_duty/idle_fuel_measured.toml, DOE VTO
+    Fact #861): 25 % allows for the idle speeds and engine sizes the source does not give."""
+    rows = hd_validation.check_idle_fuel()
+    assert rows and all(abs(r["ratio"] - 1.0) <= 0.25 for r in rows), rows
+
+
+def test_measured_idle_and_doe_accessory_sensitivities_only_add_fuel(reference_rows):
+    """The two sensitivities of docs/validation-heavy-duty.md section 2 move the composites the
+    way their physics says: idling as Fact #861's trucks adds fuel to the vocational idle
+    cycles only (tractors have none in GEM, 1037.510(c)); DOE's larger accessory loads add fuel
+    to every vehicle they are given for."""
+    base = {r["vehicle"]: r["model_g_per_ton_mile"] for r in reference_rows}
+    idle = hd_validation.check_reference_vehicles(idle_add_gal_per_h=hd_validation.measured_idle_additions())
+    for r in idle:
+        if r["gem_type"].startswith("vocational"):
+            assert r["model_g_per_ton_mile"] > base[r["vehicle"]], r
+        else:
+            assert r["model_g_per_ton_mile"] == base[r["vehicle"]], r
+    for r in hd_validation.check_reference_vehicles(columns=hd_validation.doe_nrel_accessories()):
+        assert r["model_g_per_ton_mile"] > base[r["vehicle"]], r
+
+
+def test_stops_in_drive_charge_the_converter_at_the_transient_cycles_stops(reference_rows):
+    """The stops-in-drive sensitivity: an automatic stopped in gear burns its drive-idle rate at
+    the drive cycles' stops (GEM's baseline; neutral idle is an improvement input, 40 CFR
+    1037.520(h)(2)(ii)). The transient cycle's stops (37.6 s per mile of the ARB transient, none
+    on the cruise cycles) add (drive - parked idle) x stopped time per mile to the automatics
+    (the vocational vehicles) only; the tractors' manual clutch is open at a stop."""
+    assert hd_validation.stopped_hours_per_mile("ARB-TRANSIENT") * 3600.0 == pytest.approx(37.6, abs=0.1)
+    assert hd_validation.stopped_hours_per_mile("CRUISE-65-GRADE") == 0.0
+    base = {r["vehicle"]: r for r in reference_rows}
+    stopped_h = hd_validation.stopped_hours_per_mile("ARB-TRANSIENT")
+    for r in hd_validation.check_reference_vehicles(stops_in_drive=True):
+        b = base[r["vehicle"]]
+        extra = (b["drive_idle_gal_per_h"] - b["parked_idle_gal_per_h"]) * stopped_h
+        assert 1.0 / r["mpg_by_cycle"]["ARB-TRANSIENT"] == pytest.approx(
+            1.0 / b["mpg_by_cycle"]["ARB-TRANSIENT"] + extra, rel=2e-3), r
+        assert r["mpg_by_cycle"]["CRUISE-65-GRADE"] == b["mpg_by_cycle"]["CRUISE-65-GRADE"]
+        assert (r["model_g_per_ton_mile"] > b["model_g_per_ton_mile"]) == r["gem_type"].startswith("vocational")

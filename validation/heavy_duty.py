@@ -72,7 +72,8 @@ def gem_row(basis: dict, vehicle_id: str) -> dict:
     """A Vehicles row (mapping) from GEM inputs: weight [lb], Crr [kg/t], CdA [m^2]."""
     mass = basis["test_weight_lb"] * LB_KG
     a, b, c = gem_coastdown_lbf(mass, basis["crr_kg_per_t"] / 1000.0, basis["cda_m2"])
-    skip = {"gem_type", "regulatory_class", "standard_g_per_ton_mile", "test_weight_lb", "crr_kg_per_t", "cda_m2"}
+    skip = {"gem_type", "regulatory_class", "standard_g_per_ton_mile", "test_weight_lb", "crr_kg_per_t", "cda_m2",
+            "road_load_source"}
     row = {k: v for k, v in basis.items() if k not in skip}
     return dict(row, vehicle_id=vehicle_id, vehicle_class=vehicle_id, count=1, annual_miles=1, test_weight_kg=mass,
                 coastdown_A_lbf=float(a), coastdown_B_lbf_per_mph=float(b), coastdown_C_lbf_per_mph2=float(c))
@@ -104,9 +105,17 @@ def brake_efficiency(result) -> float:
 
 
 def reference_vehicles() -> tuple[dict, dict]:
+    """(defaults, {name: inputs}) of gem_reference_vehicles.toml; a vehicle whose CdA and Crr
+    are owned by another file (``road_load_source``, e.g. ``reference_inputs_doe_nrel``) gets
+    them from it."""
     with open(HD_DIR / "gem_reference_vehicles.toml", "rb") as fh:
         data = tomllib.load(fh)
-    return data["defaults"], data["vehicles"]
+    sources = {"reference_inputs_doe_nrel": doe_nrel_road_load}
+    vehicles = {}
+    for name, basis in data["vehicles"].items():
+        source = basis.get("road_load_source")
+        vehicles[name] = dict(basis, **sources[source]()[name]) if source else basis
+    return data["defaults"], vehicles
 
 
 def doe_nrel_road_load() -> dict[str, dict]:
@@ -140,13 +149,21 @@ def gem_bin_road_load() -> dict[str, dict]:
                        crr_kg_per_t=vehicles[name]["crr_kg_per_t"]) for name, kind in TRACTOR_AERO_TYPES.items()}
 
 
-def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = None) -> list[dict]:
+def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = None, columns: dict | None = None,
+                             idle_add_gal_per_h: dict | None = None, stops_in_drive: bool = False) -> list[dict]:
     """Each reference vehicle's GEM composite against its standard; ``with_idle=False``:
     without the vocational idle cycles (as before 2026-11-25); ``road_load``: {vehicle:
-    {cda_m2, crr_kg_per_t}} in place of the reference file's (only those vehicles are run)."""
+    {cda_m2, crr_kg_per_t}} in place of the reference file's (only those vehicles are run);
+    ``columns``: {vehicle: {Vehicles column: value}} added to its row (e.g. accessory_power_W;
+    only those vehicles are run); ``idle_add_gal_per_h``: {vehicle: gal/h} added to its drive-
+    and parked-idle fuel rates; ``stops_in_drive``: the drive cycles' stops burn the drive-idle
+    rate (an automatic held in gear) instead of the simulation's no-load idle (sensitivities,
+    docs/validation-heavy-duty.md)."""
     defaults, vehicles = reference_vehicles()
     if road_load is not None:
         vehicles = {name: dict(vehicles[name], **inputs) for name, inputs in road_load.items()}
+    if columns is not None:
+        vehicles = {name: dict(vehicles[name], **extra) for name, extra in columns.items()}
     specs = {name: vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"],
                                                      engine_model_year=defaults["standard_year"]), name), Path(name))
              for name, basis in vehicles.items()}
@@ -157,6 +174,10 @@ def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = No
         for i, name in enumerate(specs):
             gal_per_mile.setdefault(name, {})[cycle] = float(r.fuel_gal[i] / r.miles[i])
     drive_gph, parked_gph = idle_gallons_per_hour(list(specs.values()))
+    added = np.array([(idle_add_gal_per_h or {}).get(name, 0.0) for name in specs])
+    if stops_in_drive:   # the stops burn the (added-to) drive idle instead of the simulation's no-load idle
+        _stops_in_drive(gal_per_mile, dict(zip(specs, drive_gph + added - parked_gph)))
+    drive_gph, parked_gph = drive_gph + added, parked_gph + added
     rows = []
     for i, (name, basis) in enumerate(vehicles.items()):
         mix = gem_cycle_mix(basis["gem_type"])
@@ -175,6 +196,25 @@ def check_reference_vehicles(with_idle: bool = True, road_load: dict | None = No
                          co2_error=round(model / standard - 1.0, 4),
                          mpg_error=round(standard / model - 1.0, 4)))
     return rows
+
+
+def stopped_hours_per_mile(cycle_name: str) -> float:
+    """Hours the schedule of ``cycle_name`` stands still (speed 0 at both ends of a step) per
+    mile it covers."""
+    c = load_cycle(cycle_name)
+    still = (c.speed_mps[1:] < 0.01) & (c.speed_mps[:-1] < 0.01)
+    miles = float(np.trapezoid(c.speed_mps, c.time_s)) / 1609.344
+    return float(np.diff(c.time_s)[still].sum()) / 3600.0 / miles
+
+
+def _stops_in_drive(gal_per_mile: dict, extra_gal_per_h: dict) -> None:
+    """Add, in place, each vehicle's drive-minus-parked idle rate [gal/h] over the stops of each
+    cycle to its gallons per mile: GEM simulates an automatic stopped in the transient cycle in
+    gear (neutral idle is an improvement input, 40 CFR 1037.520(h)(2)(ii)), fleetrun's
+    simulation idles it with no load."""
+    for name, cycles in gal_per_mile.items():
+        for cycle in cycles:
+            cycles[cycle] = float(cycles[cycle] + extra_gal_per_h[name] * stopped_hours_per_mile(cycle))
 
 
 # ------------------------------------------------------------ where the class 8 tractors' gap comes from
@@ -384,6 +424,49 @@ def check_fhwa_class_defaults() -> list[dict]:
     return rows
 
 
+def measured_idle() -> dict[str, dict]:
+    """The measured no-load idle fuel of diesel trucks (models/heavy_duty/idle_fuel_measured.toml,
+    DOE VTO Fact #861) and the reference vehicles each is compared with."""
+    with open(HD_DIR / "idle_fuel_measured.toml", "rb") as fh:
+        return tomllib.load(fh)["trucks"]
+
+
+def model_no_load_idle_gal_per_h() -> dict[str, float]:
+    """{reference vehicle: its engine's idle fuel [gal/h] at idle speed, no load and no
+    accessories}: the light-load end of the fuel map, as Fact #861 measured trucks."""
+    defaults, vehicles = reference_vehicles()
+    specs = [vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"], accessory_power_W=0.0,
+                                               engine_model_year=defaults["standard_year"]), name), Path(name))
+             for name, basis in vehicles.items()]
+    return {name: float(g) for name, g in zip(vehicles, idle_gallons_per_hour(specs)[1])}
+
+
+def check_idle_fuel() -> list[dict]:
+    """Each reference vehicle's no-load idle fuel against the measured truck of its class
+    (idle_fuel_measured.toml): model / measured."""
+    model = model_no_load_idle_gal_per_h()
+    rows = []
+    for truck, m in measured_idle().items():
+        rows += [dict(vehicle=name, measured_truck=truck, measured_gal_per_h=m["idle_gal_per_h"],
+                      model_gal_per_h=round(model[name], 3), ratio=round(model[name] / m["idle_gal_per_h"], 3))
+                 for name in m["reference"]]
+    return rows
+
+
+def measured_idle_additions() -> dict[str, float]:
+    """{reference vehicle: measured - model no-load idle [gal/h]}: what the idle cycles would
+    burn more if the engine idled as Fact #861's trucks (a sensitivity)."""
+    return {r["vehicle"]: r["measured_gal_per_h"] - r["model_gal_per_h"] for r in check_idle_fuel()}
+
+
+def doe_nrel_accessories() -> dict[str, dict]:
+    """{reference vehicle: {accessory_power_W}} of DOE's vehicles as NREL T3CO ships them
+    (reference_inputs_doe_nrel.toml ``aux_kw``; a sensitivity)."""
+    with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    return {name: dict(accessory_power_W=v["aux_kw"] * 1000.0) for name, v in data["vehicles"].items()}
+
+
 def error_summary(errors) -> dict:
     e = np.asarray(errors, float)
     return dict(n=int(e.size), mean=round(float(e.mean()), 4), median=round(float(np.median(e)), 4),
@@ -442,6 +525,12 @@ def main(argv=None) -> dict:
                   example_combination_trucks_gem=check_example_trucks_on_gem_weighting(),
                   example_mix_sensitivity=check_example_mix_sensitivity(),
                   fhwa_class_defaults=check_fhwa_class_defaults())
+    report["idle_fuel_vs_measured"] = check_idle_fuel()
+    report["reference_vehicles_measured_idle"] = check_reference_vehicles(idle_add_gal_per_h=measured_idle_additions())
+    report["reference_vehicles_doe_nrel_accessories"] = check_reference_vehicles(columns=doe_nrel_accessories())
+    report["reference_vehicles_stops_in_drive"] = check_reference_vehicles(stops_in_drive=True)
+    report["reference_vehicles_stops_in_drive_measured_idle"] = check_reference_vehicles(
+        stops_in_drive=True, idle_add_gal_per_h=measured_idle_additions())
     report["reference_error"] = error_groups(report["reference_vehicles"])
     report["reference_vehicles_doe_nrel_road_load"] = check_reference_vehicles(road_load=doe_nrel_road_load())
     report["reference_tractors_gem_bin_cda"] = check_reference_vehicles(road_load=gem_bin_road_load())
