@@ -37,6 +37,7 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 LABELS = ROOT / "inputs" / "fueleconomy" / "vehicles_my2022.csv"
 TSTCAR = ROOT / "inputs" / "epa" / "22-tstcar.csv"
@@ -132,7 +133,7 @@ def join(vehicles: pd.DataFrame, labels: pd.DataFrame) -> pd.DataFrame:
 def _join_one(v, by_make) -> dict:
     out = dict(vehicle_id=v.vehicle_id, make=v.make, model=v.model, status="unmatched", reason="",
                label_ids="", label_models="", comb08U=np.nan, comb08=np.nan, UCity=np.nan, UHighway=np.nan,
-               n_candidates=0, spread=np.nan, drive_agrees=False)
+               n_candidates=0, spread=np.nan, drive_agrees=False, candidates_comb08U=np.nan)
     same = by_make.get(_make_key(v.make))
     c, reason = _engine_candidates(v, same) if same is not None else (None, "make not in the labels")
     words, drive_word = _words(v.model, v.make)
@@ -154,7 +155,8 @@ def _join_one(v, by_make) -> dict:
         c = c[agrees]
     spread = c.comb08U.max() / c.comb08U.min() - 1.0
     out.update(label_ids=" ".join(map(str, c.id)), label_models=" | ".join(sorted(set(c.model))),
-               n_candidates=len(c), spread=spread, drive_agrees=bool(agrees.any()))
+               n_candidates=len(c), spread=spread, drive_agrees=bool(agrees.any()),
+               candidates_comb08U=c.comb08U.mean())
     if spread > SAME_LABEL_REL:
         return {**out, "status": "ambiguous", "reason": out["reason"] + f"{len(c)} labels differing by {spread:.1%}"}
     return {**out, "status": "matched", "comb08U": c.comb08U.mean(), "comb08": c.comb08.mean(),
@@ -208,15 +210,135 @@ def joined(path_list=TSTCAR, path_labels=LABELS) -> pd.DataFrame:
     return join(list_vehicles(path_list), load_labels(path_labels))
 
 
+def labels_of(r, table, j):
+    """Per vehicle of ``r["err"]`` (epa_one_number.prepare): the join's columns (NaN / "" where
+    the vehicle is not in it) and ``used`` (matched, with a liquid-fuel FTP and HWFET)."""
+    idx = r["err"].index
+    out = j.set_index("vehicle_id").reindex(table.vehicle_id.to_numpy()[idx])
+    out.index = idx
+    paired = r["paired"]
+    out["used"] = ((out.status == "matched").to_numpy() & np.isfinite(out.comb08U.to_numpy())
+                   & np.isfinite(paired["FTP"].to_numpy()[idx]) & np.isfinite(paired["HWFET"].to_numpy()[idx]))
+    return out
+
+
+def distribution(x) -> str:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    q = np.quantile(x, [0.05, 0.25, 0.5, 0.75, 0.95])
+    return (f"n={x.size} median {q[2]:+.2%} (25-75 % {q[1]:+.2%}..{q[3]:+.2%}, 5-95 % {q[0]:+.2%}..{q[4]:+.2%}), "
+            f"mean {x.mean():+.2%}; within 0.5 / 1 / 2 / 5 %: "
+            + " / ".join(f"{np.mean(np.abs(x) <= t):.1%}" for t in (0.005, 0.01, 0.02, 0.05)))
+
+
+FORMULA_TABLES = ("epa_label", "epa_label_my2017")
+
+
+def label_formula_check(labels, table) -> dict:
+    """EPA's derived label formulas (measured.label_formulas(table)) applied to each label row's
+    own unadjusted city and highway figures (UCity, UHighway) against its unrounded label
+    figures, liquid-fuel rows whose figure is not a whole number (where it is, only the rounded
+    value is published): per figure, relative differences."""
+    from fleetrun.simulation import measured
+
+    (ac, bc), (ah, bh) = measured.label_formulas(table)
+    d = labels[~labels.atvType.isin(["EV", "Plug-in Hybrid"]) & (labels.UCity > 0) & (labels.UHighway > 0)]
+    city, hw = 1.0 / (ac + bc / d.UCity), 1.0 / (ah + bh / d.UHighway)
+    comb = 1.0 / (measured.LABEL_CITY_SHARE / city + (1 - measured.LABEL_CITY_SHARE) / hw)
+    out = {}
+    for col, x in (("city08U", city), ("highway08U", hw), ("comb08U", comb)):
+        real = d[col].to_numpy()
+        keep = ~np.isclose(real, np.round(real), atol=1e-4)
+        out[col] = (x.to_numpy() / real - 1.0)[keep]
+    return out
+
+
+def formula_lines(r, lab, labels) -> list[str]:
+    """Do the derived-label formulas (models/budget.toml) give the MY2022 labels? From each
+    label's own unadjusted figures (all MY2022 labels) and, on the joined vehicles, the derived
+    combined figure of the list's measured FTP and HWFET against the real comb08U."""
+    from epa_one_number import derived_label
+
+    lines = []
+    for table in FORMULA_TABLES:
+        for col, e in label_formula_check(labels, table).items():
+            lines.append(f"[{table}] of UCity/UHighway vs {col}: within 0.01 % {np.mean(np.abs(e) <= 1e-4):.1%}; "
+                         + distribution(e))
+    used = lab.used.to_numpy()
+    real = lab.comb08U.to_numpy()[used]
+    for table in FORMULA_TABLES:
+        of_list = derived_label(r["paired"], lab.index[used], table)
+        lines.append(f"[{table}] derived label of the list's FTP and HWFET / real comb08U - 1: "
+                     + distribution(of_list / real - 1))
+    return lines
+
+
+def route_lines(r, lab) -> tuple[list[str], dict]:
+    """The label route of epa_one_number.py (L1: k on FTP and HWFET so that the label is exact,
+    k^s on US06), s the stored share and s fitted held out (22 and 5 manufacturer folds), with the
+    derived label, the real unrounded label and the real label as printed, on the joined vehicles."""
+    from epa_one_number import SHARE_GRID, describe, derived_label, fit_held_out, gallons_line, label_errors
+    from fleet_error import folds_of
+
+    from fleetrun.simulation import measured
+
+    used = lab.used.to_numpy()
+    err, mf = r["err"], r["manufacturer"]
+    five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
+    real, printed = (np.where(used, lab[c].to_numpy(), np.nan) for c in ("comb08U", "comb08"))
+    variants = {"derived (2008 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), "epa_label"),
+                "real comb08U": (real, "epa_label"), "real comb08 (whole mpg)": (printed, "epa_label"),
+                "real comb08U, MY2017 formulas": (real, "epa_label_my2017"),
+                "real comb08 (whole mpg), MY2017 formulas": (printed, "epa_label_my2017")}
+    lines, results = [f"{used.sum()} of {len(err)} vehicles joined to one label"], {}
+    lines.append("physics + technology alone on them: " + describe(err.loc[used], TESTS_ALL))
+    for name, (label, table) in variants.items():
+        e = label_errors(r, "share", measured.transfer_share(), label=label, table=table)
+        results[(name, "stored")] = e
+        lines.append(f"{name}, stored s {measured.transfer_share()}: {describe(e, TESTS_ALL)}")
+        for split_name, groups in (("22 folds", mf), ("5 folds", five)):
+            family = dict(grid=SHARE_GRID, apply=lambda s, x=label, t=table: label_errors(r, "share", s, label=x, table=t))
+            e, chosen = fit_held_out(err, groups, family)
+            results[(name, split_name)] = e
+            lines.append(f"{name}, s fitted held out [{split_name}]: {describe(e, TESTS_ALL)}; s over folds "
+                         f"{min(chosen.values())}..{max(chosen.values())}")
+        lines.append(f"     {gallons_line(results[(name, '22 folds')], r['paired'])}")
+    return lines, results
+
+
+TESTS_ALL = ("FTP", "HWFET", "US06")
+
+
+def prepared():
+    """epa_one_number.prepare of the list, with the list's table."""
+    from epa_one_number import TESTS, prepare
+    from epa_table import epa_fleet
+
+    specs, table = epa_fleet()
+    r = prepare(specs, table)
+    r["err"] = r["err"][list(TESTS)]
+    return r, table
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--list", help="write the per-vehicle join (CSV) here")
+    ap.add_argument("--join-only", action="store_true", help="the join alone (no simulation)")
     args = ap.parse_args(argv)
     j = joined()
     print(f"{len(j)} list vehicles: " + ", ".join(f"{k} {n}" for k, n in j.status.value_counts().items()))
-    print(j[j.status == "unmatched"].reason.value_counts().to_string())
+    print(j[j.status != "matched"].groupby("status").reason.value_counts().to_string())
     if args.list:
         j.to_csv(args.list, index=False)
+    if args.join_only:
+        return
+    r, table = prepared()
+    lab = labels_of(r, table, j)
+    print(f"vehicles of the validation (pairs merged): {len(lab)}; " + ", ".join(
+        f"{k} {n}" for k, n in lab.status.fillna("not in the list").value_counts().items()))
+    lines, _ = route_lines(r, lab)
+    for text in formula_lines(r, lab, load_labels()) + lines:
+        print(text, flush=True)
 
 
 if __name__ == "__main__":
