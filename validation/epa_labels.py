@@ -127,10 +127,10 @@ def join(vehicles: pd.DataFrame, labels: pd.DataFrame) -> pd.DataFrame:
     (printed whole mpg), ``UCity`` / ``UHighway`` (the label's unadjusted city and highway
     mpg), ``n_candidates`` and ``spread`` (max / min - 1 of the candidates' comb08U)."""
     by_make = {k: g for k, g in labels.groupby("make_key")}
-    return pd.DataFrame([_join_one(v, by_make) for v in vehicles.itertuples(index=False)])
+    return pd.DataFrame([_join_one(v, by_make, labels) for v in vehicles.itertuples(index=False)])
 
 
-def _join_one(v, by_make) -> dict:
+def _join_one(v, by_make, labels) -> dict:
     out = dict(vehicle_id=v.vehicle_id, make=v.make, model=v.model, status="unmatched", reason="",
                label_ids="", label_models="", comb08U=np.nan, comb08=np.nan, UCity=np.nan, UHighway=np.nan,
                n_candidates=0, spread=np.nan, drive_agrees=False, candidates_comb08U=np.nan)
@@ -142,7 +142,7 @@ def _join_one(v, by_make) -> dict:
         if c.empty:
             c, reason = None, "engine and gearbox match only other models"
     if c is None:       # another make of the group (Lexus tested as TOYOTA, Supra as BMW, ...)
-        other, _ = _engine_candidates(v, pd.concat(by_make.values()))
+        other, _ = _engine_candidates(v, labels)
         other = None if other is None else other[[_same_model(words, w) for w in other.words]]
         if other is None or other.empty:
             return {**out, "reason": reason}
@@ -289,7 +289,10 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
     variants = {"derived (2008 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), "epa_label"),
                 "real comb08U": (real, "epa_label"), "real comb08 (whole mpg)": (printed, "epa_label"),
                 "real comb08U, MY2017 formulas": (real, "epa_label_my2017"),
-                "real comb08 (whole mpg), MY2017 formulas": (printed, "epa_label_my2017")}
+                "real comb08 (whole mpg), MY2017 formulas": (printed, "epa_label_my2017"),
+                "real comb08U + ambiguous (candidates' mean), MY2017 formulas": (
+                    np.where(used, real, np.where(lab.status.to_numpy() == "ambiguous",
+                                                  lab.candidates_comb08U.to_numpy(), np.nan)), "epa_label_my2017")}
     lines, results = [f"{used.sum()} of {len(err)} vehicles joined to one label"], {}
     lines.append("physics + technology alone on them: " + describe(err.loc[used], TESTS_ALL))
     for name, (label, table) in variants.items():
@@ -303,7 +306,24 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
             lines.append(f"{name}, s fitted held out [{split_name}]: {describe(e, TESTS_ALL)}; s over folds "
                          f"{min(chosen.values())}..{max(chosen.values())}")
         lines.append(f"     {gallons_line(results[(name, '22 folds')], r['paired'])}")
+    lines += split_lines(r, lab, results[("real comb08U, MY2017 formulas", "22 folds")])
     return lines, results
+
+
+def split_lines(r, lab, e) -> list[str]:
+    """The held-out errors of the real label split by how close the label is to the vehicle's
+    own tests: |derived label (MY2017 formulas) of the list's FTP and HWFET / comb08U - 1| up
+    to 0.5 % (the label is, in effect, this test vehicle's) or more (other configurations,
+    5-cycle testing, another test vehicle)."""
+    from epa_one_number import describe, derived_label
+
+    used = lab.used.to_numpy()
+    gap = np.abs(derived_label(r["paired"], lab.index, "epa_label_my2017") / lab.comb08U.to_numpy() - 1.0)
+    lines = []
+    for name, rows in (("label within 0.5 % of the vehicle's own derived label", used & (gap <= 0.005)),
+                       ("label further from it", used & (gap > 0.005))):
+        lines.append(f"  {name}: {describe(e.loc[rows], TESTS_ALL)}")
+    return lines
 
 
 TESTS_ALL = ("FTP", "HWFET", "US06")
@@ -327,7 +347,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     j = joined()
     print(f"{len(j)} list vehicles: " + ", ".join(f"{k} {n}" for k, n in j.status.value_counts().items()))
-    print(j[j.status != "matched"].groupby("status").reason.value_counts().to_string())
+    print("unmatched, by the step that left no label: "
+          + ", ".join(f"{k} {n}" for k, n in j[j.status == "unmatched"].reason.value_counts().items()))
+    print("ambiguous, spread of the candidates' comb08U: " + distribution(j[j.status == "ambiguous"].spread))
     if args.list:
         j.to_csv(args.list, index=False)
     if args.join_only:
