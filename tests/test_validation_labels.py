@@ -47,10 +47,14 @@ def test_a_lexus_tested_as_toyota_joins_across_makes(labels):
 
 
 def test_labels_that_differ_are_listed_not_used(labels):
-    """RAM 1500 2WD 5.7 L: two labels (with and without eTorque) 17 % apart: ambiguous."""
-    j = el.join(_vehicle(make="RAM", model="1500 2WD", displacement_L=5.7, cylinders=8, transmission_code="SA",
-                         gears=8, drive_code="R"), labels)
+    """RAM 1500 2WD 5.7 L: two labels (with and without eTorque) 17 % apart: ambiguous unless the
+    vehicle's technology classes say which."""
+    ram = dict(make="RAM", model="1500 2WD", displacement_L=5.7, cylinders=8, transmission_code="SA", gears=8,
+               drive_code="R")
+    j = el.join(_vehicle(**ram), labels)
     assert j.status[0] == "ambiguous" and np.isnan(j.comb08U[0]) and j.n_candidates[0] >= 2
+    j = el.join(_vehicle(**ram, technology="cylinder_deactivation,mild_hybrid_48v,start_stop"), labels)
+    assert j.status[0] == "matched" and j.label_ids[0] == "44395"          # "1500 2WD", eng_dscr "Mild Hybrid"
     j = el.join(_vehicle(make="Karma", model="Revero GT", displacement_L=1.5, cylinders=3), labels)
     assert j.status[0] == "unmatched" and j.reason[0] == "make not in the labels"
 
@@ -69,7 +73,7 @@ def test_every_list_vehicle_is_matched_or_listed():
     vehicles = el.list_vehicles()
     assert list(j.vehicle_id) == list(vehicles.vehicle_id)                # nothing dropped
     assert set(j.status) == {"matched", "ambiguous", "unmatched"} and (j.reason != "").all()
-    assert (j.status == "matched").sum() >= 1000                             # measured 1,084 of 1,370
+    assert (j.status == "matched").sum() >= 1100                             # measured 1,162 of 1,370
 
 
 @pytest.mark.slow
@@ -85,9 +89,9 @@ def test_the_my2017_label_coefficients_reproduce_the_labels(labels):
 @pytest.mark.slow
 def test_the_real_label_route_held_out(routed):
     """The issue's line "one measured FTP or label figure: HWFET >= 88 %, US06 >= 78 % within 5 %"
-    with the real label (unrounded comb08U) on the 840 joined vehicles, the share fitted on the
-    other manufacturers (22 folds): measured HWFET 75.0 % (2008 formulas, as `simulate` applies
-    them) and 78.6 % (MY2017), US06 81.2 / 82.6 % (144 vehicles). Tolerance: 1.5 points on HWFET
+    with the real label (unrounded comb08U) on the 899 joined vehicles, the share fitted on the
+    other manufacturers (22 folds): measured HWFET 74.7 % (2008 formulas, as `simulate` applies
+    them) and 78.0 % (MY2017), US06 79.7 / 82.3 % (158 vehicles). Tolerance: 1.5 points on HWFET
     (13 vehicles), 2.5 on US06 (4 vehicles), for small model changes; the HWFET target stays missed."""
     _, lab, results = routed
     assert lab.used.sum() >= 800
@@ -96,7 +100,7 @@ def test_the_real_label_route_held_out(routed):
         x = results[key][test].dropna().to_numpy()
         return np.mean(np.abs(x) <= 0.05)
 
-    for name, hw, us in (("real comb08U", 0.750, 0.812), ("real comb08U, MY2017 formulas", 0.786, 0.826)):
+    for name, hw, us in (("real comb08U", 0.747, 0.797), ("real comb08U, MY2017 formulas", 0.780, 0.823)):
         assert abs(within((name, "22 folds"), "HWFET") - hw) <= 0.015
         assert abs(within((name, "22 folds"), "US06") - us) <= 0.025
         assert within((name, "22 folds"), "HWFET") < 0.88 <= within(("derived (2008 formulas)", "22 folds"), "HWFET")

@@ -18,7 +18,10 @@ The join rule (one Test Car List vehicle = one ``vehicle_id``):
 3. drive: among those, the ones whose drive agrees with the list's (a drive word in the list's
    model name first, else its drive code; AWD / 4WD vehicles are often tested on a 2WD
    dynamometer and coded F or R) when any agree;
-4. matched when one label row is left, or several whose unrounded combined figures are within
+4. technology: where the candidates still differ by more than 0.5 %, the ones whose
+   electrification (mild hybrid, hybrid) and start-stop agree with the technology classes
+   `import-epa` attaches to the vehicle, when any agree;
+5. matched when one label row is left, or several whose unrounded combined figures are within
    0.5 % of each other (their mean is used); "ambiguous" when several differ by more (listed,
    not used); "unmatched" with the step that left no candidate (listed, not used).
 
@@ -112,13 +115,17 @@ def _words(model, make="") -> tuple[tuple[str, ...], str]:
 
 def list_vehicles(path=TSTCAR) -> pd.DataFrame:
     """One row per Test Car List vehicle (``vehicle_id``, as `import-epa` names it) with the
-    join's columns."""
-    from fleetrun.epa import read_test_car_list
+    join's columns, ``technology`` the classes `import-epa` attaches (NaN for the vehicles it
+    does not import)."""
+    from fleetrun.epa import import_test_car_list, read_test_car_list
 
     t = read_test_car_list(path)
     cols = ["manufacturer", "make", "model", "displacement_L", "cylinders", "transmission_code", "gears",
             "drive_code", "fuel_description"]
-    return t.groupby("vehicle_id", sort=False)[cols].first().reset_index()
+    out = t.groupby("vehicle_id", sort=False)[cols].first().reset_index()
+    tech = {v["vehicle_id"]: v.get("technology") or "" for v in import_test_car_list(path).vehicles}
+    out["technology"] = out.vehicle_id.map(tech)
+    return out
 
 
 def join(vehicles: pd.DataFrame, labels: pd.DataFrame) -> pd.DataFrame:
@@ -153,6 +160,9 @@ def _join_one(v, by_make, labels) -> dict:
     agrees = c.drive_code.map(lambda d: _drive_agrees(d, drive_word, v.drive_code)).to_numpy()
     if agrees.any():
         c = c[agrees]
+    c, by_technology = _technology_agrees(c, getattr(v, "technology", ""))
+    if by_technology:
+        out["reason"] += "technology classes chose; "
     spread = c.comb08U.max() / c.comb08U.min() - 1.0
     out.update(label_ids=" ".join(map(str, c.id)), label_models=" | ".join(sorted(set(c.model))),
                n_candidates=len(c), spread=spread, drive_agrees=bool(agrees.any()),
@@ -183,6 +193,26 @@ def _engine_candidates(v, c):
 def _same_model(words, label_words) -> bool:
     """The list's first model word is one of the label's, or the label's first one of the list's."""
     return bool(words) and bool(label_words) and (words[0] in label_words or label_words[0] in words)
+
+
+def _technology_agrees(c, technology) -> tuple[pd.DataFrame, bool]:
+    """Step 5: where the candidates differ by more than SAME_LABEL_REL and in electrification
+    (label: "Mild Hybrid" in ``eng_dscr``, else atvType "Hybrid") or start-stop (``startStop``),
+    keep the ones that agree with the vehicle's technology classes as `import-epa` attaches them
+    (mild_hybrid_48v, p2_hybrid, start_stop; docs/epa-import.md "Technology classes"), if any."""
+    if len(c) < 2 or c.comb08U.max() / c.comb08U.min() - 1.0 <= SAME_LABEL_REL or not isinstance(technology, str):
+        return c, False
+    names = set(technology.split(","))
+    electric = "mhev" if "mild_hybrid_48v" in names else "hev" if "p2_hybrid" in names else ""
+    label_electric = np.where(c.eng_dscr.fillna("").str.contains("Mild Hybrid"), "mhev",
+                              np.where(c.atvType.fillna("") == "Hybrid", "hev", ""))
+    keep = c
+    if len(set(label_electric)) > 1 and (label_electric == electric).any():
+        keep = c[label_electric == electric]
+    stop = keep.startStop.fillna("N").eq("Y").to_numpy()
+    if len(set(stop)) > 1 and (stop == ("start_stop" in names or electric != "")).any():
+        keep = keep[stop == ("start_stop" in names or electric != "")]
+    return keep, len(keep) < len(c)
 
 
 def _gearbox_agrees(c, v):
