@@ -123,7 +123,7 @@ def list_vehicles(path=TSTCAR) -> pd.DataFrame:
     cols = ["manufacturer", "make", "model", "displacement_L", "cylinders", "transmission_code", "gears",
             "drive_code", "fuel_description"]
     out = t.groupby("vehicle_id", sort=False)[cols].first().reset_index()
-    tech = {v["vehicle_id"]: v.get("technology") or "" for v in import_test_car_list(path).vehicles}
+    tech = {v["vehicle_id"]: v.get("technology") for v in import_test_car_list(path).vehicles}
     out["technology"] = out.vehicle_id.map(tech)
     return out
 
@@ -160,7 +160,7 @@ def _join_one(v, by_make, labels) -> dict:
     agrees = c.drive_code.map(lambda d: _drive_agrees(d, drive_word, v.drive_code)).to_numpy()
     if agrees.any():
         c = c[agrees]
-    c, by_technology = _technology_agrees(c, getattr(v, "technology", ""))
+    c, by_technology = _technology_agrees(c, getattr(v, "technology", None))
     if by_technology:
         out["reason"] += "technology classes chose; "
     spread = c.comb08U.max() / c.comb08U.min() - 1.0
@@ -199,7 +199,8 @@ def _technology_agrees(c, technology) -> tuple[pd.DataFrame, bool]:
     """Step 5: where the candidates differ by more than SAME_LABEL_REL and in electrification
     (label: "Mild Hybrid" in ``eng_dscr``, else atvType "Hybrid") or start-stop (``startStop``),
     keep the ones that agree with the vehicle's technology classes as `import-epa` attaches them
-    (mild_hybrid_48v, p2_hybrid, start_stop; docs/epa-import.md "Technology classes"), if any."""
+    (mild_hybrid_48v, p2_hybrid, start_stop; "none": no class; docs/epa-import.md "Technology
+    classes"), if any. Not a string (the importer found no class source): nothing chosen."""
     if len(c) < 2 or c.comb08U.max() / c.comb08U.min() - 1.0 <= SAME_LABEL_REL or not isinstance(technology, str):
         return c, False
     names = set(technology.split(","))
