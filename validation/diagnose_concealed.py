@@ -114,7 +114,35 @@ def concealed_fuel(effect: str, size: float, data, spec) -> tuple[np.ndarray, fl
         heavier = dataclasses.replace(spec, coastdown_C_lbf_per_mph2=c * (1 + size))
         _, _, c_si = coastdown_to_si(0.0, 0.0, c * size)
         return (_simulated(heavier, t, v) - base) * on, float(c_si)
+    if effect == "road_profile":
+        return (_simulated(spec, t, v, size * road_profile_grade(t, v)) - base) * on, size
+    if effect == "road_profile_reversed":
+        grade = road_profile_grade(t, v, reversed_=True)
+        return (_simulated(spec, t, v, size * grade) - base) * on, size
     raise ValueError(effect)
+
+
+#: A real road's grade against distance (design R, docs/diagnose-realdata.md 1e): the EPA's
+#: regulatory profile, 40 CFR 1037 Appendix IV/D, as shipped with GEM's 55 mph cruise cycle.
+ROAD_PROFILE = "CRUISE-55-GRADE"
+
+
+def road_profile_grade(time_s, speed_mps, reversed_: bool = False) -> np.ndarray:
+    """Grade [%] of the road profile at the distance travelled since the first sample (the
+    trapezoidal integral of ``speed_mps``), the profile's own distance being its cycle's;
+    ``reversed_``: the road driven the other way from its end (grade -profile(L - s))."""
+    import pandas as pd
+
+    prof = pd.read_csv(inputs_dir() / "cycles" / f"{ROAD_PROFILE}.csv")
+    pt, pv = prof["time_s"].to_numpy(), prof["speed_mps"].to_numpy()
+    ps = np.concatenate([[0.0], np.cumsum(0.5 * (pv[1:] + pv[:-1]) * np.diff(pt))])
+    t, v = np.asarray(time_s, float), np.asarray(speed_mps, float)
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    if s[-1] > ps[-1]:
+        raise ValueError(f"the route ({s[-1]:.0f} m) is longer than the road profile ({ps[-1]:.0f} m)")
+    if reversed_:
+        return -np.interp(ps[-1] - s, ps, prof["grade_pct"].to_numpy())
+    return np.interp(s, ps, prof["grade_pct"].to_numpy())
 
 
 def _write(data, meta_text: str, path: Path) -> Path:

@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -41,6 +41,8 @@ from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _eff
                                           concealed_fuel)
 
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
+from fleetrun.diagnose.select import effect_of  # noqa: E402
+from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
 from fleetrun.resources import inputs_dir  # noqa: E402
 from fleetrun.workbook.vehicle_file import read_vehicle_toml  # noqa: E402
@@ -72,6 +74,29 @@ WEIGHTING["Wh"] = "noise"
 DESIGNS["J3h"] = DESIGNS["J3"]
 #: designs whose targets are all declared hot starts (no warm-up candidate)
 HOT_STARTS = {"Wh", "J3h"}
+# pre-registered (docs/diagnose-realdata.md, 1e): Wh with a grade located along each target's
+# route (fleetrun.diagnose.route)
+DESIGNS["G"] = DESIGNS["J3"]
+WEIGHTING["G"] = "noise"
+HOT_STARTS.add("G")
+#: designs with a distance-located grade profile per target (``joint_diagnosis(grade_profile=True)``)
+GRADE_PROFILE = {"G"}
+# pre-registered (docs/diagnose-realdata.md, 1f): Wh with one road under every target
+DESIGNS["L"] = DESIGNS["J3"]
+WEIGHTING["L"] = "noise"
+HOT_STARTS.add("L")
+#: designs with one road under every target (``joint_diagnosis(road=True)``)
+ROAD = {"L"}
+
+
+#: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
+#: with designs Wh and G; scored as ``road_grade`` by the fuel it moves (its absolute sum).
+ROUTE_SIZES = {"road_profile": (0.5, 1.0)}
+#: Design L's cases: the six, R's two, and the road driven the other way (not looked at
+#: before L was registered)
+L_SIZES = {**SIZES, **ROUTE_SIZES, "road_profile_reversed": (0.35, 0.7)}
+SCORED_AS = {"road_profile": "road_grade", "road_profile_reversed": "road_grade"}
+MOVED = {"road_profile", "road_profile_reversed"}
 
 
 @dataclass(frozen=True)
@@ -91,7 +116,7 @@ class JointCase:
 
     @property
     def named(self) -> bool:
-        return self.effect in self.findings
+        return SCORED_AS.get(self.effect, self.effect) in self.findings
 
     @property
     def size_ok(self) -> bool:
@@ -133,8 +158,10 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
-          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None}
+          "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
+          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD}
     clean = joint_diagnosis(clean_paths, refs, **kw)
+    clean_ids = [f["effect"] for f in clean.result["findings"]]
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -145,27 +172,66 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             for (tn, td, tm, spec), _ in pairs:
                 extra, param = concealed_fuel(effect, size, td, spec)
                 hidden = td.copy()
-                hidden["fuel_rate_g_per_s"] = td["fuel_rate_g_per_s"] + extra
-                extras.append(extra)
+                # a descent cannot take the measured fuel below zero (design R; the other
+                # concealments only add fuel, so nothing changes for them)
+                hidden["fuel_rate_g_per_s"] = np.maximum(td["fuel_rate_g_per_s"] + extra, 0.0)
+                extras.append((hidden["fuel_rate_g_per_s"] - td["fuel_rate_g_per_s"]).to_numpy())
                 sub = workdir / f"{effect}_{size:g}"
                 sub.mkdir(exist_ok=True)
                 paths.append(_write(hidden, tm, sub / f"{tn}.csv"))
             extra = np.concatenate(extras)
             d = joint_diagnosis(paths, refs, **kw)
-            names = tuple(f["effect"] for f in d.result["findings"])
+            found = tuple(f["effect"] for f in d.result["findings"])
+            # the effect's findings: itself, or per target (road_grade@<target>, design G)
+            scored = SCORED_AS.get(effect, effect)
+            ids = [i for i in found if effect_of(i) == scored]
+            names = tuple(dict.fromkeys(scored if i in ids else i for i in found))
             bg = np.zeros(len(extra))
-            if effect in names and effect not in [f["effect"] for f in clean.result["findings"]]:
-                bg = _effect_fuel(clean, effect, False)
+            for i in ids:
+                if i not in clean_ids:
+                    bg = bg + _fuel_of(clean, i, False)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
             after = sum(abs(float((extra * dt - added)[m].sum())) for m in masks)
-            raw = float(_effect_fuel(d, effect).sum()) if effect in names else 0.0
-            params = next((f["parameters"] for f in d.result["findings"] if f["effect"] == effect), {})
-            cases.append(JointCase(effect, size, float((extra * dt).sum()) / total, names,
-                                   float((extra * dt).sum()), raw, raw - float(bg.sum()) if effect in names else 0.0,
+            raw = float(sum(_fuel_of(d, i).sum() for i in ids))
+            concealed = float((extra * dt).sum())
+            if effect in MOVED:
+                # the fuel the grade moves: sums of absolute fuel per sample
+                fit = sum((_fuel_of(d, i) for i in ids), np.zeros(len(extra)))
+                raw, concealed = float(np.abs(fit).sum()), float(np.abs(extra * dt).sum())
+                bg = np.zeros(len(extra)) if not ids else bg
+                moved_bg = float(np.abs(bg).sum())
+            params = {i: f["parameters"] for f in d.result["findings"] for i in ids if f["effect"] == i}
+            params = next(iter(params.values())) if list(params) == [effect] else params
+            less = (moved_bg if effect in MOVED else float(bg.sum())) if ids else 0.0
+            cases.append(JointCase(effect, size, concealed / total, names,
+                                   concealed, raw, raw - less if ids else 0.0,
                                    before, after, {"concealed": param, **params}, _why(d.result)))
     return clean.result, cases
+
+
+def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
+    """Fuel [g] per sample of the candidate ``cid`` (an effect id, or ``effect@recording``)
+    at its fitted parameters: as a finding, or (``findings_only`` False) as the candidate's
+    own fit whatever its status."""
+    if cid in EFFECTS:
+        return _effect_fuel(d, cid, findings_only)
+    pool = d.result["findings"] if findings_only else d.result["candidates"]
+    f = next((x for x in pool if x["effect"] == cid and x.get("parameters")), None)
+    if f is None:
+        return np.zeros(len(d.problem.time_s))
+    cand = next(c for c in d.problem.candidates if c.id == cid)
+    e = EFFECTS[effect_of(cid)]
+    shape = {k: float(f["parameters"][k]) for k in cand.shapes[0]} if cand.shapes[0] else {}
+    if cand.block is not None:
+        # a block candidate (one road's knots): its weights are the parameters w0, w1, ...
+        shape = {f"w{i}": float(f["parameters"][f"w{i}"]) for i in range(cand.block.shape[0])}
+    if shape and cand.column_for is not None:
+        col = cand.column_for(shape)
+    else:
+        col = cand.columns[cand.shapes.index(shape) if shape in cand.shapes else 0]
+    return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
 def _why(result: dict) -> str:
@@ -221,7 +287,8 @@ def separation(design: str, workdir=None) -> JointSeparation:
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     clean = joint_diagnosis(paths, refs, weights=WEIGHTING.get(design, "none"),
-                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None)
+                            hot_starts=[True] * len(pairs) if design in HOT_STARTS else None,
+                            grade_profile=design in GRADE_PROFILE)
     J = clean.problem.coarse   # weighted rows where the design weights its windows
     cols = {c.id: c.columns[0] for c in J.candidates if c.id in COMPARED}
     warm = [next(c for c in J.candidates if c.id == f["effect"]).column_for({"tau_s": f["parameters"]["tau_s"]})
@@ -267,6 +334,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--route", action="store_true", help="design R: a real road's grade profile "
+                    "concealed (run with --design Wh --design G)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
                     "columns on the clean targets")
     args = ap.parse_args(argv)
@@ -277,7 +346,8 @@ def main(argv=None) -> int:
         out = Path(args.out) / design if args.out else None
         if out:
             out.mkdir(parents=True, exist_ok=True)
-        clean, cases = run(design, out)
+        sizes = ROUTE_SIZES if args.route else L_SIZES if design in ROAD else SIZES
+        clean, cases = run(design, out, sizes)
         print(table(design, clean, cases), flush=True)
         print()
     return 0

@@ -132,11 +132,11 @@ def run_state(row: pd.Series, later: pd.Series | None, folder: Path, shares: pd.
         out.update({f"vm4_{name}_pct": float(shares[name]) for name in SHARE_CLASSES})
     for fuel, column, tol in (("gasoline", "highway_gasoline_kgal", GASOLINE_TOLERANCE),
                               ("diesel", "special_fuels_kgal", DIESEL_TOLERANCE)):
-        observed = row[column] * 1e3
+        observed = row[column] * 1e3      # NaN where the statistics give no special fuels (2010, 2017)
         model = gallons.get((base, fuel), 0.0)
         out[f"{fuel}_model_Mgal"], out[f"{fuel}_observed_Mgal"] = model / 1e6, observed / 1e6
         out[f"{fuel}_error_pct"] = 100 * (model / observed - 1)
-        out[f"{fuel}_hit"] = abs(model / observed - 1) <= tol
+        out[f"{fuel}_hit"] = bool(abs(model / observed - 1) <= tol)
         if later is not None:
             scale = observed / model
             predicted = gallons[(int(later.year), fuel)] * scale
@@ -156,14 +156,20 @@ def summarize(table: pd.DataFrame) -> None:
     for variant, part in table.groupby("inputs", sort=False):
         print(f"inputs {variant}:")
         _summarize(part)
+        for year, of_year in part.groupby("year", sort=False):
+            print(f"  base year {year}:")
+            _summarize(of_year)
 
 
 def _summarize(table: pd.DataFrame) -> None:
-    both = int((table.gasoline_hit & table.diesel_hit).sum())
-    print(f"both fuels within their targets: {both} of {len(table)}")
+    """Counts over the state-years with the fuel's observed gallons (no special fuels in 2010, 2017)."""
+    with_both = table.dropna(subset=["diesel_observed_Mgal"])
+    both = int((with_both.gasoline_hit & with_both.diesel_hit).sum())
+    print(f"both fuels within their targets: {both} of {len(with_both)}")
     for fuel in ("gasoline", "diesel"):
-        print(f"{fuel}: {int(table[f'{fuel}_hit'].sum())} hits of {len(table)}; base-year mean |error| "
-              f"{table[f'{fuel}_error_pct'].abs().mean():.1f} %")
+        part = table.dropna(subset=[f"{fuel}_observed_Mgal"])
+        print(f"{fuel}: {int(part[f'{fuel}_hit'].sum())} hits of {len(part)}; base-year mean |error| "
+              f"{part[f'{fuel}_error_pct'].abs().mean():.1f} %")
         if f"{fuel}_forecast_error_pct" in table:
             both = table.dropna(subset=[f"{fuel}_forecast_error_pct"])
             better = (both[f"{fuel}_forecast_error_pct"].abs() < both[f"{fuel}_naive_error_pct"].abs()).sum()
@@ -185,17 +191,22 @@ def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
 
     def err(row, fuel):
+        if pd.isna(row[f"{fuel}_error_pct"]):
+            return ""
         return f"{row[f'{fuel}_error_pct']:+.1f}" + (" hit" if row[f"{fuel}_hit"] else "")
 
     def forecast(row, fuel):
         value = row[f"{fuel}_forecast_error_pct"] if f"{fuel}_forecast_error_pct" in row else float("nan")
         return "" if pd.isna(value) else f"{value:+.1f} ({row[f'{fuel}_naive_error_pct']:+.1f})"
 
+    def num(value, spec):
+        return "" if pd.isna(value) else format(value, spec)
+
     for key, r in mv1.iterrows():
         q, b = vm4.loc[key], base.loc[key]
         per_1000 = 1e3 * b.special_fuels_kgal / (vmt_million_mi(b) * 1e6) * 1e3
         lines.append(f"| {key[0]} | {key[1]} | {r.vmt_million_mi:,.0f} | {r.gasoline_observed_Mgal:,.0f} | "
-                     f"{r.diesel_observed_Mgal:,.0f} | {per_1000:.1f} | {q.vm4_combination_truck_pct:.1f} / "
+                     f"{num(r.diesel_observed_Mgal, ',.0f')} | {num(per_1000, '.1f')} | {q.vm4_combination_truck_pct:.1f} / "
                      f"{q.vm4_single_unit_truck_pct:.1f} | {err(r, 'gasoline')} | {err(q, 'gasoline')} | "
                      f"{err(r, 'diesel')} | {err(q, 'diesel')} | {forecast(q, 'gasoline')} | {forecast(q, 'diesel')} |")
     return "\n".join(lines)

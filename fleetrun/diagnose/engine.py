@@ -28,7 +28,7 @@ import numpy as np
 from fleetrun.diagnose.openworld import drift_columns, review, unexplained
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
-from fleetrun.diagnose.select import (Candidate, cv_fit, effect_of, evaluate_candidate, fold_ids,
+from fleetrun.diagnose.select import (Candidate, chosen, cv_fit, effect_of, evaluate_candidate, fold_ids,
                                       full_fit, refine_shape, shift_null)
 from fleetrun.effects import EFFECTS
 from fleetrun.fileio import JsonDocument
@@ -135,7 +135,11 @@ def _params(cand: Candidate, shape: dict, coef: float) -> dict:
     effect = EFFECTS[effect_of(cand.id)]
     out = {effect.linear: float(coef)}
     out.update({k: float(v) for k, v in shape.items()})
-    return {p.name: round(out[p.name], 6) for p in effect.parameters if p.name in out}
+    names = [p.name for p in effect.parameters if p.name in out]
+    # a shape the catalogue entry does not list (a candidate built beyond the catalogue,
+    # fleetrun.diagnose.route's profile direction) is reported after the entry's own
+    names += [k for k in shape if k not in names]
+    return {k: round(out[k], 6) for k in names}
 
 
 def explanation(effect_id: str, params: dict[str, float], before: float, after: float, units: str) -> str:
@@ -308,7 +312,7 @@ def _forward_step(s: _Search) -> bool:
     bev = evals[best.id]
     if s.baseline_heldout is None:
         s.baseline_heldout = bev.rmse_before      # CV of the baseline (its own terms refitted)
-    best_col = best.columns[bev.shape_index]
+    shape, best_col = chosen(best, bev)
     thr_dsse = _noise_threshold(s, s.nuisance, best_col, best, s.active)
     dsse = n * (bev.rmse_before ** 2 - bev.rmse_after ** 2)
     thr = max(1 - np.sqrt(max(1 - thr_dsse / (n * bev.rmse_before ** 2), 0.0)), s.settings.min_gain) \
@@ -320,13 +324,11 @@ def _forward_step(s: _Search) -> bool:
     for c in s.active:
         s.statuses[c.id] = {"effect": c.id, "status": "rejected",
                             "heldout_gain": round(evals[c.id].gain, 5),
-                            "parameters": _params(c, c.shapes[evals[c.id].shape_index],
-                                                  evals[c.id].coefficient)}
+                            "parameters": _params(c, chosen(c, evals[c.id])[0], evals[c.id].coefficient)}
     if _below_offset_floor(s, best, bev, best_col) or not (dsse > thr_dsse and bev.gain > s.settings.min_gain):
         _untestable_could_explain(s, thr, thr_dsse)
         return False
     s.significant = True
-    shape = dict(best.shapes[bev.shape_index])
     col = best_col
     if best.column_for is not None and len(shape) == 1:
         name = next(iter(shape))
@@ -367,7 +369,7 @@ def _rival_check(s: _Search) -> None:
             ev = evaluate_candidate(r, others, c, s.folds, s.k)
             if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= st.min_gain:
                 continue
-            ccol = c.columns[ev.shape_index]
+            ccol = chosen(c, ev)[1]
             b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a.column,
                                a.cand.lower, a.cand.upper, s.folds, s.k)
             if b1 - a1 <= thr_dsse:

@@ -33,6 +33,7 @@ from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
 from fleetrun.diagnose.weighting import noise_weighted
+from fleetrun.diagnose.route import with_grade_profiles, with_road
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import JsonDocument
 
@@ -246,7 +247,8 @@ def piece_integrals(problem: Problem, fitted: np.ndarray, pieces: Sequence[Piece
 def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str = "thesis",
                     settings: Settings | None = None, residual: str = "auto",
                     window_s: float | None = None, weights: str = "none",
-                    hot_starts: Sequence[bool] | None = None) -> JointDiagnosis:
+                    hot_starts: Sequence[bool] | None = None,
+                    grade_profile: bool = False, road: bool = False) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,
@@ -256,7 +258,10 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     the weighted windows; the fitted effects, ``after`` and the integrals are in g/s and g
     as without. ``hot_starts[i]`` True declares recording ``i`` a hot start (the engine warm
     from its first second, as the test protocol says): it gets no ``warmup`` candidate
-    (:func:`without_warmup`)."""
+    (:func:`without_warmup`). ``grade_profile`` True adds a grade located along each
+    recording's route, ``road_grade@<recording>`` (:func:`fleetrun.diagnose.route.with_grade_profiles`);
+    ``road`` True one road under every recording, ``road_grade@road``
+    (:func:`fleetrun.diagnose.route.with_road`)."""
     if len(references) != len(recordings):
         raise InputError("give one reference (or None) per recording")
     if hot_starts is not None and len(hot_starts) != len(recordings):
@@ -267,6 +272,10 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     dt = float(np.median(np.diff(problems[0].time_s)))
     window = max(1, int(round((window_s or SAME_TRACE_WINDOW_S) / dt)))
     joined.coarse = join_coarse(problems, names, window, weights)
+    if grade_profile:
+        joined = with_grade_profiles(joined, problems, names, window, weights)
+    if road:
+        joined = with_road(joined, problems, names, window, weights)
     hot = [n for n, h in zip(names, hot_starts or []) if h]
     if hot:
         joined = without_warmup(joined, hot)

@@ -293,7 +293,8 @@ def _collinear_rival(search, a) -> str | None:
     xa = clean(a.column)
     na = np.linalg.norm(xa)
     for c in search.problem.candidates:
-        if c.id == a.id or na == 0:
+        if c.id == a.id or na == 0 or c.block is not None:
+            # a block (a road's knots) is no single column: the rival check judges it
             continue
         for x in c.columns[1:-1] if len(c.columns) > 2 else c.columns:
             xc = clean(x)

@@ -45,6 +45,13 @@ class Candidate:
     shape_bounds: tuple[float, float] | None = None  # where refinement may go past the grid
     status: str = "pending"
     note: str = ""
+    #: several columns fitted together, (p, n): a description with p linear parameters (a
+    #: road's grade at its knots, :mod:`fleetrun.diagnose.route`), each kept within
+    #: [lower, upper] and penalised towards zero by ``penalty`` times the mean diagonal of the
+    #: block's Gram matrix (ridge). ``columns`` is then the block's sum (a proxy only) and
+    #: ``column_for`` the block's combination at the weights ``{"w0": ..., ...}``.
+    block: np.ndarray | None = None
+    penalty: float = 0.0
 
 
 @dataclass
@@ -54,6 +61,8 @@ class CVResult:
     gain: float                          # 1 - after / before
     shape_index: int
     coefficient: float                   # fitted on all data
+    #: a block candidate's weights fitted on all data (None otherwise)
+    weights: np.ndarray | None = None
 
 
 def fold_ids(n: int, k: int, blocks_per_fold: int = 1) -> np.ndarray:
@@ -100,15 +109,27 @@ def _solve_bounded(G, c, lo, hi, ridge: float = 1e-12):
     return np.where(fixed, val, b)
 
 
-def _heldout_sse(G_f, c_f, rr_f, lo, hi, ridge: float = 1e-12):
+def _penalised(G, start, penalty: float):
+    """``G`` (..., p, p) with ``penalty`` times the mean diagonal of its block ``start:`` added
+    to that block's diagonal (a ridge on a block candidate's weights)."""
+    if not penalty:
+        return G
+    idx = np.arange(start, G.shape[-1])
+    d = G[..., idx, idx]
+    G = np.array(G, dtype=float, copy=True)
+    G[..., idx, idx] = d + penalty * d.mean(axis=-1, keepdims=True)
+    return G
+
+
+def _heldout_sse(G_f, c_f, rr_f, lo, hi, ridge: float = 1e-12, penalty: float = 0.0, start: int = 0):
     """Sum over folds of the held-out SSE; stats per fold on the last-but-one axes.
 
     ``G_f`` (..., K, p, p), ``c_f`` (..., K, p), ``rr_f`` (..., K); bounds (p,); ``ridge`` as
-    in :func:`_solve_bounded`.
+    in :func:`_solve_bounded`; ``penalty`` on the columns ``start:`` as in :func:`_penalised`.
     """
     if G_f.shape[-1] == 0:
         return rr_f.sum(axis=-1)
-    G_tr = G_f.sum(axis=-3, keepdims=True) - G_f
+    G_tr = _penalised(G_f.sum(axis=-3, keepdims=True) - G_f, start, penalty)
     c_tr = c_f.sum(axis=-2, keepdims=True) - c_f
     b = _solve_bounded(G_tr, c_tr, lo, hi, ridge)
     sse = rr_f - 2 * np.einsum("...p,...p->...", b, c_f) + np.einsum("...p,...pq,...q->...", b, G_f, b)
@@ -199,6 +220,14 @@ def shift_null(r, nuisance: list[tuple], candidates: list[Candidate], folds, k, 
     gains = {}
     for cand in candidates:
         best = np.full(len(shifts), -np.inf)
+        if cand.block is not None:
+            g = _block_null_gain(cand, N if nq else np.zeros((0, n)), cN if nq else None, r_fft, masks,
+                                 shifts, rr, sse_before, (nlo, nhi), folds, k)
+            best, dsse = g
+            max_dsse = np.maximum(max_dsse, dsse)
+            gains[cand.id] = best
+            max_gain = np.maximum(max_gain, best)
+            continue
         for x in cand.columns:
             cx = np.stack([_circ_corr(np.fft.rfft(x * m), r_fft, n)[shifts] for m in masks], -1)  # (B,K)
             if nq:
@@ -219,8 +248,64 @@ def shift_null(r, nuisance: list[tuple], candidates: list[Candidate], folds, k, 
     return NullDistribution(shifts, max_gain, max_dsse, gains)
 
 
+def cv_fit_block(r, nuisance: list[tuple], cand: Candidate, folds, k):
+    """:func:`cv_fit` of a block candidate: held-out SSE without and with its columns
+    (penalised, :attr:`Candidate.penalty`), and the full fit's coefficients."""
+    ncols, nlo, nhi = _split(nuisance)
+    q, p = len(ncols), cand.block.shape[0]
+    cols = np.vstack([np.array(ncols).reshape(q, len(r)), cand.block])
+    los, his = np.r_[nlo, np.full(p, cand.lower)], np.r_[nhi, np.full(p, cand.upper)]
+    G_f = _fold_gram(cols, folds, k)
+    c_f = np.array([cols[:, folds == f] @ r[folds == f] for f in range(k)])
+    rr_f = np.array([r[folds == f] @ r[folds == f] for f in range(k)])
+    sse_after = _heldout_sse(G_f, c_f, rr_f, los, his, penalty=cand.penalty, start=q)
+    sse_before = _heldout_sse(G_f[:, :q, :q], c_f[:, :q], rr_f, nlo, nhi) if q else rr_f.sum()
+    b = _solve_bounded(_penalised(G_f.sum(0), q, cand.penalty), c_f.sum(0), los, his)
+    return float(sse_before), float(sse_after), b
+
+
+def block_shape(cand: Candidate, weights) -> tuple[dict[str, float], np.ndarray, float]:
+    """A block candidate at fitted ``weights`` as one column: the weights scaled to a largest
+    magnitude of 1 (the shape ``{"w0": ..., ...}``), its column, and the scale (the linear
+    parameter)."""
+    w = np.asarray(weights, dtype=float)
+    scale = float(np.max(np.abs(w))) if w.size else 0.0
+    u = w / scale if scale > 0 else w
+    shape = {f"w{i}": float(x) for i, x in enumerate(u)}
+    return shape, cand.column_for(shape), scale
+
+
+def chosen(cand: Candidate, ev: CVResult) -> tuple[dict[str, float], np.ndarray]:
+    """The shape and column of ``cand`` its evaluation ``ev`` chose."""
+    if cand.block is not None:
+        shape, col, _ = block_shape(cand, ev.weights)
+        return shape, col
+    return dict(cand.shapes[ev.shape_index]), cand.columns[ev.shape_index]
+
+
+def _block_null_gain(cand, N, cN, r_fft, masks, shifts, rr, sse_before, bounds, folds, k):
+    """Gain and held-out SSE reduction of a block candidate on every shifted residual."""
+    n = len(masks[0])
+    q, p = N.shape[0], cand.block.shape[0]
+    cx = np.stack([np.stack([_circ_corr(np.fft.rfft(x * m), r_fft, n)[shifts] for m in masks], -1)
+                   for x in cand.block], -1)                                          # (B,K,p)
+    c_f = np.concatenate([cN, cx], -1) if q else cx
+    G_f = _fold_gram(np.vstack([N, cand.block]), folds, k)
+    G_b = np.broadcast_to(G_f, (len(shifts),) + G_f.shape)
+    lo, hi = np.r_[bounds[0], np.full(p, cand.lower)], np.r_[bounds[1], np.full(p, cand.upper)]
+    sse_after = _heldout_sse(G_b, c_f, rr, lo, hi, penalty=cand.penalty, start=q)
+    g = 1 - np.sqrt(np.maximum(sse_after, 0) / np.maximum(sse_before, 1e-300))
+    return g, sse_before - sse_after
+
+
 def evaluate_candidate(r, nuisance, cand: Candidate, folds, k) -> CVResult:
     """Best shape value by held-out error; coefficient refitted on all data."""
+    if cand.block is not None:
+        before, after, b = cv_fit_block(r, nuisance, cand, folds, k)
+        n = len(r)
+        rb, ra = np.sqrt(before / n), np.sqrt(max(after, 0.0) / n)
+        w = b[len(nuisance):]
+        return CVResult(rb, ra, 1 - ra / rb if rb > 0 else 0.0, 0, block_shape(cand, w)[2], w)
     best = None
     for i, x in enumerate(cand.columns):
         before, after, b = cv_fit(r, nuisance, x, cand.lower, cand.upper, folds, k)

@@ -82,6 +82,33 @@ def grade_extra_fuel(vehicle_speed_mps, vehicle_mass_kg, marginal_g_per_J):
     return vehicle_mass_kg * STANDARD_GRAVITY_M_S2 * v / 100.0 * marginal_g_per_J
 
 
+def route_grade_shape(distance_m, direction):
+    """Grade along a route per unit of amplitude: ``sum_k u_k cos(k pi s / L)``, k = 1..K.
+
+    A real road's grade is a function of distance (the slope of its elevation profile, seed
+    004 Eq. 35 adds ``m g sin(theta)`` to the longitudinal balance wherever the vehicle is on
+    the slope). Described by the first K modes of an elevation ``z(s) = sum_k u_k L / (k pi)
+    sin(k pi s / L)`` that ends where it starts, so the shape carries no net climb (a net
+    climb is the constant grade of :func:`grade_extra_fuel`).
+
+    Parameters
+    ----------
+    distance_m : array, distance travelled since the route's start s [m], non-decreasing
+    direction : array of K floats, the modes' weights u [-] (a unit vector)
+
+    Returns
+    -------
+    grade per unit of amplitude at each sample [-] (multiply by the amplitude in %).
+    """
+    s = np.asarray(distance_m, dtype=float)
+    length = float(s[-1] - s[0]) if s.size else 0.0
+    if length <= 0:
+        return np.zeros_like(s)
+    x = (s - s[0]) / length
+    u = np.asarray(direction, dtype=float)
+    return sum(w * np.cos((k + 1) * np.pi * x) for k, w in enumerate(u))
+
+
 def aero_drag_extra_fuel(vehicle_speed_mps, marginal_g_per_J):
     """Extra fuel per N s^2/m^2 of extra quadratic road load: ``v^2 * v * fuel per J``.
 
