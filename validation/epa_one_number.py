@@ -159,22 +159,34 @@ def candidates(r):
     return fam
 
 
-def label_errors(r, form, share=None, whole_mpg=False):
+def derived_label(paired, idx, table="epa_label"):
+    """EPA's derived label combined figure [mpg] (40 CFR 600.210-12(a)(2);
+    measured.label_formulas(table)) of the measured FTP and HWFET of the vehicles ``idx``."""
+    (ac, bc), (ah, bh) = measured.label_formulas(table)
+    city = measured.LABEL_CITY_SHARE
+    ftp, hw = paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]
+    return 1.0 / (city * (ac + bc / ftp) + (1 - city) * (ah + bh / hw))
+
+
+def label_errors(r, form, share=None, whole_mpg=False, label=None, table="epa_label"):
     """Errors on FTP, HWFET, US06 after calibrating on the derived label combined (40 CFR
     600.210-12(a)(2) of the measured FTP and HWFET; measured.label_formulas), form "share": FTP
     and HWFET scaled by k (the label exact), US06 by k^share; form "Q" (a part set): delta
     on fuel += delta Q such that the label of the calibrated FTP and HWFET is exact, US06 its Q.
-    ``whole_mpg``: the label rounded to whole mpg as printed on the window sticker."""
+    ``whole_mpg``: the label rounded to whole mpg as printed on the window sticker. ``label``
+    (mpg per vehicle of ``r["err"]``, NaN where none): a given label instead of the derived one
+    (the real label, validation/epa_labels.py); ``table``: the label formulas the calibration
+    inverts (and the derived label's, measured.label_formulas)."""
     err, parts, paired, gpg = r["err"], r["parts"], r["paired"], r["g_per_gal"]
     idx = err.index
-    (ac, bc), (ah, bh) = measured.label_formulas()
+    (ac, bc), (ah, bh) = measured.label_formulas(table)
     city = measured.LABEL_CITY_SHARE
-    ftp, hw = paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]
-    label = 1.0 / (city * (ac + bc / ftp) + (1 - city) * (ah + bh / hw))
+    label = derived_label(paired, idx, table) if label is None else np.asarray(label, float)
     label = np.round(label) if whole_mpg else label
-    pred_mpg = np.c_[ftp, hw, paired["US06"].to_numpy()[idx]] * (1.0 + err[list(TESTS)].to_numpy())
+    meas_mpg = np.c_[paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx], paired["US06"].to_numpy()[idx]]
+    pred_mpg = meas_mpg * (1.0 + err[list(TESTS)].to_numpy())
     if form == "share":
-        k = measured.label_scale(label, pred_mpg[:, 0], pred_mpg[:, 1])
+        k = measured.label_scale(label, pred_mpg[:, 0], pred_mpg[:, 1], table)
         scale = np.c_[k, k, k ** share]
         out = (1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0
     else:

@@ -49,20 +49,25 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     return column("measured_ftp_mpg"), column("label_combined_mpg")
 
 
-def label_formulas() -> tuple[tuple[float, float], tuple[float, float]]:
+def label_formulas(table="epa_label") -> tuple[tuple[float, float], tuple[float, float]]:
     """(intercept [gal/mi], slope) of EPA's city and highway label formulas (their owner:
     models/budget.toml [onroad.epa_label]).
+
+    Parameters
+    ----------
+    table : str, the budget.toml table under ``onroad``: ``epa_label`` (what fleetrun applies) or
+        ``epa_label_my2017`` (the coefficients of MY2017+ labels; used by the validation)
 
     Returns
     -------
     ((city intercept [gal/mi], city slope [-]), (highway intercept [gal/mi], highway slope [-]))
     (40 CFR 600.210-12).
     """
-    label = model_file("budget.toml")["onroad"]["epa_label"]
+    label = model_file("budget.toml")["onroad"][table]
     return tuple((label[kind]["intercept_gal_per_mile"], label[kind]["slope"]) for kind in ("city", "highway"))
 
 
-def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, table="epa_label"):
     """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
     by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k.
 
@@ -71,12 +76,13 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg):
     label_combined_mpg : float or array, the EPA label combined figure [mpg]
     ftp_mpg : float or array, simulated FTP fuel economy [mpg]
     hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
+    table : str, which label formulas (:func:`label_formulas`)
 
     Returns
     -------
     fuel scale k [-], the broadcast shape of the arguments.
     """
-    city, highway = label_formulas()
+    city, highway = label_formulas(table)
     a = LABEL_CITY_SHARE * city[0] + (1 - LABEL_CITY_SHARE) * highway[0]
     b = LABEL_CITY_SHARE * city[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * highway[1] / hwfet_mpg
     return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
