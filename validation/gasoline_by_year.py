@@ -96,6 +96,11 @@ def tried_states() -> set[tuple[str, int]]:
 def sum_of_states(states: pd.DataFrame, nation_runs: pd.DataFrame) -> pd.DataFrame:
     """Per year: the national run, the sum of the 51 state runs, the states tried and the others."""
     tried = tried_states()
+    data = pd.read_csv(STATS / "all_states_2010_2017.csv")
+    states = states.merge(data[["state", "year", *MV1_COLUMNS, "highway_gasoline_kgal"]], on=["state", "year"])
+    states["vehicles_per_million_mi"] = states[MV1_COLUMNS].sum(axis=1) / states.vmt_million_mi
+    states["truck_share_pct"] = 100 * states.mv1_trucks / (states.mv1_trucks + states.mv1_automobiles)
+    states["observed_gal_per_kmi"] = states.highway_gasoline_kgal / states.vmt_million_mi
     rows = []
     for year, part in states.groupby("year"):
         nation = nation_runs[nation_runs.year == year].iloc[0]
@@ -107,11 +112,21 @@ def sum_of_states(states: pd.DataFrame, nation_runs: pd.DataFrame) -> pd.DataFra
                "states_vs_national_run_pct": 100 * (part.gasoline_model_Mgal.sum() / nation.gasoline_model_Mgal - 1),
                "median_error_pct": part.gasoline_error_pct.median(),
                "hits": int((part.gasoline_error_pct.abs() <= 100 * state_fuel.GASOLINE_TOLERANCE).sum()),
-               "above": int((part.gasoline_error_pct > 0).sum())}
+               "above": int((part.gasoline_error_pct > 0).sum()),
+               "corr_error_observed_gal_per_kmi": part.gasoline_error_pct.corr(part.observed_gal_per_kmi),
+               "corr_error_vehicles_per_mile": part.gasoline_error_pct.corr(part.vehicles_per_million_mi),
+               "corr_error_truck_share": part.gasoline_error_pct.corr(part.truck_share_pct),
+               "model_gal_per_kmi_min": (1e3 * part.gasoline_model_Mgal / part.vmt_million_mi).min(),
+               "model_gal_per_kmi_max": (1e3 * part.gasoline_model_Mgal / part.vmt_million_mi).max(),
+               "observed_gal_per_kmi_min": part.observed_gal_per_kmi.min(),
+               "observed_gal_per_kmi_max": part.observed_gal_per_kmi.max(),
+               "observed_gal_per_kmi_median": part.observed_gal_per_kmi.median()}
         for name, sel in (("tried", part[is_tried]), ("others", part[[not t for t in is_tried]])):
             row[f"{name}_states"] = len(sel)
             row[f"{name}_vmt_weighted_error_pct"] = 100 * (sel.gasoline_model_Mgal.sum() / sel.gasoline_observed_Mgal.sum() - 1)
             row[f"{name}_median_error_pct"] = sel.gasoline_error_pct.median()
+            row[f"{name}_vehicles_per_million_mi"] = sel[MV1_COLUMNS].sum().sum() / sel.vmt_million_mi.sum()
+            row[f"{name}_truck_share_pct"] = 100 * sel.mv1_trucks.sum() / (sel.mv1_trucks.sum() + sel.mv1_automobiles.sum())
         rows.append(row)
     return pd.DataFrame(rows)
 
