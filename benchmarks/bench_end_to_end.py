@@ -2,10 +2,11 @@
 (process start, imports, reading, simulating, aggregating, all seven outputs), one core.
 
     pip install fastsim==3.1.0
-    python benchmarks/bench_end_to_end.py [--rows 7600] [--repeat 3] [--fastsim-runs 30] [--trees DIR...]
+    python benchmarks/bench_end_to_end.py [--rows 7600] [--repeat 3] [--fastsim-runs 30] [--trees DIR...] [--split]
 
 ``--trees`` times the fleetrun of other source trees too (e.g. an older commit exported with
-``git archive``), round by round beside this one.
+``git archive``), round by round beside this one. ``--split`` prints instead where the command's
+CPU goes (interpreter start, imports, reading, simulating, aggregating, writing), per tree.
 
 - The fleet: ``fleetrun import-epa inputs/epa/22-tstcar.csv`` (1,103 vehicle configurations of the
   EPA 2022 Test Car List), its rows repeated to ``--rows`` rows, each with its own test weight
@@ -24,6 +25,7 @@ which a machine shared with other work slows less than the wall time.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
 import shutil
@@ -116,12 +118,87 @@ def fastsim_rate(runs: int, env: dict) -> tuple[str, float, float]:
     return version, float(rate), float(cpu_rate)
 
 
+SPLIT = """
+import json, resource, sys, time
+def cpu():
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+marks = {{"start": cpu()}}
+argv = ["run", {fleet!r}, "--out", {out!r}, "-q"]
+from fleetrun import cli
+if hasattr(cli, "_collect_less"):
+    cli._collect_less(argv)        # what the console entry point does first (GC settings, the command's modules)
+else:
+    import fleetrun.commands.run
+from fleetrun.run import batch, runner
+marks["imports"] = cpu()
+read, run, write = batch.read_fleet, batch.run_fleet, batch.write_run_outputs
+def timed_read(*args, **kwargs):
+    try:
+        return read(*args, **kwargs)
+    finally:
+        marks["read"] = cpu()
+def timed_run(*args, **kwargs):
+    result = run(*args, **kwargs)
+    marks.update(result.timings_s)  # CPU seconds: run_fleet's clock is the process clock here
+    return result
+def timed_write(*args, **kwargs):
+    started = cpu()
+    try:
+        return write(*args, **kwargs)
+    finally:
+        marks["write"] = cpu() - started
+batch.read_fleet, batch.run_fleet, batch.write_run_outputs = timed_read, timed_run, timed_write
+runner.time = type("ProcessClock", (), {{"perf_counter": staticmethod(time.process_time)}})
+try:
+    cli.main(argv)
+except SystemExit as exc:
+    if exc.code:
+        raise
+marks["total"] = cpu()
+print(json.dumps(marks))
+"""
+SPLIT_STAGES = ("start", "imports", "read", "simulate", "aggregate", "write", "other", "total")
+
+
+def cpu_split(fleet: Path, out: Path, env: dict, tree: Path) -> dict[str, float]:
+    """CPU seconds of one ``fleetrun run`` process by stage (a new pinned process, the command's
+    own path through ``fleetrun.cli.main``): interpreter start, imports, reading, simulating,
+    aggregating, writing the outputs, the rest, and the total."""
+    shutil.rmtree(out, ignore_errors=True)
+    done = subprocess.run(pinned([sys.executable, "-c", SPLIT.format(fleet=str(fleet), out=str(out))]), cwd=tree,
+                          env={**env, "PYTHONPATH": str(tree)}, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"fleetrun run (split) failed ({done.returncode}):\n{done.stderr}")
+    marks = json.loads(done.stdout.strip().splitlines()[-1])
+    split = {"start": marks["start"], "imports": marks["imports"] - marks["start"],
+             "read": marks["read"] - marks["imports"], "simulate": marks["simulate"],
+             "aggregate": marks["aggregate"], "write": marks["write"], "total": marks["total"]}
+    split["other"] = split["total"] - sum(v for k, v in split.items() if k != "total")
+    return split
+
+
+def print_splits(fleet: Path, folder: Path, env: dict, trees: list[Path], repeat: int) -> None:
+    """Per tree the CPU split of its fastest of ``repeat`` runs (trees alternating)."""
+    best: dict[Path, dict] = {}
+    for _ in range(repeat):
+        for tree in trees:
+            split = cpu_split(fleet, folder / "out", env, tree)
+            if tree not in best or split["total"] < best[tree]["total"]:
+                best[tree] = split
+    print("CPU seconds by stage (fastest of %d runs each): " % repeat + " / ".join(SPLIT_STAGES), flush=True)
+    for tree, split in best.items():
+        print(f"  {tree}: " + " / ".join(f"{split[k]:.2f}" for k in SPLIT_STAGES), flush=True)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rows", type=int, default=7600)
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--fastsim-runs", type=int, default=30)
     p.add_argument("--trees", type=Path, nargs="*", default=[], help="other fleetrun source trees to time alike")
+    p.add_argument("--split", action="store_true",
+                   help="only the command's CPU by stage (start, imports, read, simulate, aggregate, write), no FASTSim")
     args = p.parse_args(argv)
     folder = Path(tempfile.mkdtemp(prefix="fleetrun-e2e-"))
     env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
@@ -135,6 +212,9 @@ def main(argv=None):
         for tree in trees:
             fleetrun_seconds(fleet, folder / "out", env, tree)    # builds the maps (cold cache)
         print(f"load average at start {os.getloadavg()[0]:.2f}; {args.rows} rows, UDDS, one CPU", flush=True)
+        if args.split:
+            print_splits(fleet, folder, env, trees, args.repeat)
+            return
         for k in range(args.repeat):
             version, fs_rate, fs_cpu_rate = fastsim_rate(args.fastsim_runs, env)
             for tree in trees:

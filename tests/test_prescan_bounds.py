@@ -46,3 +46,20 @@ def test_a_larger_reference_in_the_middle_is_found():
     text = rows[:len(rows) // 2] + b'<c r="AZ999999"/>' + rows[len(rows) // 2:]
     assert int(X._largest(text, X._digits(6, True), X._digits_above, int)) == 999_999
     assert X._column_of(X._largest(text, X._letters(2, True), X._letters_above, X._column_of)) == 52
+
+
+def test_started_cells_and_rows_equal_a_count_of_every_start():
+    """The tag counts (two or three ``bytes.count`` where the text allows) equal the count of
+    every ``<c`` / ``<row`` followed by a space, ``>``, ``/`` or a line break: with ``<cols>``,
+    ``<col .../>``, ``<cfRule``, bare ``<c>`` and ``<c/>`` cells, prefixed tags and line breaks."""
+    import re
+
+    rng = random.Random(5)
+    pieces = ['<c r="A1"><v>1</v></c>', "<c><v>2</v></c>", "<c/>", '<c\nr="B2"/>', "<c\tt=\"s\"/>",
+              "<cols>", '<col min="1" max="2"/>', "</cols>", '<cfRule type="x"/>', "<colBreaks/>",
+              '<row r="3">', "<row>", "</row>", "<rowBreaks/>", '<x:c r="C3"/>', '<x:row r="4">', "text <co"]
+    for _ in range(500):
+        text = "".join(rng.choice(pieces) for _ in range(rng.randint(0, 30))).encode()
+        cells = len(re.findall(rb"<c[ >/\n\t\r]", text)) + len(re.findall(rb"<\w+:c[\s/>]", text))
+        rows = len(re.findall(rb"<row[ >/\n\t\r]", text)) + len(re.findall(rb"<\w+:row[\s/>]", text))
+        assert X._count_tags(text) == (cells, rows), text

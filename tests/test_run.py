@@ -316,3 +316,28 @@ def test_docs_name_every_output():
     batch = (Path(__file__).parents[1] / "docs" / "batch.md").read_text()
     assert f"writes {words[len(OUTPUT_FILES)]} files into DIR" in batch
     assert all(f"`{name}`" in batch for name in OUTPUT_FILES)
+
+
+def test_the_console_entry_sets_the_collector_for_a_batch_command():
+    """``fleetrun.cli.main`` (the console script, ``python -m fleetrun``) loads the command's
+    modules, freezes them out of the garbage collector's view and collects the young generation
+    every GC_YOUNG_THRESHOLD objects (docs/benchmarks-run.md, "Fourth pass"); a program that only
+    imports fleetrun keeps Python's collector as it was; a command that is not one still gets
+    click's usage error (exit 2)."""
+    import subprocess
+    import sys
+
+    from fleetrun.cli import GC_YOUNG_THRESHOLD
+
+    code = ("import gc, sys; from fleetrun import cli; before = gc.get_threshold()[0]; "
+            "cli._collect_less(['run', 'x.xlsx']); "
+            "print(before, gc.get_threshold()[0], gc.get_freeze_count() > 0, 'fleetrun.commands.run' in sys.modules)")
+    from pathlib import Path
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    before, after, frozen, loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                                                   env=env, check=True).stdout.split()
+    assert int(before) < GC_YOUNG_THRESHOLD and int(after) == GC_YOUNG_THRESHOLD   # Python's own is 700 (3.11)
+    assert (frozen, loaded) == ("True", "True")
+    bad = subprocess.run([sys.executable, "-m", "fleetrun", "no-such-command"], capture_output=True, text=True, env=env)
+    assert bad.returncode == 2 and "No such command" in bad.stderr

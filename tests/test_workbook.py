@@ -334,3 +334,33 @@ def test_shipped_example_fleet_is_clean_and_reproducible(tmp_path):
     subprocess.run([sys.executable, str(script), "-o", str(rebuilt)], check=True, capture_output=True, env=env)
     again = read_fleet(rebuilt)
     assert again.vehicles == fleet.vehicles and again.scenarios == fleet.scenarios
+
+
+def test_rows_become_the_same_vehicles_as_the_dataclass_makes(tmp_path):
+    """The reader's VehicleSpec (made without the frozen dataclass's __init__, for speed) equals
+    ``VehicleSpec(**fields)``: fields, their order in ``__dict__`` (pickles alike), repr, hash
+    and the Kim scale __post_init__ sets (blank in the row, and given); other dicts go through
+    __init__, unknown and missing fields raise as it does."""
+    import dataclasses
+    import pickle
+
+    from fleetrun.vehicle import VehicleSpec, vehicle_from_fields
+
+    path = small_fleet(tmp_path / "f.xlsx")
+    read = read_fleet(path).vehicles
+    given = dataclasses.replace(read[0], kim_torque_scale_Nm=1234.5)
+    for v in [*read, given]:
+        values = {f.name: getattr(v, f.name) for f in dataclasses.fields(VehicleSpec)}
+        for kim in (None, v.kim_torque_scale_Nm):
+            values["kim_torque_scale_Nm"] = kim
+            fast, slow = vehicle_from_fields(dict(values)), VehicleSpec(**values)
+            assert fast == slow and repr(fast) == repr(slow) and hash(fast) == hash(slow)
+            assert list(vars(fast).items()) == list(vars(slow).items())
+            assert pickle.dumps(fast) == pickle.dumps(slow)
+    values = {f.name: getattr(read[0], f.name) for f in dataclasses.fields(VehicleSpec)}
+    values.pop("extra")
+    assert vehicle_from_fields(dict(reversed(list(values.items())))) == VehicleSpec(**values)   # defaults
+    with pytest.raises(TypeError):
+        vehicle_from_fields({**values, "no_such_field": 1})
+    with pytest.raises(TypeError):
+        vehicle_from_fields({k: v for k, v in values.items() if k != "fuel"})

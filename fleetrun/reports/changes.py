@@ -57,10 +57,10 @@ def _sha(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
-def fingerprints(result) -> dict:
+def fingerprints(result, models: list[dict] | None = None) -> dict:
     """What each total depends on, as sha256 of its inputs: the vehicles (every Vehicles row),
     each scenario without its tax and calibration columns (those are attributed apart), the
-    model files and the fleetrun version."""
+    model files (``models``: :func:`model_files`, read when not given) and the fleetrun version."""
     from dataclasses import fields
 
     from fleetrun import __version__
@@ -71,20 +71,22 @@ def fingerprints(result) -> dict:
         kept = {f.name: getattr(s, f.name) for f in fields(s) if f.name not in ("scenario_id", "description", "extra")
                 and not f.name.startswith(TAX_FIELDS + CALIBRATION_FIELDS)}
         scenarios[s.scenario_id] = _sha(repr(sorted(kept.items(), key=lambda kv: kv[0])))
-    models = _sha(repr(sorted((m["path"], m["sha256"]) for m in model_files())) + __version__)
-    return {"vehicles": vehicles, "scenarios": scenarios, "model version": models}
+    models = model_files() if models is None else models
+    version = _sha(repr(sorted((m["path"], m["sha256"]) for m in models)) + __version__)
+    return {"vehicles": vehicles, "scenarios": scenarios, "model version": version}
 
 
-def attribution_inputs(result) -> dict:
+def attribution_inputs(result, models: list[dict] | None = None) -> dict:
     """Per scenario and fuel the factors of each total: model gallons (before calibration),
-    calibrated gallons and the taxes; and the fingerprints (stored in manifest.json)."""
+    calibrated gallons and the taxes; and the fingerprints (stored in manifest.json; ``models``
+    as :func:`fingerprints` takes it)."""
     by_fuel: dict = {}
     frame = result.results
     for (scenario_id, fuel), group in frame.groupby(["scenario_id", "fuel"], sort=False):
         by_fuel.setdefault(str(scenario_id), {})[str(fuel)] = {
             "raw_gal": math.fsum(group["fuel_gal_uncalibrated_total"]), "fuel_gal": math.fsum(group["fuel_gal_total"]),
             "state_tax_usd": math.fsum(group["state_tax_usd"]), "federal_tax_usd": math.fsum(group["federal_tax_usd"])}
-    return {"by_fuel": by_fuel, "fingerprints": fingerprints(result)}
+    return {"by_fuel": by_fuel, "fingerprints": fingerprints(result, models)}
 
 
 def _factor_logs(old: dict, new: dict, total: str) -> dict[str, float] | None:

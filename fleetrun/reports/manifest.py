@@ -40,11 +40,12 @@ def run_header(result) -> dict:
 def manifest_dict(result, outputs: dict[str, str] | None = None) -> dict:
     """manifest.json (docs/interface.md): the run header, the model files, the totals and the
     fingerprints the next run compares with, the comparison with the earlier run, the outputs."""
+    models = model_files()   # read and hashed once: listed, and part of the fingerprints
     return {
         **run_header(result),
-        "model_files": model_files(),                             # models/**: constants the numbers come from
+        "model_files": models,                                    # models/**: constants the numbers come from
         "totals": scenario_totals_dict(result.classes),          # what the next run compares with
-        "attribution": attribution_inputs(result),                # per fuel factors + input fingerprints
+        "attribution": attribution_inputs(result, models),        # per fuel factors + input fingerprints
         "changes": result.changes.as_json() if result.changes else None,   # vs the run that was in the folder
         "outputs": outputs or {},
     }

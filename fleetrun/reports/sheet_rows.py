@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 import math
 import re
+from functools import lru_cache
 from typing import Callable
 
 from xlsxwriter.utility import xl_col_to_name
@@ -80,10 +81,9 @@ def _first_uses(ws, columns: list[list], formats: list) -> list:
 def _number_cells(ws, col: int, first_row: int, values: list, fmt) -> list[str] | None:
     """The column's number cells as XML ('' for an empty cell), or None if the template does not
     match XlsxWriter's own cell XML."""
-    letter = xl_col_to_name(col)
-    style = _style(ws, col, fmt)
-    cells = [f'<c r="{letter}{first_row + i + 1}"{style}><v>{v:.16G}</v></c>'
-             if v is not None and math.isfinite(v) else "" for i, v in enumerate(values)]
+    head, tail, finite = f'<c r="{xl_col_to_name(col)}', f'"{_style(ws, col, fmt)}><v>', math.isfinite
+    cells = [f"{head}{row}{tail}{v:.16G}</v></c>" if v is not None and finite(v) else ""
+             for row, v in zip(_row_numbers(first_row, len(values)), values)]
     for i, v in enumerate(values):
         if cells[i]:
             own = _xml(ws, lambda: ws._write_cell(first_row + i, col, CellNumberTuple(v, fmt)))
@@ -94,30 +94,42 @@ def _number_cells(ws, col: int, first_row: int, values: list, fmt) -> list[str] 
 def _text_cells(ws, col: int, first_row: int, values: list, pick) -> list[str]:
     """The column's text cells as XML ('' for an empty cell): a plain text (:data:`PLAIN`) in the
     inline-string template XlsxWriter's own XML of the first one confirmed; any other text as
-    XlsxWriter writes it, once per distinct (text, format), with the cell reference put in front."""
-    letter = xl_col_to_name(col)
-    tails: dict = {}
+    XlsxWriter writes it; each once per distinct text (its format is ``pick(text)``), with the
+    cell reference put in front."""
+    head = f'<c r="{xl_col_to_name(col)}'
+    tails: dict = {}   # text -> its cell's XML after the cell reference
     plain: dict = {}   # id(format) -> the plain-text template's (head, tail), or None: not confirmed
     cells = []
-    for i, v in enumerate(values):
+    for row, v in zip(_row_numbers(first_row, len(values)), values):
         if type(v) is not str:
             cells.append("")
             continue
-        row, fmt = first_row + i + 1, pick(v)
-        if "_x" not in v and PLAIN.match(v):
-            template = plain.get(id(fmt), False)
-            if template is False:
-                template = plain[id(fmt)] = _plain_template(ws, col, row - 1, v, fmt)
-            if template is not None:
-                cells.append(f'<c r="{letter}{row}{template[0]}{v}{template[1]}')
-                continue
-        key = (v, id(fmt))
-        tail = tails.get(key)
+        tail = tails.get(v)
         if tail is None:
-            own = _xml(ws, lambda: ws._write_cell(row - 1, col, CellStringTuple(v, fmt)))
-            tail = tails[key] = own[len(f'<c r="{letter}{row}'):]
-        cells.append(f'<c r="{letter}{row}{tail}')
+            tail = tails[v] = _text_tail(ws, col, int(row) - 1, v, pick(v), plain)
+        cells.append(f"{head}{row}{tail}")
     return cells
+
+
+def _text_tail(ws, col: int, row: int, text: str, fmt, plain: dict) -> str:
+    """A text cell's XML after its cell reference (the same in every row): the plain-text
+    template where XlsxWriter's own XML of the format's first plain text confirmed it, else
+    XlsxWriter's own XML of this cell."""
+    if "_x" not in text and PLAIN.match(text):
+        template = plain.get(id(fmt), False)
+        if template is False:
+            template = plain[id(fmt)] = _plain_template(ws, col, row, text, fmt)
+        if template is not None:
+            return f"{template[0]}{text}{template[1]}"
+    own = _xml(ws, lambda: ws._write_cell(row, col, CellStringTuple(text, fmt)))
+    return own[len(f'<c r="{xl_col_to_name(col)}{row + 1}'):]
+
+
+@lru_cache(maxsize=8)
+def _row_numbers(first_row: int, rows: int) -> tuple[str, ...]:
+    """The 1-based numbers of rows ``first_row`` .. ``first_row + rows - 1`` (0-based) as text,
+    made once for all the columns of a block."""
+    return tuple(map(str, range(first_row + 1, first_row + rows + 1)))
 
 
 #: A text XlsxWriter writes as it is: no character it escapes (XML, control characters, its

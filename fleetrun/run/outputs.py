@@ -83,7 +83,17 @@ def _column_texts(column) -> list[str]:
         return list(map(str, column.to_numpy().tolist()))
     if kind == "nullable int":
         return ["" if value is pd.NA else str(value) for value in column.astype(object).tolist()]
-    return [_text_field(value) for value in column.astype(object).tolist()]
+    known: dict[str, str] = {}   # a text's field, once per distinct text (classes, fuels, scenarios repeat)
+    texts = []
+    for value in column.astype(object).tolist():
+        if type(value) is str:
+            text = known.get(value)
+            if text is None:
+                text = known[value] = _quoted(value)
+        else:
+            text = _text_field(value)
+        texts.append(text)
+    return texts
 
 
 def _text_field(value) -> str:

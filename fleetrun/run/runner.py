@@ -177,6 +177,8 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
 def registration_vehicles(fleet: Fleet, scenarios) -> tuple[list, object, object]:
     """The fleet's rows to simulate: its Vehicles rows, then the cohorts of its Registrations
     (:mod:`fleetrun.registrations`), with their miles by year (None without registrations)."""
+    if not fleet.registrations:   # most fleets: the registrations package is not even imported
+        return fleet.vehicles, None, None
     from fleetrun.registrations import expand
     from fleetrun.registrations.expand import FleetYears
 

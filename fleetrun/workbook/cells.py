@@ -55,6 +55,8 @@ def skeleton(text: str) -> str:
 
 def lookalike_letters(text: str) -> list[str]:
     """The letters of ``text`` that only look Latin, described (``'і' (CYRILLIC SMALL ...)``)."""
+    if text.isascii():   # every id of most fleets: no letter of another script (each is looked at below)
+        return []
     return [f"{ch!r} ({unicodedata.name(ch, 'U+%04X' % ord(ch))}, U+{ord(ch):04X})" for ch in dict.fromkeys(text)
             if ord(ch) > 127 and ch.translate(_LOOKALIKES) != ch]
 

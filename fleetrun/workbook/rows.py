@@ -15,7 +15,7 @@ from functools import lru_cache
 from fleetrun.differential import canonical_configuration
 from fleetrun.errors import InputError, closest_names
 from fleetrun.physics.lubricant import lubricant_names
-from fleetrun.vehicle import VehicleSpec
+from fleetrun.vehicle import VehicleSpec, vehicle_from_fields
 from fleetrun.workbook import cells
 from fleetrun.workbook.cells import CellProblem
 from fleetrun.workbook.schema import DUAL_CONFIGURATIONS, FHWA_CLASSES, PLAUSIBLE_VEHICLE, VEHICLE_COLUMNS, Column
@@ -247,4 +247,6 @@ _VEHICLE_NAMES = tuple(c.name for c in VEHICLE_COLUMNS)
 def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:
     """The VehicleSpec of a checked row (``parsed`` keyed by Vehicles column)."""
     get = parsed.get
-    return VehicleSpec(**{name: get(name) for name in _VEHICLE_NAMES}, extra=extra)
+    values = {name: get(name) for name in _VEHICLE_NAMES}
+    values["extra"] = extra
+    return vehicle_from_fields(values)

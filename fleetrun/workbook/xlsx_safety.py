@@ -193,18 +193,21 @@ def _deepest(text: bytes, path: Path, sheet: str) -> int:
     return 99_999 if _digits(5).search(text) else 9_999
 
 
-def _started(text: bytes, tag: bytes) -> int:
+def _started(text: bytes, tag: bytes, longer: bytes = b"") -> int:
     """How many ``tag`` elements start in ``text`` (unprefixed): two counts where every ``tag``
-    is followed by a space (the usual writing), one per possible next character otherwise."""
-    spaced = text.count(tag + b" ")
-    if text.count(tag) == spaced:
+    is followed by a space (the usual writing), three where the others are all ``longer``
+    names (``<col``, ``<cols`` beside ``<c``: a started ``tag`` is followed by a space, ``>``,
+    ``/`` or a line break, never by ``longer``'s next letter), one per possible next character
+    otherwise."""
+    spaced, every = text.count(tag + b" "), text.count(tag)
+    if every == spaced or (longer and every == spaced + text.count(longer)):
         return spaced
     return sum(text.count(tag + end) for end in (b" ", b">", b"/", b"\n", b"\t", b"\r"))
 
 
 def _count_tags(text: bytes) -> tuple[int, int]:
     """(cells, rows) started in ``text``, counted without building match lists."""
-    cells, rows = _started(text, b"<c"), _started(text, b"<row")
+    cells, rows = _started(text, b"<c", longer=b"<co"), _started(text, b"<row")
     if b":c" in text or b":row" in text:
         prefixed = _PREFIXED.findall(text)
         cells += sum(1 for tag in prefixed if b":c" in tag)
