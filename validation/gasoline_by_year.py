@@ -1,0 +1,198 @@
+"""Where the state gasoline error comes from, and the turnover mpg change against the same
+period's published on-road change (docs/validation-state-fuel.md, "Where the state gasoline
+error comes from" and "Turnover against the same period").
+
+    python validation/gasoline_by_year.py [--no-runs]
+
+1. per base year of ``docs/validation-state-fuel.csv`` (MV-1-only runs): the VMT-weighted error
+   of the year's state-years, their median, and the sample's observed gasoline per 1,000
+   vehicle-miles against the nation's of the same year (``national_sum_years.csv``: the sums of
+   the 51 states' VM-2 miles and MF-21 highway gasoline);
+2. the issue's workbook run for the whole nation in every year with national registrations
+   (2000-2010 sums of the states' MV-1, 2017 MV-1) and for all 51 states in 2010 and 2017
+   (``all_states_2010_2017.csv``): national error, sum of the states against the national run,
+   states tried by validation/state_fuel.py against the others (Hawaii-Pennsylvania, whose 2008
+   registrations the truck split uses, so they are never in a hit count);
+3. per base year, the light-duty fleet's mpg change of the model (the CSV's
+   ``ld_mpg_change_pct_per_year``, over the same years as the run) against FHWA VM-1's on-road
+   passenger-car and other 2-axle 4-tire vehicle mpg of the same calendar years
+   (``vm1_onroad_mpg.csv``) and the nation's miles per gallon of highway gasoline.
+
+Every input is in ``inputs/state_statistics/`` (PROVENANCE.md there); no constant is fitted.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "validation"))
+
+import state_fuel  # noqa: E402  (the state validation's workbook and run, the one owner of them)
+
+STATS = ROOT / "inputs" / "state_statistics"
+RESULTS = ROOT / "docs" / "validation-state-fuel.csv"
+MV1_COLUMNS = ["mv1_automobiles", "mv1_buses", "mv1_trucks", "mv1_motorcycles"]
+
+
+def national() -> pd.DataFrame:
+    """The nation per year: sums of the 51 states (index: year)."""
+    return pd.read_csv(STATS / "national_sum_years.csv").set_index("year")
+
+
+def gallons_per_thousand_miles(gasoline_kgal: float, vmt_million_mi: float) -> float:
+    """Gasoline per 1,000 vehicle-miles: thousand gallons / million miles [gal / 1,000 mi]."""
+    return gasoline_kgal / vmt_million_mi
+
+
+def sample_by_year(results: pd.DataFrame) -> pd.DataFrame:
+    """Per base year: state-years, VMT-weighted and median gasoline error, the sample's and the
+    nation's observed and the model's gasoline per 1,000 vehicle-miles."""
+    nation = national()
+    rows = []
+    for year, part in results[results.inputs == "mv1"].groupby("year"):
+        observed = part.gasoline_observed_Mgal.sum()
+        rows.append({"year": year, "state_years": len(part),
+                     "vmt_weighted_error_pct": 100 * (part.gasoline_model_Mgal.sum() / observed - 1),
+                     "median_error_pct": part.gasoline_error_pct.median(),
+                     "share_of_national_vmt_pct": 100 * part.vmt_million_mi.sum() / nation.vmt_million_mi[year],
+                     "sample_observed": 1e3 * observed / part.vmt_million_mi.sum(),
+                     "sample_model": 1e3 * part.gasoline_model_Mgal.sum() / part.vmt_million_mi.sum(),
+                     "nation_observed": gallons_per_thousand_miles(nation.highway_gasoline_kgal[year],
+                                                                   nation.vmt_million_mi[year])})
+    return pd.DataFrame(rows)
+
+
+def run_rows(rows: pd.DataFrame) -> pd.DataFrame:
+    """The issue's workbook (MV-1 counts, ``base_year_vmt_million``, uncalibrated) per row."""
+    rows = rows.assign(special_fuels_kgal=float("nan"))
+    with tempfile.TemporaryDirectory() as tmp:
+        return pd.DataFrame([state_fuel.run_state(row, None, Path(tmp)) for _, row in rows.iterrows()])
+
+
+def national_runs() -> pd.DataFrame:
+    """The nation in every year with national registrations."""
+    rows = national().dropna(subset=MV1_COLUMNS).reset_index().assign(state="United States")
+    return run_rows(rows)
+
+
+def all_states_runs(years=(2010, 2017)) -> pd.DataFrame:
+    data = pd.read_csv(STATS / "all_states_2010_2017.csv")
+    return run_rows(data[data.year.isin(years)])
+
+
+def tried_states() -> set[tuple[str, int]]:
+    """(state, year) of validation/state_fuel.py's state-years (its data file's spelling)."""
+    data = pd.read_csv(state_fuel.DATA)
+    names = data.state.replace({"Dist. of Col.": "District of Columbia"})
+    return set(zip(names, data.year))
+
+
+def sum_of_states(states: pd.DataFrame, nation_runs: pd.DataFrame) -> pd.DataFrame:
+    """Per year: the national run, the sum of the 51 state runs, the states tried and the others."""
+    tried = tried_states()
+    data = pd.read_csv(STATS / "all_states_2010_2017.csv")
+    states = states.merge(data[["state", "year", *MV1_COLUMNS, "highway_gasoline_kgal"]], on=["state", "year"])
+    states["vehicles_per_million_mi"] = states[MV1_COLUMNS].sum(axis=1) / states.vmt_million_mi
+    states["truck_share_pct"] = 100 * states.mv1_trucks / (states.mv1_trucks + states.mv1_automobiles)
+    states["observed_gal_per_kmi"] = states.highway_gasoline_kgal / states.vmt_million_mi
+    rows = []
+    for year, part in states.groupby("year"):
+        nation = nation_runs[nation_runs.year == year].iloc[0]
+        is_tried = [(s, y) in tried for s, y in zip(part.state, part.year)]
+        row = {"year": year, "national_model_Mgal": nation.gasoline_model_Mgal,
+               "national_observed_Mgal": nation.gasoline_observed_Mgal,
+               "national_error_pct": nation.gasoline_error_pct,
+               "states_model_Mgal": part.gasoline_model_Mgal.sum(),
+               "states_vs_national_run_pct": 100 * (part.gasoline_model_Mgal.sum() / nation.gasoline_model_Mgal - 1),
+               "median_error_pct": part.gasoline_error_pct.median(),
+               "hits": int((part.gasoline_error_pct.abs() <= 100 * state_fuel.GASOLINE_TOLERANCE).sum()),
+               "above": int((part.gasoline_error_pct > 0).sum()),
+               "corr_error_observed_gal_per_kmi": part.gasoline_error_pct.corr(part.observed_gal_per_kmi),
+               "corr_error_vehicles_per_mile": part.gasoline_error_pct.corr(part.vehicles_per_million_mi),
+               "corr_error_truck_share": part.gasoline_error_pct.corr(part.truck_share_pct),
+               "model_gal_per_kmi_min": (1e3 * part.gasoline_model_Mgal / part.vmt_million_mi).min(),
+               "model_gal_per_kmi_max": (1e3 * part.gasoline_model_Mgal / part.vmt_million_mi).max(),
+               "observed_gal_per_kmi_min": part.observed_gal_per_kmi.min(),
+               "observed_gal_per_kmi_max": part.observed_gal_per_kmi.max(),
+               "observed_gal_per_kmi_median": part.observed_gal_per_kmi.median()}
+        for name, sel in (("tried", part[is_tried]), ("others", part[[not t for t in is_tried]])):
+            row[f"{name}_states"] = len(sel)
+            row[f"{name}_vmt_weighted_error_pct"] = 100 * (sel.gasoline_model_Mgal.sum() / sel.gasoline_observed_Mgal.sum() - 1)
+            row[f"{name}_median_error_pct"] = sel.gasoline_error_pct.median()
+            row[f"{name}_vehicles_per_million_mi"] = sel[MV1_COLUMNS].sum().sum() / sel.vmt_million_mi.sum()
+            row[f"{name}_truck_share_pct"] = 100 * sel.mv1_trucks.sum() / (sel.mv1_trucks.sum() + sel.mv1_automobiles.sum())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def pct_per_year(start: float, end: float, years: int) -> float:
+    return 100 * ((end / start) ** (1 / years) - 1)
+
+
+def published_change(start: int, end: int) -> dict:
+    """FHWA VM-1 on-road mpg change [%/yr] of passenger cars and other 2-axle 4-tire vehicles
+    from ``start`` to ``end`` (each edition that has both years), and the nation's miles per
+    gallon of highway gasoline (VM-2 miles / MF-21 gasoline)."""
+    vm1 = pd.read_csv(STATS / "vm1_onroad_mpg.csv")
+    changes = []
+    for _, edition in vm1.groupby("edition"):
+        edition = edition.set_index("year")
+        if start in edition.index and end in edition.index:
+            for column in ("passenger_car_mpg", "other_2axle_4tire_mpg"):
+                changes.append(pct_per_year(edition[column][start], edition[column][end], end - start))
+    nation = national()
+    mpg = nation.vmt_million_mi / nation.highway_gasoline_kgal * 1e3
+    return {"vm1_low": min(changes) if changes else float("nan"),
+            "vm1_high": max(changes) if changes else float("nan"),
+            "nation_mi_per_gal_gasoline": pct_per_year(mpg[start], mpg[end], end - start)}
+
+
+def turnover_by_period(results: pd.DataFrame) -> pd.DataFrame:
+    """Per base year and period of the runs: the model's light-duty mpg change against the
+    published change of the same calendar years."""
+    mv1 = results[results.inputs == "mv1"].copy()
+    data = pd.read_csv(state_fuel.DATA)
+    by_key = {(r.state, r.year): r for _, r in data.iterrows()}
+
+    def end_year(state: str, year: int) -> int:
+        later = state_fuel.later_year(data, by_key[(state, year)])
+        return int(later.year) if later is not None else year + 1
+
+    mv1["end"] = [end_year(s, y) for s, y in zip(mv1.state, mv1.year)]
+    rows = []
+    for (start, end), part in mv1.groupby(["year", "end"]):
+        published = published_change(int(start), int(end))
+        low, high = published["vm1_low"], published["vm1_high"]
+        model = part.ld_mpg_change_pct_per_year
+        inside = ((model >= low) & (model <= high)) if low == low else pd.Series([pd.NA] * len(part))
+        rows.append({"start": int(start), "end": int(end), "state_years": len(part),
+                     "model_low": model.min(), "model_high": model.max(), **published,
+                     "in_vm1_range": inside.sum() if low == low else pd.NA})
+    return pd.DataFrame(rows)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--no-runs", action="store_true", help="only the analyses of the saved results")
+    args = parser.parse_args(argv)
+    results = pd.read_csv(RESULTS)
+    out = {"sample": sample_by_year(results), "turnover": turnover_by_period(results)}
+    if not args.no_runs:
+        nation = national_runs()
+        out["national"] = nation
+        out["sum_of_states"] = sum_of_states(all_states_runs(), nation)
+    with pd.option_context("display.width", 200, "display.max_columns", 30):
+        for name, table in out.items():
+            print(f"== {name}")
+            print(table.round(2).to_string(index=False))
+    return out
+
+
+if __name__ == "__main__":
+    main()
