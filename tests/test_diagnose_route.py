@@ -44,8 +44,13 @@ def _problem(seed: int, profile: tuple | None, amplitude: float) -> Problem:
     residual = rng.normal(0.0, 0.02, N)
     if profile is not None:
         residual = residual + amplitude * grade_col * route_grade_shape(dist, profile)
+    return _vehicle_problem(t, speed, residual, grade_col, 1e-4 * speed ** 3)
+
+
+def _vehicle_problem(t, speed, residual, grade_col, drag_col) -> Problem:
+    """A fuel-rate problem with the catalogue's constant grade and a drag as candidates."""
     cands = [Candidate("road_grade", [grade_col], [{}], -15.0, 15.0),
-             Candidate("aero_drag", [1e-4 * speed ** 3], [{}], 0.0, 5.0)]
+             Candidate("aero_drag", [drag_col], [{}], 0.0, 5.0)]
     return Problem("vehicle", "fuel_rate_g_per_s", t, residual, np.zeros(N), cands, {},
                    driver_channels={"speed": speed}, units="g/s",
                    initial_terms=[(np.ones(N), -0.01, 0.01)],
@@ -90,12 +95,7 @@ def _road_problem(seed: int, road_amp: float, drag: float = 0.0) -> Problem:
     grade_col, drag_col = 0.01 * speed, 1e-4 * speed ** 3
     grade = road_amp * np.sin(2 * np.pi * dist / 3000.0)
     residual = grade * grade_col + drag * drag_col + rng.normal(0.0, 0.02, N)
-    cands = [Candidate("road_grade", [grade_col], [{}], -15.0, 15.0),
-             Candidate("aero_drag", [drag_col], [{}], 0.0, 5.0)]
-    return Problem("vehicle", "fuel_rate_g_per_s", t, residual, np.zeros(N), cands, {},
-                   driver_channels={"speed": speed}, units="g/s",
-                   initial_terms=[(np.ones(N), -0.01, 0.01)],
-                   integral=IntegralSpec(moving=speed > 0.1, speed_mps=speed, weight=np.ones(N), unit="g"))
+    return _vehicle_problem(t, speed, residual, grade_col, drag_col)
 
 
 def _road(problems, names):

@@ -154,24 +154,24 @@ def _split(nuisance):
     return cols, lo, hi
 
 
-def cv_fit(r, nuisance: list[tuple], x: np.ndarray, lo: float, hi: float, folds, k):
+def cv_fit(r, nuisance: list[tuple], x: np.ndarray, lo: float, hi: float, folds, k, penalty: float = 0.0):
     """Held-out SSE with and without ``x`` (the ``nuisance`` terms always in), and the full fit.
 
-    ``nuisance``: the terms already in the model, ``[(column, lower, upper), ...]``.
+    ``nuisance``: the terms already in the model, ``[(column, lower, upper), ...]``. ``x``: one
+    column (n,) or a block candidate's columns (p, n), each coefficient within [``lo``, ``hi``]
+    and penalised by ``penalty`` (:func:`_penalised`; 0: none).
     """
     ncols, nlo, nhi = _split(nuisance)
-    cols = np.array(ncols + [x])
-    los, his = np.r_[nlo, lo], np.r_[nhi, hi]
+    added = np.atleast_2d(x)
+    q, p = len(ncols), added.shape[0]
+    cols = np.vstack([np.array(ncols, dtype=float).reshape(q, len(r)), added])
+    los, his = np.r_[nlo, np.full(p, lo)], np.r_[nhi, np.full(p, hi)]
     G_f = _fold_gram(cols, folds, k)
     c_f = np.array([cols[:, folds == f] @ r[folds == f] for f in range(k)])
     rr_f = np.array([r[folds == f] @ r[folds == f] for f in range(k)])
-    j = cols.shape[0] - 1
-    sse_after = _heldout_sse(G_f, c_f, rr_f, los, his)
-    if ncols:
-        sse_before = _heldout_sse(G_f[:, :j, :j], c_f[:, :j], rr_f, nlo, nhi)
-    else:
-        sse_before = rr_f.sum()
-    b = _solve_bounded(G_f.sum(0), c_f.sum(0), los, his)
+    sse_after = _heldout_sse(G_f, c_f, rr_f, los, his, penalty=penalty, start=q)
+    sse_before = _heldout_sse(G_f[:, :q, :q], c_f[:, :q], rr_f, nlo, nhi) if q else rr_f.sum()
+    b = _solve_bounded(_penalised(G_f.sum(0), q, penalty), c_f.sum(0), los, his)
     return float(sse_before), float(sse_after), b
 
 
@@ -248,22 +248,6 @@ def shift_null(r, nuisance: list[tuple], candidates: list[Candidate], folds, k, 
     return NullDistribution(shifts, max_gain, max_dsse, gains)
 
 
-def cv_fit_block(r, nuisance: list[tuple], cand: Candidate, folds, k):
-    """:func:`cv_fit` of a block candidate: held-out SSE without and with its columns
-    (penalised, :attr:`Candidate.penalty`), and the full fit's coefficients."""
-    ncols, nlo, nhi = _split(nuisance)
-    q, p = len(ncols), cand.block.shape[0]
-    cols = np.vstack([np.array(ncols).reshape(q, len(r)), cand.block])
-    los, his = np.r_[nlo, np.full(p, cand.lower)], np.r_[nhi, np.full(p, cand.upper)]
-    G_f = _fold_gram(cols, folds, k)
-    c_f = np.array([cols[:, folds == f] @ r[folds == f] for f in range(k)])
-    rr_f = np.array([r[folds == f] @ r[folds == f] for f in range(k)])
-    sse_after = _heldout_sse(G_f, c_f, rr_f, los, his, penalty=cand.penalty, start=q)
-    sse_before = _heldout_sse(G_f[:, :q, :q], c_f[:, :q], rr_f, nlo, nhi) if q else rr_f.sum()
-    b = _solve_bounded(_penalised(G_f.sum(0), q, cand.penalty), c_f.sum(0), los, his)
-    return float(sse_before), float(sse_after), b
-
-
 def block_shape(cand: Candidate, weights) -> tuple[dict[str, float], np.ndarray, float]:
     """A block candidate at fitted ``weights`` as one column: the weights scaled to a largest
     magnitude of 1 (the shape ``{"w0": ..., ...}``), its column, and the scale (the linear
@@ -301,7 +285,7 @@ def _block_null_gain(cand, N, cN, r_fft, masks, shifts, rr, sse_before, bounds, 
 def evaluate_candidate(r, nuisance, cand: Candidate, folds, k) -> CVResult:
     """Best shape value by held-out error; coefficient refitted on all data."""
     if cand.block is not None:
-        before, after, b = cv_fit_block(r, nuisance, cand, folds, k)
+        before, after, b = cv_fit(r, nuisance, cand.block, cand.lower, cand.upper, folds, k, cand.penalty)
         n = len(r)
         rb, ra = np.sqrt(before / n), np.sqrt(max(after, 0.0) / n)
         w = b[len(nuisance):]
