@@ -89,3 +89,23 @@ def test_summary_heading_and_ids_are_not_cut(report):
                 assert [c for c, _ in texts] == [cell]
     ids = [c.value for c in ws["A"] if isinstance(c.value, str) and c.value.startswith("baseline_long")]
     assert ids and all(len(i) < _width(ws, "A") for i in ids)
+
+
+def test_summary_sentences_wrap_within_the_table(report):
+    # a sentence in one cell runs past the table and a fit-to-page print shrinks the whole
+    # sheet to fit it: each sentence under the headline is merged across the table's columns,
+    # wrapped, in a row tall enough for its lines at the columns' total width
+    ws = report["Summary"]
+    header = next(r for r in ws.iter_rows() if r[0].value == "scenario_id")
+    last_column = max(c.column for c in header if c.value is not None)
+    table_width = sum(_width(ws, c.column_letter) for c in header if c.value is not None)
+    merged = {m.min_row: m for m in ws.merged_cells.ranges}
+    sentences = [c for c in ws["A"] if isinstance(c.value, str) and c.value.startswith(("Ranges:", "Drivers:", "Rates,"))]
+    assert len(sentences) == 3
+    for cell in sentences:
+        span = merged[cell.row]
+        assert (span.min_col, span.max_col, span.max_row) == (1, last_column, cell.row)
+        assert cell.alignment.wrap_text
+        lines = math.ceil(len(cell.value) / table_width)
+        height = ws.row_dimensions[cell.row].height or 15.0   # no height stored: the default 15 pt
+        assert height >= 15 * lines

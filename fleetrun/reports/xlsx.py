@@ -114,6 +114,19 @@ class Sheet:
             self.book.write(self.ws, index, column, value, style)
         return self.row
 
+    def note(self, text: str, columns: int, chars_per_line: int) -> int:
+        """A sentence in the next row, merged across the first ``columns`` columns and wrapped,
+        the row as tall as its lines at ``chars_per_line`` characters need: printed within the
+        table's width instead of running past it (which shrinks a fit-to-page print). Returns
+        the row's 1-based number."""
+        self._room(1)
+        index, self.row = self.row, self.row + 1
+        self.ws.set_row(index, 15 * max(1, math.ceil(len(text) / chars_per_line)))
+        if columns > 1:
+            self.ws.merge_range(index, 0, index, columns - 1, "", self.book.style("wrap"))
+        self.book.write(self.ws, index, 0, text, "wrap")
+        return self.row
+
     def rows(self, columns: list[list], styles: list) -> None:
         """Many rows at once: ``columns`` are the table's columns as lists (a DataFrame's
         ``tolist()``), ``styles`` one style name (or None) per column; each cell as
@@ -244,11 +257,12 @@ def printed_width(values, number_format: str | None) -> int:
     return max(widest, len(shown) + (1 if big < 0 else 0))
 
 
-def fit_frame(sheet: Sheet, frames, minimum: int = 10, maximum: int = 60, formats: dict | None = None) -> None:
+def fit_frame(sheet: Sheet, frames, minimum: int = 10, maximum: int = 60, formats: dict | None = None) -> dict[int, int]:
     """Column widths for one or more tables written in the same columns (the k-th column of
     each frame lands in sheet column k): the widest header or printed value + 3 characters of
     margin (proportional fonts, the filter button). ``formats``: number format per column
-    index where a column's name is not a FORMATS key (a pivot's scenario columns)."""
+    index where a column's name is not a FORMATS key (a pivot's scenario columns). Returns the
+    widths set, by column index."""
     widths: dict[int, int] = {}
     for frame in frames:
         for k, name in enumerate(frame.columns):
@@ -256,7 +270,9 @@ def fit_frame(sheet: Sheet, frames, minimum: int = 10, maximum: int = 60, format
             width = max(len(str(name)), printed_width(frame[name].tolist(), fmt)) + 3
             widths[k] = max(widths.get(k, 0), width)
     for k, width in widths.items():
-        sheet.ws.set_column(k, k, max(minimum, min(maximum, width)))
+        widths[k] = max(minimum, min(maximum, width))
+        sheet.ws.set_column(k, k, widths[k])
+    return widths
 
 
 def _table(sheet: Sheet, frame: pd.DataFrame, styled: bool = True, widths: bool = True) -> None:
@@ -359,8 +375,9 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
     frame = report_text.totals_with_fuel_mpg(totals, result.results)
     frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
     frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
-    fit_frame(sheet, [frame], minimum=12)
-    sheet.ws.set_column("B:B", 34, book.style("wrap"))
+    widths = fit_frame(sheet, [frame], minimum=12)
+    widths[1] = 34
+    sheet.ws.set_column("B:B", widths[1], book.style("wrap"))
     sheet.append(["Fleet fuel and fuel-tax forecast"], "title")
     sheet.append(["Fleet workbook", result.fleet.path.name])
     sheet.append(["sha256", result.fleet.sha256])
@@ -372,7 +389,7 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
         sheet.append(list(values), [None, "wrap"] + [FORMATS.get(str(n)) for n in frame.columns[2:]],
                      height=15 * lines if lines > 1 else None)
     n = len(frame)
-    row = _summary_words(sheet, result)
+    row = _summary_words(sheet, result, len(frame.columns), sum(widths.values()))
     if n:
         chart = _chart(book, "column", "Fuel-tax revenue over the budget period",
                        ("Scenario", "US$ over the budget period", '"$"#,##0'), (7.5, 16))
@@ -382,10 +399,11 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
         sheet.ws.insert_chart(f"A{row + 2}", chart)
 
 
-def _summary_words(sheet: Sheet, result: RunResult) -> int:
+def _summary_words(sheet: Sheet, result: RunResult, columns: int, chars_per_line: int) -> int:
     """The headline of each scenario (rounded to its range; state and federal apart) and
-    where the ranges come from; the last row written. The heading has a row of its own, so
-    no label is cut by the next cell."""
+    where the ranges come from, each sentence wrapped across the table's ``columns`` columns
+    (``chars_per_line`` their width); the last row written. The heading has a row of its own,
+    so no label is cut by the next cell."""
     ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
     sheet.append([])
@@ -404,7 +422,7 @@ def _summary_words(sheet: Sheet, result: RunResult) -> int:
         "Rates, mixes, growth, temperature and on-road fuel of each scenario: see the Assumptions sheet; "
         "fiscal year x fuel with ranges: the Revenue memo sheet."]
     for sentence in sentences:
-        sheet.append([sentence])
+        sheet.note(sentence, columns, chars_per_line)
     return sheet.row
 
 
