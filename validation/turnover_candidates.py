@@ -1,7 +1,7 @@
 """Why the model's light-duty fleet loses mpg over 2000-2008: the candidates pre-registered in
 docs/validation-state-fuel.md ("Why the model's fleet loses mpg over 2000-2008"), measured.
 
-    python validation/turnover_candidates.py [--candidates present,H1a,...] [--years 2000,2003]
+    python validation/turnover_candidates.py [--candidates shipped,H1a,...] [--years 2000,2003]
 
 For each candidate the issue's national workbook (the states' summed MV-1 counts and VM-2 miles,
 ``inputs/state_statistics/national_sum_years.csv``; ``cycle_mix = default``; uncalibrated) is
@@ -11,7 +11,8 @@ truck mpg. Candidates change only how a cohort's model year scales its simulated
 (``fleetrun.registrations.turnover``), each from EPA Automotive Trends' own columns
 (``inputs/epa_trends/trends_2022_light_duty.csv``, PROVENANCE.md there):
 
-- ``present``: the shipped default (the code as it is);
+- ``shipped``: the default as the code has it now (H2e since 2026-11-25; the table's "present"
+  row of docs/validation-state-fuel.md is this candidate at commit 270a407, the default before);
 - ``rw_all``: the shipped rule on the 2022 edition's real-world "all" column (edition check);
 - ``H1a``: the 2-cycle (lab) "all" column, the label formula's shortfall for every vintage;
 - ``H1b``: H1a and the calendar year's share of Trends' phase-in of the shortfall,
@@ -19,7 +20,8 @@ truck mpg. Candidates change only how a cohort's model year scales its simulated
   "all" rows of model year y);
 - ``H2``: the real-world car column for automobiles, the truck column for light trucks;
 - ``H2lab``: the 2-cycle car / truck columns (H1a per class);
-- ``H3``: miles per vehicle flat over age (OMEGA's curves' survival-weighted mean);
+- ``H3``: miles per vehicle flat over age (OMEGA's curves' survival-weighted mean), on the
+  shipped default;
 - ``H4``: ``rw_all`` with the electric vehicles taken out of every model year (the library's
   MY2022 vehicles are non-electric); ``H1ae``, ``H2e``, ``H2labe``: H1a, H2, H2lab likewise.
 """
@@ -40,26 +42,21 @@ sys.path.insert(0, str(ROOT / "validation"))
 
 import state_fuel  # noqa: E402  (the issue's workbook, its one owner)
 
+sys.path.insert(0, str(ROOT / "models" / "vehicle_library"))
+import make_trends  # noqa: E402  (the non-electric Trends tables, their one owner)
+
 from fleetrun.registrations import turnover  # noqa: E402
 
-TRENDS = ROOT / "inputs" / "epa_trends" / "trends_2022_light_duty.csv"
 NATIONAL = ROOT / "inputs" / "state_statistics" / "national_sum_years.csv"
 LIGHT_DUTY = ("automobile", "light_truck")
-CANDIDATES = ("present", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe")
+CANDIDATES = ("shipped", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe")
 PHASE_IN_END = 2005        # Trends: shortfall phased in over MY1986-2004, derived 5-cycle from 2005
 
 
 def trends(column: str, regulatory_class: str, electric: bool = True) -> pd.Series:
     """One Trends column of one regulatory class (index: model year); ``electric=False``: the
-    non-electric vehicles' harmonic mean, the electric share's gallons per mile taken out at the
-    EV proxy's mpg (Tesla's row of the class and year; nearest year where it has none)."""
-    data = pd.read_csv(TRENDS)
-    part = data[data.regulatory_class == regulatory_class].set_index("model_year")
-    mpg = part[column]
-    if electric:
-        return mpg
-    share, proxy = part.ev_share, part[f"ev_proxy_{column}"].ffill().bfill()
-    return (1.0 - share) / (1.0 / mpg - share / proxy)
+    non-electric vehicles' harmonic mean (models/vehicle_library/make_trends.py, its one owner)."""
+    return make_trends.nonelectric_mpg(regulatory_class, column, electric)
 
 
 def _ratio_factor(series: pd.Series):
