@@ -4,8 +4,7 @@ The fuel equation is the one of :mod:`fleetrun.simulation.engine` (a Willans lin
 Chen-Flynn friction). What differs for trucks is where its constants come from
 (``models/heavy_duty/engines.toml``):
 
-- friction, full-load efficiency fall-off: heavy-diesel literature values;
-- accessory load: DOE's published vehicle accessory load by service class (:func:`accessory_power_W`);
+- friction, full-load efficiency fall-off, accessory load: heavy-diesel literature values;
 - the Willans slope ``eta_indicated``: anchored on EPA's engine CO2 standards. An engine of the
   row's service class (heavy >= 10 L, else medium) and model year that just meets its
   standard emits, over the steady-state SET modes (40 CFR 1036.510), exactly the standard in
@@ -274,26 +273,6 @@ def reference_engine(service: str, idle_speed_rpm: float, peak_torque_speed_frac
                            idle_torque_fraction=idle_torque_fraction)
 
 
-def accessory_power_W(service: str) -> float:
-    """The accessory load [W] a ``service``-class diesel's vehicle draws from the engine: DOE's
-    published vehicle accessory load (``aux_kw`` of the DOE vehicle engines.toml's
-    ``accessory_load`` names, in reference_inputs_doe_nrel.toml, from NREL T3CO).
-
-    Parameters
-    ----------
-    service : str, ``heavy`` or ``medium``
-
-    Returns
-    -------
-    accessory power [W].
-
-    >>> accessory_power_W("heavy"), accessory_power_W("medium")
-    (3500.0, 3230.0)
-    """
-    load = model_file(ENGINES_FILE)["accessory_load"]
-    return 1000.0 * float(model_file(load["file"])["vehicles"][load[service]]["aux_kw"])
-
-
 @lru_cache(maxsize=None)
 def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, peak_torque_speed_fraction: float,
                          idle_torque_fraction: float) -> HeavyDutyFuelConstants:
@@ -311,8 +290,7 @@ def heavy_duty_constants(service: str, model_year: int, idle_speed_rpm: float, p
     -------
     HeavyDutyFuelConstants (the eight constants of engine.py's fuel equation).
     """
-    literature = HeavyDutyFuelConstants(eta_indicated=1.0, accessory_power_W=accessory_power_W(service),
-                                        **model_file(ENGINES_FILE)["constants"])
+    literature = HeavyDutyFuelConstants(eta_indicated=1.0, **model_file(ENGINES_FILE)["constants"])
     engine = reference_engine(service, idle_speed_rpm, peak_torque_speed_fraction, idle_torque_fraction)
     eta = willans_slope_for_standard(standard_for(service, model_year), literature, engine)
     return replace(literature, eta_indicated=eta)
