@@ -1,0 +1,162 @@
+"""The national registrations run class by class against FHWA VM-1 (docs/validation-state-fuel.md,
+"Class by class against VM-1").
+
+    python validation/vm1_by_class.py [--years 2000,2003,2006,2008,2009,2010] [--out CSV]
+
+For each year the issue's national workbook (the states' summed MV-1 counts and VM-2 miles,
+``inputs/state_statistics/national_sum_years.csv``; ``cycle_mix = default``; uncalibrated) is run
+for that year alone, and each FHWA class's share of the miles, its fuel (all fuels) per 1,000
+vehicle-miles of all traffic, its gasoline and diesel and its mpg are printed beside VM-1's
+(``inputs/state_statistics/vm1_by_class.csv``, PROVENANCE.md there). VM-1 gives fuel by class,
+not by fuel type; its light-duty fuel is its miles over its on-road mpg (``vm1_onroad_mpg.csv``,
+the same editions), its motorcycles' fuel (where not given) their miles at 2000's mpg. 2009-2010
+are VM-1's revised wheelbase categories, so light duty is compared as one class there; their fuel
+by class was not found stored. No constant is fitted.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "validation"))
+
+import state_fuel  # noqa: E402  (the issue's workbook, its one owner)
+
+STATS = ROOT / "inputs" / "state_statistics"
+CLASSES = ("automobile", "light_truck", "motorcycle", "bus", "single_unit_truck", "combination_truck")
+# VM-1's classes -> the model's FHWA classes (the wheelbase categories of 2007 on: light duty)
+VM1_CLASS = {"passenger_car": "automobile", "other_2axle_4tire": "light_truck", "motorcycle": "motorcycle",
+             "bus": "bus", "single_unit": "single_unit_truck", "combination": "combination_truck",
+             "light_duty_short_wb": "light_duty", "light_duty_long_wb": "light_duty"}
+# The edition of vm1_onroad_mpg.csv whose light-duty mpg goes with each year's miles
+MPG_EDITION = {2000: "TSAR2006-E9", 2003: "TSAR2006-E9", 2006: "TSAR2010-5-9", 2008: "TSAR2010-5-9"}
+YEARS = (2000, 2003, 2006, 2008, 2009, 2010)
+
+
+def vm1(year: int) -> pd.DataFrame:
+    """VM-1 of ``year`` by model class: miles and fuel [millions] (fuel NaN where not found)."""
+    data = pd.read_csv(STATS / "vm1_by_class.csv")
+    data = data[data.year == year].assign(model_class=lambda d: d.vm1_class.map(VM1_CLASS))
+    if year in MPG_EDITION:
+        mpg = pd.read_csv(STATS / "vm1_onroad_mpg.csv")
+        mpg = mpg[(mpg.year == year) & (mpg.edition == MPG_EDITION[year])].iloc[0]
+        for name, column in (("passenger_car", "passenger_car_mpg"), ("other_2axle_4tire", "other_2axle_4tire_mpg")):
+            row = data.vm1_class == name
+            data.loc[row, "fuel_million_gal"] = data.loc[row, "vmt_million_mi"] / mpg[column]
+    first = pd.read_csv(STATS / "vm1_by_class.csv").query("year == 2000 and vm1_class == 'motorcycle'").iloc[0]
+    moto = (data.vm1_class == "motorcycle") & data.fuel_million_gal.isna()
+    data.loc[moto, "fuel_million_gal"] = data.loc[moto, "vmt_million_mi"] * first.fuel_million_gal / first.vmt_million_mi
+    return data.groupby("model_class")[["vmt_million_mi", "fuel_million_gal"]].sum(min_count=1)
+
+
+def model(year: int, folder: Path) -> pd.DataFrame:
+    """The national run of ``year`` by class and fuel: miles and gallons [millions]."""
+    from fleetrun.run.runner import run_fleet
+    from fleetrun.workbook import read_fleet
+
+    row = pd.read_csv(STATS / "national_sum_years.csv").set_index("year", drop=False).loc[year].astype(object)
+    row["state"], row["special_fuels_kgal"] = "United States", float("nan")
+    fiscal = run_fleet(read_fleet(state_fuel.workbook(folder / f"us-{year}.xlsx", row, 1, 0.0)),
+                       error_model=None).fiscal
+    fiscal = fiscal[fiscal.fiscal_year == year]
+    return fiscal.groupby(["vehicle_class", "fuel"])[["miles", "fuel_gal"]].sum() / 1e6
+
+
+def compare(year: int, runs: pd.DataFrame) -> pd.DataFrame:
+    """One year's table: per class the model's and VM-1's share of the miles, fuel per 1,000
+    vehicle-miles of all traffic, gasoline and diesel and mpg."""
+    published = vm1(year)
+    total_model = runs.miles.sum()
+    total_vm1 = published.vmt_million_mi.sum()
+    by_class = runs.groupby(level="vehicle_class").sum()
+    fuel = runs.fuel_gal.unstack("fuel").reindex(columns=["gasoline", "diesel"]).fillna(0.0)
+    classes = list(CLASSES) if "automobile" in published.index else ["light_duty", *CLASSES[2:]]
+    if "light_duty" in classes:
+        for frame in (by_class, fuel):
+            frame.loc["light_duty"] = frame.loc[["automobile", "light_truck"]].sum()
+    rows = []
+    for name in classes:
+        m, p = by_class.loc[name], published.loc[name] if name in published.index else None
+        rows.append({"year": year, "class": name,
+                     "model_miles_pct": 100 * m.miles / total_model,
+                     "vm1_miles_pct": 100 * p.vmt_million_mi / total_vm1 if p is not None else float("nan"),
+                     "model_gal_per_kmi": 1e3 * m.fuel_gal / total_model,
+                     "vm1_gal_per_kmi": 1e3 * p.fuel_million_gal / total_vm1 if p is not None else float("nan"),
+                     "model_gasoline_Mgal": fuel.loc[name, "gasoline"], "model_diesel_Mgal": fuel.loc[name, "diesel"],
+                     "model_diesel_pct": 100 * fuel.loc[name, "diesel"] / m.fuel_gal,
+                     "vm1_fuel_Mgal": p.fuel_million_gal if p is not None else float("nan"),
+                     "model_mpg": m.miles / m.fuel_gal,
+                     "vm1_mpg": p.vmt_million_mi / p.fuel_million_gal if p is not None else float("nan")})
+    return pd.DataFrame(rows)
+
+
+def totals(year: int, runs: pd.DataFrame) -> dict:
+    """The year's national gasoline against the states' summed MF-21 and all fuel against VM-1's."""
+    nation = pd.read_csv(STATS / "national_sum_years.csv").set_index("year").loc[year]
+    published = vm1(year)
+    gasoline = runs.xs("gasoline", level="fuel").fuel_gal.sum()
+    return {"year": year, "gasoline_model_Mgal": gasoline, "gasoline_mf21_Mgal": nation.highway_gasoline_kgal / 1e3,
+            "gasoline_error_pct": 100 * (gasoline / (nation.highway_gasoline_kgal / 1e3) - 1),
+            "vm1_vmt_vs_vm2_pct": 100 * (published.vmt_million_mi.sum() / nation.vmt_million_mi - 1),
+            "all_fuel_model_gal_per_kmi": 1e3 * runs.fuel_gal.sum() / runs.miles.sum(),
+            "all_fuel_vm1_gal_per_kmi": 1e3 * published.fuel_million_gal.sum(min_count=len(published))
+            / published.vmt_million_mi.sum()}
+
+
+def gap_parts(year: int, runs: pd.DataFrame) -> dict:
+    """The model's gasoline per 1,000 vehicle-miles minus the nation's (MF-21 / VM-2), split by
+    VM-1 [gal / 1,000 mi]: ``light_duty`` = model light-duty gasoline - VM-1 light-duty fuel (of
+    which ``ld_share``: the light-duty share of the miles at VM-1's mpg, ``ld_mpg``: the rest),
+    ``other_gasoline`` = the model's gasoline of motorcycles, buses and single-unit trucks, and
+    ``vm1_room`` = the nation's gasoline - VM-1's light-duty fuel, what VM-1's fuel by class leaves
+    for the other classes' gasoline (net of light-duty diesel); gap = light_duty + other_gasoline -
+    vm1_room, up to VM-1's miles against VM-2's (``rest``)."""
+    nation = pd.read_csv(STATS / "national_sum_years.csv").set_index("year").loc[year]
+    published = vm1(year)
+    miles = runs.miles.sum()
+    light = runs.loc[["automobile", "light_truck"]]
+    ld_gas = 1e3 * light.xs("gasoline", level="fuel").fuel_gal.sum() / miles
+    ld_share_m = light.miles.sum() / miles
+    ld_share_v = published.loc[["automobile", "light_truck"]].vmt_million_mi.sum() / published.vmt_million_mi.sum() \
+        if "automobile" in published.index else published.vmt_million_mi["light_duty"] / published.vmt_million_mi.sum()
+    ld_fuel_v = 1e3 * published.fuel_million_gal.reindex(["automobile", "light_truck", "light_duty"]).sum(min_count=1) \
+        / published.vmt_million_mi.sum()
+    observed = nation.highway_gasoline_kgal / nation.vmt_million_mi
+    other = 1e3 * runs.drop(index=["automobile", "light_truck"]).xs("gasoline", level="fuel").fuel_gal.sum() / miles
+    parts = {"year": year, "gap": 1e3 * runs.xs("gasoline", level="fuel").fuel_gal.sum() / miles - observed,
+             "light_duty": ld_gas - ld_fuel_v, "ld_share": ld_fuel_v * (ld_share_m / ld_share_v - 1),
+             "other_gasoline": other, "vm1_room": observed - ld_fuel_v}
+    parts["ld_mpg"] = parts["light_duty"] - parts["ld_share"]
+    parts["rest"] = parts["gap"] - parts["light_duty"] - parts["other_gasoline"] + parts["vm1_room"]
+    parts["observed_gal_per_kmi"] = observed
+    return parts
+
+
+def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--years", default=",".join(map(str, YEARS)))
+    parser.add_argument("--out", type=Path, default=None, help="CSV of the class table")
+    args = parser.parse_args(argv)
+    tables, sums = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for year in (int(y) for y in args.years.split(",")):
+            runs = model(year, Path(tmp))
+            tables.append(compare(year, runs))
+            sums.append({**totals(year, runs), **gap_parts(year, runs)})
+    table, summary = pd.concat(tables, ignore_index=True), pd.DataFrame(sums)
+    with pd.option_context("display.width", 220, "display.max_columns", 30):
+        print(table.round(2).to_string(index=False))
+        print(summary.round(2).to_string(index=False))
+    if args.out:
+        table.to_csv(args.out, index=False, float_format="%.4f")
+    return table, summary
+
+
+if __name__ == "__main__":
+    main()
