@@ -105,8 +105,8 @@ def totals(year: int, runs: pd.DataFrame) -> dict:
             "gasoline_error_pct": 100 * (gasoline / (nation.highway_gasoline_kgal / 1e3) - 1),
             "vm1_vmt_vs_vm2_pct": 100 * (published.vmt_million_mi.sum() / nation.vmt_million_mi - 1),
             "all_fuel_model_gal_per_kmi": 1e3 * runs.fuel_gal.sum() / runs.miles.sum(),
-            "all_fuel_vm1_gal_per_kmi": 1e3 * published.fuel_million_gal.sum(min_count=len(published))
-            / published.vmt_million_mi.sum()}
+            "all_fuel_vm1_gal_per_kmi": 1e3 * published.fuel_million_gal.sum() / published.vmt_million_mi.sum()
+            if published.fuel_million_gal.notna().all() and "bus" in published.index else float("nan")}
 
 
 def gap_parts(year: int, runs: pd.DataFrame) -> dict:
@@ -116,7 +116,7 @@ def gap_parts(year: int, runs: pd.DataFrame) -> dict:
     ``other_gasoline`` = the model's gasoline of motorcycles, buses and single-unit trucks, and
     ``vm1_room`` = the nation's gasoline - VM-1's light-duty fuel, what VM-1's fuel by class leaves
     for the other classes' gasoline (net of light-duty diesel); gap = light_duty + other_gasoline -
-    vm1_room, up to VM-1's miles against VM-2's (``rest``)."""
+    vm1_room (VM-1's light-duty fuel per VM-1 mile, the nation's gasoline per VM-2 mile)."""
     nation = pd.read_csv(STATS / "national_sum_years.csv").set_index("year").loc[year]
     published = vm1(year)
     miles = runs.miles.sum()
@@ -133,15 +133,35 @@ def gap_parts(year: int, runs: pd.DataFrame) -> dict:
              "light_duty": ld_gas - ld_fuel_v, "ld_share": ld_fuel_v * (ld_share_m / ld_share_v - 1),
              "other_gasoline": other, "vm1_room": observed - ld_fuel_v}
     parts["ld_mpg"] = parts["light_duty"] - parts["ld_share"]
-    parts["rest"] = parts["gap"] - parts["light_duty"] - parts["other_gasoline"] + parts["vm1_room"]
     parts["observed_gal_per_kmi"] = observed
     return parts
+
+
+def markdown(table: pd.DataFrame, summary: pd.DataFrame) -> str:
+    """The two tables as docs/validation-state-fuel.md prints them."""
+    def num(value, fmt):
+        return "" if pd.isna(value) else format(value, fmt)
+    lines = ["| year | class | miles % model / VM-1 | fuel per 1,000 mi model / VM-1 | model gasoline / diesel, M gal"
+             " | mpg model / VM-1 |", "|---|---|---|---|---|---|"]
+    for r in table.itertuples():
+        lines.append(f"| {r.year} | {r._2} | {r.model_miles_pct:.2f} / {num(r.vm1_miles_pct, '.2f')} | "
+                     f"{r.model_gal_per_kmi:.2f} / {num(r.vm1_gal_per_kmi, '.2f')} | "
+                     f"{r.model_gasoline_Mgal:,.0f} / {r.model_diesel_Mgal:,.0f} | {r.model_mpg:.2f} / {num(r.vm1_mpg, '.2f')} |")
+    lines += ["", "| year | gasoline error | all fuel per 1,000 mi model / VM-1 | gap | light duty (share / mpg)"
+              " | other classes' gasoline | VM-1's room for it |", "|---|---:|---|---:|---|---:|---:|"]
+    for r in summary.itertuples():
+        lines.append(f"| {r.year} | {r.gasoline_error_pct:+.1f} % | {r.all_fuel_model_gal_per_kmi:.2f} / "
+                     f"{num(r.all_fuel_vm1_gal_per_kmi, '.2f')} | {r.gap:+.2f} | {num(r.light_duty, '+.2f')} "
+                     f"({num(r.ld_share, '+.2f')} / {num(r.ld_mpg, '+.2f')}) | {r.other_gasoline:.2f} | "
+                     f"{num(r.vm1_room, '+.2f')} |")
+    return "\n".join(lines)
 
 
 def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--years", default=",".join(map(str, YEARS)))
     parser.add_argument("--out", type=Path, default=None, help="CSV of the class table")
+    parser.add_argument("--markdown", action="store_true", help="print the tables as the docs page has them")
     args = parser.parse_args(argv)
     tables, sums = [], []
     with tempfile.TemporaryDirectory() as tmp:
@@ -153,6 +173,8 @@ def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     with pd.option_context("display.width", 220, "display.max_columns", 30):
         print(table.round(2).to_string(index=False))
         print(summary.round(2).to_string(index=False))
+    if args.markdown:
+        print(markdown(table, summary))
     if args.out:
         table.to_csv(args.out, index=False, float_format="%.4f")
     return table, summary
