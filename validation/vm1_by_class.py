@@ -55,15 +55,31 @@ def vm1(year: int) -> pd.DataFrame:
     return data.groupby("model_class")[["vmt_million_mi", "fuel_million_gal"]].sum(min_count=1)
 
 
-def model(year: int, folder: Path) -> pd.DataFrame:
-    """The national run of ``year`` by class and fuel: miles and gallons [millions]."""
+def vm1_share_text(year: int) -> str:
+    """Candidate V1 (pre-registered in docs/validation-state-fuel.md): VM-1's national percent of
+    the year's miles for the classes ``base_year_vmt_share_pct`` takes, where VM-1 gives them."""
+    data = pd.read_csv(STATS / "vm1_by_class.csv").query("year == @year")
+    miles = data.groupby(data.vm1_class.map(VM1_CLASS)).vmt_million_mi.sum()
+    listed = [name for name in state_fuel.SHARE_CLASSES if name in miles.index]
+    return ", ".join(f"{name}:{100 * miles[name] / miles.sum():.4f}" for name in listed)
+
+
+def model(year: int, folder: Path, vm1_shares: bool = False) -> pd.DataFrame:
+    """The national run of ``year`` by class and fuel: miles and gallons [millions]; with
+    ``vm1_shares`` the scenario carries VM-1's class shares of the year (V1)."""
+    import openpyxl
+
     from fleetrun.run.runner import run_fleet
     from fleetrun.workbook import read_fleet
 
     row = pd.read_csv(STATS / "national_sum_years.csv").set_index("year", drop=False).loc[year].astype(object)
     row["state"], row["special_fuels_kgal"] = "United States", float("nan")
-    fiscal = run_fleet(read_fleet(state_fuel.workbook(folder / f"us-{year}.xlsx", row, 1, 0.0)),
-                       error_model=None).fiscal
+    path = state_fuel.workbook(folder / f"us-{year}.xlsx", row, 1, 0.0)
+    if vm1_shares:
+        wb = openpyxl.load_workbook(path)
+        wb["Scenarios"].cell(2, state_fuel.SCENARIO.index("base_year_vmt_share_pct") + 1).value = vm1_share_text(year)
+        wb.save(path)
+    fiscal = run_fleet(read_fleet(path), error_model=None).fiscal
     fiscal = fiscal[fiscal.fiscal_year == year]
     return fiscal.groupby(["vehicle_class", "fuel"])[["miles", "fuel_gal"]].sum() / 1e6
 
@@ -101,7 +117,11 @@ def totals(year: int, runs: pd.DataFrame) -> dict:
     nation = pd.read_csv(STATS / "national_sum_years.csv").set_index("year").loc[year]
     published = vm1(year)
     gasoline = runs.xs("gasoline", level="fuel").fuel_gal.sum()
-    return {"year": year, "gasoline_model_Mgal": gasoline, "gasoline_mf21_Mgal": nation.highway_gasoline_kgal / 1e3,
+    diesel = runs.xs("diesel", level="fuel").fuel_gal.sum()
+    special = pd.read_csv(STATS / "national_years.csv").set_index("year").special_fuels_mgal
+    special = special.get(year, float("nan")) if year != 2009 else float("nan")   # 2009: rounded to the billion
+    return {"year": year, "diesel_model_Mgal": diesel,
+            "special_fuels_error_pct": 100 * (diesel / special - 1), "gasoline_model_Mgal": gasoline, "gasoline_mf21_Mgal": nation.highway_gasoline_kgal / 1e3,
             "gasoline_error_pct": 100 * (gasoline / (nation.highway_gasoline_kgal / 1e3) - 1),
             "vm1_vmt_vs_vm2_pct": 100 * (published.vmt_million_mi.sum() / nation.vmt_million_mi - 1),
             "all_fuel_model_gal_per_kmi": 1e3 * runs.fuel_gal.sum() / runs.miles.sum(),
@@ -162,11 +182,13 @@ def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     parser.add_argument("--years", default=",".join(map(str, YEARS)))
     parser.add_argument("--out", type=Path, default=None, help="CSV of the class table")
     parser.add_argument("--markdown", action="store_true", help="print the tables as the docs page has them")
+    parser.add_argument("--vm1-shares", action="store_true",
+                        help="candidate V1: each year's VM-1 class shares of the miles in the scenario")
     args = parser.parse_args(argv)
     tables, sums = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for year in (int(y) for y in args.years.split(",")):
-            runs = model(year, Path(tmp))
+            runs = model(year, Path(tmp), args.vm1_shares)
             tables.append(compare(year, runs))
             sums.append({**totals(year, runs), **gap_parts(year, runs)})
     table, summary = pd.concat(tables, ignore_index=True), pd.DataFrame(sums)
