@@ -55,12 +55,13 @@ def vm1(year: int) -> pd.DataFrame:
     return data.groupby("model_class")[["vmt_million_mi", "fuel_million_gal"]].sum(min_count=1)
 
 
-def vm1_share_text(year: int) -> str:
+def vm1_share_text(year: int, motorcycles: bool = True) -> str:
     """Candidate V1 (pre-registered in docs/validation-state-fuel.md): VM-1's national percent of
-    the year's miles for the classes ``base_year_vmt_share_pct`` takes, where VM-1 gives them."""
+    the year's miles for the classes ``base_year_vmt_share_pct`` takes, where VM-1 gives them
+    (not motorcycles where the registrations count none: their miles stay with light duty)."""
     data = pd.read_csv(STATS / "vm1_by_class.csv").query("year == @year")
     miles = data.groupby(data.vm1_class.map(VM1_CLASS)).vmt_million_mi.sum()
-    listed = [name for name in state_fuel.SHARE_CLASSES if name in miles.index]
+    listed = [name for name in state_fuel.SHARE_CLASSES if name in miles.index and (motorcycles or name != "motorcycle")]
     return ", ".join(f"{name}:{100 * miles[name] / miles.sum():.4f}" for name in listed)
 
 
@@ -177,14 +178,54 @@ def markdown(table: pd.DataFrame, summary: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def states_v1(years) -> pd.DataFrame:
+    """Candidate V1 on every state-year of validation/state_fuel.py in ``years`` (MV-1-only
+    workbook plus the year's national VM-1 class shares), beside the saved MV-1-only result."""
+    data = pd.read_csv(state_fuel.DATA)
+    saved = pd.read_csv(state_fuel.ROOT / "docs" / "validation-state-fuel.csv").query("inputs == 'mv1'")
+    saved = saved.set_index(["state", "year"])
+    rows, share_text = [], state_fuel.share_text
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for _, row in data[data.year.isin(years)].iterrows():
+                state_fuel.share_text = lambda shares, r: vm1_share_text(int(r.year), pd.notna(r.mv1_motorcycles))
+                shares = pd.Series(float("nan"), index=list(state_fuel.SHARE_CLASSES))
+                out = state_fuel.run_state(row, None, Path(tmp), shares)
+                before = saved.loc[(row.state, int(row.year))]
+                rows.append({"state": row.state, "year": int(row.year),
+                             "gasoline_error_pct": out["gasoline_error_pct"], "gasoline_hit": out["gasoline_hit"],
+                             "diesel_error_pct": out["diesel_error_pct"],
+                             "diesel_hit": out["diesel_hit"] if pd.notna(row.special_fuels_kgal) else pd.NA,
+                             "before_gasoline_error_pct": before.gasoline_error_pct,
+                             "before_gasoline_hit": bool(before.gasoline_hit),
+                             "before_diesel_error_pct": before.diesel_error_pct,
+                             "before_diesel_hit": bool(before.diesel_hit) if pd.notna(row.special_fuels_kgal) else pd.NA})
+    finally:
+        state_fuel.share_text = share_text
+    return pd.DataFrame(rows)
+
+
 def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--years", default=",".join(map(str, YEARS)))
     parser.add_argument("--out", type=Path, default=None, help="CSV of the class table")
     parser.add_argument("--markdown", action="store_true", help="print the tables as the docs page has them")
+    parser.add_argument("--states", action="store_true",
+                        help="candidate V1 on the state-years of the years given, hit counts beside the saved ones")
     parser.add_argument("--vm1-shares", action="store_true",
                         help="candidate V1: each year's VM-1 class shares of the miles in the scenario")
     args = parser.parse_args(argv)
+    if args.states:
+        states = states_v1([int(y) for y in args.years.split(",")])
+        both = states.dropna(subset=["diesel_hit"])
+        with pd.option_context("display.width", 220, "display.max_columns", 30):
+            print(states.round(2).to_string(index=False))
+        print(f"V1 on {len(states)} state-years: gasoline within 5 % {int(states.gasoline_hit.sum())} "
+              f"(saved MV-1-only {int(states.before_gasoline_hit.sum())}); of {len(both)} with special fuels: "
+              f"within 10 % {int(both.diesel_hit.astype(bool).sum())} ({int(both.before_diesel_hit.astype(bool).sum())}), both "
+              f"{int((both.gasoline_hit & both.diesel_hit.astype(bool)).sum())} "
+              f"({int((both.before_gasoline_hit & both.before_diesel_hit.astype(bool)).sum())})")
+        return states, pd.DataFrame()
     tables, sums = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for year in (int(y) for y in args.years.split(",")):
