@@ -1,7 +1,9 @@
 """The national registrations run class by class against FHWA VM-1 (docs/validation-state-fuel.md,
 "Class by class against VM-1").
 
-    python validation/vm1_by_class.py [--years 2000,2003,2006,2008,2009,2010] [--out CSV]
+    python validation/vm1_by_class.py [--years 2000,2003,2006,2008,2009,2010] [--markdown] [--out CSV]
+    python validation/vm1_by_class.py --vm1-shares      # candidate V1, national
+    python validation/vm1_by_class.py --states          # candidate V1 on the state-years (~1 min)
 
 For each year the issue's national workbook (the states' summed MV-1 counts and VM-2 miles,
 ``inputs/state_statistics/national_sum_years.csv``; ``cycle_mix = default``; uncalibrated) is run
@@ -11,7 +13,9 @@ vehicle-miles of all traffic, its gasoline and diesel and its mpg are printed be
 not by fuel type; its light-duty fuel is its miles over its on-road mpg (``vm1_onroad_mpg.csv``,
 the same editions), its motorcycles' fuel (where not given) their miles at 2000's mpg. 2009-2010
 are VM-1's revised wheelbase categories, so light duty is compared as one class there; their fuel
-by class was not found stored. No constant is fitted.
+by class was not found stored. No constant is fitted. Candidate V1 (pre-registered in the docs,
+not adopted) puts each year's VM-1 class shares of the miles into the scenario's
+``base_year_vmt_share_pct``.
 """
 from __future__ import annotations
 
@@ -205,6 +209,20 @@ def states_v1(years) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def print_states(states: pd.DataFrame) -> pd.DataFrame:
+    """V1's state-years and the hit counts beside the saved MV-1-only runs."""
+    both = states.dropna(subset=["diesel_hit"])
+    with pd.option_context("display.width", 220, "display.max_columns", 30):
+        print(states.round(2).to_string(index=False))
+    gas, diesel = both.gasoline_hit, both.diesel_hit.astype(bool)
+    gas0, diesel0 = both.before_gasoline_hit, both.before_diesel_hit.astype(bool)
+    print(f"V1 on {len(states)} state-years: gasoline within 5 % {int(states.gasoline_hit.sum())} "
+          f"(saved MV-1-only {int(states.before_gasoline_hit.sum())}); of {len(both)} with special fuels: "
+          f"within 10 % {int(diesel.sum())} ({int(diesel0.sum())}), both {int((gas & diesel).sum())} "
+          f"({int((gas0 & diesel0).sum())})")
+    return states
+
+
 def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--years", default=",".join(map(str, YEARS)))
@@ -216,16 +234,7 @@ def main(argv=None) -> tuple[pd.DataFrame, pd.DataFrame]:
                         help="candidate V1: each year's VM-1 class shares of the miles in the scenario")
     args = parser.parse_args(argv)
     if args.states:
-        states = states_v1([int(y) for y in args.years.split(",")])
-        both = states.dropna(subset=["diesel_hit"])
-        with pd.option_context("display.width", 220, "display.max_columns", 30):
-            print(states.round(2).to_string(index=False))
-        print(f"V1 on {len(states)} state-years: gasoline within 5 % {int(states.gasoline_hit.sum())} "
-              f"(saved MV-1-only {int(states.before_gasoline_hit.sum())}); of {len(both)} with special fuels: "
-              f"within 10 % {int(both.diesel_hit.astype(bool).sum())} ({int(both.before_diesel_hit.astype(bool).sum())}), both "
-              f"{int((both.gasoline_hit & both.diesel_hit.astype(bool)).sum())} "
-              f"({int((both.before_gasoline_hit & both.before_diesel_hit.astype(bool)).sum())})")
-        return states, pd.DataFrame()
+        return print_states(states_v1([int(y) for y in args.years.split(",")])), pd.DataFrame()
     tables, sums = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for year in (int(y) for y in args.years.split(",")):
