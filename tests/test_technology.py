@@ -123,11 +123,18 @@ def test_import_epa_attaches_classes_to_most_of_the_list():
     assert all(v.get("technology") for v in result.vehicles)
 
 
-def test_label_scale_reproduces_the_label_through_epas_formulas():
+@pytest.mark.parametrize(("model_year", "city_ab", "highway_ab"), [
+    (2016, (0.003259, 1.1805), (0.001376, 1.3466)),     # 2008 label rule set (models/budget.toml)
+    (2022, (0.004091, 1.1601), (0.003191, 1.2945)),     # MY2017+ set
+    (None, (0.004091, 1.1601), (0.003191, 1.2945)),     # no model year: a current vehicle
+])
+def test_label_scale_reproduces_the_label_through_epas_formulas(model_year, city_ab, highway_ab):
+    """The label is inverted with the derived 5-cycle set of the vehicle's model year (40 CFR
+    600.210-12(a)(2); the sets' sources in models/budget.toml)."""
     ftp, hwy, label = np.array([30.0]), np.array([45.0]), np.array([27.0])
-    k = measured.label_scale(label, ftp, hwy)
-    city = 1 / (0.003259 + 1.1805 * k / ftp)        # 40 CFR 600.210-12 derived 5-cycle
-    highway = 1 / (0.001376 + 1.3466 * k / hwy)
+    k = measured.label_scale(label, ftp, hwy, model_years=[model_year])
+    city = 1 / (city_ab[0] + city_ab[1] * k / ftp)
+    highway = 1 / (highway_ab[0] + highway_ab[1] * k / hwy)
     assert 1 / (0.55 / city + 0.45 / highway) == pytest.approx(label, rel=1e-12)
 
 

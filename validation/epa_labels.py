@@ -262,25 +262,26 @@ def distribution(x) -> str:
             + " / ".join(f"{np.mean(np.abs(x) <= t):.1%}" for t in (0.005, 0.01, 0.02, 0.05)))
 
 
-FORMULA_TABLES = ("epa_label", "epa_label_my2017")
+FORMULA_TABLES = ("derived_2008", "derived_2017")   # models/budget.toml [onroad.epa_label.sets]
 
 
 def label_formula_check(labels, table) -> dict:
-    """EPA's derived label formulas (measured.label_formulas(table)) applied to each label row's
+    """EPA's derived label formulas (the coefficient set ``table``, fleetrun.physics.epa_label) applied to each label row's
     own unadjusted city and highway figures (UCity, UHighway) against its unrounded label
     figures, liquid-fuel rows whose figure is not a whole number (where it is, only the rounded
     value is published): per figure, relative differences."""
-    from fleetrun.simulation import measured
+    from fleetrun.physics import epa_label
 
-    (ac, bc), (ah, bh) = measured.label_formulas(table)
+    coef = epa_label.label_set(table)
     d = labels[~labels.atvType.isin(["EV", "Plug-in Hybrid"]) & (labels.UCity > 0) & (labels.UHighway > 0)]
-    city, hw = 1.0 / (ac + bc / d.UCity), 1.0 / (ah + bh / d.UHighway)
-    comb = 1.0 / (measured.LABEL_CITY_SHARE / city + (1 - measured.LABEL_CITY_SHARE) / hw)
+    city = 1.0 / epa_label.label_gal_per_mile(1.0 / d.UCity.to_numpy(), *coef.city)
+    hw = 1.0 / epa_label.label_gal_per_mile(1.0 / d.UHighway.to_numpy(), *coef.highway)
+    comb = epa_label.combined_label_mpg(d.UCity.to_numpy(), d.UHighway.to_numpy(), coef)
     out = {}
     for col, x in (("city08U", city), ("highway08U", hw), ("comb08U", comb)):
         real = d[col].to_numpy()
         keep = ~np.isclose(real, np.round(real), atol=1e-4)
-        out[col] = (x.to_numpy() / real - 1.0)[keep]
+        out[col] = (np.asarray(x) / real - 1.0)[keep]
     return out
 
 
@@ -317,13 +318,13 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
     err, mf = r["err"], r["manufacturer"]
     five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
     real, printed = (np.where(used, lab[c].to_numpy(), np.nan) for c in ("comb08U", "comb08"))
-    variants = {"derived (2008 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), "epa_label"),
-                "real comb08U": (real, "epa_label"), "real comb08 (whole mpg)": (printed, "epa_label"),
-                "real comb08U, MY2017 formulas": (real, "epa_label_my2017"),
-                "real comb08 (whole mpg), MY2017 formulas": (printed, "epa_label_my2017"),
-                "real comb08U + ambiguous (candidates' mean), MY2017 formulas": (
+    variants = {"derived (MY2017 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), None),
+                "real comb08U, 2008 formulas": (real, "derived_2008"),
+                "real comb08 (whole mpg), 2008 formulas": (printed, "derived_2008"),
+                "real comb08U": (real, None), "real comb08 (whole mpg)": (printed, None),
+                "real comb08U + ambiguous (candidates' mean)": (
                     np.where(used, real, np.where(lab.status.to_numpy() == "ambiguous",
-                                                  lab.candidates_comb08U.to_numpy(), np.nan)), "epa_label_my2017")}
+                                                  lab.candidates_comb08U.to_numpy(), np.nan)), None)}
     lines, results = [f"{used.sum()} of {len(err)} vehicles joined to one label"], {}
     lines.append("physics + technology alone on them: " + describe(err.loc[used], TESTS_ALL))
     for name, (label, table) in variants.items():
@@ -337,7 +338,7 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
             lines.append(f"{name}, s fitted held out [{split_name}]: {describe(e, TESTS_ALL)}; s over folds "
                          f"{min(chosen.values())}..{max(chosen.values())}")
         lines.append(f"     {gallons_line(results[(name, '22 folds')], r['paired'])}")
-    lines += split_lines(r, lab, results[("real comb08U, MY2017 formulas", "22 folds")])
+    lines += split_lines(r, lab, results[("real comb08U", "22 folds")])
     return lines, results
 
 
@@ -349,7 +350,7 @@ def split_lines(r, lab, e) -> list[str]:
     from epa_one_number import describe, derived_label
 
     used = lab.used.to_numpy()
-    gap = np.abs(derived_label(r["paired"], lab.index, "epa_label_my2017") / lab.comb08U.to_numpy() - 1.0)
+    gap = np.abs(derived_label(r["paired"], lab.index) / lab.comb08U.to_numpy() - 1.0)
     lines = []
     for name, rows in (("label within 0.5 % of the vehicle's own derived label", used & (gap <= 0.005)),
                        ("label further from it", used & (gap > 0.005))):
