@@ -361,6 +361,73 @@ def split_lines(r, lab, e) -> list[str]:
 TESTS_ALL = ("FTP", "HWFET", "US06")
 
 
+def group_label_errors(r, share, label, groups):
+    """Pre-registered rule G1 (docs/validation-epa.md "Several test vehicles on one label"): the
+    vehicles joined to the same label (``groups``: the same ``label_ids``) share one fuel scale
+    k_g so that the equal-weight mean over the group of each vehicle's label fuel per mile (its
+    simulated FTP and HWFET divided by k_g, the derived formulas of the list's model year) is
+    1 / label: the label is the model type's sales-weighted mean in fuel per mile (40 CFR
+    600.208-12, 600.210-12(c)); sales are unknown here, so equal weights; the simulation carries
+    each configuration's difference (weight, road load, N/V) from the group's mean. FTP and
+    HWFET scaled by k_g, US06 by k_g^share. A vehicle alone on its label: the per-vehicle route.
+    Rows without a label or group: NaN."""
+    from epa_one_number import TESTS, label_set
+
+    from fleetrun.physics import epa_label
+
+    err, paired = r["err"], r["paired"]
+    idx = err.index
+    coef = label_set(None)
+    meas = np.c_[paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]]
+    pred = meas * (1.0 + err[["FTP", "HWFET"]].to_numpy())
+    c = epa_label.CITY_SHARE
+    a = c * coef.city[0] + (1 - c) * coef.highway[0]
+    b = c * coef.city[1] / pred[:, 0] + (1 - c) * coef.highway[1] / pred[:, 1]   # 1/label = a + k b
+    label = np.asarray(label, float)
+    ok = np.isfinite(label) & np.isfinite(b) & pd.notna(pd.Series(groups)).to_numpy()
+    key = pd.Series(np.where(ok, groups, None), index=idx)
+    mean_b = pd.Series(np.where(ok, b, np.nan), index=idx).groupby(key).transform("mean").to_numpy()
+    k = (1.0 / label - a) / mean_b
+    scale = np.c_[k, k, k ** share]
+    out = pd.DataFrame((1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0, index=idx, columns=list(TESTS))
+    out.loc[~ok, :] = np.nan
+    return out
+
+
+def group_lines(r, lab) -> list[str]:
+    """G1 against the per-vehicle route on the same vehicles (real unrounded comb08U, the
+    formulas of the list's model year), the share fitted held out (22 and 5 manufacturer folds);
+    split into vehicles alone on their label and vehicles sharing it. And the diagnostic D1:
+    how often the vehicle's measured HWFET is within 5 % of its label's own unadjusted highway
+    figure (UHighway, the model type's HWFET the label formula starts from)."""
+    from epa_one_number import SHARE_GRID, describe, fit_held_out, label_errors
+    from fleet_error import folds_of
+
+    used = lab.used.to_numpy()
+    err, mf = r["err"], r["manufacturer"]
+    five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
+    real = np.where(used, lab.comb08U.to_numpy(), np.nan)
+    groups = np.where(used, lab.label_ids.astype(str).to_numpy(), None)
+    size = pd.Series(groups).map(pd.Series(groups).value_counts()).to_numpy()
+    shared = used & (size >= 2)
+    lines = [f"G1: {shared.sum()} of {used.sum()} vehicles share their label with another list vehicle "
+             f"({pd.Series(groups[shared]).nunique()} labels)"]
+    for name, apply in (("per vehicle (L1)", lambda s: label_errors(r, "share", s, label=real)),
+                        ("G1 group scale", lambda s: group_label_errors(r, s, real, groups))):
+        for split_name, folds in (("22 folds", mf), ("5 folds", five)):
+            e, chosen = fit_held_out(err, folds, dict(grid=SHARE_GRID, apply=apply))
+            lines.append(f"{name} [{split_name}]: {describe(e, TESTS_ALL)}; s {min(chosen.values())}.."
+                         f"{max(chosen.values())}")
+            if split_name == "22 folds":
+                for part, rows in (("  alone on its label", used & ~shared), ("  sharing its label", shared)):
+                    lines.append(f"{part}: {describe(e.loc[rows], TESTS_ALL)}")
+    hw = r["paired"]["HWFET"].to_numpy()[err.index]
+    d1 = hw / lab.UHighway.to_numpy() - 1.0
+    lines.append("D1 measured HWFET / the label's UHighway - 1 (joined vehicles): " + distribution(d1[used]))
+    lines.append("D1 sharing a label: " + distribution(d1[shared]) + " | alone: " + distribution(d1[used & ~shared]))
+    return lines
+
+
 def prepared():
     """epa_one_number.prepare of the list, with the list's table."""
     from epa_one_number import TESTS, prepare
@@ -376,6 +443,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--list", help="write the per-vehicle join (CSV) here")
     ap.add_argument("--join-only", action="store_true", help="the join alone (no simulation)")
+    ap.add_argument("--groups", action="store_true", help="only the pre-registered group rule G1 and D1")
     args = ap.parse_args(argv)
     j = joined()
     print(f"{len(j)} list vehicles: " + ", ".join(f"{k} {n}" for k, n in j.status.value_counts().items()))
@@ -390,6 +458,10 @@ def main(argv=None):
     lab = labels_of(r, table, j)
     print(f"vehicles of the validation (pairs merged): {len(lab)}; " + ", ".join(
         f"{k} {n}" for k, n in lab.status.fillna("not in the list").value_counts().items()))
+    if args.groups:
+        for text in group_lines(r, lab):
+            print(text, flush=True)
+        return
     lines, _ = route_lines(r, lab)
     for text in formula_lines(r, lab, load_labels()) + lines:
         print(text, flush=True)
