@@ -394,6 +394,75 @@ def group_label_errors(r, share, label, groups):
     return out
 
 
+def highway_label_errors(r, share, highway_label, groups=None):
+    """Pre-registered rule H1 (H1g with ``groups``; docs/validation-epa.md "Several test vehicles
+    on one label"): the label's highway figure (highway08U) as the one number. The vehicle's fuel
+    scale k_H makes the highway formula (the list's model year) of its simulated HWFET / k_H give
+    the label's highway figure; with ``groups``, the vehicles on one label share k_H (the group's
+    mean highway fuel per mile). HWFET scaled by k_H, FTP and US06 by k_H^share."""
+    from epa_one_number import TESTS, label_set
+
+    err, paired = r["err"], r["paired"]
+    idx = err.index
+    a, b = label_set(None).highway
+    pred = paired["HWFET"].to_numpy()[idx] * (1.0 + err["HWFET"].to_numpy())
+    slope = b / pred                                          # 1/label = a + k_H slope
+    hl = np.asarray(highway_label, float)
+    ok = np.isfinite(hl) & np.isfinite(slope)
+    if groups is not None:
+        ok &= pd.notna(pd.Series(groups)).to_numpy()
+        key = pd.Series(np.where(ok, groups, None), index=idx)
+        slope = pd.Series(np.where(ok, slope, np.nan), index=idx).groupby(key).transform("mean").to_numpy()
+    k = (1.0 / hl - a) / slope
+    scale = np.c_[k ** share, k, k ** share]
+    out = pd.DataFrame((1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0, index=idx, columns=list(TESTS))
+    out.loc[~ok, :] = np.nan
+    return out
+
+
+def fit_other_tests(err, folds, family):
+    """Per held-out fold: the share minimising the FTP and US06 squared log errors of the other
+    folds (the HWFET is the calibration's own test); held-out errors and the fold values."""
+    tables = [(s, family(s)) for s in SHARE_GRID_H]
+    out, chosen = err * np.nan, []
+    for g in np.unique(folds):
+        train = folds != g
+        s, t = min(tables, key=lambda st: float(np.nansum(np.log1p(st[1].loc[train, ["FTP", "US06"]].to_numpy()) ** 2)))
+        chosen.append(s)
+        out.loc[~train] = t.loc[~train]
+    return out, chosen
+
+
+SHARE_GRID_H = tuple(np.round(np.arange(0.0, 1.51, 0.05), 2))
+
+
+def highway_figure(lab) -> np.ndarray:
+    """The unrounded highway label figure (highway08U) per vehicle of ``lab``: the mean over its
+    matched label rows (as the join's comb08U), NaN without labels."""
+    by_id = load_labels().set_index("id").highway08U
+    ids = lab.label_ids.fillna("").astype(str)
+    return np.array([np.mean([by_id[int(i)] for i in x.split()]) if x.strip() else np.nan for x in ids])
+
+
+def highway_lines(r, lab) -> list[str]:
+    """H1 and H1g held out (22 and 5 manufacturer folds) on the joined vehicles, real unrounded
+    highway08U."""
+    from epa_one_number import describe
+    from fleet_error import folds_of
+
+    used = lab.used.to_numpy()
+    err, mf = r["err"], r["manufacturer"]
+    five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
+    hl = np.where(used, highway_figure(lab), np.nan)
+    groups = np.where(used, lab.label_ids.astype(str).to_numpy(), None)
+    lines = []
+    for name, g in (("H1 highway label, per vehicle", None), ("H1g highway label, group scale", groups)):
+        for split_name, folds in (("22 folds", mf), ("5 folds", five)):
+            e, chosen = fit_other_tests(err, folds, lambda s, g=g: highway_label_errors(r, s, hl, g))
+            lines.append(f"{name} [{split_name}]: {describe(e, TESTS_ALL)}; s {min(chosen)}..{max(chosen)}")
+    return lines
+
+
 def group_lines(r, lab) -> list[str]:
     """G1 against the per-vehicle route on the same vehicles (real unrounded comb08U, the
     formulas of the list's model year), the share fitted held out (22 and 5 manufacturer folds);
@@ -459,7 +528,7 @@ def main(argv=None):
     print(f"vehicles of the validation (pairs merged): {len(lab)}; " + ", ".join(
         f"{k} {n}" for k, n in lab.status.fillna("not in the list").value_counts().items()))
     if args.groups:
-        for text in group_lines(r, lab):
+        for text in group_lines(r, lab) + highway_lines(r, lab):
             print(text, flush=True)
         return
     lines, _ = route_lines(r, lab)
