@@ -5,7 +5,8 @@ highway: the HWFET), i.e. on-road gal/mi = intercept + slope x test gal/mi; the 
 combined figure is 55 % city, 45 % highway in fuel per mile (600.210-12(c)). The regulation
 leaves the intercepts and slopes to the Administrator ("based on historic vehicle-specific
 5-cycle ... data"); the sets are data in ``models/budget.toml`` ``[onroad.epa_label.sets]``, each
-with the first model year it applies to and its source (docs/budget.md "On-road fuel").
+with the first model year it applies to and its source (docs/report.md, the on-road
+gallons per mile).
 
 The one owner of these facts: the budget's on-road adjustment (test fuel -> on-road fuel,
 fleetrun.budget.arithmetic) and the label calibration (label -> test figures,
