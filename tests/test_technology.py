@@ -16,6 +16,7 @@ from fleetrun.cycles import load_cycle
 from fleetrun.epa.technology import join_rules, match_configuration, omega_vehicles, technology_of_class
 from fleetrun.errors import InputError
 from fleetrun.resources import inputs_dir
+from fleetrun.physics import epa_label
 from fleetrun.simulation import measured, simulate
 from fleetrun.simulation import technology as tech
 from fleetrun.simulation.core import idle_fuel_rate_g_per_s, trace_kinematics
@@ -145,3 +146,28 @@ def test_measured_ftp_is_met_exactly_and_carried_with_the_share_elsewhere():
     k = ftp / 30.0
     hw0, hw1 = simulate([CAMRY], "HWFET").mpg[0], simulate([cal], "HWFET").mpg[0]
     assert hw1 == pytest.approx(hw0 / k ** measured.transfer_share(), rel=1e-12)
+
+
+def test_rows_of_one_label_group_share_one_scale():
+    """Two configurations of one model type (the Camry and a 10 % heavier one) carry one label
+    and one `label_group`: one fuel scale k for both, so that the mean of their label fuel per
+    mile is the label's (40 CFR 600.208-12: a label is the configurations' mean; equal weights;
+    pre-registered G1, docs/validation-epa.md), and the simulation keeps their difference. Alone,
+    each would meet the label itself."""
+    heavy = dataclasses.replace(CAMRY, vehicle_id="heavy", test_weight_kg=CAMRY.test_weight_kg * 1.1)
+    pair = [dataclasses.replace(v, label_combined_mpg=28.0, label_group="camry", model_year=2022)
+            for v in (CAMRY, heavy)]
+    label_set = epa_label.set_for_model_year(2022)
+
+    def labels(fleet):
+        ftp = simulate(fleet, "FTP", ambient_temp_C=25.0).mpg
+        hwy = simulate(fleet, "HWFET", ambient_temp_C=25.0).mpg
+        return epa_label.combined_label_mpg(ftp, hwy, label_set), ftp
+
+    grouped, ftp = labels(pair)
+    assert np.mean(1.0 / grouped) == pytest.approx(1.0 / 28.0, rel=1e-12)
+    raw = simulate([dataclasses.replace(v, label_combined_mpg=None) for v in pair], "FTP", ambient_temp_C=25.0).mpg
+    assert ftp[0] / ftp[1] == pytest.approx(raw[0] / raw[1], rel=1e-12)      # one k for both
+    alone, _ = labels([dataclasses.replace(v, label_group=None) for v in pair])
+    assert alone == pytest.approx([28.0, 28.0], rel=1e-12)
+    assert abs(grouped[0] - grouped[1]) > 0.1                                # the heavier one burns more

@@ -369,25 +369,21 @@ def group_label_errors(r, share, label, groups):
     1 / label: the label is the model type's sales-weighted mean in fuel per mile (40 CFR
     600.208-12, 600.210-12(c)); sales are unknown here, so equal weights; the simulation carries
     each configuration's difference (weight, road load, N/V) from the group's mean. FTP and
-    HWFET scaled by k_g, US06 by k_g^share. A vehicle alone on its label: the per-vehicle route.
+    HWFET scaled by k_g, US06 by k_g^share (``measured.label_scale`` with ``groups``, as the
+    Vehicles column ``label_group`` does). A vehicle alone on its label: the per-vehicle route.
     Rows without a label or group: NaN."""
     from epa_one_number import TESTS, label_set
 
-    from fleetrun.physics import epa_label
+    from fleetrun.simulation import measured
 
     err, paired = r["err"], r["paired"]
     idx = err.index
-    coef = label_set(None)
     meas = np.c_[paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]]
     pred = meas * (1.0 + err[["FTP", "HWFET"]].to_numpy())
-    c = epa_label.CITY_SHARE
-    a = c * coef.city[0] + (1 - c) * coef.highway[0]
-    b = c * coef.city[1] / pred[:, 0] + (1 - c) * coef.highway[1] / pred[:, 1]   # 1/label = a + k b
     label = np.asarray(label, float)
-    ok = np.isfinite(label) & np.isfinite(b) & pd.notna(pd.Series(groups)).to_numpy()
-    key = pd.Series(np.where(ok, groups, None), index=idx)
-    mean_b = pd.Series(np.where(ok, b, np.nan), index=idx).groupby(key).transform("mean").to_numpy()
-    k = (1.0 / label - a) / mean_b
+    ok = np.isfinite(label) & np.isfinite(pred).all(axis=1) & pd.notna(pd.Series(groups)).to_numpy()
+    k = measured.label_scale(np.where(ok, label, np.nan), pred[:, 0], pred[:, 1], label_set=label_set(None),
+                             groups=groups)
     scale = np.c_[k, k, k ** share]
     out = pd.DataFrame((1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0, index=idx, columns=list(TESTS))
     out.loc[~ok, :] = np.nan

@@ -49,9 +49,11 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     return column("measured_ftp_mpg"), column("label_combined_mpg")
 
 
-def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None):
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None):
     """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
-    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k.
+    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k. Vehicles of one label group
+    share one k: the mean of their label fuel per mile is the mean of their labels' (a label is its
+    model type's configurations' mean, 40 CFR 600.208-12; equal weights; docs/simulation.md).
 
     Parameters
     ----------
@@ -61,6 +63,7 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
     model_years : sequence of int or None, or None: each vehicle's model year, which chooses the
         label formulas' coefficients (fleetrun.physics.epa_label; None: no vehicle has one)
     label_set : LabelSet or None, one coefficient set for every vehicle instead (validation)
+    groups : sequence of str or None, or None: each vehicle's label group (None or "": alone)
 
     Returns
     -------
@@ -75,10 +78,37 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
     share = epa_label.CITY_SHARE
     a = share * city[0] + (1 - share) * highway[0]
     b = share * city[1] / ftp_mpg + (1 - share) * highway[1] / hwfet_mpg
-    return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
+    target = 1.0 / np.asarray(label_combined_mpg, float)
+    if groups is not None:
+        a, b, target = np.broadcast_arrays(a, b, target)
+        valid = np.isfinite(a) & np.isfinite(b) & np.isfinite(target)
+        a, b, target = (group_mean(x, groups, valid) for x in (a, b, target))
+    return (target - a) / b
 
 
-def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg, model_years=None):
+def group_mean(values, groups, valid):
+    """Each valid entry replaced by the mean over the valid entries of its group.
+
+    Parameters
+    ----------
+    values : array, one value per vehicle
+    groups : sequence of str or None, each vehicle's group (None, NaN or "": a group of its own)
+    valid : array of bool, the entries that count (the others are returned as they are)
+
+    Returns
+    -------
+    float array, the shape of ``values``.
+    """
+    values = np.array(values, dtype=float)
+    keys = np.array(["" if g is None or g != g else str(g) for g in groups], dtype=object)
+    use = np.asarray(valid, bool) & (keys != "")
+    if use.any():
+        _, inverse = np.unique(keys[use], return_inverse=True)
+        values[use] = (np.bincount(inverse, weights=values[use]) / np.bincount(inverse))[inverse]
+    return values
+
+
+def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg, model_years=None, groups=None):
     """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
     from the label; NaN where neither figure is given.
 
@@ -90,6 +120,8 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg,
     sim_hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
     model_years : sequence of int or None, or None: each vehicle's model year (its label formulas,
         :func:`label_scale`)
+    groups : sequence of str or None, or None: each vehicle's label group (:func:`label_scale`;
+        a vehicle with a measured FTP takes no part in its group)
 
     Returns
     -------
@@ -97,8 +129,9 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg,
     """
     with np.errstate(divide="ignore", invalid="ignore"):
         from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
-        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg,
-                                                                     model_years))
+        label = np.where(np.isfinite(from_ftp), np.nan, np.asarray(label_combined_mpg, float))
+        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label, sim_ftp_mpg, sim_hwfet_mpg,
+                                                                     model_years, groups=groups))
 
 
 def carried_scale(k, exact, share):
