@@ -266,10 +266,10 @@ FORMULA_TABLES = ("derived_2008", "derived_2017")   # models/budget.toml [onroad
 
 
 def label_formula_check(labels, table) -> dict:
-    """EPA's derived label formulas (the coefficient set ``table``, fleetrun.physics.epa_label) applied to each label row's
-    own unadjusted city and highway figures (UCity, UHighway) against its unrounded label
-    figures, liquid-fuel rows whose figure is not a whole number (where it is, only the rounded
-    value is published): per figure, relative differences."""
+    """EPA's derived label formulas (the coefficient set ``table``, fleetrun.physics.epa_label)
+    applied to each label row's own unadjusted city and highway figures (UCity, UHighway)
+    against its unrounded label figures, liquid-fuel rows whose figure is not a whole number
+    (where it is, only the rounded value is published): per figure, relative differences."""
     from fleetrun.physics import epa_label
 
     coef = epa_label.label_set(table)

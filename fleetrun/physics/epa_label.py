@@ -74,7 +74,8 @@ def label_set(name: str) -> LabelSet:
     """
     sets = label_sets()
     if name not in sets:
-        raise unknown_name_error("label coefficient set", name, sets, hint="See models/budget.toml [onroad.epa_label.sets]")
+        raise unknown_name_error("label coefficient set", name, sets,
+                                 hint="See models/budget.toml [onroad.epa_label.sets]")
     return sets[name]
 
 
