@@ -80,15 +80,17 @@ def trace_terms(va, tr):
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
-EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time")
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb")
 
 
 def trace_extras(va, tr):
     """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
-    time [s], the time the engine turns in fuel cut-off [s] (warm engine) and the standstill
+    time [s], the time the engine turns in fuel cut-off [s] (warm engine), the standstill
     time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
-    the engine stands still, outside a composed cycle's soak)."""
+    the engine stands still, outside a composed cycle's soak) and the acceleration term in the
+    ARRB power model's form, max(a, 0) P_acc+ over the steps the fuel equation covers [J m/s^2]
+    (docs/validation-epa.md "acceleration term in ARRB's form")."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
@@ -96,8 +98,10 @@ def trace_extras(va, tr):
     named = tr.phase != ""
     in_cycle = named if named.any() else True       # the FTP's soak has no phase name
     stop_off = dt * ((tr.engine_speed_rpm <= 0) & (v <= 0.0) & in_cycle)
+    warm = dt * (fueled & (tr.engine_speed_rpm > 0))          # trace_terms' steps
+    arrb = (va.mass_kg * (1.0 + va.rot_frac))[:, None] * np.maximum(k.accel, 0.0) ** 2 * v * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb]
     return np.stack(out, axis=2)
 
 

@@ -55,9 +55,16 @@ from epa_table import epa_fleet  # noqa: E402
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
+from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
+ARRB_COLUMN = "X_transient_arrb"
+#: the acceleration term's form (``--transient-form``; docs/validation-epa.md "acceleration term in
+#: ARRB's form"): "constant" k_tr P_acc+ (the fuel equation), "arrb" k_a max(a, 0) P_acc+ in its place,
+#: "both" the two side by side (the ARRB one as an extra column: gasoline only)
+TRANSIENT_FORMS = ("constant", "arrb", "both")
+TRANSIENT_FORM = "constant"
 CITY_SHARE = 0.55          # EPA's city / highway weighting of the combined figure (40 CFR 600.210)
 FLEET_SIZE, FLEET_DRAWS = 100, 2000
 
@@ -87,6 +94,17 @@ def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
         gpm = (1.0 / table[t]).groupby(rep).transform("mean")   # NaN members skipped
         out[t] = 1.0 / gpm
     return out
+
+
+def stop_extra():
+    """The extra columns of the technology fit: the start-stop stop power (and, with the
+    transient form "both", the ARRB acceleration term)."""
+    return (STOP_COLUMN, ARRB_COLUMN) if TRANSIENT_FORM == "both" else (STOP_COLUMN,)
+
+
+def transient_form(d):
+    """The dataset with the acceleration term in the chosen form (``TRANSIENT_FORM``)."""
+    return d.assign(S_transient=d[ARRB_COLUMN]) if TRANSIENT_FORM == "arrb" else d
 
 
 def heldout_errors(d, table, keep, extra=()):
@@ -149,8 +167,9 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
+        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, len(FUEL_TERMS) + 1:].sum(1)   # "both": the ARRB term
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
-                                       B=terms[:, SLOPE_TERMS].sum(1), O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
+                                       B=slope, O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
     rows = pd.concat(parts)
     return {k: _per_mile(rows, k) for k in "BOC"}
 
@@ -234,7 +253,7 @@ def line(label, err, rows=None):
 def datasets(specs, table):
     """(physics only, physics + technology) datasets (validation/epa_fuel_economy.build_dataset)."""
     bare = [dataclasses.replace(v, technology=None) for v in specs]
-    return efe.build_dataset(bare, table), efe.build_dataset(specs, table)
+    return transient_form(efe.build_dataset(bare, table)), transient_form(efe.build_dataset(specs, table))
 
 
 def omega_matches(specs):
@@ -280,11 +299,11 @@ def run(specs, table):
     d0, d1 = datasets(specs, table)
     r = {}
     r["physics"], _, _ = heldout_errors(d0, table, everyone)
-    r["technology"], _, r["folds"] = heldout_errors(d1, table, everyone, extra=(STOP_COLUMN,))
+    r["technology"], _, r["folds"] = heldout_errors(d1, table, everyone, extra=stop_extra())
     d1p = d1.copy()
     d1p["measured_mpg"] = [paired[t].to_numpy()[v] for t, v in zip(d1p.test, d1p.vehicle)]
     d1p["measured_fuel_g"] = d1p.miles / d1p.measured_mpg * efe.GAL_L * d1p.rho * 1000.0
-    r["pairs"], _, r["folds_pairs"] = heldout_errors(d1p, paired, single, extra=(STOP_COLUMN,))
+    r["pairs"], _, r["folds_pairs"] = heldout_errors(d1p, paired, single, extra=stop_extra())
     d0p = d0.assign(measured_mpg=d1p.measured_mpg.to_numpy(), measured_fuel_g=d1p.measured_fuel_g.to_numpy())
     r["physics_pairs"], _, _ = heldout_errors(d0p, paired, single)
     mf = table.manufacturer.to_numpy()
@@ -292,10 +311,10 @@ def run(specs, table):
     r["one_number"] = one_number(r["pairs"], sigma)
     r["sigma_all"] = transfer_share_all(r["pairs"])
     r["full_transfer"] = one_number(r["pairs"], np.ones(len(r["pairs"])))
-    split = loss_split(d1p[d1p.vehicle.isin(np.flatnonzero(single))], r["folds_pairs"], table)
+    split = loss_split(d1p[d1p.vehicle.isin(np.flatnonzero(single))], r["folds_pairs"], table, extra=stop_extra())
     r["split"], r["split_folds"], r["split_all"] = fit_split_transfer(split, r["pairs"], mf[r["pairs"].index])
     r["split_parts"] = {k: float((v.FTP / sum(split[j].FTP for j in "BOC")).median()) for k, v in split.items()}
-    r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=(STOP_COLUMN,))
+    r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=stop_extra())
     r["dataset_pairs"] = d1p[d1p.vehicle.isin(np.flatnonzero(single))]
     r.update(joined=np.flatnonzero(joined), unjoined=np.flatnonzero(~joined), paired_table=paired, single=single)
     alpha_rows = r["pairs"].index.intersection(r["joined"])
@@ -330,8 +349,13 @@ def report(r, table):
     lines.append(f"physical split weights (w_B, w_O; cold start 1): all {r['split_all']}; folds w_B "
                  f"{w[:, 0].min():.2f}-{w[:, 0].max():.2f}, w_O {w[:, 1].min():.2f}-{w[:, 1].max():.2f}; median FTP fuel "
                  "shares B/O/C " + "/".join(f"{r['split_parts'][k]:.3f}" for k in "BOC"))
-    stop = [f["gasoline"][-1] for f in r["folds"].values()]
-    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][-1]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    n = len(FUEL_TERMS)
+    stop = [f["gasoline"][n] for f in r["folds"].values()]
+    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    if TRANSIENT_FORM != "constant":
+        k = np.array([f["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / f["gasoline"][0] for f in r["folds"].values()])
+        kf = r["final"]["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / r["final"]["gasoline"][0]
+        lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
     lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
     for key in ("physics_pairs", "pairs", "one_number"):
         b = bias_report(r[key], r["paired_table"])
@@ -483,10 +507,14 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
+    ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
+                    help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
+    global TRANSIENT_FORM
+    TRANSIENT_FORM = args.transient_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
