@@ -60,6 +60,7 @@ BAGS = ("bag1", "bag2", "bag3")
 CHUNK = 150
 MODE = "auto"
 COASTDOWN_DRIVELINE = None  # None: models/road_load.toml (--coastdown-driveline)
+THERMAL = None              # None: models/thermal.toml (epa_technology.py --cold-start-basis)
 AMBIENT_C = 25.0            # EPA's nominal test-cell temperature (40 CFR 86.130: 20-30 C)
 THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enrichment_gasoline": (0.05, 0.1, 0.15, 0.2, 0.3)}
 
@@ -112,7 +113,7 @@ def cycle_sums(specs, cycle):
     for a in range(0, len(specs), CHUNK):
         chunk = specs[a:a + CHUNK]
         r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C,
-                     coastdown_driveline_removed=COASTDOWN_DRIVELINE)
+                     coastdown_driveline_removed=COASTDOWN_DRIVELINE, thermal=THERMAL)
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
@@ -340,15 +341,19 @@ def thermal_variant(heat_capacity_kJ_per_K_per_L, enrichment_gasoline):
                                enrichment_at_25C={**k.enrichment_at_25C, "gasoline": enrichment_gasoline})
 
 
-def bag_ratio_grid(specs, table):
+def bag_ratio_grid(specs, table, grid_values=None, variant=None):
     """Model bag 1 / bag 3 and bag 2 / bag 3 fuel per mile for each grid point {(C, e): (V, 2)}
-    (gasoline vehicles with the three bags measured), and EPA's (= mpg bag 3 / mpg bag k)."""
+    (gasoline vehicles with the three bags measured), and EPA's (= mpg bag 3 / mpg bag k).
+    ``grid_values``, ``variant``: another grid and constants maker (default THERMAL_GRID,
+    :func:`thermal_variant`)."""
+    grid_values = THERMAL_GRID if grid_values is None else grid_values
+    variant = thermal_variant if variant is None else variant
     keep = np.flatnonzero((table.fuel == "gasoline").to_numpy()
                           & np.isfinite(table[["FTP:bag1", "FTP:bag2", "FTP:bag3"]].to_numpy()).all(axis=1))
     chosen = [specs[i] for i in keep]
     grid = {}
-    for point in itertools.product(*THERMAL_GRID.values()):
-        k = thermal_variant(*point)
+    for point in itertools.product(*grid_values.values()):
+        k = variant(*point)
         ratios = []
         for a in range(0, len(chosen), CHUNK):
             ph = simulate(chosen[a:a + CHUNK], "FTP", mode=MODE, ambient_temp_C=AMBIENT_C, thermal=k).phases
@@ -359,11 +364,12 @@ def bag_ratio_grid(specs, table):
     return keep, grid, measured
 
 
-def fit_thermal(specs, table):
+def fit_thermal(specs, table, grid_values=None, variant=None):
     """The grid point with the least squared log error of bag 1 / bag 3 and bag 2 / bag 3 (all
     vehicles: the cold start must show in bag 1 and be over by bag 2), the point each
-    manufacturer-held-out fold chooses, and the held-out bag-1 ratio errors."""
-    keep, grid, measured = bag_ratio_grid(specs, table)
+    manufacturer-held-out fold chooses, and the held-out bag-1 ratio errors (``grid_values``,
+    ``variant``: :func:`bag_ratio_grid`)."""
+    keep, grid, measured = bag_ratio_grid(specs, table, grid_values, variant)
     groups = table.manufacturer.to_numpy()[keep]
     cost = {p: (np.log(r / measured) ** 2).sum(axis=1) for p, r in grid.items()}
     best = min(cost, key=lambda p: cost[p].mean())
