@@ -50,7 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import epa_fuel_economy as efe  # noqa: E402
 from epa_alpha import alpha_table  # noqa: E402
-from epa_table import epa_fleet  # noqa: E402
+from epa_table import epa_fleet, udds_bag_miles as udds_miles  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
@@ -501,6 +501,121 @@ def residual_report(r, specs, table):
     return lines
 
 
+BREAKDOWN_TESTS = ("FTP:bag1", "FTP:bag2", "FTP:bag3", "HWFET", "US06", "FTP")
+BREAKDOWN_GROUPS = {"specific_power_kW_per_L": [0, 50, 60, 70, 80, 100, 130, 400],
+                    "road_load_50mph_W_per_kg": RESIDUAL_BINS["road_load_50mph_W_per_kg"],
+                    "displacement_L": RESIDUAL_BINS["displacement_L"], "technology": None, "gearbox": None}
+
+
+def _heldout_without_group(y, groups, manufacturer):
+    """Log errors ``y`` less the median of their group fitted on the other manufacturers."""
+    out = np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        median = pd.Series(y[manufacturer != g]).groupby(groups[manufacturer != g]).median()
+        out[manufacturer == g] = y[manufacturer == g] - pd.Series(groups[manufacturer == g]).map(median).fillna(0.0).to_numpy()
+    return out
+
+
+def _heldout_without_line(y, x, manufacturer):
+    """Log errors ``y`` less a straight line in ``x`` fitted on the other manufacturers."""
+    X, out = np.column_stack([np.ones(len(y)), x]), np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        b = np.linalg.lstsq(X[manufacturer != g], y[manufacturer != g], rcond=None)[0]
+        out[manufacturer == g] = y[manufacturer == g] - X[manufacturer == g] @ b
+    return out
+
+
+def _share(log_err):
+    return float(np.mean(np.abs(np.expm1(log_err)) <= 0.05))
+
+
+def breakdown_groups(err, feats, manufacturer):
+    """Per test: spread of the log error, and per grouping its eta^2 and the share within 5 % left
+    when the group medians (or a line in road load per kg) fitted without each manufacturer are removed."""
+    lines, groups = [], feats
+    for t in BREAKDOWN_TESTS:
+        y = np.log1p(err[t].to_numpy())
+        ok = np.isfinite(y)
+        y, mf = y[ok], manufacturer[ok]
+        cells = [f"{t}: n {ok.sum()}, sd {y.std():.2%}, within 5 % {_share(y):.1%}; line in road load per kg "
+                 f"{_share(_heldout_without_line(y, feats.road_load_50mph_W_per_kg.to_numpy()[ok], mf)):.1%}"]
+        for name, bins in BREAKDOWN_GROUPS.items():
+            g = groups[name].to_numpy()[ok]
+            g = (pd.cut(pd.Series(g), bins).astype(str) if bins else pd.Series(g).astype(str)).to_numpy()
+            mean = pd.Series(y).groupby(g).transform("mean").to_numpy()
+            cells.append(f"{name} eta2 {1 - np.var(y - mean) / np.var(y):.2f} -> {_share(_heldout_without_group(y, g, mf)):.1%}")
+        mean = pd.Series(y).groupby(mf).transform("mean").to_numpy()
+        cells.append(f"manufacturer eta2 {1 - np.var(y - mean) / np.var(y):.2f}")
+        lines.append("; ".join(cells))
+    return lines
+
+
+def breakdown_parts(err, feats):
+    """The cold part (bag 1 - bag 3) and the stop-and-go part (bag 2 - bag 3) in log: spread,
+    correlations, medians by displacement and specific power; FTP share if each were removed."""
+    L = np.log1p(err)
+    cold, stop = L["FTP:bag1"] - L["FTP:bag3"], L["FTP:bag2"] - L["FTP:bag3"]
+    sp = feats.specific_power_kW_per_L
+    lines = [f"bags, HWFET, US06 log-error correlations {L[list(BREAKDOWN_TESTS[:5])].corr().to_numpy()[np.triu_indices(5, 1)].min():.2f}"
+             f"-{L[list(BREAKDOWN_TESTS[:5])].corr().to_numpy()[np.triu_indices(5, 1)].max():.2f}; cold part sd {cold.std():.2%} "
+             f"(corr with bag 3 {cold.corr(L['FTP:bag3']):+.2f}), stop-and-go part sd {stop.std():.2%} "
+             f"(corr {stop.corr(L['FTP:bag3']):+.2f})"]
+    for name, key, bins in (("displacement", feats.displacement_L, RESIDUAL_BINS["displacement_L"]),
+                            ("specific power", sp, [0, 60, 80, 100, 130, 400])):
+        med = cold.groupby(pd.cut(key, bins), observed=True).median()
+        lines.append(f"cold part median by {name}: " + ", ".join(f"{k} {v:+.1%}" for k, v in med.items()))
+    return lines
+
+
+def breakdown_without_parts(err, table):
+    """FTP composite within 5 % if the cold part (bag 1 error := bag 3's) or the stop-and-go part
+    (bag 2's := bag 3's) were removed entirely (EPA's bag weighting of the measured bag mpg)."""
+    idx = err.index.to_numpy()
+    m = {b: table[f"FTP:{b}"].to_numpy()[idx] for b in efe.BAGS}
+    d1, d2 = udds_miles()
+    def ftp(m1, m2, m3):
+        return 1.0 / ftp_weighted_per_mile(d1 / m1, d2 / m2, d1 / m3, d1, d2, d1)
+    p = {b: m[b] * (1 + err[f"FTP:{b}"].to_numpy()) for b in efe.BAGS}
+    truth = ftp(m["bag1"], m["bag2"], m["bag3"])
+    out = {}
+    for name, (a, b, c) in (("as is", (p["bag1"], p["bag2"], p["bag3"])),
+                            ("cold part removed", (m["bag1"] * p["bag3"] / m["bag3"], p["bag2"], p["bag3"])),
+                            ("stop-and-go part removed", (p["bag1"], m["bag2"] * p["bag3"] / m["bag3"], p["bag3"]))):
+        e = ftp(a, b, c) / truth - 1.0
+        out[name] = np.mean(np.abs(e[np.isfinite(e)]) <= 0.05)
+    return ["FTP (from the bags) within 5 %: " + ", ".join(f"{k} {v:.1%}" for k, v in out.items())]
+
+
+def breakdown_elasticities(err, table, feats):
+    """Elasticities of fuel per mile, measured and modelled, to road load at 50 mph, test weight,
+    displacement and rated power (least squares of log fuel per mile across the vehicles)."""
+    idx = err.index.to_numpy()
+    m = table.test_weight_kg.to_numpy()[idx]
+    X = np.column_stack([np.ones(len(idx)), np.log(feats.road_load_50mph_W_per_kg.to_numpy()[idx] * m), np.log(m),
+                         np.log(table.displacement_L.to_numpy()[idx]), np.log(table.rated_power_kW.to_numpy()[idx])])
+    lines = []
+    for t in ("FTP:bag2", "FTP:bag3", "HWFET", "US06"):
+        meas = table[t].to_numpy()[idx]
+        pred = meas * (1 + err[t].to_numpy())
+        ok = np.isfinite(meas) & np.isfinite(pred)
+        b = [np.linalg.lstsq(X[ok], -np.log(y[ok]), rcond=None)[0][1:] for y in (meas, pred)]
+        lines.append(f"{t}: elasticity to road load / weight / displacement / power, measured "
+                     + " / ".join(f"{x:.2f}" for x in b[0]) + ", model " + " / ".join(f"{x:.2f}" for x in b[1]))
+    return lines
+
+
+def breakdown_report(r, specs, table):
+    """``--breakdown``: where the held-out error of physics + technology is, on the joined vehicles
+    (pairs not merged): by cycle, grouping and part (docs/validation-epa.md "Where the held-out error is")."""
+    feats = features(specs, table).assign(weight_kg=table.test_weight_kg,
+                                          specific_power_kW_per_L=table.specific_power_kW_per_L)
+    rows = r["joined"]
+    err, f = r["technology"].reindex(rows), feats.loc[rows]
+    mf = table.manufacturer.to_numpy()[rows]
+    return (breakdown_groups(err, f, mf) + breakdown_parts(err, f) + breakdown_without_parts(err, table)
+            + breakdown_elasticities(err, table, feats))
+
+
 def write_models(r):
     """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
     and models/fuel_economy_bias.toml."""
@@ -529,6 +644,7 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
+    ap.add_argument("--breakdown", action="store_true", help="the held-out error by cycle, grouping and part (joined vehicles)")
     ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
                     help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
@@ -551,6 +667,9 @@ def main(argv=None):
           f"duplicates merged into their pair", flush=True)
     for text in report(r, table):
         print(text, flush=True)
+    if args.breakdown:
+        for text in breakdown_report(r, specs, table):
+            print(text, flush=True)
     if args.residuals:
         for text in residual_report(r, specs, table):
             print(text, flush=True)
