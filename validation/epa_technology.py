@@ -604,6 +604,29 @@ def breakdown_elasticities(err, table, feats):
     return lines
 
 
+def breakdown_trend(err, feats, manufacturer, alpha):
+    """The road-load trend: median error by road load at 50 mph per kg (fleetrun and ALPHA's
+    surfaces, mean removed held out), and its rank correlation within manufacturers."""
+    bins = pd.cut(feats.road_load_50mph_W_per_kg, RESIDUAL_BINS["road_load_50mph_W_per_kg"])
+    lines = []
+    for name, e in (("fleetrun", err), ("ALPHA", alpha)):
+        med = e[["FTP", "FTP:bag3", "HWFET", "US06"] if name == "fleetrun" else list(TESTS)].groupby(
+            bins.loc[e.index], observed=True).median()
+        lines.append(f"{name} median error by road load per kg: " + "; ".join(
+            f"{t} " + " ".join(f"{v:+.1%}" for v in med[t]) for t in med.columns) + f" (bins {list(med.index.astype(str))})")
+    within = pd.DataFrame({"rl": feats.road_load_50mph_W_per_kg, **{t: err[t] for t in ("FTP:bag3", "HWFET", "US06")}})
+    within = within - within.groupby(manufacturer).transform("median")
+    lines.append("rank correlation with road load per kg within manufacturers: " + ", ".join(
+        f"{t} {within.rl.corr(within[t], method='spearman'):.2f}" for t in ("FTP:bag3", "HWFET", "US06")))
+    cold = np.log1p(err["FTP:bag1"]) - np.log1p(err["FTP:bag3"])
+    for name, key in (("cylinder volume", feats.displacement_L / feats.cylinders),
+                      ("rated power", feats.power_to_weight_W_per_kg * feats.weight_kg / 1e3)):
+        g = pd.qcut(key.loc[cold.dropna().index], 6, duplicates="drop")
+        c = cold.dropna()
+        lines.append(f"cold part eta2 by {name} (6 equal-count bins): {1 - np.var(c - c.groupby(g).transform('mean')) / np.var(c):.2f}")
+    return lines
+
+
 def breakdown_report(r, specs, table):
     """``--breakdown``: where the held-out error of physics + technology is, on the joined vehicles
     (pairs not merged): by cycle, grouping and part (docs/validation-epa.md "Where the held-out error is")."""
@@ -612,8 +635,9 @@ def breakdown_report(r, specs, table):
     rows = r["joined"]
     err, f = r["technology"].reindex(rows), feats.loc[rows]
     mf = table.manufacturer.to_numpy()[rows]
+    _, alpha = alpha_errors(specs, table, np.asarray(rows))
     return (breakdown_groups(err, f, mf) + breakdown_parts(err, f) + breakdown_without_parts(err, table)
-            + breakdown_elasticities(err, table, feats))
+            + breakdown_elasticities(err, table, feats) + breakdown_trend(err, f, mf, alpha))
 
 
 def write_models(r):
