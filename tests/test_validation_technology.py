@@ -91,3 +91,14 @@ def test_acceleration_term_in_arrb_form_is_measured_and_not_better():
         return med.iloc[-1] - med.iloc[0]
 
     assert 0.0 < trend("arrb") < trend("constant")
+    # the breakdown behind the hypothesis (--breakdown): a line in road load per kg fitted without
+    # each manufacturer is worth several HWFET points; the cold part is too large for big engines
+    err, rows = joined("constant"), out["constant"]["joined"]
+    feats_j = feats.loc[rows]
+    y = np.log1p(err.HWFET.to_numpy())
+    ok = np.isfinite(y)
+    line = et._heldout_without_line(y[ok], feats_j.road_load_50mph_W_per_kg.to_numpy()[ok],
+                                    table.manufacturer.to_numpy()[rows][ok])
+    assert et._share(line) > et._share(y[ok]) + 0.03
+    cold = np.log1p(err["FTP:bag1"]) - np.log1p(err["FTP:bag3"])
+    assert cold[feats_j.displacement_L > 5.0].median() < -0.03 < 0.0 < cold[feats_j.displacement_L <= 2.1].median()
