@@ -49,7 +49,7 @@ def test_a_larger_reference_in_the_middle_is_found():
 
 
 def test_started_cells_and_rows_equal_a_count_of_every_start():
-    """The tag counts (two or three ``bytes.count`` where the text allows) equal the count of
+    """The tag counts (one ``bytes.count`` and one search where the text allows) equal the count of
     every ``<c`` / ``<row`` followed by a space, ``>``, ``/`` or a line break: with ``<cols>``,
     ``<col .../>``, ``<cfRule``, bare ``<c>`` and ``<c/>`` cells, prefixed tags and line breaks."""
     import re
