@@ -215,7 +215,7 @@ def _other_follower(tag: bytes, letter: bytes) -> re.Pattern:
     return re.compile(re.escape(tag) + b"[^ " + re.escape(letter) + b"]")
 
 
-RARE_TRIES = 256   # occurrences of the rare byte looked at before _holds searches as ``in`` does
+RARE_TRIES = 2048   # occurrences of the rare byte _holds looks at (~0.5 ms) before it searches as ``in`` does (~3 ms per 4 MB)
 
 
 def _holds(text: bytes, patterns: tuple[bytes, ...], rare: int = 0) -> bool:
