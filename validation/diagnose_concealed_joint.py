@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -27,6 +27,7 @@ finding but ``warmup``.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -40,7 +41,9 @@ if __package__ in (None, ""):
 from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _effect_fuel, _write,  # noqa: E402
                                           concealed_fuel)
 
+from fleetrun.diagnose.engine import relaxed_fit  # noqa: E402
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
+from fleetrun.diagnose.route import ROAD_ID  # noqa: E402
 from fleetrun.diagnose.select import effect_of  # noqa: E402
 from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
@@ -87,6 +90,14 @@ WEIGHTING["L"] = "noise"
 HOT_STARTS.add("L")
 #: designs with one road under every target (``joint_diagnosis(road=True)``)
 ROAD = {"L"}
+# pre-registered (docs/diagnose-realdata.md, 1g): L with a named road sized after its selection
+DESIGNS["Lr"] = DESIGNS["J3"]
+WEIGHTING["Lr"] = "noise"
+HOT_STARTS.add("Lr")
+ROAD.add("Lr")
+#: designs whose named road is refitted with the penalty relaxed (``road_refit=True``); its
+#: background on the clean targets is the same refit there (:func:`_background`)
+ROAD_REFIT = {"Lr"}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -159,9 +170,13 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
-          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD}
+          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD,
+          "road_refit": design in ROAD_REFIT}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
+    if design in ROAD_REFIT:
+        # the penalty factor the road's refit keeps on the clean targets (its background)
+        clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID)[1]
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -189,7 +204,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             bg = np.zeros(len(extra))
             for i in ids:
                 if i not in clean_ids:
-                    bg = bg + _fuel_of(clean, i, False)
+                    bg = bg + _background(clean, i, design)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
@@ -234,19 +249,37 @@ def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
     return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
+def _background(clean, cid: str, design: str) -> np.ndarray:
+    """Fuel [g] per sample that ``cid`` fits on the clean targets, where it is no finding: its
+    own fit there (the candidate table's parameters), or for a block refitted after its
+    selection (``ROAD_REFIT``) the same refit on the clean targets
+    (:func:`fleetrun.diagnose.engine.relaxed_fit`: the penalty chosen by held-out error there)."""
+    cand = next(c for c in clean.problem.candidates if c.id == cid)
+    if design not in ROAD_REFIT or cand.block is None:
+        return _fuel_of(clean, cid, False)
+    w, _ = relaxed_fit(clean.problem.coarse, cid)
+    return cand.column_for({f"w{i}": float(x) for i, x in enumerate(w)}) * np.gradient(clean.problem.time_s)
+
+
 def _why(result: dict) -> str:
-    """The first selection round's two best held-out gains and the ambiguities reported."""
+    """The first selection round's two best held-out gains and the ambiguities reported (and
+    the penalty factor a refitted road kept)."""
     rounds = result["method"]["rounds"]
     gains = sorted(rounds[0]["gains"].items(), key=lambda kv: -kv[1])[:2] if rounds else []
     amb = "; ".join(" / ".join(a["effects"]) for a in result["ambiguities"])
-    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else ""))
+    relaxed = [m.group(1) for f in result["findings"]
+               for m in [re.search(r"penalty at (\S+) x the selection's", f["explanation"])] if m]
+    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else "")
+            + (f"; refitted at {relaxed[0]} x the penalty" if relaxed else ""))
 
 
 def table(design: str, clean: dict, cases: list[JointCase]) -> str:
     lines = [f"design {design}: clean targets jointly: findings "
              f"{[(f['effect'], f['parameters']) for f in clean['findings']] or 'none'}; candidates "
              f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
-             f"{clean['unexplained']['significant']}", "",
+             f"{clean['unexplained']['significant']}"
+             + (f"; the road refitted on them keeps {clean['road_background_factor']:.3g} x the penalty"
+                if "road_background_factor" in clean else ""), "",
              "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
              "less clean background g | phase error g before -> after | parameter (concealed / fitted) | "
              "first round's best gains; ambiguities |",

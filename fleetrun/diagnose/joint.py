@@ -248,7 +248,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
                     settings: Settings | None = None, residual: str = "auto",
                     window_s: float | None = None, weights: str = "none",
                     hot_starts: Sequence[bool] | None = None,
-                    grade_profile: bool = False, road: bool = False) -> JointDiagnosis:
+                    grade_profile: bool = False, road: bool = False,
+                    road_refit: bool = False) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,
@@ -261,7 +262,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     (:func:`without_warmup`). ``grade_profile`` True adds a grade located along each
     recording's route, ``road_grade@<recording>`` (:func:`fleetrun.diagnose.route.with_grade_profiles`);
     ``road`` True one road under every recording, ``road_grade@road``
-    (:func:`fleetrun.diagnose.route.with_road`)."""
+    (:func:`fleetrun.diagnose.route.with_road`); ``road_refit`` True sizes a named road with its
+    knots refitted, the penalty relaxed as held-out error chooses."""
     if len(references) != len(recordings):
         raise InputError("give one reference (or None) per recording")
     if hot_starts is not None and len(hot_starts) != len(recordings):
@@ -275,7 +277,7 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     if grade_profile:
         joined = with_grade_profiles(joined, problems, names, window, weights)
     if road:
-        joined = with_road(joined, problems, names, window, weights)
+        joined = with_road(joined, problems, names, window, weights, refit=road_refit)
     hot = [n for n, h in zip(names, hot_starts or []) if h]
     if hot:
         joined = without_warmup(joined, hot)
