@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -39,11 +39,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _effect_fuel, _write,  # noqa: E402
-                                          concealed_fuel)
+                                          concealed_fuel, road_profile_grade)
 
 from fleetrun.diagnose.engine import relaxed_fit  # noqa: E402
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
-from fleetrun.diagnose.route import ROAD_ID  # noqa: E402
+from fleetrun.diagnose.route import ROAD_ID, ROAD_KNOT_M  # noqa: E402
 from fleetrun.diagnose.select import effect_of  # noqa: E402
 from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
@@ -98,6 +98,14 @@ ROAD.add("Lr")
 #: designs whose named road is refitted with the penalty relaxed (``road_refit=True``); its
 #: background on the clean targets is the same refit there (:func:`_background`)
 ROAD_REFIT = {"Lr"}
+# pre-registered after Lr (docs/diagnose-realdata.md, 1h): Lr with a knot every 500 m
+DESIGNS["Lr5"] = DESIGNS["J3"]
+WEIGHTING["Lr5"] = "noise"
+HOT_STARTS.add("Lr5")
+ROAD.add("Lr5")
+ROAD_REFIT.add("Lr5")
+#: design -> the road's knot spacing [m] where it is not fleetrun.diagnose.route.ROAD_KNOT_M
+ROAD_KNOT = {"Lr5": 500.0}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -171,7 +179,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
           "grade_profile": design in GRADE_PROFILE, "road": design in ROAD,
-          "road_refit": design in ROAD_REFIT}
+          "road_refit": design in ROAD_REFIT, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M)}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
     if design in ROAD_REFIT:
@@ -363,15 +371,70 @@ def separation_table(design: str, sep: JointSeparation) -> str:
     return "\n".join(lines)
 
 
+# ----------------------------------------------------------------------------- knot ceiling
+
+
+def knot_ceiling(spacings=(1000.0, 500.0, 250.0), design: str = "Lr") -> list[tuple]:
+    """How much of a concealed road's fuel moved a road of knots can carry at all: the
+    concealed fuel alone (noise-free, after the zero floor) fitted by least squares, unpenalised,
+    on every target's 1-Hz samples by the road's knot columns at each spacing (the catalogue's
+    grade basis times each knot's hat function of distance) with the calibration terms in;
+    and by the catalogue's grade basis times the true grade (one scale). Rows: (case, size,
+    concealed moved [g], {spacing: relative moved}, basis x true grade relative moved)."""
+    workdir = Path(tempfile.mkdtemp())
+    pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
+    refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
+    paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
+    clean = joint_diagnosis(paths, refs, weights=WEIGHTING[design], hot_starts=[True] * len(pairs))
+    p = clean.problem
+    dt, terms = np.gradient(p.time_s), np.array([t[0] for t in p.initial_terms])
+    grade = next(c for c in p.candidates if c.id == "road_grade").columns[0]
+    spans = [piece.span for piece in clean.pieces]
+    dist = [np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+            for v, t in ((p.driver_channels["speed"][s], p.time_s[s]) for s in spans)]
+    rows = []
+    for effect in sorted(MOVED):
+        for size in L_SIZES[effect]:
+            extra, true_grade = [], []
+            for (tn, td, tm, spec), _ in pairs:
+                e, _ = concealed_fuel(effect, size, td, spec)
+                fuel = td["fuel_rate_g_per_s"].to_numpy()
+                extra.append(np.maximum(fuel + e, 0.0) - fuel)
+                true_grade.append(size * road_profile_grade(td["time_s"].to_numpy(), td["vehicle_speed_mps"].to_numpy(),
+                                                            reversed_=effect.endswith("reversed")))
+            x = np.concatenate(extra)
+            moved = float(np.abs(x * dt).sum())
+            carried = {}
+            for km in spacings:
+                knots = np.arange(0.0, max(d[-1] for d in dist) + km, km)
+                block = np.hstack([np.array([grade[s] * np.maximum(0.0, 1 - np.abs(d - k) / km) for k in knots])
+                                   for s, d in zip(spans, dist)])
+                cols = np.vstack([terms, block])
+                b = np.linalg.lstsq(cols.T, x, rcond=None)[0]
+                carried[km] = float(np.abs(b[len(terms):] @ block * dt).sum()) / moved - 1
+            col = grade * np.concatenate(true_grade)
+            basis = float(np.abs((col @ x) / (col @ col) * col * dt).sum()) / moved - 1
+            rows.append((effect, size, moved, carried, basis))
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
     ap.add_argument("--out", default=None)
     ap.add_argument("--route", action="store_true", help="design R: a real road's grade profile "
                     "concealed (run with --design Wh --design G)")
+    ap.add_argument("--ceiling", action="store_true", help="only the share of a concealed road's "
+                    "fuel moved that knots at 1000 / 500 / 250 m carry (noise-free)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
                     "columns on the clean targets")
     args = ap.parse_args(argv)
+    if args.ceiling:
+        for effect, size, moved, carried, basis in knot_ceiling():
+            print(f"{effect} f = {size:g}: concealed moved {moved:.1f} g; knots "
+                  + ", ".join(f"{km:.0f} m {100 * v:+.1f} %" for km, v in carried.items())
+                  + f"; grade basis x true grade {100 * basis:+.1f} %")
+        return 0
     for design in args.design or sorted(DESIGNS):
         if args.why:
             print(separation_table(design, separation(design)), "\n", flush=True)
