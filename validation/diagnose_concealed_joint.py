@@ -105,7 +105,8 @@ HOT_STARTS.add("Lr5")
 ROAD.add("Lr5")
 ROAD_REFIT.add("Lr5")
 #: design -> the road's knot spacing [m] where it is not fleetrun.diagnose.route.ROAD_KNOT_M
-ROAD_KNOT = {"Lr5": 500.0}
+#: (500 m since Lr5)
+ROAD_KNOT = {"L": 1000.0, "Lr": 1000.0}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -171,18 +172,22 @@ def _phase_masks(d) -> list[np.ndarray]:
     return out
 
 
-def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
+def run(design: str, workdir=None, sizes=SIZES, road: bool = False) -> tuple[dict, list[JointCase]]:
+    """The clean targets' diagnosis and the scored cases of ``design``; ``road`` True adds the
+    road under every target as the library now builds it (knots every
+    :data:`fleetrun.diagnose.route.ROAD_KNOT_M`, refitted once named) to any design."""
     workdir = Path(workdir or tempfile.mkdtemp())
+    refit = design in ROAD_REFIT or road
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
-          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD,
-          "road_refit": design in ROAD_REFIT, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M)}
+          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD or road,
+          "road_refit": refit, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M)}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
-    if design in ROAD_REFIT:
+    if refit:
         # the penalty factor the road's refit keeps on the clean targets (its background)
         clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID)[1]
     dt = np.gradient(clean.problem.time_s)
@@ -212,7 +217,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             bg = np.zeros(len(extra))
             for i in ids:
                 if i not in clean_ids:
-                    bg = bg + _background(clean, i, design)
+                    bg = bg + _background(clean, i, refit)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
@@ -257,13 +262,13 @@ def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
     return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
-def _background(clean, cid: str, design: str) -> np.ndarray:
+def _background(clean, cid: str, refit: bool) -> np.ndarray:
     """Fuel [g] per sample that ``cid`` fits on the clean targets, where it is no finding: its
     own fit there (the candidate table's parameters), or for a block refitted after its
-    selection (``ROAD_REFIT``) the same refit on the clean targets
+    selection (``refit``) the same refit on the clean targets
     (:func:`fleetrun.diagnose.engine.relaxed_fit`: the penalty chosen by held-out error there)."""
     cand = next(c for c in clean.problem.candidates if c.id == cid)
-    if design not in ROAD_REFIT or cand.block is None:
+    if not refit or cand.block is None:
         return _fuel_of(clean, cid, False)
     w, _ = relaxed_fit(clean.problem.coarse, cid)
     return cand.column_for({f"w{i}": float(x) for i, x in enumerate(w)}) * np.gradient(clean.problem.time_s)
@@ -424,6 +429,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--route", action="store_true", help="design R: a real road's grade profile "
                     "concealed (run with --design Wh --design G)")
+    ap.add_argument("--road", action="store_true", help="add the road under every target (500-m "
+                    "knots, refitted once named) to the designs given")
     ap.add_argument("--ceiling", action="store_true", help="only the share of a concealed road's "
                     "fuel moved that knots at 1000 / 500 / 250 m carry (noise-free)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
@@ -443,8 +450,8 @@ def main(argv=None) -> int:
         if out:
             out.mkdir(parents=True, exist_ok=True)
         sizes = ROUTE_SIZES if args.route else L_SIZES if design in ROAD else SIZES
-        clean, cases = run(design, out, sizes)
-        print(table(design, clean, cases), flush=True)
+        clean, cases = run(design, out, sizes, road=args.road)
+        print(table(design + (" with the road" if args.road else ""), clean, cases), flush=True)
         print()
     return 0
 

@@ -249,7 +249,7 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
                     window_s: float | None = None, weights: str = "none",
                     hot_starts: Sequence[bool] | None = None,
                     grade_profile: bool = False, road: bool = False,
-                    road_refit: bool = False, road_knot_m: float = ROAD_KNOT_M) -> JointDiagnosis:
+                    road_refit: bool = True, road_knot_m: float = ROAD_KNOT_M) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,

@@ -34,8 +34,9 @@ PROFILE_MODES = 3
 PROFILE_DIRECTIONS = 32
 GRADE_ID = "road_grade"
 #: Knot spacing [m] of the shared road's grade and the ridge on its knots' grades (relative to
-#: the mean diagonal of their Gram matrix), fixed in docs/diagnose-realdata.md, 1f.
-ROAD_KNOT_M = 1000.0
+#: the mean diagonal of their Gram matrix), fixed in docs/diagnose-realdata.md, 1f; the spacing
+#: 1,000 m there (designs L, Lr), 500 m since design Lr5 (1h) met its pre-registered target.
+ROAD_KNOT_M = 500.0
 ROAD_PENALTY = 1.0
 #: Factors of ``ROAD_PENALTY`` tried when a named road is sized (its knots refitted after the
 #: selection, the factor with the least held-out error kept; 1: the selection's, 0: none),
@@ -132,7 +133,7 @@ def _block_candidate(block: np.ndarray, lower: float, upper: float, penalty: flo
 
 def with_road(joined: Problem, problems: Sequence[Problem], names: Sequence[str], window: int,
               weights: str, knot_m: float = ROAD_KNOT_M, penalty: float = ROAD_PENALTY,
-              refit: bool = False) -> Problem:
+              refit: bool = True) -> Problem:
     """``joined`` (and its ``coarse``) with the candidate ``road_grade@road``: one road under
     every recording, its grade at knots every ``knot_m`` fitted together (``grade_pct``: the
     steepest knot's grade; ``w0``, ``w1``, ...: each knot's grade over it), penalised by
