@@ -41,7 +41,7 @@ if __package__ in (None, ""):
 from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _effect_fuel, _write,  # noqa: E402
                                           concealed_fuel, road_profile_grade)
 
-from fleetrun.diagnose.engine import relaxed_fit  # noqa: E402
+from fleetrun.diagnose.engine import Settings, relaxed_fit  # noqa: E402
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
 from fleetrun.diagnose.route import ROAD_ID, ROAD_KNOT_M  # noqa: E402
 from fleetrun.diagnose.select import effect_of  # noqa: E402
@@ -172,10 +172,12 @@ def _phase_masks(d) -> list[np.ndarray]:
     return out
 
 
-def run(design: str, workdir=None, sizes=SIZES, road: bool = False) -> tuple[dict, list[JointCase]]:
+def run(design: str, workdir=None, sizes=SIZES, road: bool = False,
+        settings: Settings | None = None) -> tuple[dict, list[JointCase]]:
     """The clean targets' diagnosis and the scored cases of ``design``; ``road`` True adds the
     road under every target as the library now builds it (knots every
-    :data:`fleetrun.diagnose.route.ROAD_KNOT_M`, refitted once named) to any design."""
+    :data:`fleetrun.diagnose.route.ROAD_KNOT_M`, refitted once named) to any design;
+    ``settings`` the selection's (default ``Settings()``)."""
     workdir = Path(workdir or tempfile.mkdtemp())
     refit = design in ROAD_REFIT or road
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
@@ -184,12 +186,12 @@ def run(design: str, workdir=None, sizes=SIZES, road: bool = False) -> tuple[dic
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
           "grade_profile": design in GRADE_PROFILE, "road": design in ROAD or road,
-          "road_refit": refit, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M)}
+          "road_refit": refit, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M), "settings": settings}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
     if refit:
         # the penalty factor the road's refit keeps on the clean targets (its background)
-        clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID)[1]
+        clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID, settings)[1]
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -217,7 +219,7 @@ def run(design: str, workdir=None, sizes=SIZES, road: bool = False) -> tuple[dic
             bg = np.zeros(len(extra))
             for i in ids:
                 if i not in clean_ids:
-                    bg = bg + _background(clean, i, refit)
+                    bg = bg + _background(clean, i, refit, settings)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
@@ -262,7 +264,7 @@ def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
     return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
-def _background(clean, cid: str, refit: bool) -> np.ndarray:
+def _background(clean, cid: str, refit: bool, settings: Settings | None = None) -> np.ndarray:
     """Fuel [g] per sample that ``cid`` fits on the clean targets, where it is no finding: its
     own fit there (the candidate table's parameters), or for a block refitted after its
     selection (``refit``) the same refit on the clean targets
@@ -270,7 +272,7 @@ def _background(clean, cid: str, refit: bool) -> np.ndarray:
     cand = next(c for c in clean.problem.candidates if c.id == cid)
     if not refit or cand.block is None:
         return _fuel_of(clean, cid, False)
-    w, _ = relaxed_fit(clean.problem.coarse, cid)
+    w, _ = relaxed_fit(clean.problem.coarse, cid, settings)
     return cand.column_for({f"w{i}": float(x) for i, x in enumerate(w)}) * np.gradient(clean.problem.time_s)
 
 
@@ -431,6 +433,8 @@ def main(argv=None) -> int:
                     "concealed (run with --design Wh --design G)")
     ap.add_argument("--road", action="store_true", help="add the road under every target (500-m "
                     "knots, refitted once named) to the designs given")
+    ap.add_argument("--seed", type=int, default=None, help="the shift null's seed (Settings.seed)")
+    ap.add_argument("--block-s", type=float, default=None, help="cross-validation block length [s]")
     ap.add_argument("--ceiling", action="store_true", help="only the share of a concealed road's "
                     "fuel moved that knots at 1000 / 500 / 250 m carry (noise-free)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
@@ -450,7 +454,8 @@ def main(argv=None) -> int:
         if out:
             out.mkdir(parents=True, exist_ok=True)
         sizes = ROUTE_SIZES if args.route else L_SIZES if design in ROAD else SIZES
-        clean, cases = run(design, out, sizes, road=args.road)
+        st = Settings(**{k: v for k, v in (("seed", args.seed), ("block_s", args.block_s)) if v is not None})
+        clean, cases = run(design, out, sizes, road=args.road, settings=st)
         print(table(design + (" with the road" if args.road else ""), clean, cases), flush=True)
         print()
     return 0
