@@ -192,6 +192,10 @@ def run(design: str, workdir=None, sizes=SIZES, road: bool = False,
     if refit:
         # the penalty factor the road's refit keeps on the clean targets (its background)
         clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID, settings)[1]
+        bg = _background(clean, ROAD_ID, True, settings)
+        # and what that fit puts into the phases (sum over phases of |its phase sum| [g]): the
+        # phase-fuel error a named road's background alone leaves
+        clean.result["road_background_phase_g"] = sum(abs(float(bg[m].sum())) for m in _phase_masks(clean))
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -293,7 +297,8 @@ def table(design: str, clean: dict, cases: list[JointCase]) -> str:
              f"{[(f['effect'], f['parameters']) for f in clean['findings']] or 'none'}; candidates "
              f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
              f"{clean['unexplained']['significant']}"
-             + (f"; the road refitted on them keeps {clean['road_background_factor']:.3g} x the penalty"
+             + (f"; the road refitted on them keeps {clean['road_background_factor']:.3g} x the penalty, "
+                f"puts {clean['road_background_phase_g']:.1f} g into the phases (sum of absolute phase sums)"
                 if "road_background_factor" in clean else ""), "",
              "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
              "less clean background g | phase error g before -> after | parameter (concealed / fitted) | "
