@@ -14,8 +14,8 @@ Opt-in (``joint_diagnosis(grade_profile=True)``); docs/diagnose-realdata.md, 1e.
 from its start): the grade piecewise linear in distance with a knot every ``ROAD_KNOT_M``, one
 candidate ``road_grade@road`` whose knot grades are fitted together (a block candidate,
 :class:`fleetrun.diagnose.select.Candidate`), penalised towards a level road. Opt-in
-(``joint_diagnosis(road=True)``); docs/diagnose-realdata.md, 1f. Once named, its knots may be
-refitted with the penalty relaxed (``joint_diagnosis(road=True, road_refit=True)``; 1g).
+(``joint_diagnosis(road=True)``); docs/diagnose-realdata.md, 1f. Once named, its knots are
+refitted with the penalty relaxed (``road_refit``, default True; 1g-1h).
 """
 from __future__ import annotations
 

@@ -186,8 +186,10 @@ def relaxed_block(r, nuisance: list[tuple], cand: Candidate, folds, k) -> tuple[
     also shrinks them once it is chosen. Refitted on the same support with ``cand.penalty``
     times each factor of ``cand.relax`` (1 = the selection's penalty, 0 = none), the ``nuisance``
     terms in the model, the factor with the least blocked-CV held-out SSE on ``folds`` is kept
-    (the first on a tie); the truth is never consulted. Returns the full-data weights at that
-    factor and the factor. docs/diagnose.md, 7b; docs/diagnose-realdata.md, 1g.
+    (the first on a tie); the truth is never consulted. The relaxed lasso's two-stage idea
+    (Meinshausen 2007, Comput. Stat. Data Anal. 52, 374-393) with a ridge in place of the
+    lasso. Returns the full-data weights at that factor and the factor. docs/diagnose.md, 7b;
+    docs/diagnose-realdata.md, 1g.
     """
     best = None
     for factor in cand.relax or (1.0,):
