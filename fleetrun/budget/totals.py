@@ -31,6 +31,7 @@ import pandas as pd
 
 from fleetrun.budget import arithmetic as budget
 from fleetrun.cycles import load_cycle
+from fleetrun.physics import epa_label
 from fleetrun.budget import drivers
 from fleetrun.units import METERS_PER_MILE
 from fleetrun.workbook.schema import DUTY_CLASSES
@@ -125,7 +126,7 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
     energy [J/mi].
     """
     n = len(duty_of)
-    model_year = [None] * n if model_year is None else list(model_year)
+    years = np.full(n, np.nan) if model_year is None else epa_label.model_year_array(model_year)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
     names = ("fuel_gal_cycle", "fuel_gal", "kwh") + ENERGY_FIELDS
@@ -143,7 +144,7 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
             kind = _cycle_kind(cycle)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
             per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(
-                cycle_gpm, s.onroad_adjustment, kind, adjusted[rows], [model_year[i] for i in np.flatnonzero(rows)])
+                cycle_gpm, s.onroad_adjustment, kind, adjusted[rows], years[rows])
             per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)

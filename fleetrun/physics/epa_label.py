@@ -109,8 +109,26 @@ def _missing(x) -> bool:
         return True
 
 
+def model_year_array(model_years) -> np.ndarray:
+    """Model years as floats, NaN where a vehicle has none (None, NaN or pandas' NA).
+
+    Parameters
+    ----------
+    model_years : sequence of int or None, each vehicle's model year
+
+    Returns
+    -------
+    float array, one entry per vehicle.
+    """
+    try:
+        return np.asarray(model_years, dtype=float)       # None becomes NaN
+    except (TypeError, ValueError):                      # pandas' NA has no float value
+        return np.array([np.nan if _missing(my) else float(my) for my in model_years], dtype=float)
+
+
 def coefficients(model_years, kind: str) -> tuple[np.ndarray, np.ndarray]:
-    """(intercept [gal/mi], slope [-]) of ``kind`` per vehicle, each by its model year.
+    """(intercept [gal/mi], slope [-]) of ``kind`` per vehicle, each by its model year (the rule
+    of :func:`set_for_model_year`, vectorised: a run may hold hundreds of thousands of rows).
 
     Parameters
     ----------
@@ -121,10 +139,14 @@ def coefficients(model_years, kind: str) -> tuple[np.ndarray, np.ndarray]:
     -------
     (intercepts [gal/mi], slopes [-]), float arrays of one entry per vehicle.
     """
-    years = [None if _missing(my) else int(my) for my in model_years]
-    of_year = {my: set_for_model_year(my).of(kind) for my in set(years)}
-    pairs = np.array([of_year[my] for my in years], dtype=float).reshape(-1, 2)
-    return pairs[:, 0], pairs[:, 1]
+    years = model_year_array(model_years).reshape(-1)
+    sets = list(label_sets().values())
+    first_years = np.array([s.first_model_year for s in sets], dtype=float)
+    which = np.maximum(np.searchsorted(first_years, years, side="right") - 1, 0)
+    without = sets.index(set_for_model_year(None))
+    which = np.where(np.isnan(years), without, which)
+    pairs = np.array([s.of(kind) for s in sets], dtype=float)
+    return pairs[which, 0], pairs[which, 1]
 
 
 def label_gal_per_mile(test_gal_per_mile, intercept_gal_per_mile, slope):
