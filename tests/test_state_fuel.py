@@ -89,15 +89,16 @@ def test_no_state_year_from_the_truck_split_states():
 @pytest.mark.slow
 def test_three_state_years_both_fuels_within_target():
     """Registrations and VMT only (MV-1 only), uncalibrated, both fuels within the issue's 5 % and
-    10 % in three state-years (the issue's count), measured 2026-11-25 with the per-class Trends
-    tables: Arizona 2000 (FHWA 2000 State Briefing sheet) -0.8 % and -9.3 %; Connecticut 2006
-    (MV-1, VM-2, MF-21 through BTS State Transportation Statistics 2007) +0.3 % and +3.3 %;
-    Virginia 2010 (MV-1 2010, VM-2, State Statistical Abstract 2010) -0.9 % and -1.2 %. Of the state-years with both fuels only these
-    three hit both (docs/validation-state-fuel.md)."""
+    10 % in three state-years (the issue's count), measured 2026-11-25 with the sourced
+    single-unit fuel split (F1): Arizona 2000 (FHWA 2000 State Briefing sheet) -3.5 % and -1.7 %;
+    Arizona 2003 (sources per year in docs/validation-state-fuel.md) -0.9 % and -3.0 %; Virginia
+    2010 (MV-1 2010, VM-2, State Statistical Abstract 2010) -3.6 % and +6.9 %. Of the state-years
+    with both fuels only these three hit both (docs/validation-state-fuel.md; before F1 Arizona
+    2000, Connecticut 2006 and Virginia 2010)."""
     state_fuel = _state_fuel()
-    table = state_fuel.main(["--states", "Arizona,Connecticut,Virginia", "--years", "2000,2006,2010",
+    table = state_fuel.main(["--states", "Arizona,Virginia", "--years", "2000,2003,2010",
                              "--variants", "mv1"]).set_index(["state", "year"])
-    for key in (("Arizona", 2000), ("Connecticut", 2006), ("Virginia", 2010)):
+    for key in (("Arizona", 2000), ("Arizona", 2003), ("Virginia", 2010)):
         row = table.loc[key]
         assert abs(row.gasoline_error_pct) <= 100 * state_fuel.GASOLINE_TOLERANCE, key
         assert abs(row.diesel_error_pct) <= 100 * state_fuel.DIESEL_TOLERANCE, key
@@ -106,11 +107,13 @@ def test_three_state_years_both_fuels_within_target():
 @pytest.mark.slow
 def test_national_fuel_in_years_no_state_year_uses():
     """The nation in 2000 and 2009 from its registrations and VMT: highway gasoline within the
-    issue's 5 % of FHWA's national totals (measured +3.5 % and +3.8 %), special fuels 2009 within
-    10 % (+1.4 %); the light-duty classes' mpg within 5 % of FHWA VM-1's passenger-car and other
-    2-axle 4-tire mpg (2000: +0.4 %, -1.2 %; 2008: -0.9 %, -5.0 %, the light trucks at the limit
-    since the per-class Trends tables; measured 2026-11-25: gasoline +3.5 % in 2000, +3.8 % in
-    2009 against the rounded 137 billion gallons)."""
+    issue's 5 % of FHWA's national totals (measured +0.8 % and +1.0 %), special fuels 2009 within
+    10 % (+9.6 %, near the limit since the sourced single-unit fuel split F1 moved gallons from
+    gasoline to diesel; +1.4 % before); the light-duty classes' mpg within 5 % of FHWA VM-1's
+    passenger-car and other 2-axle 4-tire mpg (2000: +0.4 %, -1.2 %; 2008: -0.9 %, -5.0 %, the
+    light trucks at the limit since the per-class Trends tables; measured 2026-11-25 with F1:
+    gasoline +0.8 % in 2000, +1.0 % in 2009 against the rounded 137 billion gallons; before F1
+    +3.5 % and +3.8 %)."""
     sys.path.insert(0, str(ROOT / "validation"))
     import national_fuel
 
