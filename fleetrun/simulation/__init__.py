@@ -158,8 +158,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     # cache, which is several times faster than one pass over the whole fleet.
     block = _block_rows(t.size)
 
-    def run(rows, speed, redriven_if_behind=False):
-        return _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind)
+    def run(rows, speed, redriven_if_behind=False, va_rows=None):
+        return _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind,
+                         va_rows)
     # first every vehicle drives the trace itself, then those that cannot follow it
     sums = (_redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
                                     _stuck_at_start(va, solver, t, v_target, grade, effects)) if V else None)
@@ -179,10 +180,12 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
 
 
-def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind):
+def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind,
+              va_rows=None):
     """The vehicles ``rows`` of ``va`` at ``speed`` (their rows; None: on the trace) in blocks of
     ``block`` (:func:`_run_block`); on the trace the hardest steps of every block are checked
-    in one pass first (:func:`_surely_behind_by_block`)."""
+    in one pass first (:func:`_surely_behind_by_block`). ``va_rows``: ``va.subset(rows)`` if
+    the caller has it (the blocks' arrays are then views of its arrays)."""
     V = va.n
     surely = (_surely_behind_by_block(va, solver, t, v_target, grade, effects, block)
               if speed is None and redriven_if_behind and not trace and rows.size == V else None)
@@ -192,7 +195,7 @@ def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows,
         if sub.size == V:
             va_sub, solver_sub = va, solver
         else:
-            va_sub = va.subset(sub)
+            va_sub = va.subset(sub) if va_rows is None else va_rows.subset(slice(first, first + sub.size))
             solver_sub = solver.subset(sub, va_sub)
         parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
                                 v_target, grade, trace, effects, plan, redriven_if_behind,
@@ -246,12 +249,28 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
 
 
 def _stuck_at_start(va, solver, t, v_target, grade, effects):
-    """``stuck(rows, margin, table)`` for :func:`_redrive_until_feasible`: which of the vehicles
-    ``rows`` are above full load in their re-drive's first two steps (core.above_full_load_at_start)."""
-    def stuck(rows, margin, table):
-        va_rows = va.subset(rows)
-        return above_full_load_at_start(va_rows, t, v_target, grade, solver.subset(rows, va_rows), margin, table,
-                                        effects)
+    """``stuck(rows, margin, table, va_rows=None)`` for :func:`_redrive_until_feasible`: which of
+    the vehicles ``rows`` (ascending; ``va_rows``: their ``va.subset``) are above full load in
+    their re-drive's first two steps (core.above_full_load_at_start). The first call answers
+    for its margin and every later one but the last (REDRIVE_MARGINS) in one pass, the vehicles
+    stacked once per margin (each row's steps are its own: the same numbers as one call per
+    margin); a later round's vehicles are among the first call's, else they are computed anew."""
+    known = {}
+
+    def stuck(rows, margin, table, va_rows=None):
+        if margin in known:
+            first, answer = known[margin]
+            at = np.minimum(np.searchsorted(first, rows), first.size - 1)
+            if first.size and np.array_equal(first[at], rows):
+                return answer[at]
+        margins = [m for m in REDRIVE_MARGINS[:-1] if m <= margin] or [margin]
+        va_rows = va.subset(rows) if va_rows is None else va_rows
+        k, R = len(margins), rows.size
+        va_k = va_rows if k == 1 else va_rows.subset(np.tile(np.arange(R), k))
+        answers = above_full_load_at_start(va_k, t, v_target, grade, solver.subset(np.tile(rows, k), va_k),
+                                           np.repeat(margins, R)[:, None], np.tile(table, (k, 1)), effects)
+        known.update((m, (rows, a)) for m, a in zip(margins, answers.reshape(k, R)))
+        return known[margin][1]
     return stuck
 
 
@@ -269,16 +288,19 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run, stuck=
         behind = np.flatnonzero(sums.behind)
         if behind.size == 0:
             break
+        va_behind = va.subset(behind)
         if force_tables is None:  # the drivetrain's maximum effort, once per simulate
             force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
-            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+            force_tables[behind] = max_tractive_force_table(va_behind, 1.0)
         last = margin == REDRIVE_MARGINS[-1]
         if stuck is not None and not last:
-            behind = _without_stuck(behind, stuck(behind, margin, force_tables[behind]), _block_rows(t.size))
-            if behind.size == 0:
+            kept = _without_stuck(behind, stuck(behind, margin, force_tables[behind], va_behind), _block_rows(t.size))
+            if kept.size == 0:
                 continue
-        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved, not last), behind)
+            if kept.size < behind.size:
+                behind, va_behind = kept, va.subset(kept)
+        achieved = forward_redrive(va_behind, t, v_target, grade, margin, force_tables[behind])
+        sums = _redriven(sums, run(behind, achieved, not last, va_behind), behind)
     return sums
 
 

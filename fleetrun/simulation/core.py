@@ -1247,7 +1247,7 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     time_s : array, the cycle's time stamps [s], (N,)
     target_mps : array, the trace's speed [m/s], (N,)
     grade_pct : array, road grade [%], (N,)
-    margin : float, share of the full effort the driver uses [-]
+    margin : float or array (V, 1), share of the full effort the driver uses [-] (per vehicle)
     table : array or None, :func:`max_tractive_force_table` with margin 1 [N]
 
     Returns
@@ -1260,7 +1260,7 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
     t, cap, grade = np.asarray(time_s, float), np.asarray(target_mps, float), np.asarray(grade_pct, float)
     weight, sine = grade_force_factors(va.mass_kg, 0.5 * (grade[1:] + grade[:-1]))
-    m = _EffortModel.of(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
+    m = _EffortModel.of(flat=(table * margin).reshape(-1), base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
                         C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)), weight=weight, sine=sine)
     dt = np.diff(t)
     speeds = np.empty((va.n, t.size))
@@ -1287,7 +1287,7 @@ def above_full_load_at_start(va: VehicleArrays, time_s, target_mps, grade_pct, s
     target_mps : array, the trace's speed [m/s], (N,)
     grade_pct : array, road grade [%], (N,)
     solver : DifferentialSolver, the thesis chain's inversion in the run's mode
-    margin : float, share of the full effort the driver uses [-]
+    margin : float or array (V, 1), share of the full effort the driver uses [-] (per vehicle)
     table : array, :func:`max_tractive_force_table` with margin 1 [N]
     effects : CycleEffects, the ``--with`` effects
 
