@@ -495,6 +495,16 @@ def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
         # only the steps asked for (the same element-wise arithmetic on fewer columns)
         dt, inv_dt, grade = dt[:, columns], inv_dt[:, columns], grade[:, columns]
         since_start = since_start[columns]
+        if columns.size and columns[0] >= 1 and (np.diff(columns) == 1).all():
+            # consecutive steps after the first: views instead of gathered copies; the results
+            # laid out in memory as the gathered columns make them (column by column: the
+            # per-vehicle sums over the steps add in the same order)
+            v_now = speed_mps[:, columns[0]:columns[-1] + 1]
+            v_prev = speed_mps[:, columns[0] - 1:columns[-1]]
+            v_avg = 0.5 * np.add(v_now, v_prev, order="F")
+            accel = np.subtract(v_now, v_prev, order="F") * inv_dt
+            moving = v_avg > 1e-6
+            return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
         v_now = speed_mps[:, columns]
         v_prev = speed_mps[:, prev_index[columns]]
     else:
@@ -604,8 +614,8 @@ def _hold_while_accelerating(va: VehicleArrays, k: Kinematics, n_req):
         steps = np.flatnonzero(hold[0])
         part = n_req[:, steps]
         n_req[:, steps] = np.maximum(_col(va.shift_accel_rpm), part, out=part)
-    else:
-        np.maximum(np.where(hold, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
+    else:   # max(0.0, n_req) is n_req: n_req is at least the power table's speed, >= idle >= +0
+        np.maximum(_col(va.shift_accel_rpm), n_req, out=n_req, where=hold)
 
 
 def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
