@@ -189,18 +189,44 @@ def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows,
     V = va.n
     surely = (_surely_behind_by_block(va, solver, t, v_target, grade, effects, block)
               if speed is None and redriven_if_behind and not trace and rows.size == V else None)
-    parts = []
+    parts, kept = [], []
     for first in range(0, rows.size, block):
         sub = rows[first:first + block]
+        precheck = True if surely is None else surely[first:first + block]
+        keep = None if surely is None or plan is not None else np.flatnonzero(~precheck)
+        if keep is not None and 2 <= keep.size < sub.size:   # run with the other blocks' (below)
+            parts.append(_behind_only(sub.size, 1))
+            kept.append((len(parts) - 1, sub[keep], keep, sub.size))
+            continue
         if sub.size == V:
             va_sub, solver_sub = va, solver
         else:
             va_sub = va.subset(sub) if va_rows is None else va_rows.subset(slice(first, first + sub.size))
             solver_sub = solver.subset(sub, va_sub)
         parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
-                                v_target, grade, trace, effects, plan, redriven_if_behind,
-                                True if surely is None else surely[first:first + block]))
+                                v_target, grade, trace, effects, plan, redriven_if_behind, precheck))
+    if kept:
+        _run_kept_together(parts, kept, va, solver, t, v_target, grade, effects)
     return _concatenate(parts)
+
+
+def _run_kept_together(parts, kept, va, solver, t, v_target, grade, effects):
+    """The vehicles on the trace that are not surely behind, of the blocks where others are
+    (:func:`_without_rows_behind`; a plain cycle), in one pass: ``kept`` lists (index in
+    ``parts``, their rows in ``va``, their rows in the block, the block's size), at least two
+    of each block (a part of one vehicle sums its steps in another order), written into the
+    blocks' sums ``parts`` (NaN for the others). The same figures as one pass per block:
+    element-wise arithmetic, per-vehicle sums, the distance rule of blocks of more than one
+    vehicle (:func:`_distance_m`)."""
+    rows = np.concatenate([k[1] for k in kept])
+    va_keep = va.subset(rows)
+    together = _run_block(va_keep, solver.subset(rows, va_keep), t, None, v_target, grade, False, effects, None,
+                          True, precheck=False, distance_rows=min(k[3] for k in kept))
+    first = 0
+    for index, own, local, _ in kept:
+        for key in BLOCK_ARRAYS:
+            getattr(parts[index], key)[local] = getattr(together, key)[first:first + own.size]
+        first += own.size
 
 
 def _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_removed):
