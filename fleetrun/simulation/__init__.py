@@ -18,7 +18,7 @@ from fleetrun.simulation import bounds, coastdown_driveline, diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver,
                                       above_full_load_at_start, backward,
                                       backward_drivetrain, has_technology, row_buffers,
-                                      standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
+                                      standstill_fuel_rate_g_per_s, step_sums, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
@@ -420,7 +420,8 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     out = backward(va, t, speed, grade, solver, columns, effects, losses=trace, drivetrain=drivetrain)
     dt = out.dt
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    distance_m = _distance_m(out.v_avg * dt, V, on_trace, distance_rows or V)
+    k = drivetrain.k
+    distance_m = _distance_m(out.v_avg * dt, V, on_trace, distance_rows or V, k)
     target_m = float((target_avg * dt_all).sum())
     not_followed, shortfall_time_s, shortfall_max_speed_mps = _shortfall(v_target, None if on_trace else speed,
                                                                          dt_all, columns, out.infeasible)
@@ -555,16 +556,17 @@ def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold
     )
 
 
-def _distance_m(step_m, V, on_trace, block_rows=None):
+def _distance_m(step_m, V, on_trace, block_rows=None, k=None):
     """Distance [m] (V,) driven by a block's vehicles, from the distance of each step (V, N),
     or (1, N) when they drive the trace (``on_trace``). V > 1 vehicles on the trace: summed
     step after step, the order in which numpy summed the (V, N) array that held the shared
     trace's steps before they were computed once (kept so that no figure changes); else
-    numpy's pairwise row sum. ``block_rows``: the size of the block these V vehicles are a part
-    of (the rule follows the block)."""
+    numpy's pairwise row sum, or the pass's rule (core.step_sums) for the Kinematics ``k``.
+    ``block_rows``: the size of the block these V vehicles are a part of (the rule follows the
+    block)."""
     if on_trace and (block_rows or V) > 1:
         return np.broadcast_to(np.add.accumulate(step_m, axis=1)[:, -1], (V,))
-    return step_m.sum(axis=1)
+    return step_m.sum(axis=1) if k is None else step_sums(step_m, k)
 
 
 def _shortfall(v_target, speed, dt_all, columns, infeasible):

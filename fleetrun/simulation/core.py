@@ -361,9 +361,11 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
     if _any(rows):
         motor_W = np.where(_flag(va, "p2_hybrid")[rows], c.motor_power_p2_W, c.motor_power_48v_W)
         dt = _pick(va, k.dt, rows)
-        recovered = tech.recovered_braking_energy_J(_pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows),
-                                                    dt, motor_W, c.round_trip_efficiency)
+        power = _pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows)
         own = engine_torque[rows]
+        if k.sequential and isinstance(rows, slice):   # every vehicle: sums step after step (step_sums)
+            power, own = np.asfortranarray(power), np.asfortranarray(own)
+        recovered = tech.recovered_braking_energy_J(power, dt, motor_W, c.round_trip_efficiency)
         positive = bounds.maximum(own, 0.0)     # the engine's positive work over the cycle, in place:
         positive *= engine_rpm[rows]
         positive /= RPM_PER_RAD_S
@@ -462,10 +464,30 @@ class Kinematics:
     accel: np.ndarray
     moving: np.ndarray
     all_moving: bool             # then the standstill cases are skipped (they would be no-ops)
+    sequential: bool = False     # per-vehicle sums over the steps add step after step (step_sums)
 
     def at_rest(self, a, value):
         """``a`` where the vehicle moves, ``value`` at standstill."""
         return a if self.all_moving else np.where(self.moving, a, value)
+
+
+def step_sums(a, k: Kinematics) -> np.ndarray:
+    """Per-vehicle sums (V,) over the steps of a (V, steps) array of the pass ``k``: numpy's
+    row sum (pairwise), or, in a pass over several vehicles' own speeds (``k.sequential``),
+    added step after step: the order in which numpy summed these arrays when the pass laid
+    them out column by column (as gathering the steps' columns of the speeds does), kept so
+    that no figure changes (docs/simulation.md, "How it is computed").
+
+    Parameters
+    ----------
+    a : array (V, steps), a per-step quantity [any unit]
+    k : Kinematics, the pass's step motion
+
+    Returns
+    -------
+    array (V,), the sums [the unit of ``a`` x steps].
+    """
+    return np.add.accumulate(a, axis=1)[:, -1] if k.sequential and a.shape[1] else a.sum(axis=1)
 
 
 def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
@@ -491,29 +513,32 @@ def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
     since_start = step_time_since_start_s(time_s)
     # the previous step's index per step (step 0: itself)
     prev_index = np.concatenate([[0], np.arange(N - 1)])
+    sequential = False
     if columns is not None:
         # only the steps asked for (the same element-wise arithmetic on fewer columns)
         dt, inv_dt, grade = dt[:, columns], inv_dt[:, columns], grade[:, columns]
         since_start = since_start[columns]
-        if columns.size and columns[0] >= 1 and (np.diff(columns) == 1).all():
-            # consecutive steps after the first: views instead of gathered copies; the results
-            # laid out in memory as the gathered columns make them (column by column: the
-            # per-vehicle sums over the steps add in the same order)
-            v_now = speed_mps[:, columns[0]:columns[-1] + 1]
-            v_prev = speed_mps[:, columns[0] - 1:columns[-1]]
-            v_avg = 0.5 * np.add(v_now, v_prev, order="F")
-            accel = np.subtract(v_now, v_prev, order="F") * inv_dt
-            moving = v_avg > 1e-6
-            return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
-        v_now = speed_mps[:, columns]
-        v_prev = speed_mps[:, prev_index[columns]]
+        v_now, v_prev = _step_speeds(speed_mps, columns, prev_index)
+        # several vehicles' own speeds: their sums add step after step (step_sums)
+        sequential = speed_mps.shape[0] > 1
     else:
         v_now = speed_mps
         v_prev = speed_mps[:, prev_index]
     v_avg = 0.5 * (v_now + v_prev)
     accel = (v_now - v_prev) * inv_dt
     moving = v_avg > 1e-6
-    return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
+    return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()), sequential)
+
+
+def _step_speeds(speed_mps, columns, prev_index):
+    """The speeds at the end and at the start of the steps ``columns`` (ascending), laid out
+    row by row (vehicles x steps, as the rest of the pass): views for consecutive steps after
+    the first, else the gathered columns."""
+    if speed_mps.shape[0] > 1 and columns.size and columns[0] >= 1 and (np.diff(columns) == 1).all():
+        return speed_mps[:, columns[0]:columns[-1] + 1], speed_mps[:, columns[0] - 1:columns[-1]]
+    if speed_mps.shape[0] > 1:
+        return np.take(speed_mps, columns, axis=1), np.take(speed_mps, prev_index[columns], axis=1)
+    return speed_mps[:, columns], speed_mps[:, prev_index[columns]]
 
 
 def trace_kinematics(trace: Trace) -> Kinematics:
