@@ -1349,20 +1349,13 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
     fail_steps = np.flatnonzero((speeds[:, 1:] != cap[1:]).any(axis=0)) + 1   # someone cannot follow step i
     if fail_steps.size == 0:
         return
-    step = _Stepper(m, dv, top, cap, dt)
-    level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
-    caps, dts = cap.tolist(), dt.tolist()
+    walk = _stepper(m, dv, top, cap, dt)
     rows = np.empty((cap.size, m.base.size))                   # rows[i]: the speeds at step i
     N, k = cap.size, 0
     while k < fail_steps.size:
-        first = i = int(fail_steps[k]) + 1    # speeds up to fail_steps[k] are right for everyone
-        v = rows[i - 1]
-        v[:] = speeds[:, i - 1]
-        while i < N:
-            v = step(v, None if level[i - 1] else step.grade_force(i - 1), caps[i], dts[i - 1], rows[i])
-            if step.least(v) == caps[i]:     # all back on the trace (v <= cap): trial speeds hold again
-                break
-            i += 1
+        first = int(fail_steps[k]) + 1        # speeds up to fail_steps[k] are right for everyone
+        rows[first - 1] = speeds[:, first - 1]
+        i = walk(first, rows)
         last = min(i, N - 1)
         speeds[:, first:last + 1] = rows[first:last + 1].T
         k = np.searchsorted(fail_steps, i, side="right")
@@ -1378,80 +1371,83 @@ def _plain_numbers(m: _EffortModel, cap, dt) -> bool:
     return all(a.size == 0 or (a.max() <= 1e50 and a.min() >= -1e50) for a in parts) and not np.signbit(cap).any()
 
 
-class _Stepper:
-    """:func:`_full_effort_step` for every vehicle of ``m`` at one step, into buffers kept from
-    step to step: the same operations on the same numbers, fewer and cheaper calls. Left out
-    where they cannot change a bit: the clip at the table's end when no speed reaches it
-    (speeds never exceed the trace's top), a grade force of 0.0 (``None``: x - 0.0 is x) and
+def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
+    """``walk(i, rows)``: :func:`_full_effort_step` for every vehicle of ``m`` from step ``i``
+    on (``rows[i - 1]``: the speeds at its start), each step's speeds into ``rows[i]``, until
+    every vehicle is back on the trace (returns that step) or the cycle ends (returns N). The
+    same operations on the same numbers, in buffers kept from step to step, fewer and cheaper
+    calls. Left out where they cannot change a bit: the clip at the table's end when no speed
+    reaches it (speeds never exceed the trace's top), a grade force of 0.0 (x - 0.0 is x) and
     a step of 1 s (x * 1.0 is x). Constants are (V,) arrays (numpy's loop for two arrays is
     about twice as fast as the one with a scalar on small arrays; the same IEEE operation per
-    element), and bounds are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (numpy 2.4:
-    0.25 us against 1.4 us a call for ``maximum`` / ``minimum``, which check the floating
-    point status; the same values where neither operand is NaN nor both are zeros)."""
+    element); the cell index is kept as a float (whole numbers, exact) until the gather; bounds
+    are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (numpy 2.4: 0.25 us against 1.4 us
+    a call for ``maximum`` / ``minimum``, which check the floating point status; the same values
+    where neither operand is NaN nor both are zeros)."""
+    V, N = m.base.size, cap.size
+    clip = not float(cap.max()) / dv < top
+    fmax, fmin = (np.fmax, np.fmin) if _plain_numbers(m, cap, dt) else (np.maximum, np.minimum)
+    least = np.fmin.reduce if fmax is np.fmax else np.minimum.reduce
+    dvs, tops, one, floor, zero, half, capb, dtb = (np.full(V, c) for c in (dv, top, 1.0, 1e-3, 0.0, 0.5, 0.0, 1.0))
+    A, B, C, inv_m = m.per
+    base = m.base.astype(float)
+    x, w, lo, hi, tmp, guess, mid, grade = (np.empty(V) for _ in range(8))
+    j = np.empty(V, np.intp)
+    take_lo, take_hi = m.flat.take, m.flat_next.take
+    divide, trunc, subtract, add, multiply = np.divide, np.trunc, np.subtract, np.add, np.multiply
+    level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
+    caps, dts = cap.tolist(), dt.tolist()
 
-    def __init__(self, m: _EffortModel, dv: float, top: float, cap, dt):
-        V = m.base.size
-        self.m = m
-        self.clip = not float(cap.max()) / dv < top
-        self.max, self.min = (np.fmax, np.fmin) if _plain_numbers(m, cap, dt) else (np.maximum, np.minimum)
-        self.dv, self.top, self.one, self.floor, self.zero, self.half, self.cap, self.dt = (
-            np.full(V, c) for c in (dv, top, 1.0, 1e-3, 0.0, 0.5, 0.0, 1.0))
-        self.A, self.B, self.C, self.inv_m = m.per
-        self.base = m.base.astype(float)
-        self.x, self.w, self.lo, self.hi, self.tmp, self.guess, self.mid, self.grade = (np.empty(V) for _ in range(8))
-        self.j = np.empty(V, np.intp)
-        self.least = np.fmin.reduce if self.max is np.fmax else np.minimum.reduce
-
-    def grade_force(self, i):
-        """The grade force [N] (V,) in step ``i`` (weight x sine, road_load.py), in a buffer."""
-        return np.multiply(self.m.weight, self.m.sine[i], out=self.grade)
-
-    def accel(self, v, grade_force):
-        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``self.lo``."""
-        x, w, j, lo, hi, tmp = self.x, self.w, self.j, self.lo, self.hi, self.tmp
-        np.divide(v, self.dv, x)
-        if self.clip:
-            self.min(x, self.top, x)
-        np.trunc(x, tmp)                      # int(x) for x >= 0, kept as a float (whole numbers, exact):
-        np.subtract(x, tmp, w)                # x - int(x) without numpy's mixed-type loop
-        np.add(tmp, self.base, tmp)
+    def accel(v, g):
+        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``lo``."""
+        divide(v, dvs, x)
+        if clip:
+            fmin(x, tops, x)
+        trunc(x, tmp)                          # int(x) for x >= 0, as a float
+        subtract(x, tmp, w)
+        add(tmp, base, tmp)
         j[...] = tmp
-        self.m.flat.take(j, out=lo)
-        np.subtract(self.one, w, tmp)
-        np.multiply(lo, tmp, lo)
-        self.m.flat_next.take(j, out=hi)
-        np.multiply(hi, w, hi)
-        np.add(lo, hi, lo)                    # force
-        self.max(v, self.floor, tmp)          # coastdown_force_N: A + v (B + C v)
-        np.multiply(self.C, tmp, hi)
-        np.add(hi, self.B, hi)
-        np.multiply(hi, tmp, hi)
-        np.add(hi, self.A, hi)
-        np.subtract(lo, hi, lo)
-        if grade_force is not None:
-            np.subtract(lo, grade_force, lo)
-        np.multiply(lo, self.inv_m, lo)
+        take_lo(j, out=lo)
+        subtract(one, w, tmp)
+        multiply(lo, tmp, lo)
+        take_hi(j, out=hi)
+        multiply(hi, w, hi)
+        add(lo, hi, lo)                        # force
+        fmax(v, floor, tmp)                    # coastdown_force_N: A + v (B + C v)
+        multiply(C, tmp, hi)
+        add(hi, B, hi)
+        multiply(hi, tmp, hi)
+        add(hi, A, hi)
+        subtract(lo, hi, lo)
+        if g is not None:
+            subtract(lo, g, lo)
+        multiply(lo, inv_m, lo)
         return lo
 
-    def __call__(self, vp, grade_force, cap: float, dt: float, out):
-        """The speeds (V,) at the end of a step from ``vp`` at its start, into ``out``."""
-        self.cap.fill(cap)
-        if dt != 1.0:
-            self.dt.fill(dt)
-        guess = self.guess
-        a = self.accel(vp, grade_force)
-        if dt != 1.0:
-            np.multiply(a, self.dt, a)
-        np.add(a, vp, guess)                  # vp + a dt (addition commutes bit for bit)
-        self.min(self.cap, guess, guess)
-        self.max(guess, self.zero, guess)
-        mid = self.mid
-        np.add(vp, guess, mid)
-        np.multiply(mid, self.half, mid)
-        a = self.accel(mid, grade_force)
-        if dt != 1.0:
-            np.multiply(a, self.dt, a)
-        np.add(a, vp, out)
-        self.min(self.cap, out, out)
-        self.max(out, self.zero, out)
-        return out
+    def walk(i, rows):
+        vp = rows[i - 1]
+        while i < N:
+            c, step_s, out = caps[i], dts[i - 1], rows[i]
+            g = None if level[i - 1] else multiply(m.weight, m.sine[i - 1], out=grade)
+            capb.fill(c)
+            if step_s != 1.0:
+                dtb.fill(step_s)
+            a = accel(vp, g)
+            if step_s != 1.0:
+                multiply(a, dtb, a)
+            add(a, vp, guess)                  # vp + a dt (addition commutes bit for bit)
+            fmin(capb, guess, guess)
+            fmax(guess, zero, guess)
+            add(vp, guess, mid)
+            multiply(mid, half, mid)
+            a = accel(mid, g)
+            if step_s != 1.0:
+                multiply(a, dtb, a)
+            add(a, vp, out)
+            fmin(capb, out, out)
+            fmax(out, zero, out)
+            if least(out) == c:                # all back on the trace (v <= cap): trial speeds hold again
+                return i
+            vp, i = out, i + 1
+        return i
+    return walk
