@@ -1221,23 +1221,22 @@ def _least_acceleration(m: _EffortModel, cap, dv: float) -> np.ndarray:
     return np.where(least > 0, least, -np.inf)
 
 
-def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
-    """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
-    vehicle that followed the trace to step i - 1 reaches this speed at step i. Without
-    arithmetic: steps that end at rest are 0 (min(0, x) clipped at 0 is 0 for any finite
-    x); steps the vehicle surely follows are the trace's speed: v(i-1) + a dt >= trace(i) at
-    the step's start and at every mean speed up to trace(i) with a at least
+def _trial_speeds(m: _EffortModel, cap, dt, dv, top, out):
+    """Each step's full-effort speed from the trace's speed at its start, into ``out``
+    (V, N - 1): a vehicle that followed the trace to step i - 1 reaches this speed at step i.
+    Without arithmetic: steps that end at rest are 0 (min(0, x) clipped at 0 is 0 for any
+    finite x); steps the vehicle surely follows are the trace's speed: v(i-1) + a dt >=
+    trace(i) at the step's start and at every mean speed up to trace(i) with a at least
     :func:`_least_acceleration` (those the trace does not speed up, for a vehicle whose bound
-    is positive; on the others where v(i-1) + bound dt >= trace(i), the same float operations)."""
+    is positive; on the others where v(i-1) + bound dt >= trace(i), the same float operations).
+    The steps without arithmetic are copied as whole rows of a template."""
     V = m.base.size
-    out = np.zeros((V, cap.size - 1))
     moving = cap[1:] > 0
     rising = np.flatnonzero(moving & (cap[1:] > cap[:-1]))
     level = np.flatnonzero(moving & ~(cap[1:] > cap[:-1]))
     least = _least_acceleration(m, cap, dv)
-    sure = least > 0
-    out[np.ix_(np.flatnonzero(sure), level)] = cap[1:][level]
-    _trial_part(m, np.flatnonzero(~sure), level, cap, dt, dv, top, out)
+    template = np.zeros(cap.size - 1)          # at rest 0, the trace where the trace does not speed up
+    template[level] = cap[1:][level]
     # the steps the trace speeds up: vehicles in the order of their bound, in chunks; a chunk
     # computes the steps its smallest bound does not cover
     order = np.argsort(least, kind="stable")
@@ -1246,8 +1245,11 @@ def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     for first in range(0, V, chunk):
         rows = order[first:first + chunk]
         covered = prev + least[rows[0]] * dt_r >= now
-        out[np.ix_(rows, rising[covered])] = now[covered]
+        row = template.copy()
+        row[rising[covered]] = now[covered]
+        out[rows] = row
         _trial_part(m, rows, rising[~covered], cap, dt, dv, top, out)
+    _trial_part(m, np.flatnonzero(~(least > 0)), level, cap, dt, dv, top, out)   # no positive bound
     return out
 
 
@@ -1300,7 +1302,7 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     dt = np.diff(t)
     speeds = np.empty((va.n, t.size))
     speeds[:, 0] = cap[0]
-    speeds[:, 1:] = _trial_speeds(m, cap, dt, dv, top)
+    _trial_speeds(m, cap, dt, dv, top, speeds[:, 1:])
     _walk_behind(m, speeds, cap, dt, dv, top)
     return speeds
 
