@@ -402,3 +402,23 @@ def test_vehicles_above_full_load_at_the_start_skip_to_the_last_round_bit_for_bi
         if trace:
             for name in TRACE_COLUMNS:
                 assert np.array_equal(getattr(skipped.trace, name), getattr(every_round.trace, name)), name
+
+
+def test_step_sums_of_a_pass_on_own_speeds_add_in_the_gathered_columns_order():
+    # a pass over several vehicles' own speeds lays its arrays out row by row; the per-vehicle
+    # distance is summed step after step, the order numpy used when the gathered steps'
+    # columns laid them out column by column (core.step_sums): the same bits as that layout
+    from fleetrun.simulation import core
+
+    rng = np.random.default_rng(7)
+    t = np.arange(400.0)
+    speed = rng.uniform(0.0, 30.0, (9, t.size))
+    columns = np.sort(rng.choice(np.arange(1, t.size), 300, replace=False))   # steps with gaps
+    k = core.kinematics(t, speed, np.zeros(t.size), columns)
+    assert k.sequential and k.v_avg.flags.c_contiguous
+    gathered = 0.5 * (speed[:, columns] + speed[:, columns - 1])              # column by column
+    assert not gathered.flags.c_contiguous
+    assert core.step_sums(k.v_avg * k.dt, k).tobytes() == (gathered * k.dt).sum(axis=1).tobytes()
+    assert not np.array_equal(core.step_sums(k.v_avg * k.dt, k), (k.v_avg * k.dt).sum(axis=1))   # the order matters
+    one = core.kinematics(t, speed[:1], np.zeros(t.size), columns)            # one vehicle: numpy's row sum
+    assert not one.sequential

@@ -487,7 +487,7 @@ def step_sums(a, k: Kinematics) -> np.ndarray:
     -------
     array (V,), the sums [the unit of ``a`` x steps].
     """
-    return np.add.accumulate(a, axis=1)[:, -1] if k.sequential and a.shape[1] else a.sum(axis=1)
+    return np.asfortranarray(a).sum(axis=1) if k.sequential else a.sum(axis=1)   # column by column: in order
 
 
 def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
