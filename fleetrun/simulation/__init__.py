@@ -577,13 +577,17 @@ def _shortfall(v_target, speed, dt_all, columns, infeasible):
     V = infeasible.shape[0]
     if speed is None and not infeasible.any():  # on the trace and never above full load
         return np.zeros((V, v_target.size), bool), np.zeros(V), np.zeros(V)
-    deficit = v_target[None, :] - np.broadcast_to(v_target if speed is None else speed, (V, v_target.size))
-    not_followed = deficit > FOLLOW_TOL_MPS
+    if speed is None:   # on the trace: no deficit (x - x is +0.0), only the steps above full load
+        deficit, not_followed = None, np.zeros((V, v_target.size), bool)
+    else:
+        deficit = v_target[None, :] - np.broadcast_to(speed, (V, v_target.size))
+        not_followed = deficit > FOLLOW_TOL_MPS
     if columns is None:
         not_followed |= infeasible
     elif infeasible.any():
         not_followed[:, columns] |= infeasible
-    return not_followed, (not_followed * dt_all).sum(axis=1), np.maximum(deficit.max(axis=1), 0.0)
+    largest = np.zeros(V) if deficit is None else np.maximum(deficit.max(axis=1), 0.0)
+    return not_followed, (not_followed * dt_all).sum(axis=1), largest
 
 
 def _still(N, columns):
