@@ -584,8 +584,10 @@ def _shortfall(v_target, speed, dt_all, columns, infeasible):
         not_followed = deficit > FOLLOW_TOL_MPS
     if columns is None:
         not_followed |= infeasible
-    elif infeasible.any():
-        not_followed[:, columns] |= infeasible
+    else:   # only the steps where some vehicle is above full load (x | False is x)
+        some = infeasible.any(axis=0)
+        if some.any():
+            not_followed[:, columns[some]] |= infeasible[:, some]
     largest = np.zeros(V) if deficit is None else np.maximum(deficit.max(axis=1), 0.0)
     return not_followed, (not_followed * dt_all).sum(axis=1), largest
 
