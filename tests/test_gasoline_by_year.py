@@ -62,12 +62,14 @@ def test_turnover_against_the_same_period():
 def test_sum_of_state_runs_is_the_national_run_2010():
     """The 51 state runs of 2010 add up to the national run of the same workbook within 0.1 %
     (the model is additive over states; registrations barely move gallons per mile once VMT is
-    given), so the VMT-weighted state error equals the national error, measured +4.6 % against
-    the states' summed MF-21 gasoline: above the 2 % the nation of 2000 shows (-0.3 %)."""
+    given), so the VMT-weighted state error equals the national error, measured +6.6 % against
+    the states' summed MF-21 gasoline: above the nation of 2000 (+3.2 %, within the issue's 5 %;
+    docs/validation-state-fuel.md part 2)."""
     module = _module()
     nation = module.national_runs()
     states = module.all_states_runs(years=(2010,))
     summary = module.sum_of_states(states, nation).set_index("year").loc[2010]
     assert abs(summary.states_vs_national_run_pct) <= 0.1
-    assert summary.national_error_pct > 2.0
-    assert abs(nation.set_index("year").gasoline_error_pct[2000]) <= 2.0
+    error_2000 = nation.set_index("year").gasoline_error_pct[2000]
+    assert abs(error_2000) <= 5.0
+    assert summary.national_error_pct > error_2000 + 2.0

@@ -551,6 +551,42 @@ def test_measured_idle_and_doe_accessory_sensitivities_only_add_fuel(reference_r
         assert r["model_g_per_ton_mile"] > base[r["vehicle"]], r
 
 
+def test_doe_accessory_sensitivity_covers_every_reference_vehicle():
+    """DOE's accessory load (NREL T3CO ``aux_kw``, reference_inputs_doe_nrel.toml) for every
+    reference vehicle: a vehicle T3CO has a class for keeps its own, the others (class 7 day
+    cab, heavy HD vocational) take the DOE vehicle the file names for their engine's service
+    class (heavy >= 10 L: the class 8 tractors' 3.5 kW; medium: the class 7 box truck's 3.23 kW)."""
+    from fleetrun.simulation.heavy_duty_engine import service_class
+
+    doe = _load("reference_inputs_doe_nrel.toml")
+    _, vehicles = hd_validation.reference_vehicles()
+    loads = hd_validation.doe_nrel_accessories()
+    assert set(loads) == set(vehicles)
+    for name, basis in vehicles.items():
+        stand_in = doe["accessory_by_service_class"][service_class(basis["engine_displacement_L"])]
+        expected = doe["vehicles"].get(name, doe["vehicles"][stand_in])["aux_kw"]
+        assert loads[name]["accessory_power_W"] == pytest.approx(1000.0 * expected), name
+    assert loads["hhd_vocational_urban"]["accessory_power_W"] == pytest.approx(3500.0)
+
+
+def test_doe_accessories_lower_the_example_trucks_mpg_in_every_scenario():
+    """DOE's accessory load (3.5 kW for the class 8 tractors' heavy engines, against the
+    simulation's 1.4 kW) costs fuel on every truck in every scenario: the sensitivity of
+    docs/validation-heavy-duty.md that took the hot-summer class average below VM-1's 5.4 mpg."""
+    shipped = {(r["scenario"], r["vehicle"]): r["mpg"] for r in hd_validation.check_example_combination_trucks()}
+    doe = hd_validation.check_example_combination_trucks(doe_accessories=True)
+    assert {(r["scenario"], r["vehicle"]) for r in doe} == set(shipped)
+    assert all(r["mpg"] < shipped[(r["scenario"], r["vehicle"])] for r in doe), doe
+
+
+def test_idle_brackets_add_the_accessory_loads():
+    """The idle comparison's brackets: the engine alone < with the simulation's accessory load
+    < with DOE's larger one, the difference being the accessory power over the engine's
+    Willans slope (Fact #861's trucks ran their engine-driven accessories, no A/C or fans)."""
+    for r in hd_validation.check_idle_fuel():
+        assert r["model_gal_per_h"] < r["with_accessories_gal_per_h"] < r["with_doe_accessories_gal_per_h"], r
+
+
 def test_stops_in_drive_charge_the_converter_at_the_transient_cycles_stops(reference_rows):
     """The stops-in-drive sensitivity: an automatic stopped in gear burns its drive-idle rate at
     the drive cycles' stops (GEM's baseline; neutral idle is an improvement input, 40 CFR

@@ -51,7 +51,8 @@ from fleetrun.workbook import read_fleet  # noqa: E402
 from fleetrun.cycles import DriveCycle, load_cycle  # noqa: E402
 from fleetrun.resources import model_file  # noqa: E402
 from fleetrun.simulation.heavy_duty_engine import (heavy_duty_constants, reference_engine,  # noqa: E402
-                                                   set_co2_g_per_hp_hr, set_ramped_co2_g_per_hp_hr, standard_for)
+                                                   service_class, set_co2_g_per_hp_hr, set_ramped_co2_g_per_hp_hr,
+                                                   standard_for)
 from fleetrun.workbook.vehicle_file import vehicle_from_mapping  # noqa: E402
 
 LB_KG = 0.45359237
@@ -327,11 +328,15 @@ def _class_mpg(trucks, gal_per_mile) -> float:
     return float(miles.sum() / (miles * gal_per_mile).sum())
 
 
-def check_example_combination_trucks() -> list[dict]:
+def check_example_combination_trucks(doe_accessories: bool = False) -> list[dict]:
     """The example's combination trucks on their scenarios' heavy-duty mixes, each truck and
-    the class average (miles over gallons)."""
+    the class average (miles over gallons); ``doe_accessories``: with DOE's accessory load of
+    their service class (:func:`doe_accessory_power_W`, a sensitivity)."""
     fleet = read_fleet(ROOT / "inputs" / "example_fleet.xlsx")
     trucks = [v for v in fleet.vehicles if v.vehicle_class == COMBINATION_CLASS]
+    if doe_accessories:
+        trucks = [dataclasses.replace(v, extra={**(v.extra or {}), "accessory_power_W": doe_accessory_power_W(
+            None, v.engine_displacement_L)}) for v in trucks]
     rows = []
     for scenario in fleet.scenarios:
         gal_per_mile = _mix_gal_per_mile(trucks, scenario.mix_for("HD"), scenario.ambient_temp_C)
@@ -431,24 +436,32 @@ def measured_idle() -> dict[str, dict]:
         return tomllib.load(fh)["trucks"]
 
 
-def model_no_load_idle_gal_per_h() -> dict[str, float]:
-    """{reference vehicle: its engine's idle fuel [gal/h] at idle speed, no load and no
-    accessories}: the light-load end of the fuel map, as Fact #861 measured trucks."""
+def model_no_load_idle_gal_per_h(accessories: str = "none") -> dict[str, float]:
+    """{reference vehicle: its engine's idle fuel [gal/h] at idle speed and no load}: the
+    light-load end of the fuel map, as Fact #861 measured trucks. ``accessories``: ``none``
+    (the engine alone), ``default`` (the simulation's own heavy-diesel accessory load,
+    engines.toml) or ``doe`` (DOE's, :func:`doe_accessory_power_W`)."""
     defaults, vehicles = reference_vehicles()
-    specs = [vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"], accessory_power_W=0.0,
-                                               engine_model_year=defaults["standard_year"]), name), Path(name))
+    load = {"none": lambda name, b: {"accessory_power_W": 0.0}, "default": lambda name, b: {},
+            "doe": lambda name, b: {"accessory_power_W": doe_accessory_power_W(name, b["engine_displacement_L"])}}
+    specs = [vehicle_from_mapping(gem_row(dict(basis, fuel=defaults["fuel"], engine_model_year=defaults["standard_year"],
+                                               **load[accessories](name, basis)), name), Path(name))
              for name, basis in vehicles.items()]
     return {name: float(g) for name, g in zip(vehicles, idle_gallons_per_hour(specs)[1])}
 
 
 def check_idle_fuel() -> list[dict]:
     """Each reference vehicle's no-load idle fuel against the measured truck of its class
-    (idle_fuel_measured.toml): model / measured."""
-    model = model_no_load_idle_gal_per_h()
+    (idle_fuel_measured.toml): model (the engine alone) / measured; and, as brackets, the
+    idle with the simulation's accessory load and with DOE's (Fact #861's trucks idled with
+    their engine-driven accessories but no A/C and no fans)."""
+    model, own, doe = (model_no_load_idle_gal_per_h(a) for a in ("none", "default", "doe"))
     rows = []
     for truck, m in measured_idle().items():
         rows += [dict(vehicle=name, measured_truck=truck, measured_gal_per_h=m["idle_gal_per_h"],
-                      model_gal_per_h=round(model[name], 3), ratio=round(model[name] / m["idle_gal_per_h"], 3))
+                      model_gal_per_h=round(model[name], 3), ratio=round(model[name] / m["idle_gal_per_h"], 3),
+                      with_accessories_gal_per_h=round(own[name], 3),
+                      with_doe_accessories_gal_per_h=round(doe[name], 3))
                  for name in m["reference"]]
     return rows
 
@@ -459,12 +472,23 @@ def measured_idle_additions() -> dict[str, float]:
     return {r["vehicle"]: r["measured_gal_per_h"] - r["model_gal_per_h"] for r in check_idle_fuel()}
 
 
-def doe_nrel_accessories() -> dict[str, dict]:
-    """{reference vehicle: {accessory_power_W}} of DOE's vehicles as NREL T3CO ships them
-    (reference_inputs_doe_nrel.toml ``aux_kw``; a sensitivity)."""
+def doe_accessory_power_W(name: str | None, displacement_L: float) -> float:
+    """DOE's accessory load [W] as NREL T3CO ships it (reference_inputs_doe_nrel.toml
+    ``aux_kw``): the DOE vehicle ``name``'s own, else the one the file's
+    ``accessory_by_service_class`` names for the engine's service class."""
     with open(HD_DIR / "reference_inputs_doe_nrel.toml", "rb") as fh:
         data = tomllib.load(fh)
-    return {name: dict(accessory_power_W=v["aux_kw"] * 1000.0) for name, v in data["vehicles"].items()}
+    own = data["vehicles"].get(name)
+    stand_in = data["vehicles"][data["accessory_by_service_class"][service_class(displacement_L)]]
+    return 1000.0 * float((own or stand_in)["aux_kw"])
+
+
+def doe_nrel_accessories() -> dict[str, dict]:
+    """{reference vehicle: {accessory_power_W}}: DOE's accessory load for every reference
+    vehicle (:func:`doe_accessory_power_W`; a sensitivity)."""
+    _, vehicles = reference_vehicles()
+    return {name: dict(accessory_power_W=doe_accessory_power_W(name, b["engine_displacement_L"]))
+            for name, b in vehicles.items()}
 
 
 def error_summary(errors) -> dict:
@@ -528,6 +552,7 @@ def main(argv=None) -> dict:
     report["idle_fuel_vs_measured"] = check_idle_fuel()
     report["reference_vehicles_measured_idle"] = check_reference_vehicles(idle_add_gal_per_h=measured_idle_additions())
     report["reference_vehicles_doe_nrel_accessories"] = check_reference_vehicles(columns=doe_nrel_accessories())
+    report["example_combination_trucks_doe_accessories"] = check_example_combination_trucks(doe_accessories=True)
     report["reference_vehicles_stops_in_drive"] = check_reference_vehicles(stops_in_drive=True)
     report["reference_vehicles_stops_in_drive_measured_idle"] = check_reference_vehicles(
         stops_in_drive=True, idle_add_gal_per_h=measured_idle_additions())

@@ -212,6 +212,39 @@ def markdown_table(table: pd.DataFrame, data: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def readme_tables(table: pd.DataFrame) -> str:
+    """The README's two tables from a run with both input variants: the state-years with both
+    fuels (by base year), then the gasoline-only state-years of 2010 and 2017 by state."""
+    mv1, vm4 = (table[table.inputs == v].set_index(["state", "year"]) for v in ("mv1", "mv1+vm4"))
+
+    def cell(row, fuel):
+        text = f"{row[f'{fuel}_error_pct']:+.1f} %"
+        return f"**{text} hit**" if row[f"{fuel}_hit"] else text
+
+    def name(state):
+        return "District of Columbia" if state == "Dist. of Col." else state
+
+    both = mv1[mv1.diesel_observed_Mgal.notna()].sort_index(level=["year", "state"])
+    lines = ["| state-year | gasoline: MV-1 only | with VM-4 shares | special fuels: MV-1 only | with VM-4 shares |",
+             "|---|---|---|---|---|"]
+    lines += [f"| {name(s)} {y} | {cell(r, 'gasoline')} | {cell(vm4.loc[(s, y)], 'gasoline')} | "
+              f"{cell(r, 'diesel')} | {cell(vm4.loc[(s, y)], 'diesel')} |" for (s, y), r in both.iterrows()]
+    lines += ["", "| state | 2010 gasoline: MV-1 only | with VM-4 shares | 2017 gasoline: MV-1 only | with VM-4 shares |",
+              "|---|---|---|---|---|"]
+    for state in sorted({s for s, y in mv1.index if y in (2010, 2017)}):
+        cells = []
+        for year in (2010, 2017):
+            key = (state, year)
+            if key not in mv1.index:
+                cells += ["", ""]
+            elif pd.notna(mv1.loc[key].diesel_observed_Mgal):
+                cells += ["(both fuels, above)", ""]
+            else:
+                cells += [cell(mv1.loc[key], "gasoline"), cell(vm4.loc[key], "gasoline")]
+        lines.append(f"| {name(state)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def later_year(data: pd.DataFrame, row: pd.Series) -> pd.Series | None:
     """The state's forecast year: a later year of the same statistics without registrations (2016
     for 2014), at most :data:`FORECAST_YEARS_AHEAD` years on; None when there is none."""
@@ -235,11 +268,16 @@ def main(argv=None) -> pd.DataFrame:
     parser.add_argument("--states", default="", help="comma list (default: every state with registrations)")
     parser.add_argument("--out", type=Path, default=None, help="write the table as CSV")
     parser.add_argument("--markdown", action="store_true", help="also print the docs page's table")
+    parser.add_argument("--readme", action="store_true", help="also print the README's tables")
+    parser.add_argument("--from-csv", type=Path, default=None,
+                        help="print the summary and tables of a saved --out CSV instead of running")
     parser.add_argument("--variants", default="mv1,mv1+vm4",
                         help="mv1: registrations only; mv1+vm4: plus the state's VM-4 class shares of the miles")
     parser.add_argument("--years", default="", help="comma list of base years (default: every year with registrations)")
     args = parser.parse_args(argv)
     data = pd.read_csv(DATA)
+    if args.from_csv:
+        return report(pd.read_csv(args.from_csv), data, args)
     bases = data[data.mv1_automobiles.notna()]
     if args.states:
         bases = bases[bases.state.isin(args.states.split(","))]
@@ -253,11 +291,19 @@ def main(argv=None) -> pd.DataFrame:
             rows.append(run_state(row, later_year(data, row), Path(tmp), shares))
             print_row(rows[-1])
     table = pd.DataFrame(rows)
-    summarize(table)
-    if args.markdown and set(table.inputs) == {"mv1", "mv1+vm4"}:
-        print(markdown_table(table, data))
     if args.out:
         table.to_csv(args.out, index=False, float_format="%.4g")
+    return report(table, data, args)
+
+
+def report(table: pd.DataFrame, data: pd.DataFrame, args) -> pd.DataFrame:
+    """The counts, and the docs page's and README's tables when asked for (both variants run)."""
+    summarize(table)
+    if set(table.inputs) == {"mv1", "mv1+vm4"}:
+        if args.markdown:
+            print(markdown_table(table, data))
+        if args.readme:
+            print(readme_tables(table))
     return table
 
 

@@ -10,7 +10,8 @@ models/vehicle_library/PROVENANCE.md); docs/registrations.md gives the arithmeti
   state of constant sales, share(a) = S(a) / sum S;
 - miles per vehicle by age (EPA OMEGA annual VMT by age) or flat per class (FHWA VM-1);
 - new model years' fuel economy relative to the library's model year from EPA Automotive
-  Trends (real-world mpg of all new light-duty vehicles), beyond the table a yearly rate.
+  Trends, each class its own column (real-world mpg of new non-electric cars for automobiles,
+  of trucks for light trucks), beyond the table a yearly rate.
 """
 from __future__ import annotations
 
@@ -142,7 +143,7 @@ def _trend_table(name: str) -> tuple[np.ndarray, np.ndarray]:
     return years, np.array([float(table[str(int(y))]) for y in years])
 
 
-def default_future_rate(name: str = "light_duty") -> float:
+def default_future_rate(name: str) -> float:
     """Yearly fuel-economy change after the trend table: the mean of its last N published years.
 
     Parameters

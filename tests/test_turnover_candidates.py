@@ -1,0 +1,81 @@
+"""The turnover efficiency by model year (models/turnover.toml ``[trend.*]``) against EPA
+Automotive Trends, and the pre-registered candidates' findings (validation/turnover_candidates.py;
+docs/validation-state-fuel.md, "Why the model's fleet loses mpg over 2000-2008").
+
+Published numbers: EPA Automotive Trends 2022 edition, car / truck real-world and 2-cycle mpg
+(``inputs/epa_trends/``); FHWA VM-1 on-road mpg of 2000 (passenger cars 22.0, other 2-axle
+4-tire vehicles 17.5; ``inputs/state_statistics/national_years.csv``) and VM-1's change
+2000 -> 2001 (+0.91 / +1.15 %/yr) and 2003 -> 2004 (+1.35 / 0.00 %/yr).
+"""
+from __future__ import annotations
+
+import sys
+import tomllib
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _modules():
+    sys.path.insert(0, str(ROOT / "validation"))
+    sys.path.insert(0, str(ROOT / "models" / "vehicle_library"))
+    import make_trends
+    import turnover_candidates
+
+    return make_trends, turnover_candidates
+
+
+def test_turnover_tables_are_the_non_electric_trends_columns():
+    """turnover.toml's car and light-truck tables equal make_trends.py's derivation from the
+    Trends export to the two decimals written; Trends' own values where no vehicle is electric
+    (MY2000 car 22.5144, truck 16.83964 mpg)."""
+    make_trends, _ = _modules()
+    with open(ROOT / "models" / "turnover.toml", "rb") as f:
+        trend = tomllib.load(f)["trend"]
+    for name, regulatory_class in make_trends.TABLES.items():
+        derived = make_trends.nonelectric_mpg(regulatory_class)
+        shipped = pd.Series({int(y): v for y, v in trend[name]["mpg_by_model_year"].items()})
+        assert list(shipped.index) == list(derived.index)
+        assert shipped.to_numpy() == pytest.approx(derived.round(2).to_numpy(), abs=1e-9)
+    assert trend["car"]["mpg_by_model_year"]["2000"] == pytest.approx(22.51, abs=0.005)
+    assert trend["light_truck"]["mpg_by_model_year"]["2000"] == pytest.approx(16.84, abs=0.005)
+
+
+def test_non_electric_all_light_duty_2022_matches_the_2023_report():
+    """The derivation checked on a figure it was not built from: all light-duty MY2022 without
+    electric vehicles 24.85 mpg (2022 edition, preliminary) against the 2023 edition's 24.8 mpg
+    without BEVs and PHEVs (358 g/mi); 1 % covers the preliminary-to-final revision (26.36 ->
+    26.0 mpg with them) and the PHEVs left in."""
+    make_trends, _ = _modules()
+    assert make_trends.nonelectric_mpg("all")[2022] == pytest.approx(24.8, rel=0.01)
+
+
+@pytest.mark.slow
+def test_calendar_shortfall_does_not_explain_the_2000_2003_turnover():
+    """H1 (pre-registered): the real-world shortfall moved from the model year to the calendar
+    year (H1b) leaves the turnover change from 2000 and 2003 within 0.15 %/yr of the rule it
+    replaces (rw_all) and below VM-1's range; the adopted per-class tables (shipped) move both
+    periods up by at least 0.25 %/yr and keep the national gasoline within the issue's 5 %."""
+    _, candidates = _modules()
+    table = candidates.main(["--candidates", "rw_all,H1b,shipped", "--years", "2000,2003"])
+    change = table.set_index(["candidate", "year"]).ld_mpg_change_pct_per_year
+    error = table.set_index(["candidate", "year"]).gasoline_error_pct
+    for year, vm1_low in ((2000, 0.91), (2003, 0.00)):
+        assert abs(change["H1b", year] - change["rw_all", year]) <= 0.15, year
+        assert change["H1b", year] < vm1_low
+        assert change["shipped", year] - change["rw_all", year] >= 0.25, year
+        assert abs(error["shipped", year]) <= 5.0, year
+
+
+@pytest.mark.slow
+def test_class_mpg_of_2000_on_vm1():
+    """The adopted tables put the nation's 2000 automobiles and light trucks within 2 % of VM-1's
+    passenger cars (22.0 mpg) and other 2-axle 4-tire vehicles (17.5): measured 22.09 and 17.28
+    (before: 22.79 and 18.07, +3.6 and +3.3 %)."""
+    _, candidates = _modules()
+    row = candidates.main(["--candidates", "shipped", "--years", "2000"]).iloc[0]
+    assert row.automobile_mpg == pytest.approx(22.0, rel=0.02)
+    assert row.light_truck_mpg == pytest.approx(17.5, rel=0.02)
