@@ -1427,11 +1427,13 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
         return lo
 
     def walk(i, rows):
-        vp = rows[i - 1]
+        vp, filled = rows[i - 1], None
         while i < N:
             c, step_s, out = caps[i], dts[i - 1], rows[i]
             g = None if level[i - 1] else multiply(m.weight, m.sine[i - 1], out=grade)
-            capb.fill(c)
+            if c != filled:
+                capb.fill(c)
+                filled = c
             if step_s != 1.0:
                 dtb.fill(step_s)
             a = accel(vp, g)
@@ -1448,7 +1450,9 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
             add(a, vp, out)
             fmin(capb, out, out)
             fmax(out, zero, out)
-            if least(out) == c:                # all back on the trace (v <= cap): trial speeds hold again
+            # all back on the trace (v <= cap): trial speeds hold again; the first and last
+            # vehicle read first (a scalar each), the reduction only when both are on it
+            if out[0] == c and out[-1] == c and least(out) == c:
                 return i
             vp, i = out, i + 1
         return i
