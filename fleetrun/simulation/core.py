@@ -1376,16 +1376,13 @@ def _plain_numbers(m: _EffortModel, cap, dt) -> bool:
 def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
     """``walk(i, rows)``: :func:`_full_effort_step` for every vehicle of ``m`` from step ``i``
     on (``rows[i - 1]``: the speeds at its start), each step's speeds into ``rows[i]``, until
-    every vehicle is back on the trace (returns that step) or the cycle ends (returns N). The
-    same operations on the same numbers, in buffers kept from step to step, fewer and cheaper
-    calls. Left out where they cannot change a bit: the clip at the table's end when no speed
-    reaches it (speeds never exceed the trace's top), a grade force of 0.0 (x - 0.0 is x) and
-    a step of 1 s (x * 1.0 is x). Constants are (V,) arrays (numpy's loop for two arrays is
-    about twice as fast as the one with a scalar on small arrays; the same IEEE operation per
-    element); the cell index is kept as a float (whole numbers, exact) until the gather; bounds
-    are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (numpy 2.4: 0.25 us against 1.4 us
-    a call for ``maximum`` / ``minimum``, which check the floating point status; the same values
-    where neither operand is NaN nor both are zeros)."""
+    every vehicle is back on the trace (returns that step) or the cycle ends (returns N): the
+    same operations on the same numbers in fewer, cheaper calls (docs/simulation.md, "How it
+    is computed"). Left out where they cannot change a bit: the clip at the table's end when
+    no speed reaches it, a grade force of 0.0 (x - 0.0 is x), a step of 1 s (x * 1.0 is x).
+    Bounds are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (the same values where
+    neither operand is NaN nor both are zeros; numpy 2.4's ``maximum`` / ``minimum`` cost
+    1.4 us a call against 0.25)."""
     V, N = m.base.size, cap.size
     clip = not float(cap.max()) / dv < top
     fmax, fmin = (np.fmax, np.fmin) if _plain_numbers(m, cap, dt) else (np.maximum, np.minimum)
