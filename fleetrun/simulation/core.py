@@ -1391,8 +1391,7 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
     A, B, C, inv_m = m.per
     base = m.base.astype(float)
     x, w, lo, hi, tmp, guess, mid, grade = (np.empty(V) for _ in range(8))
-    j = np.empty(V, np.intp)
-    take_lo, take_hi = m.flat.take, m.flat_next.take
+    j, take_lo, take_hi = np.empty(V, np.intp), m.flat.take, m.flat_next.take
     divide, trunc, subtract, add, multiply = np.divide, np.trunc, np.subtract, np.add, np.multiply
     level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
     caps, dts = cap.tolist(), dt.tolist()
