@@ -57,6 +57,7 @@ class VehicleSpec:
     technology: str | None = None        # comma list of fleetrun.simulation.technology names
     measured_ftp_mpg: float | None = None  # measured FTP composite: calibrates the vehicle's efficiency
     label_combined_mpg: float | None = None   # EPA label combined, used when no measured FTP
+    label_group: str | None = None       # rows sharing one label: one fuel scale (simulation/measured.py)
     extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):

@@ -127,3 +127,50 @@ def test_a_drag_is_not_taken_for_a_road_and_noise_names_no_road():
     assert [f.effect for f in sel.findings] == ["aero_drag"]
     problems = [_road_problem(7, 0.0), _road_problem(8, 0.0), _road_problem(9, 0.0)]
     assert not select(_road(problems, ["a", "b", "c"]).coarse, Settings(n_shifts=50)).findings
+
+
+def _true_road_fuel(seed: int, road_amp: float) -> np.ndarray:
+    """The road's own fuel signal of :func:`_road_problem` on 10-sample windows (no noise)."""
+    t = np.arange(N, dtype=float)
+    speed = (8.0 + 4.0 * seed % 7) * (1 + 0.5 * np.sin(2 * np.pi * t / (150.0 + 20 * seed)))
+    dist = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]))])
+    return (road_amp * np.sin(2 * np.pi * dist / 3000.0) * 0.01 * speed).reshape(-1, 10).mean(axis=1)
+
+
+def test_a_named_road_sized_after_its_selection_comes_closer_to_the_true_road():
+    """The ridge that keeps the knots from fitting noise shrinks the named road; refitted with
+    the penalty relaxed (ROAD_RELAX, chosen by held-out error) its fuel moved is nearer the
+    true road's, and what is named does not change. Measured on these three seeds with a knot
+    every 1,000 m: moved fuel 0.906-0.944 of the truth at the selection's penalty, 0.943-0.968
+    relaxed (with 500-m knots, the default, both are within 1.1 % of it: too close to order)."""
+    for seeds in ((1, 2, 3), (11, 12, 13), (21, 22, 23)):
+        problems = [_road_problem(s, 0.3) for s in seeds]
+        truth = np.abs(np.concatenate([_true_road_fuel(s, 0.3) for s in seeds])).sum()
+        sizes, named = [], []
+        for refit in (False, True):
+            joined, _ = join(problems, ["a", "b", "c"])
+            joined.coarse = join_coarse(problems, ["a", "b", "c"], 10)
+            sel = select(with_road(joined, problems, ["a", "b", "c"], 10, "none", knot_m=1000.0,
+                                   refit=refit).coarse,
+                         Settings(n_shifts=50))
+            road = next(a for a in sel.accepted if a.id == "road_grade@road")
+            assert (road.relaxed is not None) == refit and (not refit or road.relaxed < 1.0)
+            sizes.append(np.abs(road.coefficient * road.column).sum() / truth)
+            named.append([f.effect for f in sel.findings])
+        assert named[0] == named[1] == ["road_grade@road"]
+        assert abs(sizes[1] - 1) < abs(sizes[0] - 1)
+        assert "Sized after its selection" in sel.findings[0].explanation
+
+
+def test_relaxed_refit_at_the_selection_penalty_is_the_penalised_fit():
+    from dataclasses import replace
+    from fleetrun.diagnose.select import cv_fit, fold_ids, relaxed_block
+
+    problems = [_road_problem(1, 0.3), _road_problem(2, 0.3), _road_problem(3, 0.3)]
+    road = _road(problems, ["a", "b", "c"]).coarse
+    cand = road.candidates[-1]
+    folds = fold_ids(len(road.residual), 5, 4)
+    terms = list(road.initial_terms)
+    w, factor = relaxed_block(road.residual, terms, replace(cand, relax=(1.0,)), folds, 5)
+    _, _, b = cv_fit(road.residual, terms, cand.block, cand.lower, cand.upper, folds, 5, cand.penalty)
+    assert factor == 1.0 and np.allclose(w, b[len(terms):])

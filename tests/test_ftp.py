@@ -274,6 +274,34 @@ def test_thermal_constants_can_be_varied_per_call():
     assert simulate([CAMRY], "FTP", ambient_temp_C=0.0, thermal=slow).phases["bag1"].fuel_g[0] > base
 
 
+def test_heat_capacity_by_engine_mass():
+    """The cold start's optional engine-mass basis (docs/validation-epa.md, issue 22 fourth round,
+    measured and not adopted): FASTSim 2's fuel-converter mass 61 kg + P / 2.13 kW/kg (150 kW:
+    131.4 kg by hand); the stored constants keep the displacement basis; on the mass basis with
+    the capacity per kg that gives a 2.5 L, 150 kW engine the same node as 15 kJ/K per litre, an
+    engine of twice the displacement and 1.4 times the power warms faster than c_L V_d says, so
+    its cold bag 1 costs less."""
+    import dataclasses
+
+    from fleetrun.simulation.params import vehicle_arrays
+
+    assert thermal.engine_mass_kg(150.0, 61.0, 2.13) == pytest.approx(61.0 + 150.0 / 2.13, rel=1e-12)
+    k = thermal.thermal_constants()
+    assert k.heat_capacity_basis == "displacement"
+    va = vehicle_arrays([CAMRY])
+    assert thermal.node_heat_capacity_J_per_K(va, k)[0] == pytest.approx(2.487 * k.heat_capacity_J_per_K_per_L)
+    per_kg = 2.5 * k.heat_capacity_J_per_K_per_L / thermal.engine_mass_kg(150.0, 61.0, 2.13)
+    mass = dataclasses.replace(k, heat_capacity_basis="engine_mass", heat_capacity_J_per_K_per_kg=per_kg)
+    camry_kg = 61.0 + 151.4 / 2.13                                  # the Camry's 151.4 kW
+    assert thermal.node_heat_capacity_J_per_K(va, mass)[0] == pytest.approx(per_kg * camry_kg, rel=1e-12)
+    big = dataclasses.replace(CAMRY, vehicle_id="big", engine_displacement_L=5.0, rated_power_kW=210.0,
+                              peak_engine_torque_Nm=500.0)
+    warm, _ = _warm_udds_bags(big, 25.0)
+    cold = {name: simulate([big], "FTP", ambient_temp_C=25.0, thermal=kk).phases["bag1"].fuel_g[0] - warm
+            for name, kk in (("displacement", k), ("mass", mass))}
+    assert 0.0 < cold["mass"] < cold["displacement"]
+
+
 def test_composed_cycle_errors_name_the_file(tmp_path):
     from fleetrun.errors import InputError
 

@@ -49,7 +49,7 @@ def test_a_larger_reference_in_the_middle_is_found():
 
 
 def test_started_cells_and_rows_equal_a_count_of_every_start():
-    """The tag counts (two or three ``bytes.count`` where the text allows) equal the count of
+    """The tag counts (one ``bytes.count`` and one search where the text allows) equal the count of
     every ``<c`` / ``<row`` followed by a space, ``>``, ``/`` or a line break: with ``<cols>``,
     ``<col .../>``, ``<cfRule``, bare ``<c>`` and ``<c/>`` cells, prefixed tags and line breaks."""
     import re
@@ -63,3 +63,17 @@ def test_started_cells_and_rows_equal_a_count_of_every_start():
         cells = len(re.findall(rb"<c[ >/\n\t\r]", text)) + len(re.findall(rb"<\w+:c[\s/>]", text))
         rows = len(re.findall(rb"<row[ >/\n\t\r]", text)) + len(re.findall(rb"<\w+:row[\s/>]", text))
         assert X._count_tags(text) == (cells, rows), text
+
+
+def test_holds_equals_in():
+    """``_holds`` (the pre-scan's search for a namespace prefix or a formula tag by its rare byte)
+    answers as ``in`` does: with the rare byte absent, present without the pattern, at the text's
+    start and end, and more often than RARE_TRIES (where it searches as ``in`` does)."""
+    rng = random.Random(7)
+    pieces = ["<c r=\"A1\">", "<f>", "</f>", "<x:c/>", "<x:row>", ":", "f", "<", "c", "row", "x:f", "<v>1</v>",
+              "ff" * (X.RARE_TRIES // 2), ":" * (X.RARE_TRIES + 1)]
+    for _ in range(2000):
+        text = "".join(rng.choice(pieces) for _ in range(rng.randint(0, 12))).encode()
+        assert X._holds(text, (b":c", b":row")) == (b":c" in text or b":row" in text), text
+        assert X._holds(text, (b"<f",), rare=1) == (b"<f" in text), text
+        assert X._holds(text, (b":f",)) == (b":f" in text), text

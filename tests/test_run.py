@@ -84,8 +84,17 @@ def test_totals_reconcile_exactly(fleet_path, tmp_path):
         assert row.diff_efficiency == (math.fsum(group.diff_output_energy_J) / math.fsum(group.diff_input_energy_J))
 
 
-def test_budget_years_growth_and_cycle_mix(tmp_path):
-    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A", count=2, annual_miles=10000)],
+# EPA's derived 5-cycle coefficients (40 CFR 600.210-12(a)(2)) by model year: (intercept
+# [gal/mi], slope) of city and highway; the 2008 rule's set before MY2017, the MY2017+ set from
+# then and for a row without a model year (models/budget.toml gives the sources)
+SET_2008 = {"UDDS": (0.003259, 1.1805), "HWFET": (0.001376, 1.3466)}
+SET_2017 = {"UDDS": (0.004091, 1.1601), "HWFET": (0.003191, 1.2945)}
+
+
+@pytest.mark.parametrize(("model_year", "label"), [(2015, SET_2008), (2017, SET_2017), (None, SET_2017)])
+def test_budget_years_growth_and_cycle_mix(tmp_path, model_year, label):
+    extra = {} if model_year is None else {"model_year": model_year}
+    path = write_fleet(tmp_path / "f.xlsx", [vehicle("A", count=2, annual_miles=10000, **extra)],
                        [scenario("s", cycle_mix="UDDS:0.25,HWFET:0.75", budget_years=3,
                                  vmt_growth_pct_per_year=10)])
     out = tmp_path / "out"
@@ -99,9 +108,8 @@ def test_budget_years_growth_and_cycle_mix(tmp_path):
     from fleetrun.workbook import read_fleet
 
     spec = read_fleet(path).vehicles[0]
-    # on-road fuel by EPA's derived 5-cycle formulas, 40 CFR 600.210-12(a)(2): city (UDDS)
-    # 1/mpg = 0.003259 + 1.1805/mpg, highway (HWFET) 1/mpg = 0.001376 + 1.3466/mpg
-    label = {"UDDS": (0.003259, 1.1805), "HWFET": (0.001376, 1.3466)}
+    # on-road fuel by EPA's derived 5-cycle formulas: 1/mpg = intercept + slope/mpg, city (UDDS)
+    # and highway (HWFET), with the set of the row's model year
     cycle_per_mile = 0.0
     for name, share in (("UDDS", 0.25), ("HWFET", 0.75)):
         sim = v([spec], load_cycle(name))

@@ -16,6 +16,7 @@ from fleetrun.cycles import load_cycle
 from fleetrun.epa.technology import join_rules, match_configuration, omega_vehicles, technology_of_class
 from fleetrun.errors import InputError
 from fleetrun.resources import inputs_dir
+from fleetrun.physics import epa_label
 from fleetrun.simulation import measured, simulate
 from fleetrun.simulation import technology as tech
 from fleetrun.simulation.core import idle_fuel_rate_g_per_s, trace_kinematics
@@ -123,11 +124,18 @@ def test_import_epa_attaches_classes_to_most_of_the_list():
     assert all(v.get("technology") for v in result.vehicles)
 
 
-def test_label_scale_reproduces_the_label_through_epas_formulas():
+@pytest.mark.parametrize(("model_year", "city_ab", "highway_ab"), [
+    (2016, (0.003259, 1.1805), (0.001376, 1.3466)),     # 2008 label rule set (models/budget.toml)
+    (2022, (0.004091, 1.1601), (0.003191, 1.2945)),     # MY2017+ set
+    (None, (0.004091, 1.1601), (0.003191, 1.2945)),     # no model year: a current vehicle
+])
+def test_label_scale_reproduces_the_label_through_epas_formulas(model_year, city_ab, highway_ab):
+    """The label is inverted with the derived 5-cycle set of the vehicle's model year (40 CFR
+    600.210-12(a)(2); the sets' sources in models/budget.toml)."""
     ftp, hwy, label = np.array([30.0]), np.array([45.0]), np.array([27.0])
-    k = measured.label_scale(label, ftp, hwy)
-    city = 1 / (0.003259 + 1.1805 * k / ftp)        # 40 CFR 600.210-12 derived 5-cycle
-    highway = 1 / (0.001376 + 1.3466 * k / hwy)
+    k = measured.label_scale(label, ftp, hwy, model_years=[model_year])
+    city = 1 / (city_ab[0] + city_ab[1] * k / ftp)
+    highway = 1 / (highway_ab[0] + highway_ab[1] * k / hwy)
     assert 1 / (0.55 / city + 0.45 / highway) == pytest.approx(label, rel=1e-12)
 
 
@@ -138,3 +146,28 @@ def test_measured_ftp_is_met_exactly_and_carried_with_the_share_elsewhere():
     k = ftp / 30.0
     hw0, hw1 = simulate([CAMRY], "HWFET").mpg[0], simulate([cal], "HWFET").mpg[0]
     assert hw1 == pytest.approx(hw0 / k ** measured.transfer_share(), rel=1e-12)
+
+
+def test_rows_of_one_label_group_share_one_scale():
+    """Two configurations of one model type (the Camry and a 10 % heavier one) carry one label
+    and one `label_group`: one fuel scale k for both, so that the mean of their label fuel per
+    mile is the label's (40 CFR 600.208-12: a label is the configurations' mean; equal weights;
+    pre-registered G1, docs/validation-epa.md), and the simulation keeps their difference. Alone,
+    each would meet the label itself."""
+    heavy = dataclasses.replace(CAMRY, vehicle_id="heavy", test_weight_kg=CAMRY.test_weight_kg * 1.1)
+    pair = [dataclasses.replace(v, label_combined_mpg=28.0, label_group="camry", model_year=2022)
+            for v in (CAMRY, heavy)]
+    label_set = epa_label.set_for_model_year(2022)
+
+    def labels(fleet):
+        ftp = simulate(fleet, "FTP", ambient_temp_C=25.0).mpg
+        hwy = simulate(fleet, "HWFET", ambient_temp_C=25.0).mpg
+        return epa_label.combined_label_mpg(ftp, hwy, label_set), ftp
+
+    grouped, ftp = labels(pair)
+    assert np.mean(1.0 / grouped) == pytest.approx(1.0 / 28.0, rel=1e-12)
+    raw = simulate([dataclasses.replace(v, label_combined_mpg=None) for v in pair], "FTP", ambient_temp_C=25.0).mpg
+    assert ftp[0] / ftp[1] == pytest.approx(raw[0] / raw[1], rel=1e-12)      # one k for both
+    alone, _ = labels([dataclasses.replace(v, label_group=None) for v in pair])
+    assert alone == pytest.approx([28.0, 28.0], rel=1e-12)
+    assert abs(grouped[0] - grouped[1]) > 0.1                                # the heavier one burns more

@@ -11,7 +11,7 @@ from fleetrun.resources import models_dir
 from fleetrun.simulation import simulate
 from fleetrun.simulation.params import FUEL_CONSTANTS, engine_defaults, vehicle_arrays
 from fleetrun.testing.vehicles import AWD, CAMRY, CIVIC, F150
-from validation.epa_fuel_economy import coefficients_of, trace_terms
+from validation.epa_fuel_economy import EXTRA_SUMS, FUEL_TERMS, coefficients_of, trace_extras, trace_terms
 
 
 def _toml(name):
@@ -41,6 +41,23 @@ def test_fuel_is_linear_in_the_constants():
         S = trace_terms(va, r.trace).sum(axis=1)                        # (V, 8) [J]
         fuel_g = (S * coefficients_of(va.fuel_constants)).sum(axis=1) / (va.lhv * 1e3)
         np.testing.assert_allclose(fuel_g, r.fuel_g, rtol=1e-9)
+
+
+def test_arrb_acceleration_sum_is_the_transient_term_times_the_acceleration():
+    """The candidate acceleration term in ARRB's form (docs/validation-epa.md, issue 22 fourth
+    round): per step max(a, 0) x P_acc+ x dt over the same steps as the fuel equation's transient
+    term, i.e. that term weighted by the step's own acceleration from the trace's speeds."""
+    cars = [F150, CAMRY, CIVIC, AWD]
+    for cycle in ("UDDS", "US06"):
+        r = simulate(cars, cycle, trace=True)
+        va = vehicle_arrays(cars)
+        per_step = trace_terms(va, r.trace)[..., FUEL_TERMS.index("transient")]       # P_acc+ dt [J]
+        v = np.asarray(r.trace.vehicle_speed_mps, float)
+        t = np.asarray(r.trace.time_s[0], float)
+        accel = np.diff(v, axis=1, prepend=v[:, :1]) / np.diff(t, prepend=t[0] - 1.0)   # backward differences
+        arrb = trace_extras(va, r.trace)[..., EXTRA_SUMS.index("transient_arrb")]
+        np.testing.assert_allclose(arrb, per_step * np.maximum(accel, 0.0), rtol=1e-9, atol=1e-9)
+        assert (arrb > 0).any() and (arrb >= 0).all()
 
 
 def test_error_file_has_the_agreed_format():

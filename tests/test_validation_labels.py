@@ -81,8 +81,8 @@ def test_the_my2017_label_coefficients_reproduce_the_labels(labels):
     """fueleconomy.gov MY2022: the label's own unadjusted city figure through the budget.toml
     formulas; exact (0.01 %) for most labels with the MY2017 coefficients (measured 81 %), almost
     none with the 2008 ones (measured 1.3 %)."""
-    new = el.label_formula_check(labels, "epa_label_my2017")["city08U"]
-    old = el.label_formula_check(labels, "epa_label")["city08U"]
+    new = el.label_formula_check(labels, "derived_2017")["city08U"]
+    old = el.label_formula_check(labels, "derived_2008")["city08U"]
     assert np.mean(np.abs(new) <= 1e-4) > 0.75 and np.mean(np.abs(old) <= 1e-4) < 0.05
 
 
@@ -90,9 +90,10 @@ def test_the_my2017_label_coefficients_reproduce_the_labels(labels):
 def test_the_real_label_route_held_out(routed):
     """The issue's line "one measured FTP or label figure: HWFET >= 88 %, US06 >= 78 % within 5 %"
     with the real label (unrounded comb08U) on the 899 joined vehicles, the share fitted on the
-    other manufacturers (22 folds): measured HWFET 74.7 % (2008 formulas, as `simulate` applies
-    them) and 78.0 % (MY2017), US06 79.7 / 82.3 % (158 vehicles). Tolerance: 1.5 points on HWFET
-    (13 vehicles), 2.5 on US06 (4 vehicles), for small model changes; the HWFET target stays missed."""
+    other manufacturers (22 folds): measured HWFET 78.0 % with the MY2017 formulas (what `simulate`
+    applies to a MY2022 vehicle) and 74.7 % with the 2008 ones, US06 82.3 / 79.7 % (158 vehicles).
+    Tolerance: 1.5 points on HWFET (13 vehicles), 2.5 on US06 (4 vehicles), for small model
+    changes; the HWFET target stays missed."""
     _, lab, results = routed
     assert lab.used.sum() >= 800
 
@@ -100,7 +101,36 @@ def test_the_real_label_route_held_out(routed):
         x = results[key][test].dropna().to_numpy()
         return np.mean(np.abs(x) <= 0.05)
 
-    for name, hw, us in (("real comb08U", 0.747, 0.797), ("real comb08U, MY2017 formulas", 0.780, 0.823)):
+    for name, hw, us in (("real comb08U", 0.780, 0.823), ("real comb08U, 2008 formulas", 0.747, 0.797)):
         assert abs(within((name, "22 folds"), "HWFET") - hw) <= 0.015
         assert abs(within((name, "22 folds"), "US06") - us) <= 0.025
-        assert within((name, "22 folds"), "HWFET") < 0.88 <= within(("derived (2008 formulas)", "22 folds"), "HWFET")
+        assert within((name, "22 folds"), "HWFET") < 0.88 <= within(("derived (MY2017 formulas)", "22 folds"), "HWFET")
+
+
+@pytest.mark.slow
+def test_vehicles_on_one_label_share_its_scale(routed):
+    """Pre-registered G1 (docs/validation-epa.md "Several test vehicles on one label"): the
+    vehicles joined to one label share one fuel scale and the simulation carries their
+    configuration differences. Measured held out (22 folds) against the per-vehicle route on the
+    same 899 vehicles: HWFET 78.0 -> 80.9 %, US06 82.3 -> 84.8 %; vehicles alone on their label
+    unchanged (HWFET 78.9 %). The rule's bar: >= 1 point on HWFET, <= 1 point lost on US06."""
+    r, lab, _ = routed
+    from epa_one_number import SHARE_GRID, fit_held_out, label_errors
+
+    used = lab.used.to_numpy()
+    real = np.where(used, lab.comb08U.to_numpy(), np.nan)
+    groups = np.where(used, lab.label_ids.astype(str).to_numpy(), None)
+    mf = r["manufacturer"]
+    one, _ = fit_held_out(r["err"], mf, dict(grid=SHARE_GRID, apply=lambda s: label_errors(r, "share", s, label=real)))
+    grp, _ = fit_held_out(r["err"], mf, dict(grid=SHARE_GRID, apply=lambda s: el.group_label_errors(r, s, real, groups)))
+
+    def within(e, test):
+        x = e[test].dropna().to_numpy()
+        return np.mean(np.abs(x) <= 0.05)
+
+    assert within(grp, "HWFET") - within(one, "HWFET") >= 0.01
+    assert within(grp, "US06") - within(one, "US06") >= -0.01
+    assert abs(within(grp, "HWFET") - 0.809) <= 0.015 and within(grp, "HWFET") < 0.88
+    size = pd.Series(groups).map(pd.Series(groups).value_counts()).to_numpy()
+    alone = used & (size == 1)
+    assert np.allclose(grp.loc[alone, ["FTP", "HWFET"]], one.loc[alone, ["FTP", "HWFET"]], rtol=0, atol=1e-12)

@@ -364,3 +364,11 @@ def test_rows_become_the_same_vehicles_as_the_dataclass_makes(tmp_path):
         vehicle_from_fields({**values, "no_such_field": 1})
     with pytest.raises(TypeError):
         vehicle_from_fields({k: v for k, v in values.items() if k != "fuel"})
+
+
+def test_label_group_is_read_onto_the_vehicle(tmp_path):
+    """`label_group` (docs/workbook.md): rows that share one EPA label; text, optional."""
+    rows = [vehicle("A", label_combined_mpg=28.0, label_group="camry 2.5"),
+            vehicle("B", label_combined_mpg=28.0, label_group="camry 2.5"), vehicle("C")]
+    fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
+    assert [v.label_group for v in fleet.vehicles] == ["camry 2.5", "camry 2.5", None]

@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -27,6 +27,7 @@ finding but ``warmup``.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -38,9 +39,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from validation.diagnose_concealed import (COMPARED, SIZE_TOLERANCE, SIZES, _effect_fuel, _write,  # noqa: E402
-                                          concealed_fuel)
+                                          concealed_fuel, road_profile_grade)
 
+from fleetrun.diagnose.engine import Settings, relaxed_fit  # noqa: E402
 from fleetrun.diagnose.joint import joint_diagnosis  # noqa: E402
+from fleetrun.diagnose.route import ROAD_ID, ROAD_KNOT_M  # noqa: E402
 from fleetrun.diagnose.select import effect_of  # noqa: E402
 from fleetrun.effects import EFFECTS  # noqa: E402
 from fleetrun.diagnose.recording import load_recording  # noqa: E402
@@ -87,6 +90,23 @@ WEIGHTING["L"] = "noise"
 HOT_STARTS.add("L")
 #: designs with one road under every target (``joint_diagnosis(road=True)``)
 ROAD = {"L"}
+# pre-registered (docs/diagnose-realdata.md, 1g): L with a named road sized after its selection
+DESIGNS["Lr"] = DESIGNS["J3"]
+WEIGHTING["Lr"] = "noise"
+HOT_STARTS.add("Lr")
+ROAD.add("Lr")
+#: designs whose named road is refitted with the penalty relaxed (``road_refit=True``); its
+#: background on the clean targets is the same refit there (:func:`_background`)
+ROAD_REFIT = {"Lr"}
+# pre-registered after Lr (docs/diagnose-realdata.md, 1h): Lr with a knot every 500 m
+DESIGNS["Lr5"] = DESIGNS["J3"]
+WEIGHTING["Lr5"] = "noise"
+HOT_STARTS.add("Lr5")
+ROAD.add("Lr5")
+ROAD_REFIT.add("Lr5")
+#: design -> the road's knot spacing [m] where it is not fleetrun.diagnose.route.ROAD_KNOT_M
+#: (500 m since Lr5)
+ROAD_KNOT = {"L": 1000.0, "Lr": 1000.0}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -152,16 +172,30 @@ def _phase_masks(d) -> list[np.ndarray]:
     return out
 
 
-def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
+def run(design: str, workdir=None, sizes=SIZES, road: bool = False,
+        settings: Settings | None = None) -> tuple[dict, list[JointCase]]:
+    """The clean targets' diagnosis and the scored cases of ``design``; ``road`` True adds the
+    road under every target as the library now builds it (knots every
+    :data:`fleetrun.diagnose.route.ROAD_KNOT_M`, refitted once named) to any design;
+    ``settings`` the selection's (default ``Settings()``)."""
     workdir = Path(workdir or tempfile.mkdtemp())
+    refit = design in ROAD_REFIT or road
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
     kw = {"weights": WEIGHTING.get(design, "none"),
           "hot_starts": [True] * len(pairs) if design in HOT_STARTS else None,
-          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD}
+          "grade_profile": design in GRADE_PROFILE, "road": design in ROAD or road,
+          "road_refit": refit, "road_knot_m": ROAD_KNOT.get(design, ROAD_KNOT_M), "settings": settings}
     clean = joint_diagnosis(clean_paths, refs, **kw)
     clean_ids = [f["effect"] for f in clean.result["findings"]]
+    if refit:
+        # the penalty factor the road's refit keeps on the clean targets (its background)
+        clean.result["road_background_factor"] = relaxed_fit(clean.problem.coarse, ROAD_ID, settings)[1]
+        bg = _background(clean, ROAD_ID, True, settings)
+        # and what that fit puts into the phases (sum over phases of |its phase sum| [g]): the
+        # phase-fuel error a named road's background alone leaves
+        clean.result["road_background_phase_g"] = sum(abs(float(bg[m].sum())) for m in _phase_masks(clean))
     dt = np.gradient(clean.problem.time_s)
     total = float(np.sum(clean.problem.measured * dt))
     masks = _phase_masks(clean)
@@ -189,7 +223,7 @@ def run(design: str, workdir=None, sizes=SIZES) -> tuple[dict, list[JointCase]]:
             bg = np.zeros(len(extra))
             for i in ids:
                 if i not in clean_ids:
-                    bg = bg + _fuel_of(clean, i, False)
+                    bg = bg + _background(clean, i, refit, settings)
             # what the diagnosis adds over the clean diagnosis, less the effect's clean background
             added = (d.fitted - clean.fitted) * dt - bg
             before = sum(abs(float((extra * dt)[m].sum())) for m in masks)
@@ -234,19 +268,38 @@ def _fuel_of(d, cid: str, findings_only: bool = True) -> np.ndarray:
     return f["parameters"][e.linear] * col * np.gradient(d.problem.time_s)
 
 
+def _background(clean, cid: str, refit: bool, settings: Settings | None = None) -> np.ndarray:
+    """Fuel [g] per sample that ``cid`` fits on the clean targets, where it is no finding: its
+    own fit there (the candidate table's parameters), or for a block refitted after its
+    selection (``refit``) the same refit on the clean targets
+    (:func:`fleetrun.diagnose.engine.relaxed_fit`: the penalty chosen by held-out error there)."""
+    cand = next(c for c in clean.problem.candidates if c.id == cid)
+    if not refit or cand.block is None:
+        return _fuel_of(clean, cid, False)
+    w, _ = relaxed_fit(clean.problem.coarse, cid, settings)
+    return cand.column_for({f"w{i}": float(x) for i, x in enumerate(w)}) * np.gradient(clean.problem.time_s)
+
+
 def _why(result: dict) -> str:
-    """The first selection round's two best held-out gains and the ambiguities reported."""
+    """The first selection round's two best held-out gains and the ambiguities reported (and
+    the penalty factor a refitted road kept)."""
     rounds = result["method"]["rounds"]
     gains = sorted(rounds[0]["gains"].items(), key=lambda kv: -kv[1])[:2] if rounds else []
     amb = "; ".join(" / ".join(a["effects"]) for a in result["ambiguities"])
-    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else ""))
+    relaxed = [m.group(1) for f in result["findings"]
+               for m in [re.search(r"penalty at (\S+) x the selection's", f["explanation"])] if m]
+    return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else "")
+            + (f"; refitted at {relaxed[0]} x the penalty" if relaxed else ""))
 
 
 def table(design: str, clean: dict, cases: list[JointCase]) -> str:
     lines = [f"design {design}: clean targets jointly: findings "
              f"{[(f['effect'], f['parameters']) for f in clean['findings']] or 'none'}; candidates "
              f"{[(c['effect'], c['status']) for c in clean['candidates']]}; unexplained significant "
-             f"{clean['unexplained']['significant']}", "",
+             f"{clean['unexplained']['significant']}"
+             + (f"; the road refitted on them keeps {clean['road_background_factor']:.3g} x the penalty, "
+                f"puts {clean['road_background_phase_g']:.1f} g into the phases (sum of absolute phase sums)"
+                if "road_background_factor" in clean else ""), "",
              "| concealed | size | share of fuel | findings | concealed g | named effect's g (raw) | "
              "less clean background g | phase error g before -> after | parameter (concealed / fitted) | "
              "first round's best gains; ambiguities |",
@@ -330,15 +383,74 @@ def separation_table(design: str, sep: JointSeparation) -> str:
     return "\n".join(lines)
 
 
+# ----------------------------------------------------------------------------- knot ceiling
+
+
+def knot_ceiling(spacings=(1000.0, 500.0, 250.0), design: str = "Lr") -> list[tuple]:
+    """How much of a concealed road's fuel moved a road of knots can carry at all: the
+    concealed fuel alone (noise-free, after the zero floor) fitted by least squares, unpenalised,
+    on every target's 1-Hz samples by the road's knot columns at each spacing (the catalogue's
+    grade basis times each knot's hat function of distance) with the calibration terms in;
+    and by the catalogue's grade basis times the true grade (one scale). Rows: (case, size,
+    concealed moved [g], {spacing: relative moved}, basis x true grade relative moved)."""
+    workdir = Path(tempfile.mkdtemp())
+    pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
+    refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
+    paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
+    clean = joint_diagnosis(paths, refs, weights=WEIGHTING[design], hot_starts=[True] * len(pairs))
+    p = clean.problem
+    dt, terms = np.gradient(p.time_s), np.array([t[0] for t in p.initial_terms])
+    grade = next(c for c in p.candidates if c.id == "road_grade").columns[0]
+    spans = [piece.span for piece in clean.pieces]
+    dist = [np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+            for v, t in ((p.driver_channels["speed"][s], p.time_s[s]) for s in spans)]
+    rows = []
+    for effect in sorted(MOVED):
+        for size in L_SIZES[effect]:
+            extra, true_grade = [], []
+            for (tn, td, tm, spec), _ in pairs:
+                e, _ = concealed_fuel(effect, size, td, spec)
+                fuel = td["fuel_rate_g_per_s"].to_numpy()
+                extra.append(np.maximum(fuel + e, 0.0) - fuel)
+                true_grade.append(size * road_profile_grade(td["time_s"].to_numpy(), td["vehicle_speed_mps"].to_numpy(),
+                                                            reversed_=effect.endswith("reversed")))
+            x = np.concatenate(extra)
+            moved = float(np.abs(x * dt).sum())
+            carried = {}
+            for km in spacings:
+                knots = np.arange(0.0, max(d[-1] for d in dist) + km, km)
+                block = np.hstack([np.array([grade[s] * np.maximum(0.0, 1 - np.abs(d - k) / km) for k in knots])
+                                   for s, d in zip(spans, dist)])
+                cols = np.vstack([terms, block])
+                b = np.linalg.lstsq(cols.T, x, rcond=None)[0]
+                carried[km] = float(np.abs(b[len(terms):] @ block * dt).sum()) / moved - 1
+            col = grade * np.concatenate(true_grade)
+            basis = float(np.abs((col @ x) / (col @ col) * col * dt).sum()) / moved - 1
+            rows.append((effect, size, moved, carried, basis))
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", choices=sorted(DESIGNS), action="append")
     ap.add_argument("--out", default=None)
     ap.add_argument("--route", action="store_true", help="design R: a real road's grade profile "
                     "concealed (run with --design Wh --design G)")
+    ap.add_argument("--road", action="store_true", help="add the road under every target (500-m "
+                    "knots, refitted once named) to the designs given")
+    ap.add_argument("--seed", type=int, default=None, help="the shift null's seed (Settings.seed)")
+    ap.add_argument("--block-s", type=float, default=None, help="cross-validation block length [s]")
+    ap.add_argument("--ceiling", action="store_true", help="only the share of a concealed road's "
+                    "fuel moved that knots at 1000 / 500 / 250 m carry (noise-free)")
     ap.add_argument("--why", action="store_true", help="only the separation of the three effects' "
                     "columns on the clean targets")
     args = ap.parse_args(argv)
+    if args.ceiling:
+        for effect, size, moved, carried, basis in knot_ceiling():
+            print(f"{effect} f = {size:g}: concealed moved {moved:.1f} g; knots "
+                  + ", ".join(f"{km:.0f} m {100 * v:+.1f} %" for km, v in carried.items())
+                  + f"; grade basis x true grade {100 * basis:+.1f} %")
+        return 0
     for design in args.design or sorted(DESIGNS):
         if args.why:
             print(separation_table(design, separation(design)), "\n", flush=True)
@@ -347,8 +459,9 @@ def main(argv=None) -> int:
         if out:
             out.mkdir(parents=True, exist_ok=True)
         sizes = ROUTE_SIZES if args.route else L_SIZES if design in ROAD else SIZES
-        clean, cases = run(design, out, sizes)
-        print(table(design, clean, cases), flush=True)
+        st = Settings(**{k: v for k, v in (("seed", args.seed), ("block_s", args.block_s)) if v is not None})
+        clean, cases = run(design, out, sizes, road=args.road, settings=st)
+        print(table(design + (" with the road" if args.road else ""), clean, cases), flush=True)
         print()
     return 0
 

@@ -60,6 +60,7 @@ BAGS = ("bag1", "bag2", "bag3")
 CHUNK = 150
 MODE = "auto"
 COASTDOWN_DRIVELINE = None  # None: models/road_load.toml (--coastdown-driveline)
+THERMAL = None              # None: models/thermal.toml (epa_technology.py --cold-start-basis)
 AMBIENT_C = 25.0            # EPA's nominal test-cell temperature (40 CFR 86.130: 20-30 C)
 THERMAL_GRID = {"heat_capacity_kJ_per_K_per_L": (15.0, 22.0, 35.0, 55.0), "enrichment_gasoline": (0.05, 0.1, 0.15, 0.2, 0.3)}
 
@@ -80,15 +81,17 @@ def trace_terms(va, tr):
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
-EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time")
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb")
 
 
 def trace_extras(va, tr):
     """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
-    time [s], the time the engine turns in fuel cut-off [s] (warm engine) and the standstill
+    time [s], the time the engine turns in fuel cut-off [s] (warm engine), the standstill
     time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
-    the engine stands still, outside a composed cycle's soak)."""
+    the engine stands still, outside a composed cycle's soak) and the acceleration term in the
+    ARRB power model's form, max(a, 0) P_acc+ over the steps the fuel equation covers [J m/s^2]
+    (docs/validation-epa.md "acceleration term in ARRB's form")."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
@@ -96,8 +99,10 @@ def trace_extras(va, tr):
     named = tr.phase != ""
     in_cycle = named if named.any() else True       # the FTP's soak has no phase name
     stop_off = dt * ((tr.engine_speed_rpm <= 0) & (v <= 0.0) & in_cycle)
+    warm = dt * (fueled & (tr.engine_speed_rpm > 0))          # trace_terms' steps
+    arrb = (va.mass_kg * (1.0 + va.rot_frac))[:, None] * np.maximum(k.accel, 0.0) ** 2 * v * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb]
     return np.stack(out, axis=2)
 
 
@@ -108,7 +113,7 @@ def cycle_sums(specs, cycle):
     for a in range(0, len(specs), CHUNK):
         chunk = specs[a:a + CHUNK]
         r = simulate(chunk, cycle, mode=MODE, trace=True, ambient_temp_C=AMBIENT_C,
-                     coastdown_driveline_removed=COASTDOWN_DRIVELINE)
+                     coastdown_driveline_removed=COASTDOWN_DRIVELINE, thermal=THERMAL)
         tr, va = r.trace, vehicle_arrays(chunk)
         terms = np.concatenate([trace_terms(va, tr), trace_extras(va, tr)], axis=2)
         if r.phases:
@@ -336,15 +341,19 @@ def thermal_variant(heat_capacity_kJ_per_K_per_L, enrichment_gasoline):
                                enrichment_at_25C={**k.enrichment_at_25C, "gasoline": enrichment_gasoline})
 
 
-def bag_ratio_grid(specs, table):
+def bag_ratio_grid(specs, table, grid_values=None, variant=None):
     """Model bag 1 / bag 3 and bag 2 / bag 3 fuel per mile for each grid point {(C, e): (V, 2)}
-    (gasoline vehicles with the three bags measured), and EPA's (= mpg bag 3 / mpg bag k)."""
+    (gasoline vehicles with the three bags measured), and EPA's (= mpg bag 3 / mpg bag k).
+    ``grid_values``, ``variant``: another grid and constants maker (default THERMAL_GRID,
+    :func:`thermal_variant`)."""
+    grid_values = THERMAL_GRID if grid_values is None else grid_values
+    variant = thermal_variant if variant is None else variant
     keep = np.flatnonzero((table.fuel == "gasoline").to_numpy()
                           & np.isfinite(table[["FTP:bag1", "FTP:bag2", "FTP:bag3"]].to_numpy()).all(axis=1))
     chosen = [specs[i] for i in keep]
     grid = {}
-    for point in itertools.product(*THERMAL_GRID.values()):
-        k = thermal_variant(*point)
+    for point in itertools.product(*grid_values.values()):
+        k = variant(*point)
         ratios = []
         for a in range(0, len(chosen), CHUNK):
             ph = simulate(chosen[a:a + CHUNK], "FTP", mode=MODE, ambient_temp_C=AMBIENT_C, thermal=k).phases
@@ -355,11 +364,12 @@ def bag_ratio_grid(specs, table):
     return keep, grid, measured
 
 
-def fit_thermal(specs, table):
+def fit_thermal(specs, table, grid_values=None, variant=None):
     """The grid point with the least squared log error of bag 1 / bag 3 and bag 2 / bag 3 (all
     vehicles: the cold start must show in bag 1 and be over by bag 2), the point each
-    manufacturer-held-out fold chooses, and the held-out bag-1 ratio errors."""
-    keep, grid, measured = bag_ratio_grid(specs, table)
+    manufacturer-held-out fold chooses, and the held-out bag-1 ratio errors (``grid_values``,
+    ``variant``: :func:`bag_ratio_grid`)."""
+    keep, grid, measured = bag_ratio_grid(specs, table, grid_values, variant)
     groups = table.manufacturer.to_numpy()[keep]
     cost = {p: (np.log(r / measured) ** 2).sum(axis=1) for p, r in grid.items()}
     best = min(cost, key=lambda p: cost[p].mean())

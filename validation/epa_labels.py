@@ -262,25 +262,26 @@ def distribution(x) -> str:
             + " / ".join(f"{np.mean(np.abs(x) <= t):.1%}" for t in (0.005, 0.01, 0.02, 0.05)))
 
 
-FORMULA_TABLES = ("epa_label", "epa_label_my2017")
+FORMULA_TABLES = ("derived_2008", "derived_2017")   # models/budget.toml [onroad.epa_label.sets]
 
 
 def label_formula_check(labels, table) -> dict:
-    """EPA's derived label formulas (measured.label_formulas(table)) applied to each label row's
-    own unadjusted city and highway figures (UCity, UHighway) against its unrounded label
-    figures, liquid-fuel rows whose figure is not a whole number (where it is, only the rounded
-    value is published): per figure, relative differences."""
-    from fleetrun.simulation import measured
+    """EPA's derived label formulas (the coefficient set ``table``, fleetrun.physics.epa_label)
+    applied to each label row's own unadjusted city and highway figures (UCity, UHighway)
+    against its unrounded label figures, liquid-fuel rows whose figure is not a whole number
+    (where it is, only the rounded value is published): per figure, relative differences."""
+    from fleetrun.physics import epa_label
 
-    (ac, bc), (ah, bh) = measured.label_formulas(table)
+    coef = epa_label.label_set(table)
     d = labels[~labels.atvType.isin(["EV", "Plug-in Hybrid"]) & (labels.UCity > 0) & (labels.UHighway > 0)]
-    city, hw = 1.0 / (ac + bc / d.UCity), 1.0 / (ah + bh / d.UHighway)
-    comb = 1.0 / (measured.LABEL_CITY_SHARE / city + (1 - measured.LABEL_CITY_SHARE) / hw)
+    city = 1.0 / epa_label.label_gal_per_mile(1.0 / d.UCity.to_numpy(), *coef.city)
+    hw = 1.0 / epa_label.label_gal_per_mile(1.0 / d.UHighway.to_numpy(), *coef.highway)
+    comb = epa_label.combined_label_mpg(d.UCity.to_numpy(), d.UHighway.to_numpy(), coef)
     out = {}
     for col, x in (("city08U", city), ("highway08U", hw), ("comb08U", comb)):
         real = d[col].to_numpy()
         keep = ~np.isclose(real, np.round(real), atol=1e-4)
-        out[col] = (x.to_numpy() / real - 1.0)[keep]
+        out[col] = (np.asarray(x) / real - 1.0)[keep]
     return out
 
 
@@ -317,13 +318,13 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
     err, mf = r["err"], r["manufacturer"]
     five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
     real, printed = (np.where(used, lab[c].to_numpy(), np.nan) for c in ("comb08U", "comb08"))
-    variants = {"derived (2008 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), "epa_label"),
-                "real comb08U": (real, "epa_label"), "real comb08 (whole mpg)": (printed, "epa_label"),
-                "real comb08U, MY2017 formulas": (real, "epa_label_my2017"),
-                "real comb08 (whole mpg), MY2017 formulas": (printed, "epa_label_my2017"),
-                "real comb08U + ambiguous (candidates' mean), MY2017 formulas": (
+    variants = {"derived (MY2017 formulas)": (np.where(used, derived_label(r["paired"], err.index), np.nan), None),
+                "real comb08U, 2008 formulas": (real, "derived_2008"),
+                "real comb08 (whole mpg), 2008 formulas": (printed, "derived_2008"),
+                "real comb08U": (real, None), "real comb08 (whole mpg)": (printed, None),
+                "real comb08U + ambiguous (candidates' mean)": (
                     np.where(used, real, np.where(lab.status.to_numpy() == "ambiguous",
-                                                  lab.candidates_comb08U.to_numpy(), np.nan)), "epa_label_my2017")}
+                                                  lab.candidates_comb08U.to_numpy(), np.nan)), None)}
     lines, results = [f"{used.sum()} of {len(err)} vehicles joined to one label"], {}
     lines.append("physics + technology alone on them: " + describe(err.loc[used], TESTS_ALL))
     for name, (label, table) in variants.items():
@@ -337,7 +338,7 @@ def route_lines(r, lab) -> tuple[list[str], dict]:
             lines.append(f"{name}, s fitted held out [{split_name}]: {describe(e, TESTS_ALL)}; s over folds "
                          f"{min(chosen.values())}..{max(chosen.values())}")
         lines.append(f"     {gallons_line(results[(name, '22 folds')], r['paired'])}")
-    lines += split_lines(r, lab, results[("real comb08U, MY2017 formulas", "22 folds")])
+    lines += split_lines(r, lab, results[("real comb08U", "22 folds")])
     return lines, results
 
 
@@ -349,7 +350,7 @@ def split_lines(r, lab, e) -> list[str]:
     from epa_one_number import describe, derived_label
 
     used = lab.used.to_numpy()
-    gap = np.abs(derived_label(r["paired"], lab.index, "epa_label_my2017") / lab.comb08U.to_numpy() - 1.0)
+    gap = np.abs(derived_label(r["paired"], lab.index) / lab.comb08U.to_numpy() - 1.0)
     lines = []
     for name, rows in (("label within 0.5 % of the vehicle's own derived label", used & (gap <= 0.005)),
                        ("label further from it", used & (gap > 0.005))):
@@ -358,6 +359,138 @@ def split_lines(r, lab, e) -> list[str]:
 
 
 TESTS_ALL = ("FTP", "HWFET", "US06")
+
+
+def group_label_errors(r, share, label, groups):
+    """Pre-registered rule G1 (docs/validation-epa.md "Several test vehicles on one label"): the
+    vehicles joined to the same label (``groups``: the same ``label_ids``) share one fuel scale
+    k_g so that the equal-weight mean over the group of each vehicle's label fuel per mile (its
+    simulated FTP and HWFET divided by k_g, the derived formulas of the list's model year) is
+    1 / label: the label is the model type's sales-weighted mean in fuel per mile (40 CFR
+    600.208-12, 600.210-12(c)); sales are unknown here, so equal weights; the simulation carries
+    each configuration's difference (weight, road load, N/V) from the group's mean. FTP and
+    HWFET scaled by k_g, US06 by k_g^share (``measured.label_scale`` with ``groups``, as the
+    Vehicles column ``label_group`` does). A vehicle alone on its label: the per-vehicle route.
+    Rows without a label or group: NaN."""
+    from epa_one_number import TESTS, label_set
+
+    from fleetrun.simulation import measured
+
+    err, paired = r["err"], r["paired"]
+    idx = err.index
+    meas = np.c_[paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]]
+    pred = meas * (1.0 + err[["FTP", "HWFET"]].to_numpy())
+    label = np.asarray(label, float)
+    ok = np.isfinite(label) & np.isfinite(pred).all(axis=1) & pd.notna(pd.Series(groups)).to_numpy()
+    k = measured.label_scale(np.where(ok, label, np.nan), pred[:, 0], pred[:, 1], label_set=label_set(None),
+                             groups=groups)
+    scale = np.c_[k, k, k ** share]
+    out = pd.DataFrame((1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0, index=idx, columns=list(TESTS))
+    out.loc[~ok, :] = np.nan
+    return out
+
+
+def highway_label_errors(r, share, highway_label, groups=None):
+    """Pre-registered rule H1 (H1g with ``groups``; docs/validation-epa.md "Several test vehicles
+    on one label"): the label's highway figure (highway08U) as the one number. The vehicle's fuel
+    scale k_H makes the highway formula (the list's model year) of its simulated HWFET / k_H give
+    the label's highway figure; with ``groups``, the vehicles on one label share k_H (the group's
+    mean highway fuel per mile). HWFET scaled by k_H, FTP and US06 by k_H^share."""
+    from epa_one_number import TESTS, label_set
+
+    err, paired = r["err"], r["paired"]
+    idx = err.index
+    a, b = label_set(None).highway
+    pred = paired["HWFET"].to_numpy()[idx] * (1.0 + err["HWFET"].to_numpy())
+    slope = b / pred                                          # 1/label = a + k_H slope
+    hl = np.asarray(highway_label, float)
+    ok = np.isfinite(hl) & np.isfinite(slope)
+    if groups is not None:
+        ok &= pd.notna(pd.Series(groups)).to_numpy()
+        key = pd.Series(np.where(ok, groups, None), index=idx)
+        slope = pd.Series(np.where(ok, slope, np.nan), index=idx).groupby(key).transform("mean").to_numpy()
+    k = (1.0 / hl - a) / slope
+    scale = np.c_[k ** share, k, k ** share]
+    out = pd.DataFrame((1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0, index=idx, columns=list(TESTS))
+    out.loc[~ok, :] = np.nan
+    return out
+
+
+def fit_other_tests(err, folds, family):
+    """Per held-out fold: the share minimising the FTP and US06 squared log errors of the other
+    folds (the HWFET is the calibration's own test); held-out errors and the fold values."""
+    tables = [(s, family(s)) for s in SHARE_GRID_H]
+    out, chosen = err * np.nan, []
+    for g in np.unique(folds):
+        train = folds != g
+        s, t = min(tables, key=lambda st: float(np.nansum(np.log1p(st[1].loc[train, ["FTP", "US06"]].to_numpy()) ** 2)))
+        chosen.append(s)
+        out.loc[~train] = t.loc[~train]
+    return out, chosen
+
+
+SHARE_GRID_H = tuple(np.round(np.arange(0.0, 1.51, 0.05), 2))
+
+
+def highway_figure(lab) -> np.ndarray:
+    """The unrounded highway label figure (highway08U) per vehicle of ``lab``: the mean over its
+    matched label rows (as the join's comb08U), NaN without labels."""
+    by_id = load_labels().set_index("id").highway08U
+    ids = lab.label_ids.fillna("").astype(str)
+    return np.array([np.mean([by_id[int(i)] for i in x.split()]) if x.strip() else np.nan for x in ids])
+
+
+def highway_lines(r, lab) -> list[str]:
+    """H1 and H1g held out (22 and 5 manufacturer folds) on the joined vehicles, real unrounded
+    highway08U."""
+    from epa_one_number import describe
+    from fleet_error import folds_of
+
+    used = lab.used.to_numpy()
+    err, mf = r["err"], r["manufacturer"]
+    five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
+    hl = np.where(used, highway_figure(lab), np.nan)
+    groups = np.where(used, lab.label_ids.astype(str).to_numpy(), None)
+    lines = []
+    for name, g in (("H1 highway label, per vehicle", None), ("H1g highway label, group scale", groups)):
+        for split_name, folds in (("22 folds", mf), ("5 folds", five)):
+            e, chosen = fit_other_tests(err, folds, lambda s, g=g: highway_label_errors(r, s, hl, g))
+            lines.append(f"{name} [{split_name}]: {describe(e, TESTS_ALL)}; s {min(chosen)}..{max(chosen)}")
+    return lines
+
+
+def group_lines(r, lab) -> list[str]:
+    """G1 against the per-vehicle route on the same vehicles (real unrounded comb08U, the
+    formulas of the list's model year), the share fitted held out (22 and 5 manufacturer folds);
+    split into vehicles alone on their label and vehicles sharing it. And the diagnostic D1:
+    how often the vehicle's measured HWFET is within 5 % of its label's own unadjusted highway
+    figure (UHighway, the model type's HWFET the label formula starts from)."""
+    from epa_one_number import SHARE_GRID, describe, fit_held_out, label_errors
+    from fleet_error import folds_of
+
+    used = lab.used.to_numpy()
+    err, mf = r["err"], r["manufacturer"]
+    five = pd.Series(mf).map(folds_of(pd.DataFrame({"manufacturer": mf}))).to_numpy()
+    real = np.where(used, lab.comb08U.to_numpy(), np.nan)
+    groups = np.where(used, lab.label_ids.astype(str).to_numpy(), None)
+    size = pd.Series(groups).map(pd.Series(groups).value_counts()).to_numpy()
+    shared = used & (size >= 2)
+    lines = [f"G1: {shared.sum()} of {used.sum()} vehicles share their label with another list vehicle "
+             f"({pd.Series(groups[shared]).nunique()} labels)"]
+    for name, apply in (("per vehicle (L1)", lambda s: label_errors(r, "share", s, label=real)),
+                        ("G1 group scale", lambda s: group_label_errors(r, s, real, groups))):
+        for split_name, folds in (("22 folds", mf), ("5 folds", five)):
+            e, chosen = fit_held_out(err, folds, dict(grid=SHARE_GRID, apply=apply))
+            lines.append(f"{name} [{split_name}]: {describe(e, TESTS_ALL)}; s {min(chosen.values())}.."
+                         f"{max(chosen.values())}")
+            if split_name == "22 folds":
+                for part, rows in (("  alone on its label", used & ~shared), ("  sharing its label", shared)):
+                    lines.append(f"{part}: {describe(e.loc[rows], TESTS_ALL)}")
+    hw = r["paired"]["HWFET"].to_numpy()[err.index]
+    d1 = hw / lab.UHighway.to_numpy() - 1.0
+    lines.append("D1 measured HWFET / the label's UHighway - 1 (joined vehicles): " + distribution(d1[used]))
+    lines.append("D1 sharing a label: " + distribution(d1[shared]) + " | alone: " + distribution(d1[used & ~shared]))
+    return lines
 
 
 def prepared():
@@ -375,6 +508,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--list", help="write the per-vehicle join (CSV) here")
     ap.add_argument("--join-only", action="store_true", help="the join alone (no simulation)")
+    ap.add_argument("--groups", action="store_true", help="only the pre-registered group rule G1 and D1")
     args = ap.parse_args(argv)
     j = joined()
     print(f"{len(j)} list vehicles: " + ", ".join(f"{k} {n}" for k, n in j.status.value_counts().items()))
@@ -389,6 +523,10 @@ def main(argv=None):
     lab = labels_of(r, table, j)
     print(f"vehicles of the validation (pairs merged): {len(lab)}; " + ", ".join(
         f"{k} {n}" for k, n in lab.status.fillna("not in the list").value_counts().items()))
+    if args.groups:
+        for text in group_lines(r, lab) + highway_lines(r, lab):
+            print(text, flush=True)
+        return
     lines, _ = route_lines(r, lab)
     for text in formula_lines(r, lab, load_labels()) + lines:
         print(text, flush=True)

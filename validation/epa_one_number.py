@@ -38,6 +38,7 @@ from epa_table import epa_fleet  # noqa: E402
 from fleet_error import folds_of  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
+from fleetrun.physics import epa_label  # noqa: E402
 from fleetrun.simulation import measured  # noqa: E402
 
 TESTS = et.TESTS
@@ -159,34 +160,41 @@ def candidates(r):
     return fam
 
 
-def derived_label(paired, idx, table="epa_label"):
-    """EPA's derived label combined figure [mpg] (40 CFR 600.210-12(a)(2);
-    measured.label_formulas(table)) of the measured FTP and HWFET of the vehicles ``idx``."""
-    (ac, bc), (ah, bh) = measured.label_formulas(table)
-    city = measured.LABEL_CITY_SHARE
+LIST_MODEL_YEAR = 2022   # the Test Car List's model year: its labels' coefficient set (fleetrun.physics.epa_label)
+
+
+def label_set(table=None):
+    """The derived 5-cycle coefficient set called ``table`` (models/budget.toml), default the
+    set `simulate` applies to the list's model year."""
+    return epa_label.set_for_model_year(LIST_MODEL_YEAR) if table is None else epa_label.label_set(table)
+
+
+def derived_label(paired, idx, table=None):
+    """EPA's derived label combined figure [mpg] (40 CFR 600.210-12(a)(2); the coefficient set
+    :func:`label_set` (table)) of the measured FTP and HWFET of the vehicles ``idx``."""
     ftp, hw = paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx]
-    return 1.0 / (city * (ac + bc / ftp) + (1 - city) * (ah + bh / hw))
+    return epa_label.combined_label_mpg(ftp, hw, label_set(table))
 
 
-def label_errors(r, form, share=None, whole_mpg=False, label=None, table="epa_label"):
+def label_errors(r, form, share=None, whole_mpg=False, label=None, table=None):
     """Errors on FTP, HWFET, US06 after calibrating on the derived label combined (40 CFR
-    600.210-12(a)(2) of the measured FTP and HWFET; measured.label_formulas), form "share": FTP
+    600.210-12(a)(2) of the measured FTP and HWFET; :func:`label_set`), form "share": FTP
     and HWFET scaled by k (the label exact), US06 by k^share; form "Q" (a part set): delta
     on fuel += delta Q such that the label of the calibrated FTP and HWFET is exact, US06 its Q.
     ``whole_mpg``: the label rounded to whole mpg as printed on the window sticker. ``label``
     (mpg per vehicle of ``r["err"]``, NaN where none): a given label instead of the derived one
     (the real label, validation/epa_labels.py); ``table``: the label formulas the calibration
-    inverts (and the derived label's, measured.label_formulas)."""
+    inverts (and the derived label's, :func:`label_set`)."""
     err, parts, paired, gpg = r["err"], r["parts"], r["paired"], r["g_per_gal"]
     idx = err.index
-    (ac, bc), (ah, bh) = measured.label_formulas(table)
-    city = measured.LABEL_CITY_SHARE
+    (ac, bc), (ah, bh) = label_set(table).city, label_set(table).highway
+    city = epa_label.CITY_SHARE
     label = derived_label(paired, idx, table) if label is None else np.asarray(label, float)
     label = np.round(label) if whole_mpg else label
     meas_mpg = np.c_[paired["FTP"].to_numpy()[idx], paired["HWFET"].to_numpy()[idx], paired["US06"].to_numpy()[idx]]
     pred_mpg = meas_mpg * (1.0 + err[list(TESTS)].to_numpy())
     if form == "share":
-        k = measured.label_scale(label, pred_mpg[:, 0], pred_mpg[:, 1], table)
+        k = measured.label_scale(label, pred_mpg[:, 0], pred_mpg[:, 1], label_set=label_set(table))
         scale = np.c_[k, k, k ** share]
         out = (1.0 + err[list(TESTS)].to_numpy()) / scale - 1.0
     else:

@@ -50,14 +50,43 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import epa_fuel_economy as efe  # noqa: E402
 from epa_alpha import alpha_table  # noqa: E402
-from epa_table import epa_fleet  # noqa: E402
+from epa_table import epa_fleet, udds_bag_miles as udds_miles  # noqa: E402
 
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
+from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
+ARRB_COLUMN = "X_transient_arrb"
+#: the acceleration term's form (``--transient-form``; docs/validation-epa.md "acceleration term in
+#: ARRB's form"): "constant" k_tr P_acc+ (the fuel equation), "arrb" k_a max(a, 0) P_acc+ in its place,
+#: "both" the two side by side (the ARRB one as an extra column: gasoline only)
+TRANSIENT_FORMS = ("constant", "arrb", "both")
+TRANSIENT_FORM = "constant"
+#: the cold start's heat-capacity basis (``--cold-start-basis``; docs/validation-epa.md "Second
+#: hypothesis"): grid of c_m [kJ/(K kg)] x gasoline enrichment, fitted as epa_fuel_economy.fit_thermal
+MASS_GRID = {"heat_capacity_kJ_per_K_per_kg": (0.2, 0.285, 0.42, 0.65, 1.0),
+             "enrichment_gasoline": (0.05, 0.1, 0.15, 0.2, 0.3)}
+
+
+def mass_variant(heat_capacity_kJ_per_K_per_kg, enrichment_gasoline):
+    """The stored cold-start constants with the node's heat capacity on the engine-mass basis."""
+    k = efe.thermal_variant(efe.thermal_constants().heat_capacity_J_per_K_per_L / 1e3, enrichment_gasoline)
+    return dataclasses.replace(k, heat_capacity_basis="engine_mass",
+                               heat_capacity_J_per_K_per_kg=1e3 * heat_capacity_kJ_per_K_per_kg)
+
+
+def mass_basis_thermal(specs, table):
+    """Fit the mass-basis cold start (grid, as the displacement one) and set it for the runs;
+    returns the printed lines."""
+    th = efe.fit_thermal(specs, table, MASS_GRID, mass_variant)
+    efe.THERMAL = mass_variant(*th["best"])
+    held = th["heldout_ratio_error"]
+    return [f"cold start on the engine-mass basis: chosen (c_m kJ/(K kg), enrichment) {th['best']}; folds chose "
+            f"{sorted(set(th['folds'].values()))}; RMS log error {th['grid_rmse'][th['best']]:.4f}; held-out bag 1 / bag 3 "
+            f"within 5 % {np.mean(np.abs(held) <= 0.05):.1%} (median {np.median(held):+.1%})"]
 CITY_SHARE = 0.55          # EPA's city / highway weighting of the combined figure (40 CFR 600.210)
 FLEET_SIZE, FLEET_DRAWS = 100, 2000
 
@@ -87,6 +116,17 @@ def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
         gpm = (1.0 / table[t]).groupby(rep).transform("mean")   # NaN members skipped
         out[t] = 1.0 / gpm
     return out
+
+
+def stop_extra():
+    """The extra columns of the technology fit: the start-stop stop power (and, with the
+    transient form "both", the ARRB acceleration term)."""
+    return (STOP_COLUMN, ARRB_COLUMN) if TRANSIENT_FORM == "both" else (STOP_COLUMN,)
+
+
+def transient_form(d):
+    """The dataset with the acceleration term in the chosen form (``TRANSIENT_FORM``)."""
+    return d.assign(S_transient=d[ARRB_COLUMN]) if TRANSIENT_FORM == "arrb" else d
 
 
 def heldout_errors(d, table, keep, extra=()):
@@ -149,8 +189,9 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
+        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, len(FUEL_TERMS) + 1:].sum(1)   # "both": the ARRB term
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
-                                       B=terms[:, SLOPE_TERMS].sum(1), O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
+                                       B=slope, O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
     rows = pd.concat(parts)
     return {k: _per_mile(rows, k) for k in "BOC"}
 
@@ -234,7 +275,7 @@ def line(label, err, rows=None):
 def datasets(specs, table):
     """(physics only, physics + technology) datasets (validation/epa_fuel_economy.build_dataset)."""
     bare = [dataclasses.replace(v, technology=None) for v in specs]
-    return efe.build_dataset(bare, table), efe.build_dataset(specs, table)
+    return transient_form(efe.build_dataset(bare, table)), transient_form(efe.build_dataset(specs, table))
 
 
 def omega_matches(specs):
@@ -280,11 +321,11 @@ def run(specs, table):
     d0, d1 = datasets(specs, table)
     r = {}
     r["physics"], _, _ = heldout_errors(d0, table, everyone)
-    r["technology"], _, r["folds"] = heldout_errors(d1, table, everyone, extra=(STOP_COLUMN,))
+    r["technology"], _, r["folds"] = heldout_errors(d1, table, everyone, extra=stop_extra())
     d1p = d1.copy()
     d1p["measured_mpg"] = [paired[t].to_numpy()[v] for t, v in zip(d1p.test, d1p.vehicle)]
     d1p["measured_fuel_g"] = d1p.miles / d1p.measured_mpg * efe.GAL_L * d1p.rho * 1000.0
-    r["pairs"], _, r["folds_pairs"] = heldout_errors(d1p, paired, single, extra=(STOP_COLUMN,))
+    r["pairs"], _, r["folds_pairs"] = heldout_errors(d1p, paired, single, extra=stop_extra())
     d0p = d0.assign(measured_mpg=d1p.measured_mpg.to_numpy(), measured_fuel_g=d1p.measured_fuel_g.to_numpy())
     r["physics_pairs"], _, _ = heldout_errors(d0p, paired, single)
     mf = table.manufacturer.to_numpy()
@@ -292,10 +333,10 @@ def run(specs, table):
     r["one_number"] = one_number(r["pairs"], sigma)
     r["sigma_all"] = transfer_share_all(r["pairs"])
     r["full_transfer"] = one_number(r["pairs"], np.ones(len(r["pairs"])))
-    split = loss_split(d1p[d1p.vehicle.isin(np.flatnonzero(single))], r["folds_pairs"], table)
+    split = loss_split(d1p[d1p.vehicle.isin(np.flatnonzero(single))], r["folds_pairs"], table, extra=stop_extra())
     r["split"], r["split_folds"], r["split_all"] = fit_split_transfer(split, r["pairs"], mf[r["pairs"].index])
     r["split_parts"] = {k: float((v.FTP / sum(split[j].FTP for j in "BOC")).median()) for k, v in split.items()}
-    r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=(STOP_COLUMN,))
+    r["final"] = efe.fit(d1p[d1p.vehicle.isin(np.flatnonzero(single))], extra=stop_extra())
     r["dataset_pairs"] = d1p[d1p.vehicle.isin(np.flatnonzero(single))]
     r.update(joined=np.flatnonzero(joined), unjoined=np.flatnonzero(~joined), paired_table=paired, single=single)
     alpha_rows = r["pairs"].index.intersection(r["joined"])
@@ -330,8 +371,13 @@ def report(r, table):
     lines.append(f"physical split weights (w_B, w_O; cold start 1): all {r['split_all']}; folds w_B "
                  f"{w[:, 0].min():.2f}-{w[:, 0].max():.2f}, w_O {w[:, 1].min():.2f}-{w[:, 1].max():.2f}; median FTP fuel "
                  "shares B/O/C " + "/".join(f"{r['split_parts'][k]:.3f}" for k in "BOC"))
-    stop = [f["gasoline"][-1] for f in r["folds"].values()]
-    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][-1]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    n = len(FUEL_TERMS)
+    stop = [f["gasoline"][n] for f in r["folds"].values()]
+    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    if TRANSIENT_FORM != "constant":
+        k = np.array([f["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / f["gasoline"][0] for f in r["folds"].values()])
+        kf = r["final"]["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / r["final"]["gasoline"][0]
+        lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
     lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
     for key in ("physics_pairs", "pairs", "one_number"):
         b = bias_report(r[key], r["paired_table"])
@@ -455,6 +501,145 @@ def residual_report(r, specs, table):
     return lines
 
 
+BREAKDOWN_TESTS = ("FTP:bag1", "FTP:bag2", "FTP:bag3", "HWFET", "US06", "FTP")
+BREAKDOWN_GROUPS = {"specific_power_kW_per_L": [0, 50, 60, 70, 80, 100, 130, 400],
+                    "road_load_50mph_W_per_kg": RESIDUAL_BINS["road_load_50mph_W_per_kg"],
+                    "displacement_L": RESIDUAL_BINS["displacement_L"], "technology": None, "gearbox": None}
+
+
+def _heldout_without_group(y, groups, manufacturer):
+    """Log errors ``y`` less the median of their group fitted on the other manufacturers."""
+    out = np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        median = pd.Series(y[manufacturer != g]).groupby(groups[manufacturer != g]).median()
+        out[manufacturer == g] = y[manufacturer == g] - pd.Series(groups[manufacturer == g]).map(median).fillna(0.0).to_numpy()
+    return out
+
+
+def _heldout_without_line(y, x, manufacturer):
+    """Log errors ``y`` less a straight line in ``x`` fitted on the other manufacturers."""
+    X, out = np.column_stack([np.ones(len(y)), x]), np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        b = np.linalg.lstsq(X[manufacturer != g], y[manufacturer != g], rcond=None)[0]
+        out[manufacturer == g] = y[manufacturer == g] - X[manufacturer == g] @ b
+    return out
+
+
+def _share(log_err):
+    return float(np.mean(np.abs(np.expm1(log_err)) <= 0.05))
+
+
+def breakdown_groups(err, feats, manufacturer):
+    """Per test: spread of the log error, and per grouping its eta^2 and the share within 5 % left
+    when the group medians (or a line in road load per kg) fitted without each manufacturer are removed."""
+    lines, groups = [], feats
+    for t in BREAKDOWN_TESTS:
+        y = np.log1p(err[t].to_numpy())
+        ok = np.isfinite(y)
+        y, mf = y[ok], manufacturer[ok]
+        cells = [f"{t}: n {ok.sum()}, sd {y.std():.2%}, within 5 % {_share(y):.1%}; line in road load per kg "
+                 f"{_share(_heldout_without_line(y, feats.road_load_50mph_W_per_kg.to_numpy()[ok], mf)):.1%}"]
+        for name, bins in BREAKDOWN_GROUPS.items():
+            g = groups[name].to_numpy()[ok]
+            g = (pd.cut(pd.Series(g), bins).astype(str) if bins else pd.Series(g).astype(str)).to_numpy()
+            mean = pd.Series(y).groupby(g).transform("mean").to_numpy()
+            cells.append(f"{name} eta2 {1 - np.var(y - mean) / np.var(y):.2f} -> {_share(_heldout_without_group(y, g, mf)):.1%}")
+        mean = pd.Series(y).groupby(mf).transform("mean").to_numpy()
+        cells.append(f"manufacturer eta2 {1 - np.var(y - mean) / np.var(y):.2f}")
+        lines.append("; ".join(cells))
+    return lines
+
+
+def breakdown_parts(err, feats):
+    """The cold part (bag 1 - bag 3) and the stop-and-go part (bag 2 - bag 3) in log: spread,
+    correlations, medians by displacement and specific power; FTP share if each were removed."""
+    L = np.log1p(err)
+    cold, stop = L["FTP:bag1"] - L["FTP:bag3"], L["FTP:bag2"] - L["FTP:bag3"]
+    sp = feats.specific_power_kW_per_L
+    lines = [f"bags, HWFET, US06 log-error correlations {L[list(BREAKDOWN_TESTS[:5])].corr().to_numpy()[np.triu_indices(5, 1)].min():.2f}"
+             f"-{L[list(BREAKDOWN_TESTS[:5])].corr().to_numpy()[np.triu_indices(5, 1)].max():.2f}; cold part sd {cold.std():.2%} "
+             f"(corr with bag 3 {cold.corr(L['FTP:bag3']):+.2f}), stop-and-go part sd {stop.std():.2%} "
+             f"(corr {stop.corr(L['FTP:bag3']):+.2f})"]
+    for name, key, bins in (("displacement", feats.displacement_L, RESIDUAL_BINS["displacement_L"]),
+                            ("specific power", sp, [0, 60, 80, 100, 130, 400])):
+        med = cold.groupby(pd.cut(key, bins), observed=True).median()
+        lines.append(f"cold part median by {name}: " + ", ".join(f"{k} {v:+.1%}" for k, v in med.items()))
+    return lines
+
+
+def breakdown_without_parts(err, table):
+    """FTP composite within 5 % if the cold part (bag 1 error := bag 3's) or the stop-and-go part
+    (bag 2's := bag 3's) were removed entirely (EPA's bag weighting of the measured bag mpg)."""
+    idx = err.index.to_numpy()
+    m = {b: table[f"FTP:{b}"].to_numpy()[idx] for b in efe.BAGS}
+    d1, d2 = udds_miles()
+    def ftp(m1, m2, m3):
+        return 1.0 / ftp_weighted_per_mile(d1 / m1, d2 / m2, d1 / m3, d1, d2, d1)
+    p = {b: m[b] * (1 + err[f"FTP:{b}"].to_numpy()) for b in efe.BAGS}
+    truth = ftp(m["bag1"], m["bag2"], m["bag3"])
+    out = {}
+    for name, (a, b, c) in (("as is", (p["bag1"], p["bag2"], p["bag3"])),
+                            ("cold part removed", (m["bag1"] * p["bag3"] / m["bag3"], p["bag2"], p["bag3"])),
+                            ("stop-and-go part removed", (p["bag1"], m["bag2"] * p["bag3"] / m["bag3"], p["bag3"]))):
+        e = ftp(a, b, c) / truth - 1.0
+        out[name] = np.mean(np.abs(e[np.isfinite(e)]) <= 0.05)
+    return ["FTP (from the bags) within 5 %: " + ", ".join(f"{k} {v:.1%}" for k, v in out.items())]
+
+
+def breakdown_elasticities(err, table, feats):
+    """Elasticities of fuel per mile, measured and modelled, to road load at 50 mph, test weight,
+    displacement and rated power (least squares of log fuel per mile across the vehicles)."""
+    idx = err.index.to_numpy()
+    m = table.test_weight_kg.to_numpy()[idx]
+    X = np.column_stack([np.ones(len(idx)), np.log(feats.road_load_50mph_W_per_kg.to_numpy()[idx] * m), np.log(m),
+                         np.log(table.displacement_L.to_numpy()[idx]), np.log(table.rated_power_kW.to_numpy()[idx])])
+    lines = []
+    for t in ("FTP:bag2", "FTP:bag3", "HWFET", "US06"):
+        meas = table[t].to_numpy()[idx]
+        pred = meas * (1 + err[t].to_numpy())
+        ok = np.isfinite(meas) & np.isfinite(pred)
+        b = [np.linalg.lstsq(X[ok], -np.log(y[ok]), rcond=None)[0][1:] for y in (meas, pred)]
+        lines.append(f"{t}: elasticity to road load / weight / displacement / power, measured "
+                     + " / ".join(f"{x:.2f}" for x in b[0]) + ", model " + " / ".join(f"{x:.2f}" for x in b[1]))
+    return lines
+
+
+def breakdown_trend(err, feats, manufacturer, alpha):
+    """The road-load trend: median error by road load at 50 mph per kg (fleetrun and ALPHA's
+    surfaces, mean removed held out), and its rank correlation within manufacturers."""
+    bins = pd.cut(feats.road_load_50mph_W_per_kg, RESIDUAL_BINS["road_load_50mph_W_per_kg"])
+    lines = []
+    for name, e in (("fleetrun", err), ("ALPHA", alpha)):
+        med = e[["FTP", "FTP:bag3", "HWFET", "US06"] if name == "fleetrun" else list(TESTS)].groupby(
+            bins.loc[e.index], observed=True).median()
+        lines.append(f"{name} median error by road load per kg: " + "; ".join(
+            f"{t} " + " ".join(f"{v:+.1%}" for v in med[t]) for t in med.columns) + f" (bins {list(med.index.astype(str))})")
+    within = pd.DataFrame({"rl": feats.road_load_50mph_W_per_kg, **{t: err[t] for t in ("FTP:bag3", "HWFET", "US06")}})
+    within = within - within.groupby(manufacturer).transform("median")
+    lines.append("rank correlation with road load per kg within manufacturers: " + ", ".join(
+        f"{t} {within.rl.corr(within[t], method='spearman'):.2f}" for t in ("FTP:bag3", "HWFET", "US06")))
+    cold = np.log1p(err["FTP:bag1"]) - np.log1p(err["FTP:bag3"])
+    for name, key in (("cylinder volume", feats.displacement_L / feats.cylinders),
+                      ("rated power", feats.power_to_weight_W_per_kg * feats.weight_kg / 1e3)):
+        g = pd.qcut(key.loc[cold.dropna().index], 6, duplicates="drop")
+        c = cold.dropna()
+        lines.append(f"cold part eta2 by {name} (6 equal-count bins): {1 - np.var(c - c.groupby(g).transform('mean')) / np.var(c):.2f}")
+    return lines
+
+
+def breakdown_report(r, specs, table):
+    """``--breakdown``: where the held-out error of physics + technology is, on the joined vehicles
+    (pairs not merged): by cycle, grouping and part (docs/validation-epa.md "Where the held-out error is")."""
+    feats = features(specs, table).assign(weight_kg=table.test_weight_kg,
+                                          specific_power_kW_per_L=table.specific_power_kW_per_L)
+    rows = r["joined"]
+    err, f = r["technology"].reindex(rows), feats.loc[rows]
+    mf = table.manufacturer.to_numpy()[rows]
+    _, alpha = alpha_errors(specs, table, np.asarray(rows))
+    return (breakdown_groups(err, f, mf) + breakdown_parts(err, f) + breakdown_without_parts(err, table)
+            + breakdown_elasticities(err, table, feats) + breakdown_trend(err, f, mf, alpha))
+
+
 def write_models(r):
     """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
     and models/fuel_economy_bias.toml."""
@@ -483,19 +668,32 @@ def main(argv=None):
     ap.add_argument("--write", action="store_true", help="write models/technology.toml [fitted], models/fuel_economy_bias.toml")
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
+    ap.add_argument("--breakdown", action="store_true", help="the held-out error by cycle, grouping and part (joined vehicles)")
+    ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
+                    help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
+                    help="what the cold start's heat capacity follows (measured, docs/validation-epa.md)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
+    global TRANSIENT_FORM
+    TRANSIENT_FORM = args.transient_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
         specs, table = [specs[i] for i in keep], table.iloc[keep].reset_index(drop=True)
+    if args.cold_start_basis == "engine_mass":
+        for text in mass_basis_thermal(specs, table):
+            print(text, flush=True)
     r = run(specs, table)
     print(f"{len(specs)} vehicles, {len(r['joined'])} joined to OMEGA; {int((~r['single']).sum())} drive-mode "
           f"duplicates merged into their pair", flush=True)
     for text in report(r, table):
         print(text, flush=True)
+    if args.breakdown:
+        for text in breakdown_report(r, specs, table):
+            print(text, flush=True)
     if args.residuals:
         for text in residual_report(r, specs, table):
             print(text, flush=True)

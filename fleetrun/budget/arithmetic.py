@@ -2,8 +2,9 @@
 
 One owner for each budget fact (constants in ``models/budget.toml``, with their sources):
 
-- on-road fuel from cycle fuel: EPA's derived 5-cycle label formulas (40 CFR 600.210-12(a)(2)),
-  ``none`` or a scenario factor (:func:`onroad_gal_per_mile`);
+- on-road fuel from cycle fuel: EPA's derived 5-cycle label formulas (40 CFR 600.210-12(a)(2);
+  their coefficient sets by model year: fleetrun.physics.epa_label), ``none`` or a scenario
+  factor (:func:`onroad_gal_per_mile`);
 - tax rates per fuel: :meth:`fleetrun.workbook.reader.Scenario.state_tax_usd_per_gal` and
   ``federal_tax_usd_per_gal``, looked up for arrays by :func:`tax_rates`;
 - CO2 per gallon (EPA-420-F-11-041, the fuel table ``models/fuels.toml``): :func:`co2_t`;
@@ -18,6 +19,7 @@ import math
 
 import numpy as np
 
+from fleetrun.physics import epa_label
 from fleetrun.physics.fuels import fuel_properties
 from fleetrun.resources import model_file
 
@@ -33,28 +35,6 @@ def constants() -> dict:
     dict, the file's tables.
     """
     return model_file("budget.toml")
-
-
-def epa_label_gal_per_mile(cycle_gal_per_mile, intercept_gal_per_mile: float, slope: float):
-    """On-road fuel per mile from dynamometer fuel per mile, EPA's derived 5-cycle form.
-
-    40 CFR 600.210-12(a)(2): ``1 / mpg_label = intercept + slope / mpg_cycle``, i.e.
-    ``gal/mi on road = intercept + slope x gal/mi on the cycle``.
-
-    Parameters
-    ----------
-    cycle_gal_per_mile : array_like
-        Dynamometer (cycle) fuel per mile [gal/mi].
-    intercept_gal_per_mile : float
-        City 0.003259, highway 0.001376 [gal/mi].
-    slope : float
-        City 1.1805, highway 1.3466 [-].
-
-    Returns
-    -------
-    on-road fuel per mile [gal/mi], the shape of ``cycle_gal_per_mile``.
-    """
-    return intercept_gal_per_mile + slope * np.asarray(cycle_gal_per_mile, dtype=float)
 
 
 def cycle_kind(name: str, mean_speed_kph: float) -> str:
@@ -91,14 +71,17 @@ def onroad_label(setting) -> str:
     str, the sentence.
     """
     if setting == "epa_label":
-        return ("EPA label adjustment (40 CFR 600.210-12 derived 5-cycle: city 1/mpg = 0.003259 + "
-                "1.1805/mpg, highway 1/mpg = 0.001376 + 1.3466/mpg; light-duty only; EVs kWh / 0.7)")
+        sets = "; ".join(f"from MY{x.first_model_year} city 1/mpg = {x.city[0]:g} + {x.city[1]:g}/mpg, highway "
+                         f"1/mpg = {x.highway[0]:g} + {x.highway[1]:g}/mpg" for x in epa_label.label_sets().values())
+        return (f"EPA label adjustment (40 CFR 600.210-12 derived 5-cycle, the set of each vehicle's model year: "
+                f"{sets}; no model year: MY{epa_label.set_for_model_year(None).first_model_year}'s; "
+                "light-duty only; EVs kWh / 0.7)")
     if setting == "none":
         return "none (dynamometer cycle fuel)"
     return f"factor {float(setting):g} x cycle fuel"
 
 
-def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.ndarray:
+def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted, model_years) -> np.ndarray:
     """On-road fuel (or energy) per mile for one cycle.
 
     Parameters
@@ -111,6 +94,9 @@ def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.
         ``city`` or ``highway`` (:func:`cycle_kind`).
     adjusted : array_like of bool
         Rows the EPA label formula applies to (light-duty); the others keep cycle fuel.
+    model_years : sequence of int or None
+        Each row's model year: it chooses the label formula's coefficient set
+        (fleetrun.physics.epa_label; None: the set for rows without one).
 
     Returns
     -------
@@ -121,8 +107,8 @@ def onroad_gal_per_mile(cycle_gal_per_mile, setting, kind: str, adjusted) -> np.
         return cycle.copy()
     if setting != "epa_label":
         return float(setting) * cycle
-    coefficients = constants()["onroad"]["epa_label"][kind]
-    label = epa_label_gal_per_mile(cycle, coefficients["intercept_gal_per_mile"], coefficients["slope"])
+    intercept, slope = epa_label.coefficients(model_years, kind)
+    label = epa_label.label_gal_per_mile(cycle, intercept, slope)
     return np.where(np.asarray(adjusted, dtype=bool), label, cycle)
 
 

@@ -31,6 +31,7 @@ import pandas as pd
 
 from fleetrun.budget import arithmetic as budget
 from fleetrun.cycles import load_cycle
+from fleetrun.physics import epa_label
 from fleetrun.budget import drivers
 from fleetrun.units import METERS_PER_MILE
 from fleetrun.workbook.schema import DUTY_CLASSES
@@ -101,7 +102,7 @@ def _cycle_kind(cycle: str) -> str:
 
 
 def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
-                 fuel_factor: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                 fuel_factor: np.ndarray | None = None, model_year=None) -> dict[str, np.ndarray]:
     """Per vehicle on scenario ``s``'s mix: cycle and on-road gallons per mile, on-road kWh per
     mile (electric rows) and the energies per mile. ``fuel_factor``: each row's cycle fuel per
     mile relative to its simulated vehicle (a registration cohort's model year,
@@ -115,6 +116,9 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
     per_condition : dict, (cycle, ambient [C]) -> the simulation's per-vehicle sums (miles [mi],
         fuel [gal], kWh, energies [J])
     fuel_factor : array or None, each row's cycle fuel per mile relative to its simulated vehicle [-]
+    model_year : sequence of int or None, or None
+        Each row's model year (None or NA: none), which chooses the label formulas' coefficients
+        (fleetrun.physics.epa_label); None: no row has one.
 
     Returns
     -------
@@ -122,6 +126,7 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
     energy [J/mi].
     """
     n = len(duty_of)
+    years = np.full(n, np.nan) if model_year is None else epa_label.model_year_array(model_year)
     adjusted = budget.label_adjusted_duty(duty_of) & (fuel != ELECTRIC)
     kwh_factor = budget.electric_onroad_factor(s.onroad_adjustment)
     names = ("fuel_gal_cycle", "fuel_gal", "kwh") + ENERGY_FIELDS
@@ -138,8 +143,8 @@ def mix_per_mile(s, duty_of: np.ndarray, fuel: np.ndarray, per_condition: dict,
                 cycle_gpm = cycle_gpm * fuel_factor[rows]
             kind = _cycle_kind(cycle)
             per_mile["fuel_gal_cycle"][rows] += share * cycle_gpm
-            per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(cycle_gpm, s.onroad_adjustment, kind,
-                                                                            adjusted[rows])
+            per_mile["fuel_gal"][rows] += share * budget.onroad_gal_per_mile(
+                cycle_gpm, s.onroad_adjustment, kind, adjusted[rows], years[rows])
             per_mile["kwh"][rows] += share * kwh_factor * (sim["kwh"][rows] / miles)
             for name in ENERGY_FIELDS:
                 per_mile[name][rows] += share * (sim[name][rows] / miles)
@@ -181,7 +186,7 @@ class _Scenario:
         self.duty = np.array([v.duty_class for v in vehicles], dtype=object)
         self.model_year = pd.array([v.model_year for v in vehicles], dtype="Int64")
         self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition,
-                                     None if years is None else years.fuel_factor(s))
+                                     None if years is None else years.fuel_factor(s), self.model_year)
         g = s.vmt_growth_pct_per_year / 100.0
         self.years = np.arange(s.budget_years)
         if years is None:

@@ -28,8 +28,8 @@ import numpy as np
 from fleetrun.diagnose.openworld import drift_columns, review, unexplained
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
-from fleetrun.diagnose.select import (Candidate, chosen, cv_fit, effect_of, evaluate_candidate, fold_ids,
-                                      full_fit, refine_shape, shift_null)
+from fleetrun.diagnose.select import (Candidate, block_shape, chosen, cv_fit, effect_of, evaluate_candidate,
+                                      fold_ids, full_fit, refine_shape, relaxed_block, shift_null)
 from fleetrun.effects import EFFECTS
 from fleetrun.fileio import JsonDocument
 
@@ -402,8 +402,11 @@ def _final_refit(s: _Search) -> tuple[list[Finding], np.ndarray]:
         params = _params(a.cand, a.shape, a.coefficient)
         s.statuses[a.id]["parameters"] = params
         s.statuses[a.id]["heldout_gain"] = round(a.gain, 5)
-        findings.append(Finding(a.id, params, round(a.before, 6), round(a.after, 6),
-                                explanation(a.id, params, a.before, a.after, p.units),
+        text = explanation(a.id, params, a.before, a.after, p.units)
+        if a.relaxed is not None:
+            text += (f" Sized after its selection: its {a.cand.block.shape[0]} weights refitted with "
+                     f"the penalty at {a.relaxed:.3g} x the selection's (least held-out error).")
+        findings.append(Finding(a.id, params, round(a.before, 6), round(a.after, 6), text,
                                 EFFECTS[effect_of(a.id)].seed))
         fitted = fitted + a.coefficient * a.column
     return findings, fitted
@@ -426,6 +429,22 @@ def fitted_on(problem: Problem, selection: Selection) -> np.ndarray:
     return fitted
 
 
+def _relax_blocks(s: _Search) -> bool:
+    """Block findings (a road's knots) sized after the selection: their weights refitted with
+    the penalty relaxed as :func:`fleetrun.diagnose.select.relaxed_block` chooses, the other
+    findings and the calibration terms in the model. What is named does not change; True if
+    any finding was refitted."""
+    done = False
+    for i, a in enumerate(s.accepted):
+        if a.cand.block is None or not a.cand.relax:
+            continue
+        w, factor = relaxed_block(s.r, s.model_terms(without=a), a.cand, s.folds, s.k)
+        shape, col, _ = block_shape(a.cand, w)
+        s.accepted[i] = replace(a, shape=shape, column=col, relaxed=factor)
+        done = True
+    return done
+
+
 def _open_world(s: _Search) -> tuple[list, np.ndarray, "Unexplained", list]:
     """Final findings and their fit, then what they leave (:mod:`.openworld`): physics first,
     the remainder judged after it and never against it. Each demotion of a weak effect
@@ -434,16 +453,32 @@ def _open_world(s: _Search) -> tuple[list, np.ndarray, "Unexplained", list]:
     findings, fitted = _final_refit(s)
     while s.accepted and review(s, findings, descriptions):
         findings, fitted = _final_refit(s)
+    if _relax_blocks(s):
+        findings, fitted = _final_refit(s)
     left = unexplained(s.problem, s.r, fitted, s.accepted, s.settings, rng=s.rng, folds=s.folds)
     return findings, fitted, left, descriptions
 
 
-def _search(problem: Problem, st: Settings) -> tuple[_Search, list, np.ndarray, Unexplained, list]:
-    """Forward selection, rival check and the open-world step on ``problem``."""
-    n = len(problem.residual)
+def search_folds(problem: Problem, st: Settings) -> np.ndarray:
+    """The selection's cross-validation fold of each sample of ``problem`` (:func:`fold_ids`)."""
     duration = float(problem.time_s[-1] - problem.time_s[0])
     per_fold = max(st.blocks_per_fold, int(round(duration / (st.folds * st.block_s))))
-    s = _Search(problem, st, np.random.default_rng(st.seed), fold_ids(n, st.folds, per_fold))
+    return fold_ids(len(problem.residual), st.folds, per_fold)
+
+
+def relaxed_fit(problem: Problem, cid: str, settings: Settings | None = None) -> tuple[np.ndarray, float]:
+    """The block candidate ``cid`` of ``problem`` refitted as a finding would be
+    (:func:`fleetrun.diagnose.select.relaxed_block`) with only the calibration terms in the
+    model, whatever its status: what it fits where it is no finding (the background a
+    validation takes off). Weights and the penalty factor chosen."""
+    st = settings or Settings()
+    cand = next(c for c in problem.candidates if c.id == cid)
+    return relaxed_block(problem.residual, list(problem.initial_terms), cand, search_folds(problem, st), st.folds)
+
+
+def _search(problem: Problem, st: Settings) -> tuple[_Search, list, np.ndarray, Unexplained, list]:
+    """Forward selection, rival check and the open-world step on ``problem``."""
+    s = _Search(problem, st, np.random.default_rng(st.seed), search_folds(problem, st))
     for cid, missing in problem.untestable.items():
         s.statuses[cid] = {"effect": cid, "status": "untestable", "heldout_gain": None,
                            "missing_channels": missing}

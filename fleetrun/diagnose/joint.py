@@ -33,7 +33,7 @@ from fleetrun.diagnose.select import PER_RECORDING_SEP, Candidate
 from fleetrun.effects import EFFECTS
 from fleetrun.diagnose.vehicle import SAME_TRACE_WINDOW_S
 from fleetrun.diagnose.weighting import noise_weighted
-from fleetrun.diagnose.route import with_grade_profiles, with_road
+from fleetrun.diagnose.route import ROAD_KNOT_M, with_grade_profiles, with_road
 from fleetrun.errors import InputError, unknown_name_error
 from fleetrun.fileio import JsonDocument
 
@@ -248,7 +248,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
                     settings: Settings | None = None, residual: str = "auto",
                     window_s: float | None = None, weights: str = "none",
                     hot_starts: Sequence[bool] | None = None,
-                    grade_profile: bool = False, road: bool = False) -> JointDiagnosis:
+                    grade_profile: bool = False, road: bool = False,
+                    road_refit: bool = True, road_knot_m: float = ROAD_KNOT_M) -> JointDiagnosis:
     """Diagnose ``recordings`` of one vehicle together; ``references[i]`` is the
     ``--calibrate-on`` reference of ``recordings[i]`` (None: none). The selection runs on
     ``window_s`` means (default: the same-trace window,
@@ -261,7 +262,8 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     (:func:`without_warmup`). ``grade_profile`` True adds a grade located along each
     recording's route, ``road_grade@<recording>`` (:func:`fleetrun.diagnose.route.with_grade_profiles`);
     ``road`` True one road under every recording, ``road_grade@road``
-    (:func:`fleetrun.diagnose.route.with_road`)."""
+    (:func:`fleetrun.diagnose.route.with_road`); ``road_refit`` True sizes a named road with its
+    knots refitted, the penalty relaxed as held-out error chooses; ``road_knot_m`` its knot spacing."""
     if len(references) != len(recordings):
         raise InputError("give one reference (or None) per recording")
     if hot_starts is not None and len(hot_starts) != len(recordings):
@@ -275,7 +277,7 @@ def joint_diagnosis(recordings: Sequence, references: Sequence, *, physics: str 
     if grade_profile:
         joined = with_grade_profiles(joined, problems, names, window, weights)
     if road:
-        joined = with_road(joined, problems, names, window, weights)
+        joined = with_road(joined, problems, names, window, weights, knot_m=road_knot_m, refit=road_refit)
     hot = [n for n, h in zip(names, hot_starts or []) if h]
     if hot:
         joined = without_warmup(joined, hot)

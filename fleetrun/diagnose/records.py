@@ -93,6 +93,8 @@ class Accepted:
     after: float
     gain: float
     coefficient: float | None = None
+    #: a block refitted after the selection: the factor of its penalty kept (None: not refitted)
+    relaxed: float | None = None
 
     @property
     def id(self) -> str:

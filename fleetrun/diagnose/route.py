@@ -14,7 +14,8 @@ Opt-in (``joint_diagnosis(grade_profile=True)``); docs/diagnose-realdata.md, 1e.
 from its start): the grade piecewise linear in distance with a knot every ``ROAD_KNOT_M``, one
 candidate ``road_grade@road`` whose knot grades are fitted together (a block candidate,
 :class:`fleetrun.diagnose.select.Candidate`), penalised towards a level road. Opt-in
-(``joint_diagnosis(road=True)``); docs/diagnose-realdata.md, 1f.
+(``joint_diagnosis(road=True)``); docs/diagnose-realdata.md, 1f. Once named, its knots are
+refitted with the penalty relaxed (``road_refit``, default True; 1g-1h).
 """
 from __future__ import annotations
 
@@ -33,9 +34,14 @@ PROFILE_MODES = 3
 PROFILE_DIRECTIONS = 32
 GRADE_ID = "road_grade"
 #: Knot spacing [m] of the shared road's grade and the ridge on its knots' grades (relative to
-#: the mean diagonal of their Gram matrix), fixed in docs/diagnose-realdata.md, 1f.
-ROAD_KNOT_M = 1000.0
+#: the mean diagonal of their Gram matrix), fixed in docs/diagnose-realdata.md, 1f; the spacing
+#: 1,000 m there (designs L, Lr), 500 m since design Lr5 (1h) met its pre-registered target.
+ROAD_KNOT_M = 500.0
 ROAD_PENALTY = 1.0
+#: Factors of ``ROAD_PENALTY`` tried when a named road is sized (its knots refitted after the
+#: selection, the factor with the least held-out error kept; 1: the selection's, 0: none),
+#: fixed in docs/diagnose-realdata.md, 1g, before it was measured.
+ROAD_RELAX = (1.0, 1 / 3, 0.1, 1 / 30, 0.01, 0.0)
 ROAD_ID = f"{GRADE_ID}{PER_RECORDING_SEP}road"
 
 
@@ -118,18 +124,23 @@ def _road_block(problem: Problem, knots: np.ndarray) -> list[np.ndarray]:
     return [grade * np.maximum(0.0, 1.0 - np.abs(d - x) / step) for x in knots]
 
 
-def _block_candidate(block: np.ndarray, lower: float, upper: float, penalty: float) -> Candidate:
+def _block_candidate(block: np.ndarray, lower: float, upper: float, penalty: float,
+                     relax: tuple[float, ...] = ()) -> Candidate:
     column_for = lambda sh, b=block: np.einsum("i,in->n", [sh[f"w{i}"] for i in range(len(b))], b)  # noqa: E731
     return Candidate(ROAD_ID, [block.sum(axis=0)], [{}], lower, upper, column_for=column_for,
-                     block=block, penalty=penalty)
+                     block=block, penalty=penalty, relax=relax)
 
 
 def with_road(joined: Problem, problems: Sequence[Problem], names: Sequence[str], window: int,
-              weights: str, knot_m: float = ROAD_KNOT_M, penalty: float = ROAD_PENALTY) -> Problem:
+              weights: str, knot_m: float = ROAD_KNOT_M, penalty: float = ROAD_PENALTY,
+              refit: bool = True) -> Problem:
     """``joined`` (and its ``coarse``) with the candidate ``road_grade@road``: one road under
     every recording, its grade at knots every ``knot_m`` fitted together (``grade_pct``: the
     steepest knot's grade; ``w0``, ``w1``, ...: each knot's grade over it), penalised by
-    ``penalty`` towards a level road."""
+    ``penalty`` towards a level road. ``refit`` True: once named, its knots are refitted with
+    the penalty relaxed by the factors :data:`ROAD_RELAX` (the one with the least held-out
+    error kept, :func:`fleetrun.diagnose.select.relaxed_block`)."""
+    relax = ROAD_RELAX if refit else ()
     grade = next(c for c in problems[0].candidates if c.id == GRADE_ID)
     knots = road_knots(problems, knot_m)
     fine, coarse = [], []
@@ -139,9 +150,9 @@ def with_road(joined: Problem, problems: Sequence[Problem], names: Sequence[str]
         fine.append(np.array(cols))
         coarse.append(np.array(_coarse_like(p, tmp, window, weights).columns))
     out = replace(joined, candidates=list(joined.candidates)
-                  + [_block_candidate(np.hstack(fine), grade.lower, grade.upper, penalty)], coarse=None)
+                  + [_block_candidate(np.hstack(fine), grade.lower, grade.upper, penalty, relax)], coarse=None)
     out.coarse = replace(joined.coarse, candidates=list(joined.coarse.candidates)
-                         + [_block_candidate(np.hstack(coarse), grade.lower, grade.upper, penalty)])
+                         + [_block_candidate(np.hstack(coarse), grade.lower, grade.upper, penalty, relax)])
     return out
 
 

@@ -52,6 +52,10 @@ class Candidate:
     #: ``column_for`` the block's combination at the weights ``{"w0": ..., ...}``.
     block: np.ndarray | None = None
     penalty: float = 0.0
+    #: a block's post-selection refit (:func:`relaxed_block`): once the block is a finding, its
+    #: weights are refitted with ``penalty`` times each of these factors and the one with the
+    #: least held-out error is kept (empty: sized at its selection penalty)
+    relax: tuple[float, ...] = ()
 
 
 @dataclass
@@ -173,6 +177,26 @@ def cv_fit(r, nuisance: list[tuple], x: np.ndarray, lo: float, hi: float, folds,
     sse_before = _heldout_sse(G_f[:, :q, :q], c_f[:, :q], rr_f, nlo, nhi) if q else rr_f.sum()
     b = _solve_bounded(_penalised(G_f.sum(0), q, penalty), c_f.sum(0), los, his)
     return float(sse_before), float(sse_after), b
+
+
+def relaxed_block(r, nuisance: list[tuple], cand: Candidate, folds, k) -> tuple[np.ndarray, float]:
+    """A block candidate's weights refitted after its selection (a relaxed ridge).
+
+    The ridge that keeps a block's many weights from fitting noise while it is *selected*
+    also shrinks them once it is chosen. Refitted on the same support with ``cand.penalty``
+    times each factor of ``cand.relax`` (1 = the selection's penalty, 0 = none), the ``nuisance``
+    terms in the model, the factor with the least blocked-CV held-out SSE on ``folds`` is kept
+    (the first on a tie); the truth is never consulted. The relaxed lasso's two-stage idea
+    (Meinshausen 2007, Comput. Stat. Data Anal. 52, 374-393) with a ridge in place of the
+    lasso. Returns the full-data weights at that factor and the factor. docs/diagnose.md, 7b;
+    docs/diagnose-realdata.md, 1g.
+    """
+    best = None
+    for factor in cand.relax or (1.0,):
+        _, after, b = cv_fit(r, nuisance, cand.block, cand.lower, cand.upper, folds, k, cand.penalty * factor)
+        if best is None or after < best[0]:
+            best = (after, b[len(nuisance):], float(factor))
+    return best[1], best[2]
 
 
 def _circ_corr(a_fft, r_fft, n):

@@ -266,7 +266,8 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     sim_ftp = _nominal_mpg(sub, "FTP", mode, physics, cache_dir)
     sim_hwfet = (_nominal_mpg(sub, "HWFET", mode, physics, cache_dir) if np.isnan(ftp[rows]).any()
                  else np.full(rows.size, np.nan))
-    k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet)
+    k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet, [v.model_year for v in sub],
+                            [v.label_group for v in sub])
     at_nominal = abs(ambient_temp_C - measured.NOMINAL_AMBIENT_C) < 1e-9
     exact = at_nominal & ((cycle_name == "FTP") | ((cycle_name == "HWFET") & np.isnan(ftp[rows])))
     factor = np.ones(len(vehicles))

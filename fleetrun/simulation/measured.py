@@ -4,8 +4,8 @@ combined figure) calibrate its efficiency (docs/simulation.md "One measured numb
 
 The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
 nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
-600.210-12, city 1/mpg = 0.003259 + 1.1805/mpg_FTP, highway 1/mpg = 0.001376 + 1.3466/mpg_HWFET,
-combined 55 % city, 45 % highway; the formulas' constants are models/budget.toml's). On that test the fuel is multiplied by k exactly; on every
+600.210-12, combined 55 % city, 45 % highway, with the coefficient set of the vehicle's model
+year, fleetrun.physics.epa_label). On that test the fuel is multiplied by k exactly; on every
 other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
 one global constant fitted with manufacturers held out (validation/epa_technology.py).
 """
@@ -15,10 +15,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from fleetrun.physics import epa_label
 from fleetrun.resources import model_file
 
 NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
-LABEL_CITY_SHARE = 0.55   # the label's combined figure: 55 % city, 45 % highway (40 CFR 600.210-12(c))
 FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
 
 
@@ -49,46 +49,66 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     return column("measured_ftp_mpg"), column("label_combined_mpg")
 
 
-def label_formulas(table="epa_label") -> tuple[tuple[float, float], tuple[float, float]]:
-    """(intercept [gal/mi], slope) of EPA's city and highway label formulas (their owner:
-    models/budget.toml [onroad.epa_label]).
-
-    Parameters
-    ----------
-    table : str, the budget.toml table under ``onroad``: ``epa_label`` (what fleetrun applies) or
-        ``epa_label_my2017`` (the coefficients of MY2017+ labels; used by the validation)
-
-    Returns
-    -------
-    ((city intercept [gal/mi], city slope [-]), (highway intercept [gal/mi], highway slope [-]))
-    (40 CFR 600.210-12).
-    """
-    label = model_file("budget.toml")["onroad"][table]
-    return tuple((label[kind]["intercept_gal_per_mile"], label[kind]["slope"]) for kind in ("city", "highway"))
-
-
-def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, table="epa_label"):
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None):
     """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
-    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k.
+    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k. Vehicles of one label group
+    share one k: the mean of their label fuel per mile is the mean of their labels' (a label is its
+    model type's configurations' mean, 40 CFR 600.208-12; equal weights; docs/simulation.md).
 
     Parameters
     ----------
     label_combined_mpg : float or array, the EPA label combined figure [mpg]
     ftp_mpg : float or array, simulated FTP fuel economy [mpg]
     hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
-    table : str, which label formulas (:func:`label_formulas`)
+    model_years : sequence of int or None, or None: each vehicle's model year, which chooses the
+        label formulas' coefficients (fleetrun.physics.epa_label; None: no vehicle has one)
+    label_set : LabelSet or None, one coefficient set for every vehicle instead (validation)
+    groups : sequence of str or None, or None: each vehicle's label group (None or "": alone)
 
     Returns
     -------
     fuel scale k [-], the broadcast shape of the arguments.
     """
-    city, highway = label_formulas(table)
-    a = LABEL_CITY_SHARE * city[0] + (1 - LABEL_CITY_SHARE) * highway[0]
-    b = LABEL_CITY_SHARE * city[1] / ftp_mpg + (1 - LABEL_CITY_SHARE) * highway[1] / hwfet_mpg
-    return (1.0 / np.asarray(label_combined_mpg, float) - a) / b
+    if label_set is None and model_years is None:
+        label_set = epa_label.set_for_model_year(None)
+    if label_set is not None:
+        city, highway = label_set.city, label_set.highway
+    else:
+        city, highway = (epa_label.coefficients(model_years, kind) for kind in epa_label.KINDS)
+    share = epa_label.CITY_SHARE
+    a = share * city[0] + (1 - share) * highway[0]
+    b = share * city[1] / ftp_mpg + (1 - share) * highway[1] / hwfet_mpg
+    target = 1.0 / np.asarray(label_combined_mpg, float)
+    if groups is not None:
+        a, b, target = np.broadcast_arrays(a, b, target)
+        valid = np.isfinite(a) & np.isfinite(b) & np.isfinite(target)
+        a, b, target = (group_mean(x, groups, valid) for x in (a, b, target))
+    return (target - a) / b
 
 
-def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg):
+def group_mean(values, groups, valid):
+    """Each valid entry replaced by the mean over the valid entries of its group.
+
+    Parameters
+    ----------
+    values : array, one value per vehicle
+    groups : sequence of str or None, each vehicle's group (None, NaN or "": a group of its own)
+    valid : array of bool, the entries that count (the others are returned as they are)
+
+    Returns
+    -------
+    float array, the shape of ``values``.
+    """
+    values = np.array(values, dtype=float)
+    keys = np.array(["" if g is None or g != g else str(g) for g in groups], dtype=object)
+    use = np.asarray(valid, bool) & (keys != "")
+    if use.any():
+        _, inverse = np.unique(keys[use], return_inverse=True)
+        values[use] = (np.bincount(inverse, weights=values[use]) / np.bincount(inverse))[inverse]
+    return values
+
+
+def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg, model_years=None, groups=None):
     """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
     from the label; NaN where neither figure is given.
 
@@ -98,6 +118,10 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg)
     label_combined_mpg : float or array, EPA label combined figure [mpg] (NaN: not given)
     sim_ftp_mpg : float or array, simulated FTP fuel economy [mpg]
     sim_hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
+    model_years : sequence of int or None, or None: each vehicle's model year (its label formulas,
+        :func:`label_scale`)
+    groups : sequence of str or None, or None: each vehicle's label group (:func:`label_scale`;
+        a vehicle with a measured FTP takes no part in its group)
 
     Returns
     -------
@@ -105,7 +129,9 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg)
     """
     with np.errstate(divide="ignore", invalid="ignore"):
         from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
-        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg))
+        label = np.where(np.isfinite(from_ftp), np.nan, np.asarray(label_combined_mpg, float))
+        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label, sim_ftp_mpg, sim_hwfet_mpg,
+                                                                     model_years, groups=groups))
 
 
 def carried_scale(k, exact, share):

@@ -57,6 +57,12 @@ class ThermalConstants:
     viscosity_exponent: float
     oil_walther: dict[str, tuple[float, float]]   # fuel -> (A, B) of Walther's equation
     enrichment_at_25C: dict[str, float]           # fuel -> e_25
+    # what the node's heat capacity follows: "displacement" (c_L V_d) or "engine_mass"
+    # (c_m x engine mass from rated power, :func:`engine_mass_kg`)
+    heat_capacity_basis: str = "displacement"
+    heat_capacity_J_per_K_per_kg: float = 0.0
+    engine_base_mass_kg: float = 61.0
+    engine_specific_power_kW_per_kg: float = 2.13
 
 
 @lru_cache(maxsize=None)
@@ -71,13 +77,18 @@ def thermal_constants() -> ThermalConstants:
     engine, friction = data["engine"], data["friction"]
     oils = {fuel: walther_coefficients(o["nu1_cSt"], o["T1_K"], o["nu2_cSt"], o["T2_K"])
             for fuel, o in data["oil"].items()}
+    mass = data.get("engine_mass", {})
     return ThermalConstants(
         heat_fraction=float(engine["heat_fraction"]),
         heat_capacity_J_per_K_per_L=1e3 * float(engine["heat_capacity_kJ_per_K_per_L"]),
         thermostat_temp_C=float(engine["thermostat_temp_C"]),
         soak_time_constant_s=float(engine["soak_time_constant_s"]),
         friction_share=float(friction["share"]), viscosity_exponent=float(friction["viscosity_exponent"]),
-        oil_walther=oils, enrichment_at_25C={k: float(v) for k, v in data["enrichment"].items()})
+        oil_walther=oils, enrichment_at_25C={k: float(v) for k, v in data["enrichment"].items()},
+        heat_capacity_basis=str(engine.get("heat_capacity_basis", "displacement")),
+        heat_capacity_J_per_K_per_kg=1e3 * float(engine.get("heat_capacity_kJ_per_K_per_kg", 0.0)),
+        engine_base_mass_kg=float(mass.get("base_kg", 61.0)),
+        engine_specific_power_kW_per_kg=float(mass.get("specific_power_kW_per_kg", 2.13)))
 
 
 # ----------------------------------------------------------------------------- physics
@@ -98,6 +109,45 @@ def engine_heat_capacity_J_per_K(displacement_L, capacity_J_per_K_per_L):
     30000.0
     """
     return np.asarray(displacement_L, float) * capacity_J_per_K_per_L
+
+
+def engine_mass_kg(rated_power_kW, base_kg, specific_power_kW_per_kg):
+    """Engine mass [kg] from its rated power: ``m_base + P_rated / p_spec``, FASTSim 2's
+    fuel-converter mass (NREL FASTSim vehicle defaults fc_base_kg = 61 kg, fc_kw_per_kg = 2.13).
+
+    Parameters
+    ----------
+    rated_power_kW : float or array, P_rated [kW]
+    base_kg : float, m_base [kg]
+    specific_power_kW_per_kg : float, p_spec [kW/kg]
+
+    Returns
+    -------
+    mass [kg].
+
+    >>> round(float(engine_mass_kg(150.0, 61.0, 2.13)), 1)
+    131.4
+    """
+    return base_kg + np.asarray(rated_power_kW, float) / specific_power_kW_per_kg
+
+
+def node_heat_capacity_J_per_K(va, k: ThermalConstants):
+    """The vehicles' engine-node heat capacity [J/K] by ``k.heat_capacity_basis``: ``c_L V_d``
+    (:func:`engine_heat_capacity_J_per_K`) or ``c_m`` x :func:`engine_mass_kg`.
+
+    Parameters
+    ----------
+    va : VehicleArrays (displacement_L [L], P_rated_kW [kW])
+    k : ThermalConstants
+
+    Returns
+    -------
+    heat capacity [J/K], (V,).
+    """
+    if k.heat_capacity_basis == "engine_mass":
+        return k.heat_capacity_J_per_K_per_kg * engine_mass_kg(va.P_rated_kW, k.engine_base_mass_kg,
+                                                               k.engine_specific_power_kW_per_kg)
+    return engine_heat_capacity_J_per_K(va.displacement_L, k.heat_capacity_J_per_K_per_L)
 
 
 def warmed_temperature_C(start_temp_C, heat_J, heat_capacity_J_per_K, thermostat_temp_C):
@@ -300,7 +350,7 @@ def cold_start_extra_fuel(va, fuel_rate, engine_speed_rpm, dt_s, step_soak_s, st
     (extra fuel rate [g/s], engine temperature [C]), arrays (V, N).
     """
     k = constants or thermal_constants()
-    capacity = engine_heat_capacity_J_per_K(va.displacement_L, k.heat_capacity_J_per_K_per_L)
+    capacity = node_heat_capacity_J_per_K(va, k)
     dt = np.asarray(dt_s, float)[None, :]
     temp = engine_temperature_C(fuel_rate * dt, capacity, va.lhv, start_temp_C, step_soak_s, ambient_temp_C, k)
     extra = np.zeros_like(fuel_rate)

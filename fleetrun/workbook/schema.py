@@ -131,6 +131,8 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
            "calibrates its efficiency", minimum=3, maximum=200),
     Column("label_combined_mpg", "number", False, "its EPA label combined [mpg], used when no measured FTP",
            minimum=3, maximum=200),
+    Column("label_group", "text", False, "rows that share one EPA label (its model type's configurations): "
+           "one fuel scale for them all"),
 )
 
 # cycle_mix_MD / cycle_mix_HD go beyond docs/interface.md: heavy trucks cannot follow light-duty
