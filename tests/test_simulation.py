@@ -389,7 +389,9 @@ def test_vehicles_above_full_load_at_the_start_skip_to_the_last_round_bit_for_bi
         calls = []
         monkeypatch.setattr(sim, "above_full_load_at_start", lambda *a: calls.append(r := real(*a)) or r)
         skipped = simulate(fleet, hill, trace=trace)
-        assert calls and calls[0][0] and not calls[0][1:].any()   # the weak car stuck, the others not
+        # the first call answers for the rounds but the last at once (one row per vehicle and margin)
+        first_margin = calls[0].reshape(len(sim.REDRIVE_MARGINS) - 1, -1)[0] if calls else None
+        assert calls and first_margin[0] and not first_margin[1:].any()   # the weak car stuck, the others not
         monkeypatch.setattr(sim, "above_full_load_at_start", lambda va, *a: np.zeros(va.n, bool))
         every_round = simulate(fleet, hill, trace=trace)
         assert (every_round.shortfall_time_s[:3] > 0).all()
@@ -400,3 +402,23 @@ def test_vehicles_above_full_load_at_the_start_skip_to_the_last_round_bit_for_bi
         if trace:
             for name in TRACE_COLUMNS:
                 assert np.array_equal(getattr(skipped.trace, name), getattr(every_round.trace, name)), name
+
+
+def test_step_sums_of_a_pass_on_own_speeds_add_in_the_gathered_columns_order():
+    # a pass over several vehicles' own speeds lays its arrays out row by row; the per-vehicle
+    # distance is summed step after step, the order numpy used when the gathered steps'
+    # columns laid them out column by column (core.step_sums): the same bits as that layout
+    from fleetrun.simulation import core
+
+    rng = np.random.default_rng(7)
+    t = np.arange(400.0)
+    speed = rng.uniform(0.0, 30.0, (9, t.size))
+    columns = np.sort(rng.choice(np.arange(1, t.size), 300, replace=False))   # steps with gaps
+    k = core.kinematics(t, speed, np.zeros(t.size), columns)
+    assert k.sequential and k.v_avg.flags.c_contiguous
+    gathered = 0.5 * (speed[:, columns] + speed[:, columns - 1])              # column by column
+    assert not gathered.flags.c_contiguous
+    assert core.step_sums(k.v_avg * k.dt, k).tobytes() == (gathered * k.dt).sum(axis=1).tobytes()
+    assert not np.array_equal(core.step_sums(k.v_avg * k.dt, k), (k.v_avg * k.dt).sum(axis=1))   # the order matters
+    one = core.kinematics(t, speed[:1], np.zeros(t.size), columns)            # one vehicle: numpy's row sum
+    assert not one.sequential

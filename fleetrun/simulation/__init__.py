@@ -18,7 +18,7 @@ from fleetrun.simulation import bounds, coastdown_driveline, diffmodes, measured
 from fleetrun.simulation.core import (FOLLOW_TOL_MPS, REDRIVE_SPEED_GRID, DifferentialSolver,
                                       above_full_load_at_start, backward,
                                       backward_drivetrain, has_technology, row_buffers,
-                                      standstill_fuel_rate_g_per_s, idle_fuel_at_ambient_g_per_s, with_climate_load,
+                                      standstill_fuel_rate_g_per_s, step_sums, idle_fuel_at_ambient_g_per_s, with_climate_load,
                                       forward_redrive, idle_fuel_rate_g_per_s, max_tractive_force_table,
                                       power_speed_table)
 from fleetrun.simulation.effects import (CycleEffects, cycle_effects, describe_effects, step_time_since_start_s,
@@ -158,8 +158,9 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     # cache, which is several times faster than one pass over the whole fleet.
     block = _block_rows(t.size)
 
-    def run(rows, speed, redriven_if_behind=False):
-        return _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind)
+    def run(rows, speed, redriven_if_behind=False, va_rows=None):
+        return _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind,
+                         va_rows)
     # first every vehicle drives the trace itself, then those that cannot follow it
     sums = (_redrive_until_feasible(run(np.arange(V), None, bool(REDRIVE_MARGINS)), va, t, v_target, grade, run,
                                     _stuck_at_start(va, solver, t, v_target, grade, effects)) if V else None)
@@ -179,25 +180,53 @@ def simulate(vehicles: Sequence, cycle, *, mode: str = "auto", ambient_temp_C: f
     return _calibrate_on_measured(result, vehicles, name, ambient_temp_C, mode, physics, cache_dir)
 
 
-def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind):
+def _run_rows(va, solver, t, v_target, grade, trace, effects, plan, block, rows, speed, redriven_if_behind,
+              va_rows=None):
     """The vehicles ``rows`` of ``va`` at ``speed`` (their rows; None: on the trace) in blocks of
     ``block`` (:func:`_run_block`); on the trace the hardest steps of every block are checked
-    in one pass first (:func:`_surely_behind_by_block`)."""
+    in one pass first (:func:`_surely_behind_by_block`). ``va_rows``: ``va.subset(rows)`` if
+    the caller has it (the blocks' arrays are then views of its arrays)."""
     V = va.n
     surely = (_surely_behind_by_block(va, solver, t, v_target, grade, effects, block)
               if speed is None and redriven_if_behind and not trace and rows.size == V else None)
-    parts = []
+    parts, kept = [], []
     for first in range(0, rows.size, block):
         sub = rows[first:first + block]
+        precheck = True if surely is None else surely[first:first + block]
+        keep = None if surely is None or plan is not None else np.flatnonzero(~precheck)
+        if keep is not None and 2 <= keep.size < sub.size:   # run with the other blocks' (below)
+            parts.append(_behind_only(sub.size, 1))
+            kept.append((len(parts) - 1, sub[keep], keep, sub.size))
+            continue
         if sub.size == V:
             va_sub, solver_sub = va, solver
         else:
-            va_sub = va.subset(sub)
+            va_sub = va.subset(sub) if va_rows is None else va_rows.subset(slice(first, first + sub.size))
             solver_sub = solver.subset(sub, va_sub)
         parts.append(_run_block(va_sub, solver_sub, t, None if speed is None else speed[first:first + block],
-                                v_target, grade, trace, effects, plan, redriven_if_behind,
-                                True if surely is None else surely[first:first + block]))
+                                v_target, grade, trace, effects, plan, redriven_if_behind, precheck))
+    if kept:
+        _run_kept_together(parts, kept, va, solver, t, v_target, grade, effects)
     return _concatenate(parts)
+
+
+def _run_kept_together(parts, kept, va, solver, t, v_target, grade, effects):
+    """The vehicles on the trace that are not surely behind, of the blocks where others are
+    (:func:`_without_rows_behind`; a plain cycle), in one pass: ``kept`` lists (index in
+    ``parts``, their rows in ``va``, their rows in the block, the block's size), at least two
+    of each block (a part of one vehicle sums its steps in another order), written into the
+    blocks' sums ``parts`` (NaN for the others). The same figures as one pass per block:
+    element-wise arithmetic, per-vehicle sums, the distance rule of blocks of more than one
+    vehicle (:func:`_distance_m`)."""
+    rows = np.concatenate([k[1] for k in kept])
+    va_keep = va.subset(rows)
+    together = _run_block(va_keep, solver.subset(rows, va_keep), t, None, v_target, grade, False, effects, None,
+                          True, precheck=False, distance_rows=min(k[3] for k in kept))
+    first = 0
+    for index, own, local, _ in kept:
+        for key in BLOCK_ARRAYS:
+            getattr(parts[index], key)[local] = getattr(together, key)[first:first + own.size]
+        first += own.size
 
 
 def _arrays_and_solver(vehicles, mode, physics, ambient_temp_C, cache_dir, coastdown_removed):
@@ -247,12 +276,28 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
 
 
 def _stuck_at_start(va, solver, t, v_target, grade, effects):
-    """``stuck(rows, margin, table)`` for :func:`_redrive_until_feasible`: which of the vehicles
-    ``rows`` are above full load in their re-drive's first two steps (core.above_full_load_at_start)."""
-    def stuck(rows, margin, table):
-        va_rows = va.subset(rows)
-        return above_full_load_at_start(va_rows, t, v_target, grade, solver.subset(rows, va_rows), margin, table,
-                                        effects)
+    """``stuck(rows, margin, table, va_rows=None)`` for :func:`_redrive_until_feasible`: which of
+    the vehicles ``rows`` (ascending; ``va_rows``: their ``va.subset``) are above full load in
+    their re-drive's first two steps (core.above_full_load_at_start). The first call answers
+    for its margin and every later one but the last (REDRIVE_MARGINS) in one pass, the vehicles
+    stacked once per margin (each row's steps are its own: the same numbers as one call per
+    margin); a later round's vehicles are among the first call's, else they are computed anew."""
+    known = {}
+
+    def stuck(rows, margin, table, va_rows=None):
+        if margin in known:
+            first, answer = known[margin]
+            at = np.minimum(np.searchsorted(first, rows), first.size - 1)
+            if first.size and np.array_equal(first[at], rows):
+                return answer[at]
+        margins = [m for m in REDRIVE_MARGINS[:-1] if m <= margin] or [margin]
+        va_rows = va.subset(rows) if va_rows is None else va_rows
+        k, R = len(margins), rows.size
+        va_k = va_rows if k == 1 else va_rows.subset(np.tile(np.arange(R), k))
+        answers = above_full_load_at_start(va_k, t, v_target, grade, solver.subset(np.tile(rows, k), va_k),
+                                           np.repeat(margins, R)[:, None], np.tile(table, (k, 1)), effects)
+        known.update((m, (rows, a)) for m, a in zip(margins, answers.reshape(k, R)))
+        return known[margin][1]
     return stuck
 
 
@@ -270,16 +315,19 @@ def _redrive_until_feasible(sums: BlockSums, va, t, v_target, grade, run, stuck=
         behind = np.flatnonzero(sums.behind)
         if behind.size == 0:
             break
+        va_behind = va.subset(behind)
         if force_tables is None:  # the drivetrain's maximum effort, once per simulate
             force_tables = np.zeros((va.n, REDRIVE_SPEED_GRID.size))
-            force_tables[behind] = max_tractive_force_table(va.subset(behind), 1.0)
+            force_tables[behind] = max_tractive_force_table(va_behind, 1.0)
         last = margin == REDRIVE_MARGINS[-1]
         if stuck is not None and not last:
-            behind = _without_stuck(behind, stuck(behind, margin, force_tables[behind]), _block_rows(t.size))
-            if behind.size == 0:
+            kept = _without_stuck(behind, stuck(behind, margin, force_tables[behind], va_behind), _block_rows(t.size))
+            if kept.size == 0:
                 continue
-        achieved = forward_redrive(va.subset(behind), t, v_target, grade, margin, force_tables[behind])
-        sums = _redriven(sums, run(behind, achieved, not last), behind)
+            if kept.size < behind.size:
+                behind, va_behind = kept, va.subset(kept)
+        achieved = forward_redrive(va_behind, t, v_target, grade, margin, force_tables[behind])
+        sums = _redriven(sums, run(behind, achieved, not last, va_behind), behind)
     return sums
 
 
@@ -373,7 +421,8 @@ def _run_block(va, solver, t, speed, v_target, grade, trace, effects: CycleEffec
     out = backward(va, t, speed, grade, solver, columns, effects, losses=trace, drivetrain=drivetrain)
     dt = out.dt
     dt_all = np.concatenate([[0.0], np.diff(t)])
-    distance_m = _distance_m(out.v_avg * dt, V, on_trace, distance_rows or V)
+    k = drivetrain.k
+    distance_m = _distance_m(out.v_avg * dt, V, on_trace, distance_rows or V, k)
     target_m = float((target_avg * dt_all).sum())
     not_followed, shortfall_time_s, shortfall_max_speed_mps = _shortfall(v_target, None if on_trace else speed,
                                                                          dt_all, columns, out.infeasible)
@@ -508,16 +557,17 @@ def _trace(t, speed, v_target, grade, out: StepResults, not_followed, plan, cold
     )
 
 
-def _distance_m(step_m, V, on_trace, block_rows=None):
+def _distance_m(step_m, V, on_trace, block_rows=None, k=None):
     """Distance [m] (V,) driven by a block's vehicles, from the distance of each step (V, N),
     or (1, N) when they drive the trace (``on_trace``). V > 1 vehicles on the trace: summed
     step after step, the order in which numpy summed the (V, N) array that held the shared
     trace's steps before they were computed once (kept so that no figure changes); else
-    numpy's pairwise row sum. ``block_rows``: the size of the block these V vehicles are a part
-    of (the rule follows the block)."""
+    numpy's pairwise row sum, or the pass's rule (core.step_sums) for the Kinematics ``k``.
+    ``block_rows``: the size of the block these V vehicles are a part of (the rule follows the
+    block)."""
     if on_trace and (block_rows or V) > 1:
         return np.broadcast_to(np.add.accumulate(step_m, axis=1)[:, -1], (V,))
-    return step_m.sum(axis=1)
+    return step_m.sum(axis=1) if k is None else step_sums(step_m, k)
 
 
 def _shortfall(v_target, speed, dt_all, columns, infeasible):
@@ -528,13 +578,19 @@ def _shortfall(v_target, speed, dt_all, columns, infeasible):
     V = infeasible.shape[0]
     if speed is None and not infeasible.any():  # on the trace and never above full load
         return np.zeros((V, v_target.size), bool), np.zeros(V), np.zeros(V)
-    deficit = v_target[None, :] - np.broadcast_to(v_target if speed is None else speed, (V, v_target.size))
-    not_followed = deficit > FOLLOW_TOL_MPS
+    if speed is None:   # on the trace: no deficit (x - x is +0.0), only the steps above full load
+        deficit, not_followed = None, np.zeros((V, v_target.size), bool)
+    else:
+        deficit = v_target[None, :] - np.broadcast_to(speed, (V, v_target.size))
+        not_followed = deficit > FOLLOW_TOL_MPS
     if columns is None:
         not_followed |= infeasible
-    elif infeasible.any():
-        not_followed[:, columns] |= infeasible
-    return not_followed, (not_followed * dt_all).sum(axis=1), np.maximum(deficit.max(axis=1), 0.0)
+    else:   # only the steps where some vehicle is above full load (x | False is x)
+        some = infeasible.any(axis=0)
+        if some.any():
+            not_followed[:, columns[some]] |= infeasible[:, some]
+    largest = np.zeros(V) if deficit is None else np.maximum(deficit.max(axis=1), 0.0)
+    return not_followed, (not_followed * dt_all).sum(axis=1), largest
 
 
 def _still(N, columns):

@@ -361,9 +361,11 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
     if _any(rows):
         motor_W = np.where(_flag(va, "p2_hybrid")[rows], c.motor_power_p2_W, c.motor_power_48v_W)
         dt = _pick(va, k.dt, rows)
-        recovered = tech.recovered_braking_energy_J(_pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows),
-                                                    dt, motor_W, c.round_trip_efficiency)
+        power = _pick(va, np.broadcast_to(wheel_power, engine_torque.shape), rows)
         own = engine_torque[rows]
+        if k.sequential and isinstance(rows, slice):   # every vehicle: sums step after step (step_sums)
+            power, own = np.asfortranarray(power), np.asfortranarray(own)
+        recovered = tech.recovered_braking_energy_J(power, dt, motor_W, c.round_trip_efficiency)
         positive = bounds.maximum(own, 0.0)     # the engine's positive work over the cycle, in place:
         positive *= engine_rpm[rows]
         positive /= RPM_PER_RAD_S
@@ -462,10 +464,30 @@ class Kinematics:
     accel: np.ndarray
     moving: np.ndarray
     all_moving: bool             # then the standstill cases are skipped (they would be no-ops)
+    sequential: bool = False     # per-vehicle sums over the steps add step after step (step_sums)
 
     def at_rest(self, a, value):
         """``a`` where the vehicle moves, ``value`` at standstill."""
         return a if self.all_moving else np.where(self.moving, a, value)
+
+
+def step_sums(a, k: Kinematics) -> np.ndarray:
+    """Per-vehicle sums (V,) over the steps of a (V, steps) array of the pass ``k``: numpy's
+    row sum (pairwise), or, in a pass over several vehicles' own speeds (``k.sequential``),
+    added step after step: the order in which numpy summed these arrays when the pass laid
+    them out column by column (as gathering the steps' columns of the speeds does), kept so
+    that no figure changes (docs/simulation.md, "How it is computed").
+
+    Parameters
+    ----------
+    a : array (V, steps), a per-step quantity [any unit]
+    k : Kinematics, the pass's step motion
+
+    Returns
+    -------
+    array (V,), the sums [the unit of ``a`` x steps].
+    """
+    return np.asfortranarray(a).sum(axis=1) if k.sequential else a.sum(axis=1)   # column by column: in order
 
 
 def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
@@ -491,19 +513,32 @@ def kinematics(time_s, speed_mps, grade_pct, columns=None) -> Kinematics:
     since_start = step_time_since_start_s(time_s)
     # the previous step's index per step (step 0: itself)
     prev_index = np.concatenate([[0], np.arange(N - 1)])
+    sequential = False
     if columns is not None:
         # only the steps asked for (the same element-wise arithmetic on fewer columns)
         dt, inv_dt, grade = dt[:, columns], inv_dt[:, columns], grade[:, columns]
         since_start = since_start[columns]
-        v_now = speed_mps[:, columns]
-        v_prev = speed_mps[:, prev_index[columns]]
+        v_now, v_prev = _step_speeds(speed_mps, columns, prev_index)
+        # several vehicles' own speeds: their sums add step after step (step_sums)
+        sequential = speed_mps.shape[0] > 1
     else:
         v_now = speed_mps
         v_prev = speed_mps[:, prev_index]
     v_avg = 0.5 * (v_now + v_prev)
     accel = (v_now - v_prev) * inv_dt
     moving = v_avg > 1e-6
-    return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()))
+    return Kinematics(dt, grade, since_start, v_avg, accel, moving, bool(moving.all()), sequential)
+
+
+def _step_speeds(speed_mps, columns, prev_index):
+    """The speeds at the end and at the start of the steps ``columns`` (ascending), laid out
+    row by row (vehicles x steps, as the rest of the pass): views for consecutive steps after
+    the first, else the gathered columns."""
+    if speed_mps.shape[0] > 1 and columns.size and columns[0] >= 1 and (np.diff(columns) == 1).all():
+        return speed_mps[:, columns[0]:columns[-1] + 1], speed_mps[:, columns[0] - 1:columns[-1]]
+    if speed_mps.shape[0] > 1:
+        return np.take(speed_mps, columns, axis=1), np.take(speed_mps, prev_index[columns], axis=1)
+    return speed_mps[:, columns], speed_mps[:, prev_index[columns]]
 
 
 def trace_kinematics(trace: Trace) -> Kinematics:
@@ -604,8 +639,8 @@ def _hold_while_accelerating(va: VehicleArrays, k: Kinematics, n_req):
         steps = np.flatnonzero(hold[0])
         part = n_req[:, steps]
         n_req[:, steps] = np.maximum(_col(va.shift_accel_rpm), part, out=part)
-    else:
-        np.maximum(np.where(hold, _col(va.shift_accel_rpm), 0.0), n_req, out=n_req)
+    else:   # max(0.0, n_req) is n_req: n_req is at least the power table's speed, >= idle >= +0
+        np.maximum(_col(va.shift_accel_rpm), n_req, out=n_req, where=hold)
 
 
 def differential(va: VehicleArrays, k: Kinematics, solver: DifferentialSolver, effects: CycleEffects,
@@ -1186,23 +1221,22 @@ def _least_acceleration(m: _EffortModel, cap, dv: float) -> np.ndarray:
     return np.where(least > 0, least, -np.inf)
 
 
-def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
-    """Each step's full-effort speed from the trace's speed at its start, (V, N - 1): a
-    vehicle that followed the trace to step i - 1 reaches this speed at step i. Without
-    arithmetic: steps that end at rest are 0 (min(0, x) clipped at 0 is 0 for any finite
-    x); steps the vehicle surely follows are the trace's speed: v(i-1) + a dt >= trace(i) at
-    the step's start and at every mean speed up to trace(i) with a at least
+def _trial_speeds(m: _EffortModel, cap, dt, dv, top, out):
+    """Each step's full-effort speed from the trace's speed at its start, into ``out``
+    (V, N - 1): a vehicle that followed the trace to step i - 1 reaches this speed at step i.
+    Without arithmetic: steps that end at rest are 0 (min(0, x) clipped at 0 is 0 for any
+    finite x); steps the vehicle surely follows are the trace's speed: v(i-1) + a dt >=
+    trace(i) at the step's start and at every mean speed up to trace(i) with a at least
     :func:`_least_acceleration` (those the trace does not speed up, for a vehicle whose bound
-    is positive; on the others where v(i-1) + bound dt >= trace(i), the same float operations)."""
+    is positive; on the others where v(i-1) + bound dt >= trace(i), the same float operations).
+    The steps without arithmetic are copied as whole rows of a template."""
     V = m.base.size
-    out = np.zeros((V, cap.size - 1))
     moving = cap[1:] > 0
     rising = np.flatnonzero(moving & (cap[1:] > cap[:-1]))
     level = np.flatnonzero(moving & ~(cap[1:] > cap[:-1]))
     least = _least_acceleration(m, cap, dv)
-    sure = least > 0
-    out[np.ix_(np.flatnonzero(sure), level)] = cap[1:][level]
-    _trial_part(m, np.flatnonzero(~sure), level, cap, dt, dv, top, out)
+    template = np.zeros(cap.size - 1)          # at rest 0, the trace where the trace does not speed up
+    template[level] = cap[1:][level]
     # the steps the trace speeds up: vehicles in the order of their bound, in chunks; a chunk
     # computes the steps its smallest bound does not cover
     order = np.argsort(least, kind="stable")
@@ -1211,8 +1245,11 @@ def _trial_speeds(m: _EffortModel, cap, dt, dv, top):
     for first in range(0, V, chunk):
         rows = order[first:first + chunk]
         covered = prev + least[rows[0]] * dt_r >= now
-        out[np.ix_(rows, rising[covered])] = now[covered]
+        row = template.copy()
+        row[rising[covered]] = now[covered]
+        out[rows] = row
         _trial_part(m, rows, rising[~covered], cap, dt, dv, top, out)
+    _trial_part(m, np.flatnonzero(~(least > 0)), level, cap, dt, dv, top, out)   # no positive bound
     return out
 
 
@@ -1247,7 +1284,7 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     time_s : array, the cycle's time stamps [s], (N,)
     target_mps : array, the trace's speed [m/s], (N,)
     grade_pct : array, road grade [%], (N,)
-    margin : float, share of the full effort the driver uses [-]
+    margin : float or array (V, 1), share of the full effort the driver uses [-] (per vehicle)
     table : array or None, :func:`max_tractive_force_table` with margin 1 [N]
 
     Returns
@@ -1260,12 +1297,12 @@ def forward_redrive(va: VehicleArrays, time_s, target_mps, grade_pct, margin=0.9
     top = REDRIVE_SPEED_GRID.size - 1 - 1e-9
     t, cap, grade = np.asarray(time_s, float), np.asarray(target_mps, float), np.asarray(grade_pct, float)
     weight, sine = grade_force_factors(va.mass_kg, 0.5 * (grade[1:] + grade[:-1]))
-    m = _EffortModel.of(flat=table.reshape(-1) * margin, base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
+    m = _EffortModel.of(flat=(table * margin).reshape(-1), base=np.arange(va.n) * table.shape[1], A=va.A_N, B=va.B_N,
                         C=va.C_N, inv_m=1.0 / (va.mass_kg * (1.0 + va.rot_frac)), weight=weight, sine=sine)
     dt = np.diff(t)
     speeds = np.empty((va.n, t.size))
     speeds[:, 0] = cap[0]
-    speeds[:, 1:] = _trial_speeds(m, cap, dt, dv, top)
+    _trial_speeds(m, cap, dt, dv, top, speeds[:, 1:])
     _walk_behind(m, speeds, cap, dt, dv, top)
     return speeds
 
@@ -1287,7 +1324,7 @@ def above_full_load_at_start(va: VehicleArrays, time_s, target_mps, grade_pct, s
     target_mps : array, the trace's speed [m/s], (N,)
     grade_pct : array, road grade [%], (N,)
     solver : DifferentialSolver, the thesis chain's inversion in the run's mode
-    margin : float, share of the full effort the driver uses [-]
+    margin : float or array (V, 1), share of the full effort the driver uses [-] (per vehicle)
     table : array, :func:`max_tractive_force_table` with margin 1 [N]
     effects : CycleEffects, the ``--with`` effects
 
@@ -1309,77 +1346,110 @@ def _walk_behind(m: _EffortModel, speeds, cap, dt, dv, top):
     follow until every vehicle is back on the trace; ``speeds`` holds each step's trial speed
     (:func:`_trial_speeds`). Every vehicle is stepped (views, no gathers, no bookkeeping of
     who is behind): one on the trace at the start of a step gets its trial speed again, the
-    same arithmetic on the same numbers."""
+    same arithmetic on the same numbers. The walked steps are written as rows of a
+    steps x vehicles buffer (contiguous) and copied into ``speeds`` once per stretch."""
     fail_steps = np.flatnonzero((speeds[:, 1:] != cap[1:]).any(axis=0)) + 1   # someone cannot follow step i
     if fail_steps.size == 0:
         return
-    step = _Stepper(m, dv, top, float(cap.max()))
-    level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
+    walk = _stepper(m, dv, top, cap, dt)
+    rows = np.empty((cap.size, m.base.size))                   # rows[i]: the speeds at step i
     N, k = cap.size, 0
     while k < fail_steps.size:
-        i = int(fail_steps[k]) + 1            # speeds up to fail_steps[k] are right for everyone
-        v = speeds[:, i - 1]
-        while i < N:
-            v = speeds[:, i] = step(v, None if level[i - 1] else m.weight * m.sine[i - 1], cap[i], dt[i - 1])
-            if v.min() == cap[i]:             # all back on the trace (v <= cap): trial speeds hold again
-                break
-            i += 1
+        first = int(fail_steps[k]) + 1        # speeds up to fail_steps[k] are right for everyone
+        rows[first - 1] = speeds[:, first - 1]
+        i = walk(first, rows)
+        last = min(i, N - 1)
+        speeds[:, first:last + 1] = rows[first:last + 1].T
         k = np.searchsorted(fail_steps, i, side="right")
 
 
-class _Stepper:
-    """:func:`_full_effort_step` for every vehicle of ``m`` at one step, into buffers kept from
-    step to step: the same operations on the same numbers, fewer calls. Left out where they
-    cannot change a bit: the clip at the table's end when no speed reaches it (speeds never
-    exceed the trace's top ``v_top``), and a grade force of 0.0 (``None``: x - 0.0 is x)."""
+def _plain_numbers(m: _EffortModel, cap, dt) -> bool:
+    """Whether every input of the re-drive's step is finite, at most 1e50 in size, and no
+    trace speed is -0.0: then no NaN and no -0.0 arises in a step (speeds stay in [+0, cap],
+    products stay below 1e250), the two cases where numpy's ``fmax`` / ``fmin`` differ from
+    ``maximum`` / ``minimum`` (which propagate NaN and order signed zeros their own way)."""
+    # max and min propagate NaN, so the bounds also tell that every number is finite
+    parts = (m.flat, m.per, m.weight, m.sine, cap, dt)
+    return all(a.size == 0 or (a.max() <= 1e50 and a.min() >= -1e50) for a in parts) and not np.signbit(cap).any()
 
-    def __init__(self, m: _EffortModel, dv: float, top: float, v_top: float):
-        V = m.base.size
-        self.m, self.dv, self.top = m, dv, top
-        self.clip = not v_top / dv < top
-        self.A, self.B, self.C, self.inv_m = m.per
-        self.x, self.w, self.lo, self.hi, self.tmp = (np.empty(V) for _ in range(5))
-        self.j = np.empty(V, np.intp)
-        self.guess, self.mid = np.empty(V), np.empty(V)
 
-    def accel(self, v, grade_force):
-        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``self.lo``."""
-        x, w, j, lo, hi, tmp = self.x, self.w, self.j, self.lo, self.hi, self.tmp
-        np.divide(v, self.dv, out=x)
-        if self.clip:
-            np.minimum(x, self.top, out=x)
-        j[...] = x                            # truncation, as astype(np.intp)
-        np.subtract(x, j, out=w)
-        j += self.m.base
-        self.m.flat.take(j, out=lo)
-        np.subtract(1.0, w, out=tmp)
-        lo *= tmp
-        self.m.flat_next.take(j, out=hi)
-        hi *= w
-        lo += hi                              # force
-        np.maximum(v, 1e-3, out=tmp)          # coastdown_force_N: A + v (B + C v)
-        np.multiply(self.C, tmp, out=hi)
-        hi += self.B
-        hi *= tmp
-        hi += self.A
-        lo -= hi
-        if grade_force is not None:
-            lo -= grade_force
-        lo *= self.inv_m
+def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
+    """``walk(i, rows)``: :func:`_full_effort_step` for every vehicle of ``m`` from step ``i``
+    on (``rows[i - 1]``: the speeds at its start), each step's speeds into ``rows[i]``, until
+    every vehicle is back on the trace (returns that step) or the cycle ends (returns N): the
+    same operations on the same numbers in fewer, cheaper calls (docs/simulation.md, "How it
+    is computed"). Left out where they cannot change a bit: the clip at the table's end when
+    no speed reaches it, a grade force of 0.0 (x - 0.0 is x), a step of 1 s (x * 1.0 is x).
+    Bounds are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (the same values where
+    neither operand is NaN nor both are zeros; numpy 2.4's ``maximum`` / ``minimum`` cost
+    1.4 us a call against 0.25)."""
+    V, N = m.base.size, cap.size
+    clip = not float(cap.max()) / dv < top
+    fmax, fmin = (np.fmax, np.fmin) if _plain_numbers(m, cap, dt) else (np.maximum, np.minimum)
+    least = np.fmin.reduce if fmax is np.fmax else np.minimum.reduce
+    dvs, tops, one, floor, zero, half, capb, dtb = (np.full(V, c) for c in (dv, top, 1.0, 1e-3, 0.0, 0.5, 0.0, 1.0))
+    A, B, C, inv_m = m.per
+    base = m.base.astype(float)
+    x, w, lo, hi, tmp, guess, mid, grade = (np.empty(V) for _ in range(8))
+    j, take_lo, take_hi = np.empty(V, np.intp), m.flat.take, m.flat_next.take
+    divide, trunc, subtract, add, multiply = np.divide, np.trunc, np.subtract, np.add, np.multiply
+    level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
+    caps, dts = cap.tolist(), dt.tolist()
+
+    def accel(v, g):
+        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``lo``."""
+        divide(v, dvs, x)
+        if clip:
+            fmin(x, tops, x)
+        trunc(x, tmp)                          # int(x) for x >= 0, as a float
+        subtract(x, tmp, w)
+        add(tmp, base, tmp)
+        j[...] = tmp
+        take_lo(j, out=lo)
+        subtract(one, w, tmp)
+        multiply(lo, tmp, lo)
+        take_hi(j, out=hi)
+        multiply(hi, w, hi)
+        add(lo, hi, lo)                        # force
+        fmax(v, floor, tmp)                    # coastdown_force_N: A + v (B + C v)
+        multiply(C, tmp, hi)
+        add(hi, B, hi)
+        multiply(hi, tmp, hi)
+        add(hi, A, hi)
+        subtract(lo, hi, lo)
+        if g is not None:
+            subtract(lo, g, lo)
+        multiply(lo, inv_m, lo)
         return lo
 
-    def __call__(self, vp, grade_force, cap: float, dt: float):
-        guess = self.accel(vp, grade_force)
-        guess *= dt
-        guess += vp                           # vp + a dt (addition commutes bit for bit)
-        np.minimum(cap, guess, out=guess)
-        np.maximum(guess, 0.0, out=guess)
-        mid = self.mid
-        np.add(vp, guess, out=mid)
-        mid *= 0.5
-        new = self.accel(mid, grade_force)
-        new *= dt
-        new += vp
-        out = np.minimum(cap, new)
-        np.maximum(out, 0.0, out=out)
-        return out
+    def walk(i, rows):
+        vp, filled = rows[i - 1], None
+        while i < N:
+            c, step_s, out = caps[i], dts[i - 1], rows[i]
+            g = None if level[i - 1] else multiply(m.weight, m.sine[i - 1], out=grade)
+            if c != filled:
+                capb.fill(c)
+                filled = c
+            if step_s != 1.0:
+                dtb.fill(step_s)
+            a = accel(vp, g)
+            if step_s != 1.0:
+                multiply(a, dtb, a)
+            add(a, vp, guess)                  # vp + a dt (addition commutes bit for bit)
+            fmin(capb, guess, guess)
+            fmax(guess, zero, guess)
+            add(vp, guess, mid)
+            multiply(mid, half, mid)
+            a = accel(mid, g)
+            if step_s != 1.0:
+                multiply(a, dtb, a)
+            add(a, vp, out)
+            fmin(capb, out, out)
+            fmax(out, zero, out)
+            # all back on the trace (v <= cap): trial speeds hold again; the first and last
+            # vehicle read first (a scalar each), the reduction only when both are on it
+            if out[0] == c and out[-1] == c and least(out) == c:
+                return i
+            vp, i = out, i + 1
+        return i
+    return walk

@@ -503,7 +503,11 @@ def interp_maps(maps, n_max, map_id, axle_low, out_frac, speed_rpm, per_step=Fal
     # flat index ((map_id * 2 + range) * N_U + i) * N_SPEED + j (whole numbers: exact in any order)
     i *= N_SPEED
     i += j
-    i += (map_id * 2 + np.asarray(axle_low, np.intp)) * float(N_U * N_SPEED)
+    if np.ndim(axle_low) and np.size(axle_low) > np.size(map_id):   # a range per step: added where low
+        i += map_id * float(2 * N_U * N_SPEED)
+        np.add(i, float(N_U * N_SPEED), out=i, where=np.asarray(axle_low, bool))
+    else:
+        i += (map_id * 2 + np.asarray(axle_low, np.intp)) * float(N_U * N_SPEED)
     base = i.astype(np.intp)
     m00 = flat.take(base)
     base += 1

@@ -262,21 +262,38 @@ class VehicleArrays:
     idle_fuel_rate: np.ndarray | None = None   # [g/s] idem (simulation.core.idle_fuel_rate_g_per_s)
 
     def subset(self, rows) -> "VehicleArrays":
-        """The same parameters for the vehicles ``rows`` only."""
-        rows = np.asarray(rows)
+        """The same parameters for the vehicles ``rows`` (indices, or a slice) only. A run of
+        consecutive indices gives views of these arrays (the same values, no copies; nothing
+        writes into a VehicleArrays' arrays)."""
+        rows = _as_slice(rows, self.n)
+        if isinstance(rows, slice):
+            n, pick = len(range(*rows.indices(self.n))), (lambda a: a[rows])
+        else:
+            n, listed = rows.size, rows.tolist()
+            pick = lambda a: [a[i] for i in listed]  # noqa: E731
         values = {}
         for name in self.__dataclass_fields__:
             value = getattr(self, name)
             if name == "n":
-                value = rows.size
+                value = n
             elif isinstance(value, np.ndarray):
                 value = value[rows]
-            elif value is None:
-                pass
             elif isinstance(value, list):
-                value = [value[i] for i in rows]
+                value = pick(value)
             values[name] = value
         return VehicleArrays(**values)
+
+
+def _as_slice(rows, n: int):
+    """``rows`` (vehicle indices) as a slice when they are consecutive and ascending, else as
+    an index array."""
+    if isinstance(rows, slice):
+        return rows
+    rows = np.asarray(rows)
+    if rows.ndim == 1 and rows.size and rows.dtype.kind in "iu" and 0 <= rows[0] and rows[-1] < n \
+            and rows[-1] - rows[0] == rows.size - 1 and (rows.size == 1 or bool((np.diff(rows) == 1).all())):
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+    return rows
 
 
 _SPEC_FIELDS = frozenset(VehicleSpec.__dataclass_fields__)
