@@ -345,7 +345,8 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
     ----------
     va : VehicleArrays, the vehicles' parameters
     k : Kinematics, the step motion (:func:`kinematics`)
-    engine_torque : array, engine torque [N m], (V, N)
+    engine_torque : array, engine torque [N m], (V, N); the caller's own array, overwritten
+        with the assist (:func:`engine` passes its fresh min(T, T_max))
     engine_rpm : array, engine speed [rpm], (V, N)
     drive : bool or array, the driveline pulls, (V, N)
     wheel_power : float or array, tractive power at the wheels [W], (V, N)
@@ -372,12 +373,11 @@ def technology_engine_state(va: VehicleArrays, k: "Kinematics", engine_torque, e
         positive *= dt
         positive = positive.sum(axis=1)
         keep = 1.0 - tech.assist_share(recovered, positive, c.max_assist_share)
-        assisted = np.where(own > 0, own * keep[:, None], own)
-        if isinstance(rows, slice):   # every vehicle a hybrid: no copy to write into
-            torque = assisted
-        else:
-            torque = engine_torque.copy()
-            torque[rows] = assisted
+        np.multiply(own, keep[:, None], out=own, where=own > 0)   # the assist, in place
+        if isinstance(rows, slice):   # every vehicle a hybrid: ``own`` is the torque (a view or copy)
+            torque = own
+        else:                         # ``own``: a copy of the rows, written back
+            engine_torque[rows] = own
     off = tech.engine_off_coasting(k.moving, drive)
     if not (hybrid.all() and off.shape == engine_torque.shape):   # & True changes nothing
         off = _col(hybrid) & off
@@ -852,9 +852,10 @@ def engine(va: VehicleArrays, k: Kinematics, effects: CycleEffects, engine_rpm, 
     inertial_W *= k.v_avg
     off = None
     if has_technology(va):
+        pulls = engine_torque > 0
         engine_torque_fuel, off = technology_engine_state(
-            va, k, engine_torque_fuel, engine_rpm, engine_torque > 0 if drive is None else drive, wheel_power)
-        engine_torque = np.where(engine_torque > 0, engine_torque_fuel, engine_torque)
+            va, k, engine_torque_fuel, engine_rpm, pulls if drive is None else drive, wheel_power)
+        np.copyto(engine_torque, engine_torque_fuel, where=pulls)   # engine_torque: np.maximum's own array
     fuel = engine_fuel_rate_g_per_s(va, engine_torque_fuel, engine_rpm, t_max, fueled, inertial_W, _col, k.moving, c_m)
     idle_fuel = _col(va.idle_fuel_g_s)
     if np.isfinite(idle_fuel).any():

@@ -150,7 +150,12 @@ def boosted_pumping_share(torque_Nm, displacement_L, na_bmep_kPa, positive_torqu
     [1.0, 0.3717, 0.0]
     """
     positive = np.maximum(torque_Nm, 0.0) if positive_torque_Nm is None else positive_torque_Nm
-    bmep_kPa = np.divide(positive * (4.0 * np.pi), np.asarray(displacement_L, float))
+    bmep_kPa = np.multiply(positive, 4.0 * np.pi)
+    displacement_L = np.asarray(displacement_L, float)
+    if bmep_kPa.shape == np.broadcast(bmep_kPa, displacement_L).shape:   # in place: no second array
+        bmep_kPa /= displacement_L
+    else:
+        bmep_kPa = np.divide(bmep_kPa, displacement_L)
     if not bmep_kPa.ndim:
         return np.clip(1.0 - bmep_kPa / na_bmep_kPa, 0.0, 1.0)
     bmep_kPa /= na_bmep_kPa      # the same arithmetic, in place
@@ -193,11 +198,22 @@ def deactivated_pumping_share(share, load, speed_rpm, moving, max_load, min_rpm,
     share [-], the broadcast shape.
     """
     window = moving & (load < max_load) & (speed_rpm >= min_rpm) & (speed_rpm <= max_rpm)
-    deactivated = 0.5 * bounds.maximum(1.0 - 2.0 * load, 0.0)
+    deactivated = _half_spare_load(load)
     if out is not None:
         np.copyto(out, deactivated, where=window)
         return out
     return np.where(window, deactivated, share)
+
+
+def _half_spare_load(load):
+    """0.5 max(1 - 2L, 0) for the load fraction ``load`` [-]; an array's in one array written in place."""
+    if not np.ndim(load):
+        return 0.5 * bounds.maximum(1.0 - 2.0 * load, 0.0)
+    half = np.multiply(load, 2.0)
+    np.subtract(1.0, half, out=half)
+    bounds.maximum(half, 0.0, out=half)
+    half *= 0.5
+    return half
 
 
 def engine_off_at_stop(moving, time_since_start_s, inhibit_s):
