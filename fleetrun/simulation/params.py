@@ -360,13 +360,32 @@ def _row_cached(v: VehicleSpec, key: tuple | None = None) -> dict:
         key = v.physics_key() if key is None else key
         row = _ROWS.get(key)
     except TypeError:   # unhashable (e.g. a list where a tuple belongs): not cached
-        return _row(v)
+        return _packed(_row(v))
     if row is None:
-        row = _row(v)
+        row = _packed(_row(v))
         if len(_ROWS) >= ROW_CACHE_SIZE:
             del _ROWS[next(iter(_ROWS))]
         _ROWS[key] = row
     return row
+
+
+def _packed(row: dict) -> dict:
+    """``row`` with its gear combos (n, 4) and its ``_NUMBERS`` as float arrays, converted once
+    per row (the same float of each value the whole fleet's conversion in :func:`_gather` gave)."""
+    row["combo_array"] = np.array([c[:4] for c in row["combos"]], float).reshape(-1, 4)
+    row["number_array"] = np.array(itemgetter(*_NUMBERS)(row), float)
+    return row
+
+
+def _combos(rows: list, K: int) -> np.ndarray:
+    """The rows' gear combos as one (V, K, 4) array, padded with ``_NO_COMBO`` beyond each row's own."""
+    combos = np.empty((len(rows), K, 4))
+    combos[:] = _NO_COMBO
+    counts = np.array([len(r["combos"]) for r in rows], np.intp)
+    if counts.sum():
+        within = np.arange(K) < counts[:, None]          # the rows' own combos, in order
+        combos[within] = np.concatenate([r["combo_array"] for r in rows])
+    return combos
 
 
 def _with(defaults, record):
@@ -483,11 +502,10 @@ def _gather(rows: list) -> VehicleArrays:
     V = len(rows)
     K = max((len(r["combos"]) for r in rows), default=1)
     # one conversion per kind of value (not one per value): (V, K, 4) combos, (V, numbers)
-    combos = np.array([[c[:4] for c in r["combos"]] + [_NO_COMBO] * (K - len(r["combos"])) for r in rows],
-                      float).reshape(V, K, 4)
+    combos = _combos(rows, K)
     ctr, clow = np.ascontiguousarray(combos[:, :, 0]), combos[:, :, 1] != 0
     cg, ceff = combos[:, :, 2].astype(np.int16), np.ascontiguousarray(combos[:, :, 3])
-    numbers = np.array([itemgetter(*_NUMBERS)(r) for r in rows], float).reshape(V, len(_NUMBERS))
+    numbers = np.array([r["number_array"] for r in rows], float).reshape(V, len(_NUMBERS))
     columns = dict(zip(_NUMBERS, np.ascontiguousarray(numbers.T)))
     a = columns.__getitem__
     # per vehicle as in the row, the conversions once over the arrays (the same operations element by element)
