@@ -93,14 +93,23 @@ def set_for_model_year(model_year) -> LabelSet:
     LabelSet.
     """
     sets = list(label_sets().values())
-    if _missing(model_year):
+    if is_missing(model_year):
         return label_set(_table()["without_model_year"])
     in_force = [s for s in sets if s.first_model_year <= int(model_year)]
     return in_force[-1] if in_force else sets[0]
 
 
-def _missing(x) -> bool:
-    """None, NaN or pandas' NA."""
+def is_missing(x) -> bool:
+    """Whether ``x`` is None, NaN or pandas' NA (a model year or a label group not given).
+
+    Parameters
+    ----------
+    x : any, one vehicle's value [-]
+
+    Returns
+    -------
+    bool.
+    """
     if x is None:
         return True
     try:
@@ -123,7 +132,7 @@ def model_year_array(model_years) -> np.ndarray:
     try:
         return np.asarray(model_years, dtype=float)       # None becomes NaN
     except (TypeError, ValueError):                      # pandas' NA has no float value
-        return np.array([np.nan if _missing(my) else float(my) for my in model_years], dtype=float)
+        return np.array([np.nan if is_missing(my) else float(my) for my in model_years], dtype=float)
 
 
 def coefficients(model_years, kind: str) -> tuple[np.ndarray, np.ndarray]:

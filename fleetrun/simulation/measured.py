@@ -100,7 +100,7 @@ def group_mean(values, groups, valid):
     float array, the shape of ``values``.
     """
     values = np.array(values, dtype=float)
-    keys = np.array(["" if g is None or g != g else str(g) for g in groups], dtype=object)
+    keys = np.array(["" if epa_label.is_missing(g) else str(g) for g in groups], dtype=object)
     use = np.asarray(valid, bool) & (keys != "")
     if use.any():
         _, inverse = np.unique(keys[use], return_inverse=True)
