@@ -49,3 +49,25 @@ def test_nullable_integers_written_as_pandas_writes_them(tmp_path):
     outputs.write_csv(frame, tmp_path / "a.csv")
     frame.to_csv(tmp_path / "b.csv", index=False)
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+def test_float_texts_are_python_repr_over_the_range_of_doubles():
+    """The float fields come from Arrow's cast where it writes no exponent (outputs._float_texts);
+    they must be Python's own repr, character for character, for any double: random bit patterns
+    (every exponent, subnormals, inf, NaN), repr's no-exponent range 1e-4..1e16 on a log scale,
+    short decimals, whole numbers up to 2^53 and the neighbours of powers of 10 and 2, where
+    the shortest digits and the notation switch."""
+    rng = np.random.default_rng(17)
+    n = 40_000
+    bits = rng.integers(0, 2**63, n, dtype=np.uint64) | (rng.integers(0, 2, n, dtype=np.uint64) << np.uint64(63))
+    powers = np.concatenate([10.0 ** np.arange(-6, 18), 2.0 ** np.arange(-20, 60)])
+    samples = [bits.view(np.float64),
+               np.where(rng.random(n) < 0.5, -1.0, 1.0) * 10.0 ** rng.uniform(-5, 16.5, n),
+               np.round(rng.uniform(0, 1e6, n), 3), rng.integers(-2**53, 2**53, n).astype(float),
+               rng.integers(1, 10**6, n).astype(float) * 10.0 ** rng.integers(-12, 12, n),
+               np.concatenate([powers, np.nextafter(powers, 0), np.nextafter(powers, np.inf), -powers,
+                               [0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324]]),
+               np.zeros(n)]
+    for values in samples:
+        expected = ["" if math.isnan(x) else repr(x) for x in values.tolist()]
+        assert outputs._column_texts(pd.Series(values)) == expected

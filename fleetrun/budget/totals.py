@@ -222,8 +222,14 @@ def row_scale(scales: dict, fuel: np.ndarray, duty: np.ndarray) -> np.ndarray:
     -------
     calibration factor [-] per row.
     """
-    group = np.where(np.asarray(duty) == "LD", "LD", "HD")
-    return np.array([scales.get((f, g), scales.get((f, "all"), 1.0)) for f, g in zip(fuel, group)], dtype=float)
+    fuel = np.asarray(fuel)
+    light = np.asarray(duty) == "LD"
+    out = np.ones(len(fuel))
+    for f in dict.fromkeys(fuel.tolist()):   # each fuel and class group once, not each row
+        of_fuel = fuel == f
+        for g, rows in (("LD", of_fuel & light), ("HD", of_fuel & ~light)):
+            out[rows] = scales.get((f, g), scales.get((f, "all"), 1.0))
+    return out
 
 
 def calibrated_fuels(scales: dict) -> set:
