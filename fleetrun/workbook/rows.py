@@ -242,11 +242,16 @@ def check_temperature_budget(temperatures: list[tuple[int, float]], report_at) -
                       "round the temperatures, or split the scenarios over workbooks")
             return
 _VEHICLE_NAMES = tuple(c.name for c in VEHICLE_COLUMNS)
+_READER_KEYS = _VEHICLE_NAMES + ("_extra",)   # a parsed Vehicles row (workbook.reader._parse_row)
 
 
 def vehicle_spec(parsed: dict, extra: dict) -> VehicleSpec:
     """The VehicleSpec of a checked row (``parsed`` keyed by Vehicles column)."""
-    get = parsed.get
-    values = {name: get(name) for name in _VEHICLE_NAMES}
+    if tuple(parsed) == _READER_KEYS:    # the reader's row: these keys in this order, copied whole
+        values = parsed.copy()
+        del values["_extra"]
+    else:
+        get = parsed.get
+        values = {name: get(name) for name in _VEHICLE_NAMES}
     values["extra"] = extra
     return vehicle_from_fields(values)
