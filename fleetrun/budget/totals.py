@@ -173,18 +173,43 @@ def bias_factor(duty_of: np.ndarray, fuel: np.ndarray, error_model) -> np.ndarra
     return np.where(fuel == ELECTRIC, 1.0, 1.0 + bias)
 
 
+@dataclass(frozen=True)
+class _Rows:
+    """The Vehicles rows' values the budget reads, taken from the rows once for every scenario
+    (the arrays are read, never written)."""
+    count: np.ndarray          # vehicles per row [-]
+    annual: np.ndarray         # annual miles per vehicle [mi]
+    fuel: np.ndarray
+    duty: np.ndarray
+    model_year: object         # pandas Int64 array
+    makers: np.ndarray         # manufacturer, else make
+    ids: list
+    classes: list
+    configurations: list
+
+    @classmethod
+    def of(cls, vehicles) -> "_Rows":
+        return cls(count=np.array([v.count for v in vehicles], dtype=float),
+                   annual=np.array([v.annual_miles for v in vehicles], dtype=float),
+                   fuel=np.array([v.fuel for v in vehicles], dtype=object),
+                   duty=np.array([v.duty_class for v in vehicles], dtype=object),
+                   model_year=pd.array([v.model_year for v in vehicles], dtype="Int64"),
+                   makers=np.array([v.manufacturer or v.make for v in vehicles], dtype=object),
+                   ids=[v.vehicle_id for v in vehicles], classes=[v.vehicle_class for v in vehicles],
+                   configurations=[v.configuration for v in vehicles])
+
+
 class _Scenario:
     """One scenario's per-vehicle, per-budget-year arrays before calibration (rows x years)."""
 
-    def __init__(self, s, vehicles, per_condition: dict, error_model, years=None):
-        """``years``: per-row miles by budget year and fuel factors (registration turnover,
-        fleetrun.registrations); None: count x annual_miles x (1 + g)^(y - 1) for every row."""
+    def __init__(self, s, rows: _Rows, per_condition: dict, error_model, years=None):
+        """``rows``: the Vehicles rows' values (:class:`_Rows`); ``years``: per-row miles by
+        budget year and fuel factors (registration turnover, fleetrun.registrations); None:
+        count x annual_miles x (1 + g)^(y - 1) for every row."""
         self.s = s
-        self.count = np.array([v.count for v in vehicles], dtype=float)
-        annual = np.array([v.annual_miles for v in vehicles], dtype=float)
-        self.fuel = np.array([v.fuel for v in vehicles], dtype=object)
-        self.duty = np.array([v.duty_class for v in vehicles], dtype=object)
-        self.model_year = pd.array([v.model_year for v in vehicles], dtype="Int64")
+        self.rows = rows
+        self.count, annual, self.fuel, self.duty = rows.count, rows.annual, rows.fuel, rows.duty
+        self.model_year = rows.model_year
         self.per_mile = mix_per_mile(s, self.duty, self.fuel, per_condition,
                                      None if years is None else years.fuel_factor(s), self.model_year)
         g = s.vmt_growth_pct_per_year / 100.0
@@ -379,9 +404,8 @@ def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[
     gallons = _total(yearly["fuel_gal"])
     energy = {name: miles_total * p.per_mile[name] for name in ENERGY_FIELDS}
     frame = pd.DataFrame({
-        "scenario_id": s.scenario_id, "vehicle_id": [v.vehicle_id for v in vehicles],
-        "vehicle_class": [v.vehicle_class for v in vehicles],
-        "configuration": [v.configuration for v in vehicles], "fuel": fuel.astype(str),
+        "scenario_id": s.scenario_id, "vehicle_id": p.rows.ids, "vehicle_class": p.rows.classes,
+        "configuration": p.rows.configurations, "fuel": fuel.astype(str),
         "count": _whole_if_possible(count), "miles_total": miles_total, "fuel_gal_total": gallons,
         **_ratios(p.per_mile, miles_total, gallons, energy),
         "state_tax_usd": _tax_total(gallons, yearly["state_tax_usd"], fuel, drivers.state_rates, s),
@@ -400,7 +424,7 @@ def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: lis
     from fleetrun.budget.ranges import DUTIES
 
     gallons = p.raw * row_scale(scales, p.fuel, p.duty)[:, None]
-    makers = np.array([v.manufacturer or v.make for v in vehicles], dtype=object)
+    makers = p.rows.makers
     central, sd = {}, {}
     for fuel in drivers.FUELS:
         for duty in DUTIES:
@@ -439,7 +463,8 @@ def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: d
     from fleetrun.budget import ranges
 
     warnings: list[str] = []
-    prepared = [_Scenario(s, vehicles, per_condition, error_model, years) for s in scenarios]
+    rows = _Rows.of(vehicles)
+    prepared = [_Scenario(s, rows, per_condition, error_model, years) for s in scenarios]
     scales, calibration_table = fit_calibration(prepared, warnings)
     u = drivers.uncertainty()
     z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
