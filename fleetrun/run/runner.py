@@ -330,7 +330,15 @@ def _map_grid_notes(fleet: Fleet, mode: str) -> list[str]:
 
     if (DEFAULT_MODE if mode == "auto" else mode) != "map3d":
         return []
-    outside = [v for v in fleet.vehicles if outside_map3d_grid(v.configuration, v.final_drive_ratio)]
+    beyond: dict[tuple, bool] = {}    # per configuration and ratio (a fleet repeats them)
+    outside = []
+    for v in fleet.vehicles:
+        key = (v.configuration, v.final_drive_ratio)
+        found = beyond.get(key)
+        if found is None:
+            found = beyond[key] = outside_map3d_grid(*key)
+        if found:
+            outside.append(v)
     if not outside:
         return []
     shown = ", ".join(f"{v.vehicle_id} (row {fleet.vehicle_rows.get(v.vehicle_id, '?')}: {v.final_drive_ratio:g})"
