@@ -14,9 +14,11 @@ error comes from" and "Turnover against the same period").
    states tried by validation/state_fuel.py against the others (Hawaii-Pennsylvania, whose 2008
    registrations the truck split uses, so they are never in a hit count);
 3. per base year, the light-duty fleet's mpg change of the model (the CSV's
-   ``ld_mpg_change_pct_per_year``, over the same years as the run) against FHWA VM-1's on-road
-   passenger-car and other 2-axle 4-tire vehicle mpg of the same calendar years
-   (``vm1_onroad_mpg.csv``) and the nation's miles per gallon of highway gasoline.
+   ``ld_mpg_change_pct_per_year``, over the same years as the run) against the published range of
+   the same calendar years (pre-registration P2 of the docs page: every published on-road series
+   of one table and one light-duty category giving both years, ``vm1_onroad_mpg.csv`` and
+   ``ld_onroad_mpg_series.csv``), state-years within / below / above, and the nation's miles per
+   gallon of highway gasoline.
 
 Every input is in ``inputs/state_statistics/`` (PROVENANCE.md there); no constant is fitted.
 """
@@ -184,10 +186,11 @@ def judge(model: pd.Series, low: float, high: float) -> dict:
             "above": int((model > high).sum()), "not_judged": 0}
 
 
-def turnover_by_period(results: pd.DataFrame) -> pd.DataFrame:
-    """Per base year and period of the runs: the model's light-duty mpg change against the
-    published range of the same calendar years."""
-    mv1 = results[results.inputs == "mv1"].copy()
+def turnover_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
+    """Per base year and period of the runs of one input variant (``mv1``: the issue's workbook;
+    ``mv1+vm4``): the model's light-duty mpg change against the published range of the same
+    calendar years."""
+    mv1 = results[results.inputs == inputs].copy()
     data = pd.read_csv(state_fuel.DATA)
     by_key = {(r.state, r.year): r for _, r in data.iterrows()}
 
@@ -223,7 +226,11 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     results = pd.read_csv(RESULTS)
     out = {"sample": sample_by_year(results), "turnover": turnover_by_period(results)}
-    out["turnover_verdict"] = pd.DataFrame([turnover_verdict(out["turnover"])])
+    out["turnover_series"] = pd.concat([series_changes(r.start, r.end).assign(start=r.start, end=r.end)
+                                        for r in out["turnover"].itertuples()], ignore_index=True)
+    out["turnover_vm4"] = turnover_by_period(results, "mv1+vm4")
+    out["turnover_verdict"] = pd.DataFrame([{"inputs": name, **turnover_verdict(out[key])}
+                                            for name, key in (("mv1", "turnover"), ("mv1+vm4", "turnover_vm4"))])
     if not args.no_runs:
         nation = national_runs()
         out["national"] = nation
