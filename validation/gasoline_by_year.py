@@ -137,6 +137,8 @@ def pct_per_year(start: float, end: float, years: int) -> float:
     return 100 * ((end / start) ** (1 / years) - 1)
 
 
+HALF_DIGIT = 0.05          # [mpg] half the last printed digit of every published value
+
 # VM-1's categories in the two BTS tables of ``vm1_onroad_mpg.csv`` (one column each)
 VM1_TSAR_CATEGORIES = {"passenger_car_mpg": "passenger_car", "other_2axle_4tire_mpg": "other_2axle_4tire"}
 
@@ -155,25 +157,33 @@ def published_series() -> pd.DataFrame:
 def series_changes(start: int, end: int) -> pd.DataFrame:
     """The compound change [%/yr] from ``start`` to ``end`` of every published series (one
     source, one category) that gives both years; never a pair across categories or sources
-    (docs/validation-state-fuel.md, pre-registration P2)."""
+    (docs/validation-state-fuel.md, pre-registration P2). ``rounded_low`` / ``rounded_high``: the
+    change with each printed value moved by half its last digit (0.05 mpg) against / in favour of
+    a gain (information only; P2's range adds no such allowance)."""
     values = published_series().pivot_table(index=["source", "category"], columns="year", values="mpg")
     if start not in values.columns or end not in values.columns:
-        return pd.DataFrame(columns=["source", "category", "change_pct_per_year"])
-    both = values[[start, end]].dropna()
-    return pd.DataFrame({"change_pct_per_year": [pct_per_year(a, b, end - start) for a, b in both.to_numpy()]},
-                        index=both.index).reset_index()
+        return pd.DataFrame(columns=["source", "category", "change_pct_per_year", "rounded_low", "rounded_high"])
+    both = values[[start, end]].dropna().to_numpy()
+    years = end - start
+    return pd.DataFrame({"change_pct_per_year": [pct_per_year(a, b, years) for a, b in both],
+                         "rounded_low": [pct_per_year(a + HALF_DIGIT, b - HALF_DIGIT, years) for a, b in both],
+                         "rounded_high": [pct_per_year(a - HALF_DIGIT, b + HALF_DIGIT, years) for a, b in both]},
+                        index=values[[start, end]].dropna().index).reset_index()
 
 
 def published_change(start: int, end: int) -> dict:
     """The published range [%/yr] of on-road light-duty mpg from ``start`` to ``end`` (min and
     max over :func:`series_changes`; NaN where no series gives both years) and the nation's
     miles per gallon of highway gasoline (VM-2 miles / MF-21 gasoline)."""
-    changes = series_changes(start, end).change_pct_per_year
+    series = series_changes(start, end)
+    changes = series.change_pct_per_year
     nation = national()
     mpg = nation.vmt_million_mi / nation.highway_gasoline_kgal * 1e3
     return {"vm1_low": changes.min() if len(changes) else float("nan"),
             "vm1_high": changes.max() if len(changes) else float("nan"),
             "series": len(changes),
+            "rounded_low": series.rounded_low.min() if len(series) else float("nan"),
+            "rounded_high": series.rounded_high.max() if len(series) else float("nan"),
             "nation_mi_per_gal_gasoline": pct_per_year(mpg[start], mpg[end], end - start)}
 
 
