@@ -71,3 +71,16 @@ def test_float_texts_are_python_repr_over_the_range_of_doubles():
     for values in samples:
         expected = ["" if math.isnan(x) else repr(x) for x in values.tolist()]
         assert outputs._column_texts(pd.Series(values)) == expected
+
+
+def test_text_columns_of_pandas_string_dtype(tmp_path):
+    """A string-dtype column of plain texts is written as it is (outputs._column_texts' fast
+    path); one with a comma, a quote, a line break or a missing value goes cell by cell: both as
+    pandas writes them."""
+    frame = pd.DataFrame({"plain": pd.array(["a", "b c", "", "ünï"] * 3, dtype="str"),
+                          "comma": pd.array(["x", "y, z", 'q"', "r"] * 3, dtype="str"),
+                          "missing": pd.array(["x", None, "y", "z"] * 3, dtype="str"),
+                          "value": [1.5] * 12})
+    outputs.write_csv(frame, tmp_path / "fast.csv")
+    frame.to_csv(tmp_path / "pandas.csv", index=False)
+    assert (tmp_path / "fast.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()

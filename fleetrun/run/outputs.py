@@ -81,6 +81,9 @@ def _column_texts(column) -> list[str]:
         return list(map(str, column.to_numpy().tolist()))
     if kind == "nullable int":
         return ["" if value is pd.NA else str(value) for value in column.astype(object).tolist()]
+    if str(column.dtype) in ("str", "string") and not column.isna().any() \
+            and not column.str.contains(_NEEDS_QUOTES.pattern, regex=True).any():
+        return column.astype(object).tolist()   # plain texts only (the common case): each its own field
     known: dict[str, str] = {}   # a text's field, once per distinct text (classes, fuels, scenarios repeat)
     texts = []
     for value in column.astype(object).tolist():
