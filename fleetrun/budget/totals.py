@@ -419,7 +419,7 @@ def scenario_frame(p: _Scenario, vehicles, scales: dict, ratios: dict) -> tuple[
     return frame, yearly
 
 
-def _range_spec(p: _Scenario, vehicles, error_model, scales: dict, warnings: list) -> tuple[dict, dict]:
+def _range_spec(p: _Scenario, error_model, scales: dict, warnings: list) -> tuple[dict, dict]:
     """The Monte Carlo's central gallons per (fuel, duty) and year, and its settings."""
     from fleetrun.budget.ranges import DUTIES
 
@@ -470,7 +470,7 @@ def aggregate_vehicles(vehicles: Sequence, scenarios: Sequence, per_condition: d
     z = ranges.standard_normals(int(u["monte_carlo_samples"]), int(u["seed"]))
     frames, yearly, fuel_ranges, tornado, period = [], {}, {}, [], {}
     for p in prepared:
-        central, spec = _range_spec(p, vehicles, error_model, scales, warnings)
+        central, spec = _range_spec(p, error_model, scales, warnings)
         found = ranges.fuel_ranges(central, z, spec)
         fuel_ranges.update({(p.s.scenario_id, name): r for name, r in found.items()})
         frame, yearly[p.s.scenario_id] = scenario_frame(p, vehicles, scales,
