@@ -56,6 +56,7 @@ from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
+from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
@@ -118,10 +119,28 @@ def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
     return out
 
 
+#: the friction's form (``--friction-form``; docs/validation-epa.md "friction by bore and by speed
+#: squared"): "chen_flynn" the fuel equation's, "bore" + the PNH ring (B_ref/B)^2 and skirt c_m B_ref/B
+#: terms, "speed2" + Chen & Flynn's c_m^2 term; their columns are offset fuel (loss_split)
+FRICTION_FORMS = {"chen_flynn": (), "bore": ("X_friction_ring_bore", "X_friction_skirt_bore"),
+                  "speed2": ("X_friction_piston_speed2",)}
+FRICTION_FORM = "chen_flynn"
+BORE_REF_M = 0.086
+
+
 def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
-    transient form "both", the ARRB acceleration term)."""
-    return (STOP_COLUMN, ARRB_COLUMN) if TRANSIENT_FORM == "both" else (STOP_COLUMN,)
+    transient form "both", the ARRB acceleration term; then the friction form's columns)."""
+    arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
+    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM]
+
+
+def with_bore_terms(d, specs):
+    """The dataset with the bore friction columns: the friction sum x (B_ref / B)^2 and the
+    piston-speed friction sum x B_ref / B, B the model's bore (square engines: the stroke)."""
+    ratio = BORE_REF_M / vehicle_arrays(specs).stroke_m[d.vehicle.to_numpy()]
+    return d.assign(X_friction_ring_bore=d.S_friction.to_numpy() * ratio ** 2,
+                    X_friction_skirt_bore=d.S_friction_piston_speed.to_numpy() * ratio)
 
 
 def transient_form(d):
@@ -189,9 +208,11 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
-        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, len(FUEL_TERMS) + 1:].sum(1)   # "both": the ARRB term
+        arrb = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x == ARRB_COLUMN]     # "both": the ARRB term
+        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
+        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, arrb].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
-                                       B=slope, O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
+                                       B=slope, O=terms[:, offset].sum(1), C=cold)))
     rows = pd.concat(parts)
     return {k: _per_mile(rows, k) for k in "BOC"}
 
@@ -275,7 +296,7 @@ def line(label, err, rows=None):
 def datasets(specs, table):
     """(physics only, physics + technology) datasets (validation/epa_fuel_economy.build_dataset)."""
     bare = [dataclasses.replace(v, technology=None) for v in specs]
-    return transient_form(efe.build_dataset(bare, table)), transient_form(efe.build_dataset(specs, table))
+    return tuple(with_bore_terms(transient_form(efe.build_dataset(s, table)), specs) for s in (bare, specs))
 
 
 def omega_matches(specs):
@@ -347,6 +368,13 @@ def run(specs, table):
     return r
 
 
+def friction_kPa(fit, col):
+    """A friction-form column's fitted coefficient times the Willans slope's efficiency: the
+    FMEP it adds at B = B_ref [kPa; kPa s/m for the skirt, kPa (s/m)^2 for c_m^2]."""
+    c = fit["gasoline"]
+    return float(c[len(FUEL_TERMS) + stop_extra().index(col)] / c[0])
+
+
 def report(r, table):
     lines = []
     for name, key in (("physics only", "physics"), ("physics + technology", "technology"),
@@ -375,9 +403,15 @@ def report(r, table):
     stop = [f["gasoline"][n] for f in r["folds"].values()]
     lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
     if TRANSIENT_FORM != "constant":
-        k = np.array([f["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / f["gasoline"][0] for f in r["folds"].values()])
-        kf = r["final"]["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / r["final"]["gasoline"][0]
+        j = n + stop_extra().index(ARRB_COLUMN) if TRANSIENT_FORM == "both" else n - 1
+        k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
+        kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in FRICTION_FORMS[FRICTION_FORM]:
+        k = [friction_kPa(f, col) for f in r["folds"].values()]
+        kf = friction_kPa(r["final"], col)
+        lines.append(f"friction form {FRICTION_FORM}: {col} coefficient x eta_indicated [kPa, or kPa (s/m)^2]: final "
+                     f"{kf:.3f}; folds {min(k):.3f}-{max(k):.3f}")
     lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
     for key in ("physics_pairs", "pairs", "one_number"):
         b = bias_report(r[key], r["paired_table"])
@@ -673,12 +707,14 @@ def main(argv=None):
                     help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
                     help="what the cold start's heat capacity follows (measured, docs/validation-epa.md)")
+    ap.add_argument("--friction-form", choices=tuple(FRICTION_FORMS), default="chen_flynn",
+                    help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
-    global TRANSIENT_FORM
-    TRANSIENT_FORM = args.transient_form
+    global TRANSIENT_FORM, FRICTION_FORM
+    TRANSIENT_FORM, FRICTION_FORM = args.transient_form, args.friction_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
