@@ -674,6 +674,86 @@ def breakdown_report(r, specs, table):
             + breakdown_elasticities(err, table, feats) + breakdown_trend(err, f, mf, alpha))
 
 
+#: ``--vehicle-residual`` feature groups (vehicle_features' columns)
+ENGINE_FEATURES = ("log_displacement", "cylinders", "log_cylinder_volume", "inverse_bore", "log_rated_power",
+                   "specific_power", "peak_bmep", "turbo", "atkinson", "miller", "cylinder_deactivation",
+                   "start_stop", "mild_hybrid_48v", "diesel")
+DRIVETRAIN_FEATURES = ("gears", "cvt", "automated_manual", "manual", "nv", "awd")
+RESIDUAL_LINES = ((), ("road_load",), ("road_load", "log_cylinder_volume"), ("road_load", "inverse_bore"),
+                  ("road_load", "log_cylinder_volume", "cvt", "awd"))
+
+
+def vehicle_features(specs, table, feats):
+    """Per vehicle, numbers of what the row and the technology join say about its engine,
+    drivetrain and body (``--vehicle-residual``; bore of a square engine from the cylinder volume)."""
+    v_cyl = table.displacement_L / table.cylinders
+    has = lambda name: feats.technology.str.contains(name).astype(float)  # noqa: E731
+    return pd.DataFrame(dict(
+        log_displacement=np.log(table.displacement_L), cylinders=table.cylinders, log_cylinder_volume=np.log(v_cyl),
+        inverse_bore=(4e-3 * v_cyl / np.pi) ** (-1 / 3), log_rated_power=np.log(table.rated_power_kW),
+        specific_power=table.specific_power_kW_per_L,
+        peak_bmep=[4e-3 * np.pi * v.peak_engine_torque_Nm / v.engine_displacement_L for v in specs],
+        **{k: has(k) for k in ("turbo", "atkinson", "miller", "cylinder_deactivation", "start_stop", "mild_hybrid_48v")},
+        diesel=(table.fuel != "gasoline").astype(float), gears=table.gears.astype(float),
+        **{k: (table.gearbox_type == k).astype(float) for k in ("cvt", "automated_manual", "manual")},
+        nv=feats.nv_rpm_per_mph, awd=table.configuration.astype(str).str.contains("4WD|AWD").astype(float),
+        log_weight=np.log(table.test_weight_kg), road_load=feats.road_load_50mph_W_per_kg,
+        power_to_weight=feats.power_to_weight_W_per_kg))
+
+
+def _grouped_prediction(X, y, manufacturer, learner=None):
+    """Each manufacturer's prediction of ``y`` by a straight line (or ``learner``) fitted on the others."""
+    X, pred = np.column_stack([np.ones(len(y)), X]), np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        fit_rows, rows = manufacturer != g, manufacturer == g
+        if learner is None:
+            pred[rows] = X[rows] @ np.linalg.lstsq(X[fit_rows], y[fit_rows], rcond=None)[0]
+        else:
+            pred[rows] = learner().fit(X[fit_rows], y[fit_rows]).predict(X[rows])
+    return pred
+
+
+def _residual_line(name, y, pred, L, joined):
+    """cvR2 of a held-out prediction of the vehicle residual and the joined shares with it removed."""
+    cells = []
+    for t in TESTS:
+        e, rows = L[t].to_numpy(), joined & np.isfinite(L[t].to_numpy())
+        cells.append(f"{t} {_share(e[rows]):.1%} -> {_share(e[rows] - pred[rows]):.1%}")
+    return f"  {name:60s} cvR2 {1 - np.var(y - pred) / np.var(y):+.3f}; joined within 5 %: " + ", ".join(cells)
+
+
+def vehicle_residual_report(r, specs, table):
+    """``--vehicle-residual``: the vehicle-level residual (mean held-out log error over FTP, HWFET,
+    US06) regressed on the engine, drivetrain and body, manufacturers held out
+    (docs/validation-epa.md "Where the vehicle-level residual comes from")."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    F = vehicle_features(specs, table, features(specs, table))
+    L = np.log1p(r["technology"]).reindex(F.index)
+    y = L[list(TESTS)].mean(axis=1).to_numpy()
+    ok = np.isfinite(y) & F.cylinders.notna().to_numpy()
+    F, L, y, mf = F[ok], L[ok], y[ok], table.manufacturer.to_numpy()[ok]
+    joined = np.isin(np.flatnonzero(ok), r["joined"])
+    lines = [f"vehicle residual: n {ok.sum()}, sd {y.std():.2%} (joined {y[joined].std():.2%}); share of each test's "
+             "log-error variance it carries: " + ", ".join(
+                 f"{t} {np.corrcoef(L[t][L[t].notna()], y[L[t].notna().to_numpy()])[0, 1] ** 2:.2f}" for t in TESTS)]
+    single = {c: 1 - np.var(y - (p := _grouped_prediction(F[[c]].to_numpy(), y, mf))) / np.var(y) for c in F.columns}
+    lines.append("single features, straight line, cvR2: " + ", ".join(f"{c} {v:+.3f}" for c, v in
+                                                                       sorted(single.items(), key=lambda x: -x[1])))
+    for cols in RESIDUAL_LINES:
+        lines.append(_residual_line("line: " + (" + ".join(cols) or "constant"), y,
+                                    _grouped_prediction(F[list(cols)].to_numpy(), y, mf), L, joined))
+    boost = lambda: HistGradientBoostingRegressor(max_iter=200, max_depth=3, learning_rate=0.05, random_state=0)  # noqa: E731
+    for name, cols in (("engine", ENGINE_FEATURES), ("drivetrain", DRIVETRAIN_FEATURES),
+                       ("engine + drivetrain", ENGINE_FEATURES + DRIVETRAIN_FEATURES), ("every feature", tuple(F.columns))):
+        lines.append(_residual_line(f"boosting: {name}", y, _grouped_prediction(F[list(cols)].to_numpy(), y, mf, boost),
+                                    L, joined))
+    within = F.assign(residual=y) - F.assign(residual=y).groupby(mf).transform("median")
+    rank = within.corr(method="spearman")["residual"].drop("residual").sort_values()
+    lines.append("rank correlation with the residual within manufacturers: " + ", ".join(f"{k} {v:+.2f}" for k, v in rank.items()))
+    return lines
+
+
 def write_models(r):
     """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
     and models/fuel_economy_bias.toml."""
@@ -703,6 +783,8 @@ def main(argv=None):
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
     ap.add_argument("--breakdown", action="store_true", help="the held-out error by cycle, grouping and part (joined vehicles)")
+    ap.add_argument("--vehicle-residual", action="store_true",
+                    help="the vehicle-level residual regressed on engine, drivetrain and body, held out (scikit-learn)")
     ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
                     help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
@@ -729,6 +811,9 @@ def main(argv=None):
         print(text, flush=True)
     if args.breakdown:
         for text in breakdown_report(r, specs, table):
+            print(text, flush=True)
+    if args.vehicle_residual:
+        for text in vehicle_residual_report(r, specs, table):
             print(text, flush=True)
     if args.residuals:
         for text in residual_report(r, specs, table):
