@@ -134,3 +134,13 @@ def test_friction_by_bore_and_speed_squared_are_measured_and_not_adopted():
     assert 0.0 < out["bore"]["FTP"] - out["chen_flynn"]["FTP"] < 0.015
     assert out["bore"]["HWFET"] <= out["chen_flynn"]["HWFET"]
     assert max(cm2) == 0.0 and out["speed2"] == out["chen_flynn"]
+    # F3 (commit 1d168a8): the Willans slope rising as 1 / bore is taken strongly by the fit
+    # (0.4-1.0 of the base slope) but loses joined HWFET vehicles: not adopted
+    try:
+        et.SLOPE_FORM = "bore"
+        err, _, fit = et.heldout_errors(d1, table, np.ones(len(specs), bool), extra=et.stop_extra())
+    finally:
+        et.SLOPE_FORM = "constant"
+    k = [f["gasoline"][len(et.FUEL_TERMS) + 1] / f["gasoline"][0] for f in fit.values()]
+    assert 0.3 < min(k) and max(k) < 1.2
+    assert _within(err.reindex(np.flatnonzero(joined)), "HWFET") < out["chen_flynn"]["HWFET"]

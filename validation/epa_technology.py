@@ -125,6 +125,10 @@ def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
 FRICTION_FORMS = {"chen_flynn": (), "bore": ("X_friction_ring_bore", "X_friction_skirt_bore"),
                   "speed2": ("X_friction_piston_speed2",)}
 FRICTION_FORM = "chen_flynn"
+#: the Willans slope's form (``--slope-form``; docs/validation-epa.md "Hypothesis F3"): "constant"
+#: the fuel equation's, "bore" + the brake work x B_ref / B (heat loss ~ surface / volume); slope fuel
+SLOPE_FORMS = {"constant": (), "bore": ("X_brake_bore",)}
+SLOPE_FORM = "constant"
 BORE_REF_M = 0.086
 
 
@@ -132,15 +136,17 @@ def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
     transient form "both", the ARRB acceleration term; then the friction form's columns)."""
     arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
-    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM]
+    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
 
 
 def with_bore_terms(d, specs):
-    """The dataset with the bore friction columns: the friction sum x (B_ref / B)^2 and the
-    piston-speed friction sum x B_ref / B, B the model's bore (square engines: the stroke)."""
+    """The dataset with the bore columns: the friction sum x (B_ref / B)^2, the piston-speed
+    friction sum x B_ref / B and the brake work x B_ref / B, B the model's bore (square engines:
+    the stroke)."""
     ratio = BORE_REF_M / vehicle_arrays(specs).stroke_m[d.vehicle.to_numpy()]
     return d.assign(X_friction_ring_bore=d.S_friction.to_numpy() * ratio ** 2,
-                    X_friction_skirt_bore=d.S_friction_piston_speed.to_numpy() * ratio)
+                    X_friction_skirt_bore=d.S_friction_piston_speed.to_numpy() * ratio,
+                    X_brake_bore=d.S_brake.to_numpy() * ratio)
 
 
 def transient_form(d):
@@ -208,7 +214,7 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
-        arrb = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x == ARRB_COLUMN]     # "both": the ARRB term
+        arrb = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]  # slope extras
         offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
         slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, arrb].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
@@ -407,6 +413,11 @@ def report(r, table):
         k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
         kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in SLOPE_FORMS[SLOPE_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        lines.append(f"slope form {SLOPE_FORM}: {col} coefficient / Willans slope: final "
+                     f"{r['final']['gasoline'][n + stop_extra().index(col)] / r['final']['gasoline'][0]:.4f}; "
+                     f"folds {min(k):.4f}-{max(k):.4f}")
     for col in FRICTION_FORMS[FRICTION_FORM]:
         k = [friction_kPa(f, col) for f in r["folds"].values()]
         kf = friction_kPa(r["final"], col)
@@ -791,12 +802,14 @@ def main(argv=None):
                     help="what the cold start's heat capacity follows (measured, docs/validation-epa.md)")
     ap.add_argument("--friction-form", choices=tuple(FRICTION_FORMS), default="chen_flynn",
                     help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--slope-form", choices=tuple(SLOPE_FORMS), default="constant",
+                    help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
-    global TRANSIENT_FORM, FRICTION_FORM
-    TRANSIENT_FORM, FRICTION_FORM = args.transient_form, args.friction_form
+    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM
+    TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
