@@ -229,25 +229,46 @@ def formula_scale(s: Setup, figure, kind, test, groups=None):
     return (target - a) / slope
 
 
-def split_scale(s: Setup, label, h, groups=None, lo=-2.0, hi=2.0, steps=60):
-    """F2: k such that FTP / k and HWFET / k^h give the combined label through the formulas (group
-    mean of the label fuel per mile with ``groups``); bisection in log k."""
-    (ac, bc), (ah, bh) = s.set.city, s.set.highway
-    share = epa_label.CITY_SHARE
-    target = np.where(s.used, 1.0 / np.asarray(label, float), np.nan)
-    valid = np.isfinite(target) & np.isfinite(s.pred[:, :2]).all(axis=1)
+def split_scale(s: Setup, label, h, groups=None):
+    """F2: k such that FTP / k and HWFET / k^h give the combined label through the formulas (the
+    group mean of the label fuel per mile with ``groups``): `measured.label_scale` as `simulate`
+    applies it with models/technology.toml ``[label_split]``."""
+    return measured.label_scale(np.where(s.used, label, np.nan), s.pred[:, 0], s.pred[:, 1], label_set=s.set,
+                                groups=groups, highway_share=h)
 
-    def excess(logk):
-        v = share * (ac + bc * np.exp(logk) / s.pred[:, 0]) + (1 - share) * (ah + bh * np.exp(h * logk) / s.pred[:, 1])
-        return (v if groups is None else measured.group_mean(v, groups, valid)) - (
-            target if groups is None else measured.group_mean(target, groups, valid))
 
-    lo, hi = np.full(len(target), lo), np.full(len(target), hi)
-    for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        up = excess(mid) > 0
-        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
-    return np.where(valid, np.exp(0.5 * (lo + hi)), np.nan)
+def split_tables(s: Setup, label, groups=None):
+    """F2's tables over H_GRID x SHARE_GRID and their (h, s)."""
+    grid, tables = [], []
+    for h in H_GRID:
+        kf = split_scale(s, label, h, groups)
+        tables += [scaled(s.err, kf, kf ** h, kf ** x) for x in SHARE_GRID]
+        grid += [(float(h), float(x)) for x in SHARE_GRID]
+    return tables, grid
+
+
+def split_lines(s: Setup, name, label, groups=None) -> list[str]:
+    """F2 (F2g with ``groups``) held out, and its (h, s) fitted on all manufacturers (the value
+    to store)."""
+    tables, grid = split_tables(s, label, groups)
+    lines = s.report(f"{name} global split h (h, s)", s.route(tables), grid)
+    best = int(np.argmin([loss(np.where(s.used[:, None], t, np.nan)) for t in tables]))
+    stored = (measured.label_split()["highway_share"], measured.label_split()["transfer_share"])
+    kf = split_scale(s, label, stored[0], groups)
+    e = np.where(s.used[:, None], scaled(s.err, kf, kf ** stored[0], kf ** stored[1]), np.nan)
+    return lines + [f"{name} (h, s) fitted on all manufacturers: {grid[best]}",
+                    f"{name} with the stored (h, s) {stored} (models/technology.toml): {cells(e, s.used)}"]
+
+
+def split_other_labels(s: Setup) -> list[str]:
+    """F2 held out with the label printed in whole mpg (comb08) and with the derived label of the
+    vehicle's own tests (C3)."""
+    lines = []
+    for name, label in (("F2 whole mpg (comb08)", s.cols.comb08.to_numpy()),
+                        ("F2 derived label (C3)", derived_label(s.paired, s.idx))):
+        lines += split_lines(s, name, label)
+        lines += split_lines(s, name + " groups", label, s.groups)
+    return lines
 
 
 def fix_lines(s: Setup) -> list[str]:
@@ -262,19 +283,14 @@ def fix_lines(s: Setup) -> list[str]:
         kh = formula_scale(s, s.cols.highway08U, "highway", 1, groups)
         lines += s.report(f"F1{g_name} city and highway labels", s.route([scaled(s.err, kc, kh, k ** x) for x in SHARE_GRID]),
                           SHARE_GRID)
-        grid = [(h, x) for h in H_GRID for x in SHARE_GRID]
-        tables = []
-        for h in H_GRID:
-            kf = split_scale(s, comb, h, groups)
-            tables += [scaled(s.err, kf, kf ** h, kf ** x) for x in SHARE_GRID]
-        lines += s.report(f"F2{g_name} global split h (h, s)", s.route(tables), grid)
+        lines += split_lines(s, f"F2{g_name}", comb, groups)
     grid = [(c, x) for c in C_GRID for x in SHARE_GRID]
     tables = []
     for c in C_GRID:
         k = s.label_k(comb / (1.0 + c))
         tables += share_tables(s.err, k)
     lines += s.report("F3 global label bias (c, s)", s.route(tables), grid)
-    return lines
+    return lines + split_other_labels(s)
 
 
 def load(cache=None):

@@ -269,9 +269,8 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet, [v.model_year for v in sub],
                             [v.label_group for v in sub])
     at_nominal = abs(ambient_temp_C - measured.NOMINAL_AMBIENT_C) < 1e-9
-    exact = at_nominal & ((cycle_name == "FTP") | ((cycle_name == "HWFET") & np.isnan(ftp[rows])))
     factor = np.ones(len(vehicles))
-    factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
+    factor[rows] = measured.carried_scale(k, np.isnan(ftp[rows]), cycle_name, at_nominal)
     return measured.scale_result(result, factor)
 
 

@@ -3,11 +3,17 @@ vehicle's measured FTP composite, unadjusted) or ``label_combined_mpg`` (its EPA
 combined figure) calibrate its efficiency (docs/simulation.md "One measured number").
 
 The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
-nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
-600.210-12, combined 55 % city, 45 % highway, with the coefficient set of the vehicle's model
-year, fleetrun.physics.epa_label). On that test the fuel is multiplied by k exactly; on every
-other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
-one global constant fitted with manufacturers held out (validation/epa_technology.py).
+nominal 25 C). On that test the fuel is multiplied by k exactly; on every other cycle, ambient
+and scenario by k^s, with s = ``transfer_share`` of models/technology.toml: one global constant
+fitted with manufacturers held out (validation/epa_technology.py).
+
+A label: EPA's derived 5-cycle label formulas (40 CFR 600.210-12, combined 55 % city, 45 %
+highway, the coefficient set of the vehicle's model year, fleetrun.physics.epa_label) of the
+simulated FTP / k and HWFET / k^h give the label; the FTP at 25 C takes k, the HWFET at 25 C
+k^h, every other cycle, ambient and scenario k^s'. h and s' are models/technology.toml
+``[label_split]``, fitted on real MY2022 labels with manufacturers held out
+(validation/epa_label_sources.py, docs/validation-epa.md "Where the label route's misses come
+from").
 """
 from __future__ import annotations
 
@@ -32,6 +38,18 @@ def transfer_share() -> float:
     return float(model_file("technology.toml")["fitted"]["transfer_share"])
 
 
+def label_split() -> dict:
+    """The label route's global split (models/technology.toml ``[label_split]``).
+
+    Returns
+    -------
+    dict with ``highway_share`` h [-] (the HWFET at 25 C takes k^h) and ``other_cycles_share``
+    s' [-] (every other cycle, ambient and scenario takes k^s').
+    """
+    m = model_file("technology.toml")["label_split"]
+    return {"highway_share": float(m["highway_share"]), "transfer_share": float(m["other_cycles_share"])}
+
+
 def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     """(measured FTP, label combined) mpg per vehicle, NaN where blank.
 
@@ -49,11 +67,13 @@ def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
     return column("measured_ftp_mpg"), column("label_combined_mpg")
 
 
-def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None):
-    """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
-    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k. Vehicles of one label group
-    share one k: the mean of their label fuel per mile is the mean of their labels' (a label is its
-    model type's configurations' mean, 40 CFR 600.208-12; equal weights; docs/simulation.md).
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None,
+                highway_share=1.0):
+    """Fuel scale k that makes the label formulas of the simulated FTP mpg / k and HWFET mpg /
+    k^h give ``label_combined_mpg``: 1/label = a + k b_FTP + k^h b_HWFET (h = 1: linear in k).
+    Vehicles of one label group share one k: the mean of their label fuel per mile is the mean of
+    their labels' (a label is its model type's configurations' mean, 40 CFR 600.208-12; equal
+    weights; docs/simulation.md).
 
     Parameters
     ----------
@@ -64,6 +84,8 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
         label formulas' coefficients (fleetrun.physics.epa_label; None: no vehicle has one)
     label_set : LabelSet or None, one coefficient set for every vehicle instead (validation)
     groups : sequence of str or None, or None: each vehicle's label group (None or "": alone)
+    highway_share : float, h [-]: the HWFET takes k^h (1: the same k as the FTP;
+        :func:`label_split` gives the stored value)
 
     Returns
     -------
@@ -77,13 +99,40 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
         city, highway = (epa_label.coefficients(model_years, kind) for kind in epa_label.KINDS)
     share = epa_label.CITY_SHARE
     a = share * city[0] + (1 - share) * highway[0]
-    b = share * city[1] / ftp_mpg + (1 - share) * highway[1] / hwfet_mpg
+    b_ftp = share * city[1] / np.asarray(ftp_mpg, float)
+    b_hwfet = (1 - share) * highway[1] / np.asarray(hwfet_mpg, float)
     target = 1.0 / np.asarray(label_combined_mpg, float)
     if groups is not None:
-        a, b, target = np.broadcast_arrays(a, b, target)
-        valid = np.isfinite(a) & np.isfinite(b) & np.isfinite(target)
-        a, b, target = (group_mean(x, groups, valid) for x in (a, b, target))
-    return (target - a) / b
+        a, b_ftp, b_hwfet, target = np.broadcast_arrays(a, b_ftp, b_hwfet, target)
+        valid = np.isfinite(a) & np.isfinite(b_ftp) & np.isfinite(b_hwfet) & np.isfinite(target)
+        a, b_ftp, b_hwfet, target = (group_mean(x, groups, valid) for x in (a, b_ftp, b_hwfet, target))
+    return split_root(target - a, b_ftp, b_hwfet, highway_share)
+
+
+def split_root(rhs, b_ftp, b_hwfet, highway_share, iterations=40):
+    """Root k > 0 of b_ftp k + b_hwfet k^h = rhs (Newton in log k from the h = 1 root; the left
+    side is increasing and convex in log k, so the iteration converges monotonically).
+
+    Parameters
+    ----------
+    rhs : array, label fuel per mile minus the formulas' intercepts [gal/mi]
+    b_ftp, b_hwfet : array, the FTP and HWFET terms' slopes per unit k [gal/mi]
+    highway_share : float, h [-]
+    iterations : int, Newton steps
+
+    Returns
+    -------
+    k [-], NaN where ``rhs`` <= 0 (no positive scale gives the label).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = rhs / (b_ftp + b_hwfet)
+        if highway_share == 1.0:
+            return k
+        x = np.log(np.where(k > 0, k, np.nan))
+        for _ in range(iterations):
+            f_ftp, f_hwfet = b_ftp * np.exp(x), b_hwfet * np.exp(highway_share * x)
+            x = x - (f_ftp + f_hwfet - rhs) / (f_ftp + highway_share * f_hwfet)
+        return np.exp(x)
 
 
 def group_mean(values, groups, valid):
@@ -130,25 +179,36 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg,
     with np.errstate(divide="ignore", invalid="ignore"):
         from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
         label = np.where(np.isfinite(from_ftp), np.nan, np.asarray(label_combined_mpg, float))
-        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label, sim_ftp_mpg, sim_hwfet_mpg,
-                                                                     model_years, groups=groups))
+        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(
+            label, sim_ftp_mpg, sim_hwfet_mpg, model_years, groups=groups,
+            highway_share=label_split()["highway_share"]))
 
 
-def carried_scale(k, exact, share):
-    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere.
+def carried_scale(k, from_label, cycle_name, at_nominal):
+    """The fuel multiplier on a cycle. A measured FTP: k on the FTP at 25 C, k^s elsewhere
+    (:func:`transfer_share`). A label: k on the FTP at 25 C, k^h on the HWFET at 25 C, k^s'
+    elsewhere (:func:`label_split`).
 
     Parameters
     ----------
-    k : float or array, fuel scale on the calibration test [-] (NaN: uncalibrated)
-    exact : bool or array, the cycle is the calibration test itself
-    share : float, the transfer share s [-] (:func:`transfer_share`)
+    k : float or array, fuel scale on the calibration (:func:`fuel_scale`) [-] (NaN: uncalibrated)
+    from_label : bool or array, k comes from a label figure (not a measured FTP)
+    cycle_name : str, the simulated cycle
+    at_nominal : bool, the ambient is EPA's nominal 25 C
 
     Returns
     -------
     fuel multiplier [-], 1 where ``k`` is NaN.
     """
     k = np.asarray(k, float)
-    return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
+    split = label_split()
+    if at_nominal and cycle_name == "FTP":
+        power = np.ones_like(k)
+    elif at_nominal and cycle_name == "HWFET":
+        power = np.where(from_label, split["highway_share"], transfer_share())
+    else:
+        power = np.where(from_label, split["transfer_share"], transfer_share())
+    return np.where(np.isfinite(k), k ** power, 1.0)
 
 
 def scale_result(result, factor):
