@@ -167,12 +167,12 @@ def test_a_label_takes_k_on_the_ftp_k_to_h_on_the_hwfet_and_k_to_s_elsewhere():
     raw = {c: simulate([CAMRY], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
     new = {c: simulate([cal], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
     k = raw["FTP"] / new["FTP"]
-    assert new["HWFET"] == pytest.approx(raw["HWFET"] / k ** split["highway_share"], rel=1e-12)
-    assert new["US06"] == pytest.approx(raw["US06"] / k ** split["transfer_share"], rel=1e-12)
+    assert new["HWFET"] == pytest.approx(raw["HWFET"] / k ** split.highway_share, rel=1e-12)
+    assert new["US06"] == pytest.approx(raw["US06"] / k ** split.transfer_share, rel=1e-12)
     assert epa_label.combined_label_mpg(new["FTP"], new["HWFET"], epa_label.set_for_model_year(2022)) == \
         pytest.approx(27.0, rel=1e-9)
     cold = simulate([CAMRY], "FTP", ambient_temp_C=-7.0).mpg[0] / simulate([cal], "FTP", ambient_temp_C=-7.0).mpg[0]
-    assert cold == pytest.approx(k ** split["transfer_share"], rel=1e-12)
+    assert cold == pytest.approx(k ** split.transfer_share, rel=1e-12)
 
 
 def test_measured_ftp_is_met_exactly_and_carried_with_the_share_elsewhere():

@@ -51,4 +51,4 @@ def test_the_global_split_gains_on_the_highway_held_out(setup):
     assert _within(e, s.used) >= _within(base, s.used) + 0.03
     assert _within(e, s.used, 2) >= _within(base, s.used, 2) - 0.01
     hs = [grid[i][0] for i in chosen]
-    assert min(hs) - 0.05 <= measured.label_split()["highway_share"] <= max(hs) + 0.05 < 1.0
+    assert min(hs) - 0.05 <= measured.label_split().highway_share <= max(hs) + 0.05 < 1.0

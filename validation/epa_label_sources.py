@@ -253,7 +253,7 @@ def split_lines(s: Setup, name, label, groups=None) -> list[str]:
     tables, grid = split_tables(s, label, groups)
     lines = s.report(f"{name} global split h (h, s)", s.route(tables), grid)
     best = int(np.argmin([loss(np.where(s.used[:, None], t, np.nan)) for t in tables]))
-    stored = (measured.label_split()["highway_share"], measured.label_split()["transfer_share"])
+    stored = (measured.label_split().highway_share, measured.label_split().transfer_share)
     kf = split_scale(s, label, stored[0], groups)
     e = np.where(s.used[:, None], scaled(s.err, kf, kf ** stored[0], kf ** stored[1]), np.nan)
     return lines + [f"{name} (h, s) fitted on all manufacturers: {grid[best]}",

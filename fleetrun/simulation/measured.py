@@ -23,6 +23,7 @@ import numpy as np
 
 from fleetrun.physics import epa_label
 from fleetrun.resources import model_file
+from fleetrun.simulation.records import LabelSplit
 
 NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
 FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
@@ -38,16 +39,16 @@ def transfer_share() -> float:
     return float(model_file("technology.toml")["fitted"]["transfer_share"])
 
 
-def label_split() -> dict:
+def label_split() -> LabelSplit:
     """The label route's global split (models/technology.toml ``[label_split]``).
 
     Returns
     -------
-    dict with ``highway_share`` h [-] (the HWFET at 25 C takes k^h) and ``other_cycles_share``
-    s' [-] (every other cycle, ambient and scenario takes k^s').
+    LabelSplit: ``highway_share`` h [-] (the HWFET at 25 C takes k^h) and ``transfer_share`` s'
+    [-] (every other cycle, ambient and scenario takes k^s'; the file's ``other_cycles_share``).
     """
     m = model_file("technology.toml")["label_split"]
-    return {"highway_share": float(m["highway_share"]), "transfer_share": float(m["other_cycles_share"])}
+    return LabelSplit(float(m["highway_share"]), float(m["other_cycles_share"]))
 
 
 def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
@@ -181,7 +182,7 @@ def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg,
         label = np.where(np.isfinite(from_ftp), np.nan, np.asarray(label_combined_mpg, float))
         return np.where(np.isfinite(from_ftp), from_ftp, label_scale(
             label, sim_ftp_mpg, sim_hwfet_mpg, model_years, groups=groups,
-            highway_share=label_split()["highway_share"]))
+            highway_share=label_split().highway_share))
 
 
 def carried_scale(k, from_label, cycle_name, at_nominal):
@@ -205,9 +206,9 @@ def carried_scale(k, from_label, cycle_name, at_nominal):
     if at_nominal and cycle_name == "FTP":
         power = np.ones_like(k)
     elif at_nominal and cycle_name == "HWFET":
-        power = np.where(from_label, split["highway_share"], transfer_share())
+        power = np.where(from_label, split.highway_share, transfer_share())
     else:
-        power = np.where(from_label, split["transfer_share"], transfer_share())
+        power = np.where(from_label, split.transfer_share, transfer_share())
     return np.where(np.isfinite(k), k ** power, 1.0)
 
 

@@ -305,3 +305,13 @@ class ElectricConstants:
 
 
 __all__ += ["EngineSet", "TransmissionSet", "ElectricConstants"]
+
+
+@dataclass(frozen=True)
+class LabelSplit:
+    """How a label's fuel scale k is carried (models/technology.toml ``[label_split]``,
+    fleetrun/simulation/measured.py): the HWFET at 25 C takes k^highway_share, every other
+    cycle, ambient and scenario k^transfer_share (the FTP at 25 C takes k)."""
+
+    highway_share: float
+    transfer_share: float
