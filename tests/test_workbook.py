@@ -372,3 +372,10 @@ def test_label_group_is_read_onto_the_vehicle(tmp_path):
             vehicle("B", label_combined_mpg=28.0, label_group="camry 2.5"), vehicle("C")]
     fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
     assert [v.label_group for v in fleet.vehicles] == ["camry 2.5", "camry 2.5", None]
+
+
+def test_label_city_and_highway_are_read_onto_the_vehicle(tmp_path):
+    """`label_city_mpg`, `label_highway_mpg` (docs/workbook.md): optional numbers, 3-200 mpg."""
+    rows = [vehicle("A", label_city_mpg=24.0, label_highway_mpg=33.0), vehicle("C")]
+    fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
+    assert [(v.label_city_mpg, v.label_highway_mpg) for v in fleet.vehicles] == [(24.0, 33.0), (None, None)]
