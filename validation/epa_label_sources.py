@@ -47,9 +47,9 @@ FORMULA_GAP = 0.005
 
 def label_columns(lab) -> pd.DataFrame:
     """Per vehicle of ``lab`` (epa_labels.labels_of): the mean over its matched label rows of
-    city08U, highway08U, comb08U, comb08, UCity, UHighway (NaN without a label)."""
+    city08U, highway08U, comb08U, comb08, city08, highway08, UCity, UHighway (NaN without a label)."""
     by_id = load_labels().set_index("id")
-    cols = ["city08U", "highway08U", "comb08U", "comb08", "UCity", "UHighway"]
+    cols = ["city08U", "highway08U", "comb08U", "comb08", "city08", "highway08", "UCity", "UHighway"]
     ids = lab.label_ids.fillna("").astype(str)
     rows = [by_id.loc[[int(i) for i in x.split()], cols].mean().to_numpy() if x.strip() else np.full(len(cols), np.nan)
             for x in ids]
@@ -295,12 +295,16 @@ BLEND_S = np.round(np.arange(0.3, 0.601, 0.01), 2)
 
 def blend_lines(s: Setup) -> list[str]:
     """F5 / F5g (second round): HWFET log scale w log k_H + (1 - w) h log k, FTP by k_C, US06 by
-    k^s; (h, w, s) fitted held out; against F2 / F2g on the same grid of h and s."""
-    comb = s.cols.comb08U.to_numpy()
+    k^s; (h, w, s) fitted held out; against F2 / F2g on the same grid of h and s. Also with the
+    three figures in whole mpg as printed (city08, highway08, comb08)."""
     lines = []
-    for name, groups in (("F5", None), ("F5g", s.groups)):
-        kc = formula_scale(s, s.cols.city08U, "city", 0, groups)
-        kh = formula_scale(s, s.cols.highway08U, "highway", 1, groups)
+    for name, groups, cols in (("F5", None, ("comb08U", "city08U", "highway08U")),
+                               ("F5g", s.groups, ("comb08U", "city08U", "highway08U")),
+                               ("F5 whole mpg", None, ("comb08", "city08", "highway08")),
+                               ("F5g whole mpg", s.groups, ("comb08", "city08", "highway08"))):
+        comb = s.cols[cols[0]].to_numpy()
+        kc = formula_scale(s, s.cols[cols[1]], "city", 0, groups)
+        kh = formula_scale(s, s.cols[cols[2]], "highway", 1, groups)
         tables, grid = [], []
         for h in BLEND_H:
             k = split_scale(s, comb, h, groups)
@@ -315,16 +319,15 @@ def blend_lines(s: Setup) -> list[str]:
         lines += s.report(f"{name} with w = 0 (F2's HWFET, F1's FTP)", s.route([tables[i] for i in zero]),
                           [grid[i] for i in zero])
         lines.append(f"{name} as `simulate` applies it (measured.cycle_factors, stored constants): "
-                     + cells(stored_factors_errors(s, groups), s.used))
+                     + cells(stored_factors_errors(s, groups, cols), s.used))
     return lines
 
 
-def stored_factors_errors(s: Setup, groups=None):
+def stored_factors_errors(s: Setup, groups=None, cols=("comb08U", "city08U", "highway08U")):
     """Errors after `measured.cycle_factors` with the label's combined, city and highway figures
     (the stored constants of models/technology.toml); US06 takes the factor of other cycles."""
     figures = {"measured_ftp_mpg": np.full(len(s.used), np.nan)}
-    for name, col in (("label_combined_mpg", "comb08U"), ("label_city_mpg", "city08U"),
-                      ("label_highway_mpg", "highway08U")):
+    for name, col in zip(("label_combined_mpg", "label_city_mpg", "label_highway_mpg"), cols):
         figures[name] = np.where(s.used, s.cols[col].to_numpy(), np.nan)
     f = measured.cycle_factors(figures, s.pred[:, 0], s.pred[:, 1], [2022] * len(s.used), groups)
     return np.where(s.used[:, None], (1.0 + s.err[list(TESTS)].to_numpy()) / f - 1.0, np.nan)
