@@ -1418,14 +1418,14 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
             if step_s != 1.0:
                 multiply(a, dtb, a)
             add(a, vp, guess)                  # vp + a dt (addition commutes bit for bit)
-            bounded(guess, zero, capb)
+            bounded(guess, zero, capb, guess)
             add(vp, guess, mid)
             multiply(mid, half, mid)
             a = accel_mid(g)
             if step_s != 1.0:
                 multiply(a, dtb, a)
             add(a, vp, out)
-            bounded(out, zero, capb)
+            bounded(out, zero, capb, out)
             # all back on the trace (v <= cap): trial speeds hold again; the first and last
             # vehicle read first (a scalar each), the reduction only when both are on it
             if out[0] == c and out[-1] == c and least(out) == c:
@@ -1436,19 +1436,18 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
 
 
 def _bounds(plain: bool):
-    """``bounded(x, zero, cap)``: x = max(min(cap, x), 0) in place (:func:`_full_effort_step`'s
+    """``bounded(x, zero, cap, out)``: max(min(cap, x), 0) into ``out`` (:func:`_full_effort_step`'s
     bounds). With :func:`_plain_numbers` one call of numpy's ``clip`` ufunc, min(max(x, 0), cap):
     the same value for any x when cap >= +0 and neither is NaN or -0.0 (a step's speed is
     never -0.0: the trace has none, and max(., +0) of a negative is +0); else ``minimum`` then
     ``maximum``, as written."""
-    clip = getattr(getattr(np, "_core", getattr(np, "core", None)), "umath", None)
-    clip = getattr(clip, "clip", None)
+    clip = getattr(getattr(getattr(np, "_core", getattr(np, "core", None)), "umath", None), "clip", None)
     if plain and isinstance(clip, np.ufunc):
-        return lambda x, zero, cap: clip(x, zero, cap, x)
+        return clip
 
-    def bounded(x, zero, cap):
-        np.minimum(cap, x, x)
-        np.maximum(x, zero, x)
+    def bounded(x, zero, cap, out):
+        np.minimum(cap, x, out)
+        np.maximum(out, zero, out)
     return bounded
 
 
