@@ -1384,10 +1384,8 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
     no speed reaches it, a grade force of 0.0 (x - 0.0 is x), a step of 1 s (x * 1.0 is x).
     Bounds are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (the same values where
     neither operand is NaN nor both are zeros; numpy 2.4's ``maximum`` / ``minimum`` cost
-    1.4 us a call against 0.25), and then a step's bounds min(cap, x) and max(., 0) one call
-    of numpy's ``clip`` ufunc (max(x, 0) then min(., cap): the same for cap >= +0 and no NaN
-    or -0.0). The force table's interpolation and the coastdown are independent, so their
-    operations of one kind are one call on stacked buffers (:func:`_lanes`)."""
+    1.4 us a call against 0.25), a step's two bounds then one call (:func:`_bounds`); the
+    acceleration in stacked buffers (:func:`_lanes`): 33 numpy calls a step."""
     V, N = m.base.size, cap.size
     clip = not float(cap.max()) / dv < top
     plain = _plain_numbers(m, cap, dt)
@@ -1437,10 +1435,11 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
 
 def _bounds(plain: bool):
     """``bounded(x, zero, cap, out)``: max(min(cap, x), 0) into ``out`` (:func:`_full_effort_step`'s
-    bounds). With :func:`_plain_numbers` one call of numpy's ``clip`` ufunc, min(max(x, 0), cap):
-    the same value for any x when cap >= +0 and neither is NaN or -0.0 (a step's speed is
-    never -0.0: the trace has none, and max(., +0) of a negative is +0); else ``minimum`` then
-    ``maximum``, as written."""
+    bounds). With :func:`_plain_numbers` one call of the ufunc behind ``np.clip`` (numpy's
+    ``umath.clip``), min(max(x, 0), cap): the same value for any x when cap >= +0 and neither
+    is NaN or -0.0 (a step's speed is never -0.0: the trace has none, and max(., +0) of a
+    negative is +0); else, or if a numpy has no such ufunc, ``minimum`` then ``maximum``, as
+    written (tests/test_simulation.py: the plain step loop, bit for bit)."""
     clip = getattr(getattr(getattr(np, "_core", getattr(np, "core", None)), "umath", None), "clip", None)
     if plain and isinstance(clip, np.ufunc):
         return clip
