@@ -1389,7 +1389,7 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
     V, N = m.base.size, cap.size
     clip = not float(cap.max()) / dv < top
     plain = _plain_numbers(m, cap, dt)
-    fmax, fmin = (np.fmax, np.fmin) if plain else (np.maximum, np.minimum)
+    fmax, fmin = (np.fmax, np.fmin) if plain else (_with_out(np.maximum), _with_out(np.minimum))
     least = np.fmin.reduce if plain else np.minimum.reduce
     bounded = _bounds(plain)
     lane = _lanes(m, dv, top, clip, fmax, fmin)
@@ -1445,9 +1445,15 @@ def _bounds(plain: bool):
         return clip
 
     def bounded(x, zero, cap, out):
-        np.minimum(cap, x, out)
-        np.maximum(out, zero, out)
+        np.minimum(cap, x, out=out)
+        np.maximum(out, zero, out=out)
     return bounded
+
+
+def _with_out(ufunc):
+    """``ufunc(a, b, out)`` as ``ufunc(a, b, out=out)`` (numpy 2.4 deprecates a positional
+    ``out`` for ``maximum`` / ``minimum``; ``fmax`` / ``fmin`` take it positionally)."""
+    return lambda a, b, out: ufunc(a, b, out=out)
 
 
 @dataclass(frozen=True, eq=False)
