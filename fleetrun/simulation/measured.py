@@ -1,6 +1,7 @@
 """One measured number per vehicle: the optional Vehicles columns ``measured_ftp_mpg`` (the
-vehicle's measured FTP composite, unadjusted) or ``label_combined_mpg`` (its EPA label
-combined figure) calibrate its efficiency (docs/simulation.md "One measured number").
+vehicle's measured FTP composite, unadjusted) or its EPA label's figures (``label_combined_mpg``;
+``label_city_mpg`` with ``label_highway_mpg``) calibrate its efficiency (docs/simulation.md "One
+measured number").
 
 The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
 nominal 25 C). On that test the fuel is multiplied by k exactly; on every other cycle, ambient
@@ -14,6 +15,13 @@ k^h, every other cycle, ambient and scenario k^s'. h and s' are models/technolog
 ``[label_split]``, fitted on real MY2022 labels with manufacturers held out
 (validation/epa_label_sources.py, docs/validation-epa.md "Where the label route's misses come
 from").
+
+A label's city and highway figures (``label_city_mpg`` and ``label_highway_mpg``, both given, no
+measured FTP): the FTP at 25 C takes k_C, the city formula's scale (:func:`figure_scale`); the
+HWFET at 25 C exp(w log k_H + (1 - w) h' log k), k_H the highway formula's scale and k the
+combined figure's with h' (the combined figure, else the 55/45 combination of the two); every
+other cycle, ambient and scenario k^s''. w, h' and s'' are models/technology.toml
+``[label_split]`` ``blend_*`` (:func:`label_blend`; docs/validation-epa.md, F5).
 """
 from __future__ import annotations
 
