@@ -1,7 +1,7 @@
 """Where the real label route's misses come from, and the fixes pre-registered for them
 (docs/validation-epa.md "Where the label route's misses come from", issue 22 fifth round):
 
-    PYTHONPATH=. python validation/epa_label_sources.py [--cache FILE]
+    PYTHONPATH=. python validation/epa_label_sources.py [--cache FILE] [--part all|a|b|c|blend]
 
 On the Test Car List vehicles joined to one real MY2022 label (validation/epa_labels.py), pairs
 merged, physics + technology held out by manufacturer (validation/epa_one_number.prepare):
@@ -12,7 +12,9 @@ merged, physics + technology held out by manufacturer (validation/epa_one_number
     UCity / UHighway) -> C3 (of the vehicle's own FTP / HWFET), each through the label route L1,
     and the misses of C1 by the first step that removes them;
 (c) F1 / F1g (the label's city and highway figures), F2 / F2g (a global split h of the label's
-    correction between city and highway), F3 (a global bias c of the label against the formula).
+    correction between city and highway), F3 (a global bias c of the label against the formula);
+(blend) F5 / F5g (the second round: the HWFET's log scale a blend of F1's highway inversion and
+    F2's split, ``--part blend``), and F5 as `simulate` applies it (measured.cycle_factors).
 
 Every global constant is fitted on the other manufacturers (22 folds, one per manufacturer, and
 the 5 folds of validation/fleet_error.py); nothing per vehicle.
@@ -140,9 +142,10 @@ class Setup:
         return lines
 
 
-def one_ftp_lines(s: Setup) -> list[str]:
+def one_ftp_lines(s: Setup) -> tuple[list[str], dict, dict]:
     """(a) R0: the measured FTP, the share fitted held out on all vehicles with an FTP; A1: the
-    label's UCity as the measured FTP (the model type's unadjusted city figure)."""
+    label's UCity as the measured FTP (the model type's unadjusted city figure). Returns the
+    lines and R0's and A1's held-out results (:meth:`Setup.route`)."""
     k = 1.0 + s.err["FTP"].to_numpy()
     everyone = np.isfinite(k)
     r0 = s.route([scaled(s.err, k, k ** x, k ** x) for x in SHARE_GRID], rows=everyone)
