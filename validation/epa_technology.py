@@ -129,7 +129,7 @@ FRICTION_FORM = "chen_flynn"
 #: the fuel equation's, "bore" + the brake work x B_ref / B (heat loss ~ surface / volume); slope fuel
 SLOPE_FORMS = {"constant": (), "bore": ("X_brake_bore",)}
 SLOPE_FORM = "constant"
-BORE_REF_M = 0.086
+BORE_REF_M = 0.086   # B_ref [m] of the bore forms (docs/validation-epa.md: 86 mm; about a square 2.0 L four, engine.stroke_m)
 
 
 def stop_extra():
@@ -214,9 +214,9 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
-        arrb = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]  # slope extras
+        slope_extras = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]
         offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
-        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, arrb].sum(1)
+        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, slope_extras].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
                                        B=slope, O=terms[:, offset].sum(1), C=cold)))
     rows = pd.concat(parts)
