@@ -237,7 +237,7 @@ def test_reference_names_are_the_reference_file():
 def test_phase2_reference_vehicle_within_5pct_of_its_standard(reference_rows, name):
     """Issue 21's done-when for one reference vehicle: its GEM composite (GEM's cycles,
     weighting, payload and, for vocational vehicles, idle cycles) within 5 % of its MY2021
-    standard. Passes now: the class 7 day cab (measured -0.9 %; -3.4 % on level cruise)."""
+    standard. Passes now: the class 7 day cab (measured -1.0 %; -3.4 % on level cruise)."""
     row = next(r for r in reference_rows if r["vehicle"] == name)
     assert abs(row["co2_error"]) <= 0.05, row
 
