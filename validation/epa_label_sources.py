@@ -137,9 +137,18 @@ class Setup:
         rows = self.used if rows is None else rows
         lines = []
         for split, (e, chosen) in res.items():
-            pick = "" if grid is None else f"; chosen {grid[min(chosen)]}..{grid[max(chosen)]}"
+            pick = "" if grid is None else f"; chosen {chosen_range(grid, chosen)}"
             lines.append(f"{name} [{split}]: {cells(e, rows)}{pick}")
         return lines
+
+
+def chosen_range(grid, chosen) -> str:
+    """The folds' chosen grid points as a range: lowest..highest, for a grid of tuples each
+    parameter's own lowest..highest (the first and last tuple in grid order are not that)."""
+    picked = [grid[i] for i in chosen]
+    if isinstance(picked[0], tuple):
+        return " / ".join(f"{min(p[j] for p in picked)}..{max(p[j] for p in picked)}" for j in range(len(picked[0])))
+    return f"{min(picked)}..{max(picked)}"
 
 
 def one_ftp_lines(s: Setup) -> tuple[list[str], dict, dict]:
