@@ -327,3 +327,6 @@ class LabelBlend:
     highway_share: float
     weight: float
     transfer_share: float
+
+
+__all__ += ["LabelSplit", "LabelBlend"]
