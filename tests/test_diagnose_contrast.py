@@ -57,11 +57,31 @@ def test_the_true_effect_wins_where_the_pooled_fit_cannot_tell(truth):
     assert wins >= 9
 
 
-def test_noise_alone_names_no_winner_mostly():
+@pytest.mark.parametrize("noise", ["own", "both"])
+def test_noise_alone_names_no_winner_mostly(noise):
     winners = 0
     for seed in range(20):
         rng, grade, drag = _drive(seed=seed)
         r = _noise(rng, len(grade), 0.1)
-        who, _ = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(grade)), 0.99)
+        who, _ = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(grade)), 0.99, noise)
         winners += who is not None
     assert winners <= 2
+
+
+@pytest.mark.parametrize("truth", ["grade", "drag"])
+def test_the_null_with_both_effects_in_names_the_true_one_and_never_the_other(truth):
+    wins = 0
+    for seed in range(10):
+        rng, grade, drag = _drive(seed=seed)
+        x = grade if truth == "grade" else drag
+        r = 0.3 * x / np.sqrt(np.mean(x ** 2)) + _noise(rng, len(x), 0.1)
+        who, _ = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(x)), 0.99, "both")
+        wins += who == ("a" if truth == "grade" else "r")
+        assert who != ("r" if truth == "grade" else "a")
+    assert wins >= 9
+
+
+def test_an_unknown_null_noise_is_an_error():
+    rng, grade, drag = _drive()
+    with pytest.raises(ValueError, match="noise must be one of"):
+        compare(grade, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(grade)), 0.99, "pooled")

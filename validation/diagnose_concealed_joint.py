@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5|C] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5|C|C2] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -112,8 +112,14 @@ ROAD_KNOT = {"L": 1000.0, "Lr": 1000.0}
 DESIGNS["C"] = DESIGNS["J3"]
 WEIGHTING["C"] = "noise"
 HOT_STARTS.add("C")
-#: designs whose rival check compares ties on contrast folds (fleetrun.diagnose.contrast)
-CONTRAST = {"C"}
+# pre-registered after C (not blind; docs/diagnose-realdata.md, 1i): C with the null's noise the
+# residual of the model with both effects
+DESIGNS["C2"] = DESIGNS["J3"]
+WEIGHTING["C2"] = "noise"
+HOT_STARTS.add("C2")
+#: design -> the contrast null's noise (Settings.contrast_noise) for designs whose rival check
+#: compares ties on contrast folds (fleetrun.diagnose.contrast)
+CONTRAST = {"C": "own", "C2": "both"}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -188,7 +194,7 @@ def run(design: str, workdir=None, sizes=SIZES, road: bool = False,
     workdir = Path(workdir or tempfile.mkdtemp())
     refit = design in ROAD_REFIT or road
     if design in CONTRAST:
-        settings = replace(settings or Settings(), contrast_rivals=True)
+        settings = replace(settings or Settings(), contrast_rivals=True, contrast_noise=CONTRAST[design])
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]

@@ -73,18 +73,29 @@ def _statistic(Y, others: list, term_a: tuple, term_r: tuple, folds) -> np.ndarr
     return heldout_sse(Y, others + [term_r], folds) - heldout_sse(Y, others + [term_a], folds)
 
 
-def _pseudo(r, others: list, term: tuple, shifts) -> np.ndarray:
-    """Residuals as if ``term`` were the truth: its fit (with ``others``) plus its own
-    residual circularly shifted by each of ``shifts``: (B, n)."""
-    terms = others + [term]
+#: Whose residual the null's shifted noise is (``compare(..., noise=...)``): ``"own"`` each
+#: hypothesis's own residual (design C, docs/diagnose-realdata.md 1i); ``"both"`` the residual
+#: of the model with both effects in (design C2, 1i), the same noise under either hypothesis.
+NOISE = ("own", "both")
+
+
+def _residual(r, terms: list) -> tuple[np.ndarray, np.ndarray]:
+    """The fit of ``terms`` (each coefficient within its bounds) and what it leaves of ``r``."""
     cols = np.array([t[0] for t in terms], dtype=float)
-    coef = full_fit(r, list(cols), [(t[1], t[2]) for t in terms])
-    fit = coef @ cols
-    e = r - fit
+    fit = full_fit(r, list(cols), [(t[1], t[2]) for t in terms]) @ cols
+    return fit, r - fit
+
+
+def _pseudo(r, others: list, term: tuple, shifts, noise=None) -> np.ndarray:
+    """Residuals as if ``term`` were the truth: its fit (with ``others``) plus ``noise`` (None:
+    its own residual) circularly shifted by each of ``shifts``: (B, n)."""
+    fit, e = _residual(r, others + [term])
+    e = e if noise is None else noise
     return fit[None, :] + np.stack([np.roll(e, int(k)) for k in shifts])
 
 
-def compare(r, others: list, term_a: tuple, term_r: tuple, shifts, quantile: float) -> tuple[str | None, dict]:
+def compare(r, others: list, term_a: tuple, term_r: tuple, shifts, quantile: float,
+            noise: str = "own") -> tuple[str | None, dict]:
     """Which of two effects the rows where their signatures differ favour.
 
     Parameters
@@ -95,19 +106,24 @@ def compare(r, others: list, term_a: tuple, term_r: tuple, shifts, quantile: flo
     term_a, term_r : tuple, the accepted effect's and the rival's ``(column, lower, upper)``
     shifts : array of int, circular shifts of the null (the selection's)
     quantile : float, the null's quantile a winner must pass (the selection's, 0.99)
+    noise : str, :data:`NOISE`: the null's noise is each hypothesis's own residual, or the
+        residual of the model with both effects (what neither describes)
 
     Returns
     -------
     ``"a"``, ``"r"`` or None (neither passes: still ambiguous), and the numbers
     ``{"T": ..., "T_if_r": quantile of T with R true, "T_if_a": 1 - quantile of T with A true}``.
     """
+    if noise not in NOISE:
+        raise ValueError(f"noise must be one of {NOISE}, got {noise!r}")
     folds = contrast_folds(term_a[0], term_r[0])
     if folds is None:
         return None, {}
+    e = None if noise == "own" else _residual(r, others + [term_a, term_r])[1]
     t = float(_statistic(r, others, term_a, term_r, folds)[0])
-    if_r = float(np.quantile(_statistic(_pseudo(r, others, term_r, shifts), others, term_a, term_r, folds),
+    if_r = float(np.quantile(_statistic(_pseudo(r, others, term_r, shifts, e), others, term_a, term_r, folds),
                              quantile))
-    if_a = float(np.quantile(_statistic(_pseudo(r, others, term_a, shifts), others, term_a, term_r, folds),
+    if_a = float(np.quantile(_statistic(_pseudo(r, others, term_a, shifts, e), others, term_a, term_r, folds),
                              1.0 - quantile))
     numbers = {"T": t, "T_if_r": if_r, "T_if_a": if_a}
     if t > if_r and t >= if_a:

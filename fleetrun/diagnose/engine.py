@@ -134,6 +134,9 @@ class Settings:
     #: more on the rows where their signatures differ most (:mod:`.contrast`;
     #: docs/diagnose-realdata.md, 1i)
     contrast_rivals: bool = False
+    #: the contrast null's noise (:data:`fleetrun.diagnose.contrast.NOISE`): "own" (design C),
+    #: "both" (design C2, docs/diagnose-realdata.md 1i)
+    contrast_noise: str = "own"
 
 
 def _params(cand: Candidate, shape: dict, coef: float) -> dict:
@@ -388,7 +391,8 @@ def _contrast_decides(s: _Search, a: Accepted, others: list, rivals: list) -> tu
         if cand.block is not None or a.cand.block is not None:
             tied.append(rival)
             continue
-        who, nums = compare(s.r, others, a.term(), (ccol, cand.lower, cand.upper), shifts, s.settings.quantile)
+        who, nums = compare(s.r, others, a.term(), (ccol, cand.lower, cand.upper), shifts, s.settings.quantile,
+                            s.settings.contrast_noise)
         s.statuses[cand.id]["contrast"] = {"against": a.id, "winner": {"a": a.id, "r": cand.id}.get(who),
                                            **{k: round(v, 6) for k, v in nums.items()}}
         if who == "r" and winner is None:
