@@ -117,6 +117,10 @@ def windowed(problem: Problem, w: int) -> Problem:
                    initial_terms=[(m(c), lo, hi) for c, lo, hi in problem.initial_terms], integral=ig, coarse=None)
 
 
+#: The contrast null's random stream (with ``Settings.seed``), apart from the selection's.
+CONTRAST_STREAM = 16
+
+
 @dataclass
 class Settings:
     folds: int = 5
@@ -384,7 +388,8 @@ def _contrast_decides(s: _Search, a: Accepted, others: list, rivals: list) -> tu
     compared). Each comparison's numbers go to the rival's status (``contrast``, extra key)."""
     n = len(s.r)
     lo_s = max(1, int(0.05 * n))
-    shifts = s.rng.integers(lo_s, n - lo_s, s.settings.n_shifts)
+    # a stream of its own: the contrast must not move the selection's later shift nulls
+    shifts = np.random.default_rng([s.settings.seed, CONTRAST_STREAM]).integers(lo_s, n - lo_s, s.settings.n_shifts)
     tied, winner = [], None
     for rival in rivals:
         cand, ccol = rival[2], rival[3]
