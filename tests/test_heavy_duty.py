@@ -156,18 +156,6 @@ def reference_rows():
     return hd_validation.check_reference_vehicles()
 
 
-def _tractors(rows, prefix):
-    return [r for r in rows if not r["gem_type"].startswith("vocational") and r["vehicle"].startswith(prefix)]
-
-
-def test_phase2_reference_class7_tractor_within_5pct_of_its_standard(reference_rows):
-    """The class 7 day cab on GEM's cycles and weighting against its MY2021 40 CFR 1037.106
-    standard (113.5 g/ton-mile): issue 21's 5 % (measured -1.0 % with the graded cruise
-    cycles, -3.4 % on level ones)."""
-    class7 = _tractors(reference_rows, "class7")
-    assert class7 and all(abs(r["co2_error"]) <= 0.05 for r in class7), class7
-
-
 # Engine size per class in DOE's "LD MDHD Benefits Analysis Assumptions FY2021" as NREL T3CO's
 # documentation lists it (docs/models/optimization.md at commit 85017ca6, BSD-3): (displacement
 # [L] it gives, rated power [kW]). The vocational medium HD row is its "class 6,7" (7 L, 201 kW;
@@ -211,18 +199,47 @@ def test_doe_nrel_vehicles_carry_gems_standard_payload():
         assert abs(v["cargo_kg"] / payload_kg - 1.0) < 1e-3, name
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "not reached: class 8 sleeper +10.8 %, day cab +9.4 % over their MY2021 standards on GEM's "
-    "cycles (graded cruise; +5.3 / +5.8 % on level cruise). Decomposed (docs/validation-heavy-duty.md): "
-    "the engine meets its SET standard on the ramped-modal cycle to -0.04 %; with the reference road load "
-    "the standard needs 43.6 % (sleeper) / 39.8 % (day cab) from fuel to wheels, against 39.3 / 36.4 % "
-    "modelled (a single drive axle gives 40.6 / 37.6 %; the sleeper's would need an engine above its SET "
-    "average); the rest is EPA's "
-    "MY2021 package and GEM's percentage inputs (1037.520(j)), not found as numbers"))
-def test_phase2_reference_class8_tractors_within_5pct_of_their_standards(reference_rows):
-    """Issue 21's done-when: the Phase 2 reference tractors within 5 % of their standards."""
-    class8 = _tractors(reference_rows, "class8")
-    assert class8 and all(abs(r["co2_error"]) <= 0.05 for r in class8), class8
+# Issue 21's done-when, one vehicle at a time: each Phase 2 reference vehicle's GEM composite
+# within 5 % of its MY2021 standard (40 CFR 1037.106 tractors, 1037.105 vocational). A vehicle
+# that misses is a strict expected failure naming its measured miss (docs/validation-heavy-duty.md
+# section 2), so it fails the suite the day it passes and the passing ones are asserted.
+_CLASS8_MISS = ("EPA's MY2021 package (CdA, tyres, gearing, GEM's percentage inputs of 1037.520(j)) was not "
+                "found; the engine meets its SET standard to -0.04 %, a single drive axle leaves +7.3 / +6.0 %, "
+                "level cruise +5.3 / +5.8 %")
+_VOCATIONAL_MISS = ("GEM's vocational vehicle inputs were not found (heavy HD CdA, gear sets and axle ratios are "
+                    "estimates) and the engine's no-load idle is 40-67 % of measured trucks'; a 90 kPa no-load "
+                    "intercept (pre-registered, not kept) gave heavy HD -8.7 / -2.7 / +0.9 %, medium HD "
+                    "-14.6 / -5.9 / -2.8 %")
+REFERENCE_MISSES = {
+    "class8_sleeper_high_roof": "+10.8 % (graded cruise); " + _CLASS8_MISS,
+    "class8_day_high_roof": "+9.4 % (graded cruise); " + _CLASS8_MISS,
+    "hhd_vocational_regional": "-12.7 %; " + _VOCATIONAL_MISS,
+    "hhd_vocational_multipurpose": "-10.6 %; " + _VOCATIONAL_MISS,
+    "hhd_vocational_urban": "-9.1 %; " + _VOCATIONAL_MISS,
+    "mhd_vocational_regional": "-17.8 %; " + _VOCATIONAL_MISS,
+    "mhd_vocational_multipurpose": "-13.9 %; " + _VOCATIONAL_MISS,
+    "mhd_vocational_urban": "-13.4 %; " + _VOCATIONAL_MISS,
+}
+REFERENCE_NAMES = ("class8_sleeper_high_roof", "class8_day_high_roof", "class7_day_high_roof",
+                   "hhd_vocational_regional", "hhd_vocational_multipurpose", "hhd_vocational_urban",
+                   "mhd_vocational_regional", "mhd_vocational_multipurpose", "mhd_vocational_urban")
+
+
+def test_reference_names_are_the_reference_file():
+    """The per-vehicle 5 % test below covers every vehicle of gem_reference_vehicles.toml."""
+    _, vehicles = hd_validation.reference_vehicles()
+    assert tuple(vehicles) == REFERENCE_NAMES
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="not reached: " + REFERENCE_MISSES[n]))
+    if n in REFERENCE_MISSES else n for n in REFERENCE_NAMES])
+def test_phase2_reference_vehicle_within_5pct_of_its_standard(reference_rows, name):
+    """Issue 21's done-when for one reference vehicle: its GEM composite (GEM's cycles,
+    weighting, payload and, for vocational vehicles, idle cycles) within 5 % of its MY2021
+    standard. Passes now: the class 7 day cab (measured -0.9 %; -3.4 % on level cruise)."""
+    row = next(r for r in reference_rows if r["vehicle"] == name)
+    assert abs(row["co2_error"]) <= 0.05, row
 
 
 def test_sleeper_standard_needs_more_than_an_engine_at_its_standard_gives():
@@ -241,17 +258,6 @@ def test_sleeper_standard_needs_more_than_an_engine_at_its_standard_gives():
     fuel_g_per_kWh = standard_for("heavy", 2021) / (HP_W / 1000.0) / co2_g_per_g_fuel()
     engine_at_standard = 3.6e3 / (fuel_g_per_kWh * fuel_properties("diesel").lhv_MJ_per_kg)
     assert shipped["wheel_to_fuel_at_standard"] > engine_at_standard * driveline > shipped["wheel_to_fuel"]
-
-
-@pytest.mark.xfail(strict=True, reason=(
-    "not reached: vocational reference vehicles -9 to -18 % below their MY2021 40 CFR 1037.105 "
-    "standards with GEM's idle and graded cycles (heavy HD -12.7 / -10.6 / -9.1 %, medium HD -17.8 / -13.9 / "
-    "-13.4 % regional / multi-purpose / urban; -9 to -34 % before the medium HD vehicles took DOE's box-truck "
-    "road load); the heavy HD CdA, the gear sets and axle ratios are estimates, not GEM's vocational defaults, "
-    "and the engine's no-load idle is 40-67 % of measured trucks' (docs/validation-heavy-duty.md)"))
-def test_phase2_reference_vocational_vehicles_within_5pct_of_their_standards(reference_rows):
-    vocational = [r for r in reference_rows if r["gem_type"].startswith("vocational")]
-    assert vocational and all(abs(r["co2_error"]) <= 0.05 for r in vocational), vocational
 
 
 def test_grade_by_distance_is_the_shipped_grade_for_a_truck_on_the_trace():

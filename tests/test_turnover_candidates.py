@@ -79,3 +79,20 @@ def test_class_mpg_of_2000_on_vm1():
     row = candidates.main(["--candidates", "shipped", "--years", "2000"]).iloc[0]
     assert row.automobile_mpg == pytest.approx(22.0, rel=0.02)
     assert row.light_truck_mpg == pytest.approx(17.5, rel=0.02)
+
+
+def test_m2_age_distribution_is_production_times_survival():
+    """Candidate M2 (pre-registered): the base year's age shares are Trends' production of each
+    model year times survival, normalised. Trends 2022 export: cars MY2000 9,742 thousand,
+    MY1990 8,875; so the share at age 0 over age 10 in 2000 is (9742 x S(0)) / (8875 x S(10))."""
+    _, candidates = _modules()
+    from fleetrun.registrations import turnover
+
+    shares = candidates.production_age_distribution("automobile", 2000)
+    survival = turnover.survival("automobile")
+    assert shares.sum() == pytest.approx(1.0, abs=1e-12)
+    assert shares[0] / shares[10] == pytest.approx(9742 * survival[0] / (8875 * survival[10]), rel=1e-12)
+    # model years before Trends' first (1975) take 1975's production: ages 25 (MY1975) and 26 (MY1974)
+    early = candidates.production_age_distribution("light_truck", 2000)
+    truck_survival = turnover.survival("light_truck")
+    assert early[26] / early[25] == pytest.approx(truck_survival[26] / truck_survival[25], rel=1e-12)

@@ -14,9 +14,11 @@ error comes from" and "Turnover against the same period").
    states tried by validation/state_fuel.py against the others (Hawaii-Pennsylvania, whose 2008
    registrations the truck split uses, so they are never in a hit count);
 3. per base year, the light-duty fleet's mpg change of the model (the CSV's
-   ``ld_mpg_change_pct_per_year``, over the same years as the run) against FHWA VM-1's on-road
-   passenger-car and other 2-axle 4-tire vehicle mpg of the same calendar years
-   (``vm1_onroad_mpg.csv``) and the nation's miles per gallon of highway gasoline.
+   ``ld_mpg_change_pct_per_year``, over the same years as the run) against the published range of
+   the same calendar years (pre-registration P2 of the docs page: every published on-road series
+   of one table and one light-duty category giving both years, ``vm1_onroad_mpg.csv`` and
+   ``ld_onroad_mpg_series.csv``), state-years within / below / above, and the nation's miles per
+   gallon of highway gasoline.
 
 Every input is in ``inputs/state_statistics/`` (PROVENANCE.md there); no constant is fitted.
 """
@@ -135,28 +137,70 @@ def pct_per_year(start: float, end: float, years: int) -> float:
     return 100 * ((end / start) ** (1 / years) - 1)
 
 
+HALF_DIGIT = 0.05          # [mpg] half the last printed digit of every published value
+
+# VM-1's categories in the two BTS tables of ``vm1_onroad_mpg.csv`` (one column each)
+VM1_TSAR_CATEGORIES = {"passenger_car_mpg": "passenger_car", "other_2axle_4tire_mpg": "other_2axle_4tire"}
+
+
+def published_series() -> pd.DataFrame:
+    """Every published on-road light-duty mpg value, one row per source (table and edition),
+    year and vehicle category: the BTS tables of ``vm1_onroad_mpg.csv`` and the EIA / ORNL tables
+    of ``ld_onroad_mpg_series.csv`` (PROVENANCE.md there)."""
+    tsar = pd.read_csv(STATS / "vm1_onroad_mpg.csv").melt(
+        id_vars=["year", "edition"], value_vars=list(VM1_TSAR_CATEGORIES), var_name="category", value_name="mpg")
+    tsar = tsar.rename(columns={"edition": "source"}).replace({"category": VM1_TSAR_CATEGORIES})
+    other = pd.read_csv(STATS / "ld_onroad_mpg_series.csv")
+    return pd.concat([tsar, other], ignore_index=True)[["source", "year", "category", "mpg"]]
+
+
+def series_changes(start: int, end: int) -> pd.DataFrame:
+    """The compound change [%/yr] from ``start`` to ``end`` of every published series (one
+    source, one category) that gives both years; never a pair across categories or sources
+    (docs/validation-state-fuel.md, pre-registration P2). ``rounded_low`` / ``rounded_high``: the
+    change with each printed value moved by half its last digit (0.05 mpg) against / in favour of
+    a gain (information only; P2's range adds no such allowance)."""
+    values = published_series().pivot_table(index=["source", "category"], columns="year", values="mpg")
+    if start not in values.columns or end not in values.columns:
+        return pd.DataFrame(columns=["source", "category", "change_pct_per_year", "rounded_low", "rounded_high"])
+    both = values[[start, end]].dropna().to_numpy()
+    years = end - start
+    return pd.DataFrame({"change_pct_per_year": [pct_per_year(a, b, years) for a, b in both],
+                         "rounded_low": [pct_per_year(a + HALF_DIGIT, b - HALF_DIGIT, years) for a, b in both],
+                         "rounded_high": [pct_per_year(a - HALF_DIGIT, b + HALF_DIGIT, years) for a, b in both]},
+                        index=values[[start, end]].dropna().index).reset_index()
+
+
 def published_change(start: int, end: int) -> dict:
-    """FHWA VM-1 on-road mpg change [%/yr] of passenger cars and other 2-axle 4-tire vehicles
-    from ``start`` to ``end`` (each edition that has both years), and the nation's miles per
-    gallon of highway gasoline (VM-2 miles / MF-21 gasoline)."""
-    vm1 = pd.read_csv(STATS / "vm1_onroad_mpg.csv")
-    changes = []
-    for _, edition in vm1.groupby("edition"):
-        edition = edition.set_index("year")
-        if start in edition.index and end in edition.index:
-            for column in ("passenger_car_mpg", "other_2axle_4tire_mpg"):
-                changes.append(pct_per_year(edition[column][start], edition[column][end], end - start))
+    """The published range [%/yr] of on-road light-duty mpg from ``start`` to ``end`` (min and
+    max over :func:`series_changes`; NaN where no series gives both years) and the nation's
+    miles per gallon of highway gasoline (VM-2 miles / MF-21 gasoline)."""
+    series = series_changes(start, end)
+    changes = series.change_pct_per_year
     nation = national()
     mpg = nation.vmt_million_mi / nation.highway_gasoline_kgal * 1e3
-    return {"vm1_low": min(changes) if changes else float("nan"),
-            "vm1_high": max(changes) if changes else float("nan"),
+    return {"vm1_low": changes.min() if len(changes) else float("nan"),
+            "vm1_high": changes.max() if len(changes) else float("nan"),
+            "series": len(changes),
+            "rounded_low": series.rounded_low.min() if len(series) else float("nan"),
+            "rounded_high": series.rounded_high.max() if len(series) else float("nan"),
             "nation_mi_per_gal_gasoline": pct_per_year(mpg[start], mpg[end], end - start)}
 
 
-def turnover_by_period(results: pd.DataFrame) -> pd.DataFrame:
-    """Per base year and period of the runs: the model's light-duty mpg change against the
-    published change of the same calendar years."""
-    mv1 = results[results.inputs == "mv1"].copy()
+def judge(model: pd.Series, low: float, high: float) -> dict:
+    """State-years within the published range (ends included), below and above it; a period
+    without a published range is not judged."""
+    if low != low:
+        return {"within": 0, "below": 0, "above": 0, "not_judged": len(model)}
+    return {"within": int(((model >= low) & (model <= high)).sum()), "below": int((model < low).sum()),
+            "above": int((model > high).sum()), "not_judged": 0}
+
+
+def turnover_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
+    """Per base year and period of the runs of one input variant (``mv1``: the issue's workbook;
+    ``mv1+vm4``): the model's light-duty mpg change against the published range of the same
+    calendar years."""
+    mv1 = results[results.inputs == inputs].copy()
     data = pd.read_csv(state_fuel.DATA)
     by_key = {(r.state, r.year): r for _, r in data.iterrows()}
 
@@ -168,13 +212,22 @@ def turnover_by_period(results: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for (start, end), part in mv1.groupby(["year", "end"]):
         published = published_change(int(start), int(end))
-        low, high = published["vm1_low"], published["vm1_high"]
         model = part.ld_mpg_change_pct_per_year
-        inside = ((model >= low) & (model <= high)) if low == low else pd.Series([pd.NA] * len(part))
+        counts = judge(model, published["vm1_low"], published["vm1_high"])
         rows.append({"start": int(start), "end": int(end), "state_years": len(part),
                      "model_low": model.min(), "model_high": model.max(), **published,
-                     "in_vm1_range": inside.sum() if low == low else pd.NA})
+                     "in_vm1_range": counts["within"] if published["series"] else pd.NA, **counts})
     return pd.DataFrame(rows)
+
+
+def turnover_verdict(table: pd.DataFrame) -> dict:
+    """The issue's line over every judged period: state-years within / outside the published
+    range, and whether every judged state-year is within."""
+    judged = table[table.not_judged == 0]
+    outside = int(judged.below.sum() + judged.above.sum())
+    return {"judged": int(judged.state_years.sum()), "within": int(judged.within.sum()), "outside": outside,
+            "not_judged": int(table.not_judged.sum()), "holds": outside == 0,
+            "periods_outside": [f"{r.start}->{r.end}" for r in judged.itertuples() if r.below + r.above]}
 
 
 def main(argv=None) -> dict:
@@ -183,6 +236,11 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
     results = pd.read_csv(RESULTS)
     out = {"sample": sample_by_year(results), "turnover": turnover_by_period(results)}
+    out["turnover_series"] = pd.concat([series_changes(r.start, r.end).assign(start=r.start, end=r.end)
+                                        for r in out["turnover"].itertuples()], ignore_index=True)
+    out["turnover_vm4"] = turnover_by_period(results, "mv1+vm4")
+    out["turnover_verdict"] = pd.DataFrame([{"inputs": name, **turnover_verdict(out[key])}
+                                            for name, key in (("mv1", "turnover"), ("mv1+vm4", "turnover_vm4"))])
     if not args.no_runs:
         nation = national_runs()
         out["national"] = nation

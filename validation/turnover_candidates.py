@@ -23,7 +23,11 @@ truck mpg. Candidates change only how a cohort's model year scales its simulated
 - ``H3``: miles per vehicle flat over age (OMEGA's curves' survival-weighted mean), on the
   shipped default;
 - ``H4``: ``rw_all`` with the electric vehicles taken out of every model year (the library's
-  MY2022 vehicles are non-electric); ``H1ae``, ``H2e``, ``H2labe``: H1a, H2, H2lab likewise.
+  MY2022 vehicles are non-electric); ``H1ae``, ``H2e``, ``H2labe``: H1a, H2, H2lab likewise;
+- ``M2``: the shipped default with the base year's age distribution of automobiles and light
+  trucks from the model years' own sales, P(B - a) x S(a) normalised, P Trends' car / truck
+  production (``inputs/epa_trends/trends_2022_production.csv``; before 1975, 1975's) in place of
+  the constant-sales steady state (docs/validation-state-fuel.md, pre-registration M2).
 """
 from __future__ import annotations
 
@@ -45,11 +49,17 @@ import state_fuel  # noqa: E402  (the issue's workbook, its one owner)
 sys.path.insert(0, str(ROOT / "models" / "vehicle_library"))
 import make_trends  # noqa: E402  (the non-electric Trends tables, their one owner)
 
+import importlib  # noqa: E402
+
 from fleetrun.registrations import turnover  # noqa: E402
+
+expand = importlib.import_module("fleetrun.registrations.expand")   # the module (the package exports a function of that name)
 
 NATIONAL = ROOT / "inputs" / "state_statistics" / "national_sum_years.csv"
 LIGHT_DUTY = ("automobile", "light_truck")
-CANDIDATES = ("shipped", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe")
+CANDIDATES = ("shipped", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe", "M2")
+PRODUCTION = ROOT / "inputs" / "epa_trends" / "trends_2022_production.csv"
+TRENDS_CLASS = {"automobile": "car", "light_truck": "truck"}
 PHASE_IN_END = 2005        # Trends: shortfall phased in over MY1986-2004, derived 5-cycle from 2005
 
 
@@ -93,10 +103,34 @@ def calendar_phase_in(year: int) -> float:
     return float(r[PHASE_IN_END] / r[min(max(year, int(r.index.min())), PHASE_IN_END)])
 
 
+def production_age_distribution(fhwa_class: str, base: int) -> np.ndarray:
+    """M2: share of the class's vehicles at age 0..max_age in ``base``, P(base - a) x S(a)
+    normalised, P Trends' production of the model year (the first year's before it)."""
+    table = pd.read_csv(PRODUCTION)
+    table = table[table.regulatory_class == TRENDS_CLASS[fhwa_class]].set_index("model_year").production_thousand
+    survival = turnover.survival(fhwa_class)
+    years = base - np.arange(len(survival))
+    sold = table.reindex(np.clip(years, table.index.min(), table.index.max())).to_numpy(float)
+    weights = sold * survival
+    return weights / weights.sum()
+
+
+def _m2_model_years(shipped):
+    def model_years(row, fhwa_class, base):
+        if row.get("model_year") is not None or fhwa_class not in TRENDS_CLASS:
+            return shipped(row, fhwa_class, base)
+        shares = production_age_distribution(fhwa_class, base)
+        return base - np.arange(len(shares)), shares, "age distribution from Trends' production (candidate M2)"
+    return model_years
+
+
 @contextmanager
 def candidate_patch(candidate: str):
     """The candidate's turnover functions in place for the duration."""
     saved = turnover.fuel_factor, turnover.miles_by_age
+    saved_years = expand._model_years
+    if candidate == "M2":
+        expand._model_years = _m2_model_years(saved_years)
     factor = fuel_factor_for(candidate)
     if factor is not None:
         turnover.fuel_factor = factor
@@ -111,6 +145,7 @@ def candidate_patch(candidate: str):
         yield
     finally:
         turnover.fuel_factor, turnover.miles_by_age = saved
+        expand._model_years = saved_years
 
 
 def run_year(candidate: str, row: pd.Series, later: pd.Series, folder: Path) -> dict:
