@@ -58,6 +58,8 @@ class VehicleSpec:
     measured_ftp_mpg: float | None = None  # measured FTP composite: calibrates the vehicle's efficiency
     label_combined_mpg: float | None = None   # EPA label combined, used when no measured FTP
     label_group: str | None = None       # rows sharing one label: one fuel scale (simulation/measured.py)
+    label_city_mpg: float | None = None      # EPA label city and highway: with both, the city-and-highway
+    label_highway_mpg: float | None = None   # route of simulation/measured.py (used when no measured FTP)
     extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):

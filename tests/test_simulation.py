@@ -351,6 +351,34 @@ def test_redrive_is_the_plain_step_loop_bit_for_bit():
         np.testing.assert_array_equal(alone, plain)
 
 
+@pytest.mark.parametrize("variant", ["numpy_bounds", "grid_below_the_trace", "grid_step_not_a_power_of_two"])
+def test_redrive_paths_of_the_step_walk_are_the_plain_step_loop_bit_for_bit(monkeypatch, variant):
+    # the walk (core._stepper, core._lanes, core._bounds) takes other paths when an input is
+    # not a plain number (numpy's minimum / maximum instead of fmin / fmax / clip), when the
+    # trace passes the force table's top speed (the cell position clipped) and when the grid
+    # step is not a power of two (v / dv divided, not multiplied): each must still give the
+    # plain loop's speeds exactly
+    from fleetrun.simulation import core
+    from fleetrun.simulation.params import vehicle_arrays as arrays
+
+    if variant == "numpy_bounds":
+        monkeypatch.setattr(core, "_plain_numbers", lambda *a: False)
+    elif variant == "grid_below_the_trace":    # US06 reaches 35.9 m/s
+        monkeypatch.setattr(core, "REDRIVE_SPEED_GRID", np.linspace(0.0, 30.0, 121))
+    else:
+        monkeypatch.setattr(core, "REDRIVE_SPEED_GRID", np.linspace(0.0, 70.0, 301))
+    weak = [dataclasses.replace(CIVIC, vehicle_id=f"w{i}", peak_engine_torque_Nm=60.0 + 10 * i, rated_power_kW=20.0 + 5 * i)
+            for i in range(6)]
+    va = arrays(weak + [CAMRY])
+    cyc = load_cycle("US06")
+    n = cyc.time_s.size
+    graded = DriveCycle("graded", cyc.time_s, cyc.speed_mps, np.where(np.arange(n) % 300 < 100, 0.0, 4.0))
+    for c in (cyc, graded):
+        vector = core.forward_redrive(va, c.time_s, c.speed_mps, c.grade_pct, 0.9)
+        assert (vector < c.speed_mps - 1.0).any(axis=1)[:6].all()    # the weak cars fall behind
+        np.testing.assert_array_equal(vector, _plain_redrive_loop(va, c, 0.9))
+
+
 def test_a_vehicles_results_do_not_depend_on_who_falls_behind_with_it():
     # vehicles that fall behind are not summed before the re-drive (their fuel would be
     # replaced): a block of them not at all, on the trace those above full load in one of the

@@ -139,6 +139,64 @@ def test_label_scale_reproduces_the_label_through_epas_formulas(model_year, city
     assert 1 / (0.55 / city + 0.45 / highway) == pytest.approx(label, rel=1e-12)
 
 
+@pytest.mark.parametrize("highway_share", [0.0, 0.55, 1.3])
+def test_label_scale_with_a_split_still_gives_the_label(highway_share):
+    """With FTP / k and HWFET / k^h (models/technology.toml [label_split]) the derived formulas
+    (MY2017 set, 40 CFR 600.210-12) give the label back; alone and for a label group (the mean
+    of the group's label fuel per mile is the label's)."""
+    ftp, hwy, label = np.array([30.0, 25.0, 40.0]), np.array([45.0, 35.0, 55.0]), np.array([27.0, 20.0, 30.0])
+    (ac, bc), (ah, bh) = (0.004091, 1.1601), (0.003191, 1.2945)
+
+    def label_gpm(k):
+        return 0.55 * (ac + bc * k / ftp) + 0.45 * (ah + bh * k ** highway_share / hwy)
+
+    k = measured.label_scale(label, ftp, hwy, model_years=[2022] * 3, highway_share=highway_share)
+    assert label_gpm(k) == pytest.approx(1.0 / label, rel=1e-12)
+    g = measured.label_scale(label, ftp, hwy, model_years=[2022] * 3, groups=["a", "a", None],
+                             highway_share=highway_share)
+    assert g[0] == g[1] and g[2] == pytest.approx(k[2], rel=1e-12)
+    assert label_gpm(g)[:2].mean() == pytest.approx((1.0 / label[:2]).mean(), rel=1e-12)
+
+
+def test_a_label_takes_k_on_the_ftp_k_to_h_on_the_hwfet_and_k_to_s_elsewhere():
+    """`simulate` with `label_combined_mpg`: the FTP and HWFET at 25 C meet the label through
+    EPA's formulas with the HWFET scaled by k^h; US06 and other ambients take k^s'
+    (models/technology.toml [label_split]; docs/validation-epa.md, F2)."""
+    split = measured.label_split()
+    cal = dataclasses.replace(CAMRY, label_combined_mpg=27.0, model_year=2022)
+    raw = {c: simulate([CAMRY], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
+    new = {c: simulate([cal], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
+    k = raw["FTP"] / new["FTP"]
+    assert new["HWFET"] == pytest.approx(raw["HWFET"] / k ** split.highway_share, rel=1e-12)
+    assert new["US06"] == pytest.approx(raw["US06"] / k ** split.transfer_share, rel=1e-12)
+    assert epa_label.combined_label_mpg(new["FTP"], new["HWFET"], epa_label.set_for_model_year(2022)) == \
+        pytest.approx(27.0, rel=1e-9)
+    cold = simulate([CAMRY], "FTP", ambient_temp_C=-7.0).mpg[0] / simulate([cal], "FTP", ambient_temp_C=-7.0).mpg[0]
+    assert cold == pytest.approx(k ** split.transfer_share, rel=1e-12)
+
+
+def test_a_label_with_city_and_highway_figures_takes_the_blend():
+    """`label_city_mpg` and `label_highway_mpg` (F5, docs/validation-epa.md): the FTP at 25 C meets
+    the city figure through EPA's city formula (MY2017 set, 40 CFR 600.210-12); the HWFET takes
+    exp(w log k_H + (1 - w) h' log k), k_H the highway formula's scale, k the combined figure's
+    (their 55/45 mean when no combined figure is given); other cycles k^s''."""
+    blend = measured.label_blend()
+    cal = dataclasses.replace(CAMRY, label_city_mpg=24.0, label_highway_mpg=33.0, model_year=2022)
+    raw = {c: simulate([CAMRY], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
+    new = {c: simulate([cal], c, ambient_temp_C=25.0).mpg[0] for c in ("FTP", "HWFET", "US06")}
+    (ac, bc), (ah, bh) = (0.004091, 1.1601), (0.003191, 1.2945)
+    assert 1.0 / (ac + bc / new["FTP"]) == pytest.approx(24.0, rel=1e-12)
+    combined = 1.0 / (0.55 / 24.0 + 0.45 / 33.0)
+    k = measured.label_scale(combined, raw["FTP"], raw["HWFET"], model_years=[2022],
+                             highway_share=blend.highway_share)[0]
+    k_highway = (1.0 / 33.0 - ah) * raw["HWFET"] / bh
+    hw = math.exp(blend.weight * math.log(k_highway) + (1 - blend.weight) * blend.highway_share * math.log(k))
+    assert new["HWFET"] == pytest.approx(raw["HWFET"] / hw, rel=1e-12)
+    assert new["US06"] == pytest.approx(raw["US06"] / k ** blend.transfer_share, rel=1e-12)
+    only_city = dataclasses.replace(CAMRY, label_city_mpg=24.0, model_year=2022)     # one of the two: not used
+    assert simulate([only_city], "FTP", ambient_temp_C=25.0).mpg[0] == raw["FTP"]
+
+
 def test_measured_ftp_is_met_exactly_and_carried_with_the_share_elsewhere():
     cal = dataclasses.replace(CAMRY, measured_ftp_mpg=30.0)
     ftp = simulate([CAMRY], "FTP", ambient_temp_C=25.0).mpg[0]

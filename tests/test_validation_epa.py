@@ -91,3 +91,20 @@ def test_heldout_validation_reproduces_the_stored_figures():
         assert abs(s[test]["mean"]) < 0.025
     assert s["FTP"]["within_5pct"] >= 0.40
     assert s["HWFET"]["within_5pct"] >= 0.55 and s["US06"]["within_5pct"] >= 0.55
+
+
+def test_speed_squared_friction_sum_is_the_piston_speed_term_times_the_piston_speed():
+    """Chen & Flynn's c_m^2 friction candidate (docs/validation-epa.md, issue 22 fifth round):
+    per step FMEP power x c_m^2 x dt over the fuel equation's steps, i.e. the piston-speed friction
+    term weighted once more by c_m = (piston-speed term) / (friction term) of the same step."""
+    cars = [F150, CAMRY, CIVIC, AWD]
+    for cycle in ("UDDS", "US06"):
+        r = simulate(cars, cycle, trace=True)
+        va = vehicle_arrays(cars)
+        S = trace_terms(va, r.trace)
+        f, f_cm = S[..., FUEL_TERMS.index("friction")], S[..., FUEL_TERMS.index("friction_piston_speed")]
+        cm2 = trace_extras(va, r.trace)[..., EXTRA_SUMS.index("friction_piston_speed2")]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            expected = np.where(f > 0, f_cm ** 2 / f, 0.0)
+        np.testing.assert_allclose(cm2, expected, rtol=1e-9, atol=1e-9)
+        assert (cm2 > 0).any()

@@ -372,3 +372,20 @@ def test_label_group_is_read_onto_the_vehicle(tmp_path):
             vehicle("B", label_combined_mpg=28.0, label_group="camry 2.5"), vehicle("C")]
     fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
     assert [v.label_group for v in fleet.vehicles] == ["camry 2.5", "camry 2.5", None]
+
+
+def test_label_city_and_highway_are_read_onto_the_vehicle(tmp_path):
+    """`label_city_mpg`, `label_highway_mpg` (docs/workbook.md): optional numbers, 3-200 mpg."""
+    rows = [vehicle("A", label_city_mpg=24.0, label_highway_mpg=33.0), vehicle("C")]
+    fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
+    assert [(v.label_city_mpg, v.label_highway_mpg) for v in fleet.vehicles] == [(24.0, 33.0), (None, None)]
+
+
+def test_one_label_figure_of_the_pair_alone_is_a_warning(tmp_path):
+    """docs/workbook.md: `label_city_mpg` and `label_highway_mpg` are used together; one alone is
+    said at its cell (a warning, the row is still read)."""
+    rows = [vehicle("A", label_city_mpg=24.0), vehicle("B", label_highway_mpg=33.0, label_city_mpg=24.0)]
+    fleet = read_fleet(write_fleet(tmp_path / "f.xlsx", rows, [scenario()]))
+    text = "\n".join(fleet.warnings)
+    assert "label_city_mpg" in text and "label_highway_mpg is empty" in text
+    assert text.count("used together") == 1 and len(fleet.vehicles) == 2

@@ -47,7 +47,8 @@ from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
 from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
-from fleetrun.simulation.engine import FUEL_TERMS, fuel_coefficients, fuel_power_terms_W  # noqa: E402
+from fleetrun.simulation.engine import (FUEL_TERMS, fuel_coefficients, fuel_power_terms_W,  # noqa: E402
+                                        mean_piston_speed_m_s, mep_power_W_per_kPa)
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
 from fleetrun.simulation.technology import technology_constants  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
@@ -81,17 +82,20 @@ def trace_terms(va, tr):
     return np.stack([np.broadcast_to(t, n.shape) * dt for t in terms], axis=2)
 
 
-EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb")
+EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb",
+              "friction_piston_speed2")
 
 
 def trace_extras(va, tr):
-    """(V, N, 6) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    """(V, N, 8) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
     time [s], the time the engine turns in fuel cut-off [s] (warm engine), the standstill
     time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
     the engine stands still, outside a composed cycle's soak) and the acceleration term in the
     ARRB power model's form, max(a, 0) P_acc+ over the steps the fuel equation covers [J m/s^2]
-    (docs/validation-epa.md "acceleration term in ARRB's form")."""
+    (docs/validation-epa.md "acceleration term in ARRB's form") and Chen & Flynn's c_m^2 friction
+    term, FMEP power x c_m^2 over the same steps [W s^3/(kPa m^2)] (docs/validation-epa.md
+    "friction by bore and by speed squared")."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
@@ -101,8 +105,10 @@ def trace_extras(va, tr):
     stop_off = dt * ((tr.engine_speed_rpm <= 0) & (v <= 0.0) & in_cycle)
     warm = dt * (fueled & (tr.engine_speed_rpm > 0))          # trace_terms' steps
     arrb = (va.mass_kg * (1.0 + va.rot_frac))[:, None] * np.maximum(k.accel, 0.0) ** 2 * v * warm
+    c_m = mean_piston_speed_m_s(tr.engine_speed_rpm, va.stroke_m[:, None])
+    friction_cm2 = mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * c_m ** 2 * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2]
     return np.stack(out, axis=2)
 
 

@@ -56,6 +56,7 @@ from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
+from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
@@ -118,10 +119,34 @@ def pair_targets(table: pd.DataFrame, rep: np.ndarray) -> pd.DataFrame:
     return out
 
 
+#: the friction's form (``--friction-form``; docs/validation-epa.md "friction by bore and by speed
+#: squared"): "chen_flynn" the fuel equation's, "bore" + the PNH ring (B_ref/B)^2 and skirt c_m B_ref/B
+#: terms, "speed2" + Chen & Flynn's c_m^2 term; their columns are offset fuel (loss_split)
+FRICTION_FORMS = {"chen_flynn": (), "bore": ("X_friction_ring_bore", "X_friction_skirt_bore"),
+                  "speed2": ("X_friction_piston_speed2",)}
+FRICTION_FORM = "chen_flynn"
+#: the Willans slope's form (``--slope-form``; docs/validation-epa.md "Hypothesis F3"): "constant"
+#: the fuel equation's, "bore" + the brake work x B_ref / B (heat loss ~ surface / volume); slope fuel
+SLOPE_FORMS = {"constant": (), "bore": ("X_brake_bore",)}
+SLOPE_FORM = "constant"
+BORE_REF_M = 0.086
+
+
 def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
-    transient form "both", the ARRB acceleration term)."""
-    return (STOP_COLUMN, ARRB_COLUMN) if TRANSIENT_FORM == "both" else (STOP_COLUMN,)
+    transient form "both", the ARRB acceleration term; then the friction form's columns)."""
+    arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
+    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
+
+
+def with_bore_terms(d, specs):
+    """The dataset with the bore columns: the friction sum x (B_ref / B)^2, the piston-speed
+    friction sum x B_ref / B and the brake work x B_ref / B, B the model's bore (square engines:
+    the stroke)."""
+    ratio = BORE_REF_M / vehicle_arrays(specs).stroke_m[d.vehicle.to_numpy()]
+    return d.assign(X_friction_ring_bore=d.S_friction.to_numpy() * ratio ** 2,
+                    X_friction_skirt_bore=d.S_friction_piston_speed.to_numpy() * ratio,
+                    X_brake_bore=d.S_brake.to_numpy() * ratio)
 
 
 def transient_form(d):
@@ -189,9 +214,11 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
-        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, len(FUEL_TERMS) + 1:].sum(1)   # "both": the ARRB term
+        arrb = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]  # slope extras
+        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
+        slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, arrb].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
-                                       B=slope, O=terms[:, OFFSET_TERMS].sum(1), C=cold)))
+                                       B=slope, O=terms[:, offset].sum(1), C=cold)))
     rows = pd.concat(parts)
     return {k: _per_mile(rows, k) for k in "BOC"}
 
@@ -275,7 +302,7 @@ def line(label, err, rows=None):
 def datasets(specs, table):
     """(physics only, physics + technology) datasets (validation/epa_fuel_economy.build_dataset)."""
     bare = [dataclasses.replace(v, technology=None) for v in specs]
-    return transient_form(efe.build_dataset(bare, table)), transient_form(efe.build_dataset(specs, table))
+    return tuple(with_bore_terms(transient_form(efe.build_dataset(s, table)), specs) for s in (bare, specs))
 
 
 def omega_matches(specs):
@@ -347,6 +374,13 @@ def run(specs, table):
     return r
 
 
+def friction_kPa(fit, col):
+    """A friction-form column's fitted coefficient times the Willans slope's efficiency: the
+    FMEP it adds at B = B_ref [kPa; kPa s/m for the skirt, kPa (s/m)^2 for c_m^2]."""
+    c = fit["gasoline"]
+    return float(c[len(FUEL_TERMS) + stop_extra().index(col)] / c[0])
+
+
 def report(r, table):
     lines = []
     for name, key in (("physics only", "physics"), ("physics + technology", "technology"),
@@ -375,9 +409,20 @@ def report(r, table):
     stop = [f["gasoline"][n] for f in r["folds"].values()]
     lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
     if TRANSIENT_FORM != "constant":
-        k = np.array([f["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / f["gasoline"][0] for f in r["folds"].values()])
-        kf = r["final"]["gasoline"][-1 if TRANSIENT_FORM == "both" else n - 1] / r["final"]["gasoline"][0]
+        j = n + stop_extra().index(ARRB_COLUMN) if TRANSIENT_FORM == "both" else n - 1
+        k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
+        kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in SLOPE_FORMS[SLOPE_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        lines.append(f"slope form {SLOPE_FORM}: {col} coefficient / Willans slope: final "
+                     f"{r['final']['gasoline'][n + stop_extra().index(col)] / r['final']['gasoline'][0]:.4f}; "
+                     f"folds {min(k):.4f}-{max(k):.4f}")
+    for col in FRICTION_FORMS[FRICTION_FORM]:
+        k = [friction_kPa(f, col) for f in r["folds"].values()]
+        kf = friction_kPa(r["final"], col)
+        lines.append(f"friction form {FRICTION_FORM}: {col} coefficient x eta_indicated [kPa, or kPa (s/m)^2]: final "
+                     f"{kf:.3f}; folds {min(k):.3f}-{max(k):.3f}")
     lines.append("constants (final): " + str({k: round(float(v), 4) for k, v in efe.constants_of(r["final"]["gasoline"][:8]).items()}))
     for key in ("physics_pairs", "pairs", "one_number"):
         b = bias_report(r[key], r["paired_table"])
@@ -640,6 +685,86 @@ def breakdown_report(r, specs, table):
             + breakdown_elasticities(err, table, feats) + breakdown_trend(err, f, mf, alpha))
 
 
+#: ``--vehicle-residual`` feature groups (vehicle_features' columns)
+ENGINE_FEATURES = ("log_displacement", "cylinders", "log_cylinder_volume", "inverse_bore", "log_rated_power",
+                   "specific_power", "peak_bmep", "turbo", "atkinson", "miller", "cylinder_deactivation",
+                   "start_stop", "mild_hybrid_48v", "diesel")
+DRIVETRAIN_FEATURES = ("gears", "cvt", "automated_manual", "manual", "nv", "awd")
+RESIDUAL_LINES = ((), ("road_load",), ("road_load", "log_cylinder_volume"), ("road_load", "inverse_bore"),
+                  ("road_load", "log_cylinder_volume", "cvt", "awd"))
+
+
+def vehicle_features(specs, table, feats):
+    """Per vehicle, numbers of what the row and the technology join say about its engine,
+    drivetrain and body (``--vehicle-residual``; bore of a square engine from the cylinder volume)."""
+    v_cyl = table.displacement_L / table.cylinders
+    has = lambda name: feats.technology.str.contains(name).astype(float)  # noqa: E731
+    return pd.DataFrame(dict(
+        log_displacement=np.log(table.displacement_L), cylinders=table.cylinders, log_cylinder_volume=np.log(v_cyl),
+        inverse_bore=(4e-3 * v_cyl / np.pi) ** (-1 / 3), log_rated_power=np.log(table.rated_power_kW),
+        specific_power=table.specific_power_kW_per_L,
+        peak_bmep=[4e-3 * np.pi * v.peak_engine_torque_Nm / v.engine_displacement_L for v in specs],
+        **{k: has(k) for k in ("turbo", "atkinson", "miller", "cylinder_deactivation", "start_stop", "mild_hybrid_48v")},
+        diesel=(table.fuel != "gasoline").astype(float), gears=table.gears.astype(float),
+        **{k: (table.gearbox_type == k).astype(float) for k in ("cvt", "automated_manual", "manual")},
+        nv=feats.nv_rpm_per_mph, awd=table.configuration.astype(str).str.contains("4WD|AWD").astype(float),
+        log_weight=np.log(table.test_weight_kg), road_load=feats.road_load_50mph_W_per_kg,
+        power_to_weight=feats.power_to_weight_W_per_kg))
+
+
+def _grouped_prediction(X, y, manufacturer, learner=None):
+    """Each manufacturer's prediction of ``y`` by a straight line (or ``learner``) fitted on the others."""
+    X, pred = np.column_stack([np.ones(len(y)), X]), np.full(len(y), np.nan)
+    for g in np.unique(manufacturer):
+        fit_rows, rows = manufacturer != g, manufacturer == g
+        if learner is None:
+            pred[rows] = X[rows] @ np.linalg.lstsq(X[fit_rows], y[fit_rows], rcond=None)[0]
+        else:
+            pred[rows] = learner().fit(X[fit_rows], y[fit_rows]).predict(X[rows])
+    return pred
+
+
+def _residual_line(name, y, pred, L, joined):
+    """cvR2 of a held-out prediction of the vehicle residual and the joined shares with it removed."""
+    cells = []
+    for t in TESTS:
+        e, rows = L[t].to_numpy(), joined & np.isfinite(L[t].to_numpy())
+        cells.append(f"{t} {_share(e[rows]):.1%} -> {_share(e[rows] - pred[rows]):.1%}")
+    return f"  {name:60s} cvR2 {1 - np.var(y - pred) / np.var(y):+.3f}; joined within 5 %: " + ", ".join(cells)
+
+
+def vehicle_residual_report(r, specs, table):
+    """``--vehicle-residual``: the vehicle-level residual (mean held-out log error over FTP, HWFET,
+    US06) regressed on the engine, drivetrain and body, manufacturers held out
+    (docs/validation-epa.md "Where the vehicle-level residual comes from")."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    F = vehicle_features(specs, table, features(specs, table))
+    L = np.log1p(r["technology"]).reindex(F.index)
+    y = L[list(TESTS)].mean(axis=1).to_numpy()
+    ok = np.isfinite(y) & F.cylinders.notna().to_numpy()
+    F, L, y, mf = F[ok], L[ok], y[ok], table.manufacturer.to_numpy()[ok]
+    joined = np.isin(np.flatnonzero(ok), r["joined"])
+    lines = [f"vehicle residual: n {ok.sum()}, sd {y.std():.2%} (joined {y[joined].std():.2%}); share of each test's "
+             "log-error variance it carries: " + ", ".join(
+                 f"{t} {np.corrcoef(L[t][L[t].notna()], y[L[t].notna().to_numpy()])[0, 1] ** 2:.2f}" for t in TESTS)]
+    single = {c: 1 - np.var(y - (p := _grouped_prediction(F[[c]].to_numpy(), y, mf))) / np.var(y) for c in F.columns}
+    lines.append("single features, straight line, cvR2: " + ", ".join(f"{c} {v:+.3f}" for c, v in
+                                                                       sorted(single.items(), key=lambda x: -x[1])))
+    for cols in RESIDUAL_LINES:
+        lines.append(_residual_line("line: " + (" + ".join(cols) or "constant"), y,
+                                    _grouped_prediction(F[list(cols)].to_numpy(), y, mf), L, joined))
+    boost = lambda: HistGradientBoostingRegressor(max_iter=200, max_depth=3, learning_rate=0.05, random_state=0)  # noqa: E731
+    for name, cols in (("engine", ENGINE_FEATURES), ("drivetrain", DRIVETRAIN_FEATURES),
+                       ("engine + drivetrain", ENGINE_FEATURES + DRIVETRAIN_FEATURES), ("every feature", tuple(F.columns))):
+        lines.append(_residual_line(f"boosting: {name}", y, _grouped_prediction(F[list(cols)].to_numpy(), y, mf, boost),
+                                    L, joined))
+    within = F.assign(residual=y) - F.assign(residual=y).groupby(mf).transform("median")
+    rank = within.corr(method="spearman")["residual"].drop("residual").sort_values()
+    lines.append("rank correlation with the residual within manufacturers: " + ", ".join(f"{k} {v:+.2f}" for k, v in rank.items()))
+    return lines
+
+
 def write_models(r):
     """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
     and models/fuel_economy_bias.toml."""
@@ -669,16 +794,22 @@ def main(argv=None):
     ap.add_argument("--subset", type=int, default=0, help="every n-th vehicle only (development)")
     ap.add_argument("--residuals", action="store_true", help="where the held-out error comes from (scikit-learn)")
     ap.add_argument("--breakdown", action="store_true", help="the held-out error by cycle, grouping and part (joined vehicles)")
+    ap.add_argument("--vehicle-residual", action="store_true",
+                    help="the vehicle-level residual regressed on engine, drivetrain and body, held out (scikit-learn)")
     ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
                     help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
                     help="what the cold start's heat capacity follows (measured, docs/validation-epa.md)")
+    ap.add_argument("--friction-form", choices=tuple(FRICTION_FORMS), default="chen_flynn",
+                    help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--slope-form", choices=tuple(SLOPE_FORMS), default="constant",
+                    help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
-    global TRANSIENT_FORM
-    TRANSIENT_FORM = args.transient_form
+    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM
+    TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
@@ -693,6 +824,9 @@ def main(argv=None):
         print(text, flush=True)
     if args.breakdown:
         for text in breakdown_report(r, specs, table):
+            print(text, flush=True)
+    if args.vehicle_residual:
+        for text in vehicle_residual_report(r, specs, table):
             print(text, flush=True)
     if args.residuals:
         for text in residual_report(r, specs, table):

@@ -258,20 +258,20 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
                            cache_dir) -> FleetCycleResult:
     """``result`` with the fuel of vehicles with a measured FTP or label figure scaled
     (simulation/measured.py)."""
-    ftp, label = measured.measured_figures(vehicles)
-    rows = np.flatnonzero(np.isfinite(ftp) | np.isfinite(label))
+    figures = measured.measured_figures(vehicles)
+    ftp = figures["measured_ftp_mpg"]
+    rows = np.flatnonzero(np.any([np.isfinite(x) for x in figures.values()], axis=0))
     if rows.size == 0:
         return result
     sub = [vehicles[i] for i in rows]
     sim_ftp = _nominal_mpg(sub, "FTP", mode, physics, cache_dir)
     sim_hwfet = (_nominal_mpg(sub, "HWFET", mode, physics, cache_dir) if np.isnan(ftp[rows]).any()
                  else np.full(rows.size, np.nan))
-    k = measured.fuel_scale(ftp[rows], label[rows], sim_ftp, sim_hwfet, [v.model_year for v in sub],
-                            [v.label_group for v in sub])
+    factors = measured.cycle_factors({name: x[rows] for name, x in figures.items()}, sim_ftp, sim_hwfet,
+                                     [v.model_year for v in sub], [v.label_group for v in sub])
     at_nominal = abs(ambient_temp_C - measured.NOMINAL_AMBIENT_C) < 1e-9
-    exact = at_nominal & ((cycle_name == "FTP") | ((cycle_name == "HWFET") & np.isnan(ftp[rows])))
     factor = np.ones(len(vehicles))
-    factor[rows] = measured.carried_scale(k, exact, measured.transfer_share())
+    factor[rows] = measured.factor_on(factors, cycle_name, at_nominal)
     return measured.scale_result(result, factor)
 
 

@@ -19,6 +19,7 @@ is a handful of array operations (no per-step Python loop unless a vehicle falls
 """
 from __future__ import annotations
 
+import math
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -1383,45 +1384,23 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
     no speed reaches it, a grade force of 0.0 (x - 0.0 is x), a step of 1 s (x * 1.0 is x).
     Bounds are ``np.fmax`` / ``np.fmin`` when :func:`_plain_numbers` (the same values where
     neither operand is NaN nor both are zeros; numpy 2.4's ``maximum`` / ``minimum`` cost
-    1.4 us a call against 0.25)."""
+    1.4 us a call against 0.25), a step's two bounds then one call (:func:`_bounds`); the
+    acceleration in stacked buffers (:func:`_lanes`): 33 numpy calls a step."""
     V, N = m.base.size, cap.size
     clip = not float(cap.max()) / dv < top
-    fmax, fmin = (np.fmax, np.fmin) if _plain_numbers(m, cap, dt) else (np.maximum, np.minimum)
-    least = np.fmin.reduce if fmax is np.fmax else np.minimum.reduce
-    dvs, tops, one, floor, zero, half, capb, dtb = (np.full(V, c) for c in (dv, top, 1.0, 1e-3, 0.0, 0.5, 0.0, 1.0))
-    A, B, C, inv_m = m.per
-    base = m.base.astype(float)
-    x, w, lo, hi, tmp, guess, mid, grade = (np.empty(V) for _ in range(8))
-    j, take_lo, take_hi = np.empty(V, np.intp), m.flat.take, m.flat_next.take
-    divide, trunc, subtract, add, multiply = np.divide, np.trunc, np.subtract, np.add, np.multiply
+    plain = _plain_numbers(m, cap, dt)
+    fmax, fmin = (np.fmax, np.fmin) if plain else (_with_out(np.maximum), _with_out(np.minimum))
+    least = np.fmin.reduce if plain else np.minimum.reduce
+    bounded = _bounds(plain)
+    lane = _lanes(m, dv, top, clip, fmax, fmin)
+    zero, half, capb, dtb = (np.full(V, c) for c in (0.0, 0.5, 0.0, 1.0))
+    guess = np.empty(V)
+    grade = np.empty(V)
+    mid = lane.mid
+    add, multiply = np.add, np.multiply
     level = ((m.sine == 0) & ~np.signbit(m.sine)).tolist()    # grade force 0.0 (m.grade_force)
     caps, dts = cap.tolist(), dt.tolist()
-
-    def accel(v, g):
-        """The full-effort acceleration at ``v`` (:func:`_full_effort_step`'s ``accel``), in ``lo``."""
-        divide(v, dvs, x)
-        if clip:
-            fmin(x, tops, x)
-        trunc(x, tmp)                          # int(x) for x >= 0, as a float
-        subtract(x, tmp, w)
-        add(tmp, base, tmp)
-        j[...] = tmp
-        take_lo(j, out=lo)
-        subtract(one, w, tmp)
-        multiply(lo, tmp, lo)
-        take_hi(j, out=hi)
-        multiply(hi, w, hi)
-        add(lo, hi, lo)                        # force
-        fmax(v, floor, tmp)                    # coastdown_force_N: A + v (B + C v)
-        multiply(C, tmp, hi)
-        add(hi, B, hi)
-        multiply(hi, tmp, hi)
-        add(hi, A, hi)
-        subtract(lo, hi, lo)
-        if g is not None:
-            subtract(lo, g, lo)
-        multiply(lo, inv_m, lo)
-        return lo
+    accel_at, accel_mid = lane.accel_at, lane.accel_mid
 
     def walk(i, rows):
         vp, filled = rows[i - 1], None
@@ -1433,20 +1412,18 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
                 filled = c
             if step_s != 1.0:
                 dtb.fill(step_s)
-            a = accel(vp, g)
+            a = accel_at(vp, g)
             if step_s != 1.0:
                 multiply(a, dtb, a)
             add(a, vp, guess)                  # vp + a dt (addition commutes bit for bit)
-            fmin(capb, guess, guess)
-            fmax(guess, zero, guess)
+            bounded(guess, zero, capb, guess)
             add(vp, guess, mid)
             multiply(mid, half, mid)
-            a = accel(mid, g)
+            a = accel_mid(g)
             if step_s != 1.0:
                 multiply(a, dtb, a)
             add(a, vp, out)
-            fmin(capb, out, out)
-            fmax(out, zero, out)
+            bounded(out, zero, capb, out)
             # all back on the trace (v <= cap): trial speeds hold again; the first and last
             # vehicle read first (a scalar each), the reduction only when both are on it
             if out[0] == c and out[-1] == c and least(out) == c:
@@ -1454,3 +1431,95 @@ def _stepper(m: _EffortModel, dv: float, top: float, cap, dt):
             vp, i = out, i + 1
         return i
     return walk
+
+
+def _bounds(plain: bool):
+    """``bounded(x, zero, cap, out)``: max(min(cap, x), 0) into ``out`` (:func:`_full_effort_step`'s
+    bounds). With :func:`_plain_numbers` one call of the ufunc behind ``np.clip`` (numpy's
+    ``umath.clip``), min(max(x, 0), cap): the same value for any x when cap >= +0 and neither
+    is NaN or -0.0 (a step's speed is never -0.0: the trace has none, and max(., +0) of a
+    negative is +0); else, or if a numpy has no such ufunc, ``minimum`` then ``maximum``, as
+    written (tests/test_simulation.py: the plain step loop, bit for bit)."""
+    clip = getattr(getattr(getattr(np, "_core", getattr(np, "core", None)), "umath", None), "clip", None)
+    if plain and isinstance(clip, np.ufunc):
+        return clip
+
+    def bounded(x, zero, cap, out):
+        np.minimum(cap, x, out=out)
+        np.maximum(out, zero, out=out)
+    return bounded
+
+
+def _with_out(ufunc):
+    """``ufunc(a, b, out)`` as ``ufunc(a, b, out=out)`` (numpy 2.4 deprecates a positional
+    ``out`` for ``maximum`` / ``minimum``; ``fmax`` / ``fmin`` take it positionally)."""
+    return lambda a, b, out: ufunc(a, b, out=out)
+
+
+@dataclass(frozen=True, eq=False)
+class _Lanes:
+    """:func:`_lanes`: the full-effort acceleration at speeds ``v`` (``accel_at(v, g)``) or at
+    the speeds in ``mid`` (``accel_mid(g)``, for the step's mean speed), into one buffer."""
+
+    mid: np.ndarray
+    accel_at: object
+    accel_mid: object
+
+
+def _lanes(m: _EffortModel, dv: float, top: float, clip: bool, fmax, fmin) -> _Lanes:
+    """:func:`_full_effort_step`'s ``accel`` in few numpy calls: the force table's interpolation
+    and the coastdown do not depend on each other, so an operation they both do is one call on
+    stacked buffers (vehicles x 3: the cell weights, the speed floor and the step's mean speed;
+    the gathered forces, the coastdown's B + C v and the cell index), each element the same
+    IEEE operation on the same operands (products and sums commute bit for bit; v / dv is
+    v x (1 / dv) exactly when dv is a power of two, as the grid's 0.25 m/s). ``g``: the grade
+    force [N] of the vehicles in this step, or None where it is 0.0."""
+    V = m.base.size
+    A, B, C, inv_m = m.per
+    n, p, r, q, f = np.empty(3 * V), np.empty(3 * V), np.empty(3 * V), np.empty(4 * V), np.empty(2 * V)
+    q[3 * V:] = A
+    by_power_of_two = dv > 0 and math.frexp(dv)[0] == 0.5
+    scale = np.concatenate([np.full(V, 1.0 / dv), C])                 # [1 / dv | C]
+    add_to = np.concatenate([B, m.base.astype(float)])                 # [B | each vehicle's first cell]
+    floor, tops, one, dvs = (np.full(V, c) for c in (1e-3, top, 1.0, dv))
+    j, a = np.empty(V, np.intp), np.empty(V)
+    n0, n1, n2, n01 = n[:V], n[V:2 * V], n[2 * V:], n[:2 * V]
+    p0, p1, p2, p01, p12 = p[:V], p[V:2 * V], p[2 * V:], p[:2 * V], p[V:]
+    r0, r2, r12, q3, q01, q23, f0, f1 = r[:V], r[2 * V:], r[V:], q[:3 * V], q[:2 * V], q[2 * V:], f[:V], f[V:]
+    take_lo, take_hi = m.flat.take, m.flat_next.take
+    divide, trunc, subtract, add, multiply = np.divide, np.trunc, np.subtract, np.add, np.multiply
+
+    def rest(g):
+        """From the cell position x (p0) and C v (p1), v floored in n1: the acceleration."""
+        if clip:
+            fmin(p0, tops, p0)
+        trunc(p0, p2)                          # int(x) for x >= 0, as a float
+        subtract(p0, p2, n2)                   # w
+        subtract(one, n2, n0)                  # 1 - w
+        add(p12, add_to, r12)                  # [C v + B | int(x) + first cell]
+        j[...] = r2
+        take_lo(j, out=r0)
+        take_hi(j, out=r2)                     # r: [F(j) | B + C v | F(j + 1)]
+        multiply(r, n, q3)                     # [F(j) (1 - w) | (B + C v) v | F(j + 1) w]
+        add(q01, q23, f)                       # [force | coastdown (+ A)]
+        subtract(f0, f1, a)
+        if g is not None:
+            subtract(a, g, a)
+        multiply(a, inv_m, a)
+        return a
+
+    def accel_at(v, g):
+        fmax(v, floor, n1)
+        divide(v, dvs, p0)
+        multiply(C, n1, p1)
+        return rest(g)
+
+    def accel_mid(g):
+        fmax(n0, floor, n1)
+        if by_power_of_two:
+            multiply(n01, scale, p01)          # [v / dv | C v]
+        else:
+            divide(n0, dvs, p0)
+            multiply(C, n1, p1)
+        return rest(g)
+    return _Lanes(n0, accel_at, accel_mid)

@@ -3,11 +3,17 @@ vehicle's measured FTP composite, unadjusted) or ``label_combined_mpg`` (its EPA
 combined figure) calibrate its efficiency (docs/simulation.md "One measured number").
 
 The vehicle's fuel scale k = simulated / measured mpg on the figure's own test (FTP at EPA's
-nominal 25 C; for a label: FTP and HWFET through EPA's derived 5-cycle label formulas, 40 CFR
-600.210-12, combined 55 % city, 45 % highway, with the coefficient set of the vehicle's model
-year, fleetrun.physics.epa_label). On that test the fuel is multiplied by k exactly; on every
-other cycle, ambient and scenario by k^s, with s = ``transfer_share`` of models/technology.toml:
-one global constant fitted with manufacturers held out (validation/epa_technology.py).
+nominal 25 C). On that test the fuel is multiplied by k exactly; on every other cycle, ambient
+and scenario by k^s, with s = ``transfer_share`` of models/technology.toml: one global constant
+fitted with manufacturers held out (validation/epa_technology.py).
+
+A label: EPA's derived 5-cycle label formulas (40 CFR 600.210-12, combined 55 % city, 45 %
+highway, the coefficient set of the vehicle's model year, fleetrun.physics.epa_label) of the
+simulated FTP / k and HWFET / k^h give the label; the FTP at 25 C takes k, the HWFET at 25 C
+k^h, every other cycle, ambient and scenario k^s'. h and s' are models/technology.toml
+``[label_split]``, fitted on real MY2022 labels with manufacturers held out
+(validation/epa_label_sources.py, docs/validation-epa.md "Where the label route's misses come
+from").
 """
 from __future__ import annotations
 
@@ -17,9 +23,10 @@ import numpy as np
 
 from fleetrun.physics import epa_label
 from fleetrun.resources import model_file
+from fleetrun.simulation.records import LabelBlend, LabelSplit
 
 NOMINAL_AMBIENT_C = 25.0        # EPA test cell (40 CFR 86.130: 20-30 C)
-FIGURES = ("measured_ftp_mpg", "label_combined_mpg")
+FIGURES = ("measured_ftp_mpg", "label_combined_mpg", "label_city_mpg", "label_highway_mpg")
 
 
 def transfer_share() -> float:
@@ -32,28 +39,53 @@ def transfer_share() -> float:
     return float(model_file("technology.toml")["fitted"]["transfer_share"])
 
 
-def measured_figures(vehicles) -> tuple[np.ndarray, np.ndarray]:
-    """(measured FTP, label combined) mpg per vehicle, NaN where blank.
-
-    Parameters
-    ----------
-    vehicles : sequence of vehicle records, with the optional attributes ``measured_ftp_mpg`` and
-        ``label_combined_mpg`` [mpg]
+def label_split() -> LabelSplit:
+    """The label route's global split (models/technology.toml ``[label_split]``).
 
     Returns
     -------
-    (measured FTP [mpg], label combined [mpg]), float arrays of shape (V,).
+    LabelSplit: ``highway_share`` h [-] (the HWFET at 25 C takes k^h) and ``transfer_share`` s'
+    [-] (every other cycle, ambient and scenario takes k^s'; the file's ``other_cycles_share``).
+    """
+    m = model_file("technology.toml")["label_split"]
+    return LabelSplit(float(m["highway_share"]), float(m["other_cycles_share"]))
+
+
+def label_blend() -> LabelBlend:
+    """The route of a label's city and highway figures (models/technology.toml ``[label_split]``
+    ``blend_*``).
+
+    Returns
+    -------
+    LabelBlend: ``highway_share`` h', ``weight`` w, ``transfer_share`` s'' [-].
+    """
+    m = model_file("technology.toml")["label_split"]
+    return LabelBlend(float(m["blend_highway_share"]), float(m["blend_weight"]), float(m["blend_other_cycles_share"]))
+
+
+def measured_figures(vehicles) -> dict[str, np.ndarray]:
+    """Each optional figure (``FIGURES``) per vehicle [mpg], NaN where blank.
+
+    Parameters
+    ----------
+    vehicles : sequence of vehicle records, with the optional attributes of ``FIGURES`` [mpg]
+
+    Returns
+    -------
+    dict figure name -> float array of shape (V,).
     """
     def column(name):
         return np.array([np.nan if getattr(v, name, None) is None else float(getattr(v, name)) for v in vehicles])
-    return column("measured_ftp_mpg"), column("label_combined_mpg")
+    return {name: column(name) for name in FIGURES}
 
 
-def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None):
-    """Fuel scale k that makes the label formulas of the simulated FTP and HWFET mpg (both divided
-    by k) give ``label_combined_mpg``: 1/label = a + k b, linear in k. Vehicles of one label group
-    share one k: the mean of their label fuel per mile is the mean of their labels' (a label is its
-    model type's configurations' mean, 40 CFR 600.208-12; equal weights; docs/simulation.md).
+def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None,
+                highway_share=1.0):
+    """Fuel scale k that makes the label formulas of the simulated FTP mpg / k and HWFET mpg /
+    k^h give ``label_combined_mpg``: 1/label = a + k b_FTP + k^h b_HWFET (h = 1: linear in k).
+    Vehicles of one label group share one k: the mean of their label fuel per mile is the mean of
+    their labels' (a label is its model type's configurations' mean, 40 CFR 600.208-12; equal
+    weights; docs/simulation.md).
 
     Parameters
     ----------
@@ -64,6 +96,8 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
         label formulas' coefficients (fleetrun.physics.epa_label; None: no vehicle has one)
     label_set : LabelSet or None, one coefficient set for every vehicle instead (validation)
     groups : sequence of str or None, or None: each vehicle's label group (None or "": alone)
+    highway_share : float, h [-]: the HWFET takes k^h (1: the same k as the FTP;
+        :func:`label_split` gives the stored value)
 
     Returns
     -------
@@ -77,13 +111,40 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
         city, highway = (epa_label.coefficients(model_years, kind) for kind in epa_label.KINDS)
     share = epa_label.CITY_SHARE
     a = share * city[0] + (1 - share) * highway[0]
-    b = share * city[1] / ftp_mpg + (1 - share) * highway[1] / hwfet_mpg
+    b_ftp = share * city[1] / np.asarray(ftp_mpg, float)
+    b_hwfet = (1 - share) * highway[1] / np.asarray(hwfet_mpg, float)
     target = 1.0 / np.asarray(label_combined_mpg, float)
     if groups is not None:
-        a, b, target = np.broadcast_arrays(a, b, target)
-        valid = np.isfinite(a) & np.isfinite(b) & np.isfinite(target)
-        a, b, target = (group_mean(x, groups, valid) for x in (a, b, target))
-    return (target - a) / b
+        a, b_ftp, b_hwfet, target = np.broadcast_arrays(a, b_ftp, b_hwfet, target)
+        valid = np.isfinite(a) & np.isfinite(b_ftp) & np.isfinite(b_hwfet) & np.isfinite(target)
+        a, b_ftp, b_hwfet, target = (group_mean(x, groups, valid) for x in (a, b_ftp, b_hwfet, target))
+    return split_root(target - a, b_ftp, b_hwfet, highway_share)
+
+
+def split_root(rhs, b_ftp, b_hwfet, highway_share, iterations=40):
+    """Root k > 0 of b_ftp k + b_hwfet k^h = rhs (Newton in log k from the h = 1 root; the left
+    side is increasing and convex in log k, so the iteration converges monotonically).
+
+    Parameters
+    ----------
+    rhs : array, label fuel per mile minus the formulas' intercepts [gal/mi]
+    b_ftp, b_hwfet : array, the FTP and HWFET terms' slopes per unit k [gal/mi]
+    highway_share : float, h [-]
+    iterations : int, Newton steps
+
+    Returns
+    -------
+    k [-], NaN where ``rhs`` <= 0 (no positive scale gives the label).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = rhs / (b_ftp + b_hwfet)
+        if highway_share == 1.0:
+            return k
+        x = np.log(np.where(k > 0, k, np.nan))
+        for _ in range(iterations):
+            f_ftp, f_hwfet = b_ftp * np.exp(x), b_hwfet * np.exp(highway_share * x)
+            x = x - (f_ftp + f_hwfet - rhs) / (f_ftp + highway_share * f_hwfet)
+        return np.exp(x)
 
 
 def group_mean(values, groups, valid):
@@ -108,47 +169,96 @@ def group_mean(values, groups, valid):
     return values
 
 
-def fuel_scale(measured_ftp_mpg, label_combined_mpg, sim_ftp_mpg, sim_hwfet_mpg, model_years=None, groups=None):
-    """k per vehicle (fuel multiplier on the calibration test): simulated / measured FTP mpg, else
-    from the label; NaN where neither figure is given.
+def figure_scale(figure_mpg, sim_mpg, kind, model_years=None, label_set=None, groups=None):
+    """k that makes one label formula (``kind``: "city" of the FTP, "highway" of the HWFET) of
+    the simulated mpg / k give the label's figure; vehicles of one group share k (the mean of
+    their label fuel per mile is the mean of their figures').
 
     Parameters
     ----------
-    measured_ftp_mpg : float or array, measured FTP composite [mpg] (NaN: not given)
-    label_combined_mpg : float or array, EPA label combined figure [mpg] (NaN: not given)
-    sim_ftp_mpg : float or array, simulated FTP fuel economy [mpg]
-    sim_hwfet_mpg : float or array, simulated HWFET fuel economy [mpg]
-    model_years : sequence of int or None, or None: each vehicle's model year (its label formulas,
-        :func:`label_scale`)
-    groups : sequence of str or None, or None: each vehicle's label group (:func:`label_scale`;
-        a vehicle with a measured FTP takes no part in its group)
+    figure_mpg : array, the label's city or highway figure [mpg] (NaN: not given)
+    sim_mpg : array, simulated FTP (city) or HWFET (highway) fuel economy [mpg]
+    kind : str, "city" or "highway"
+    model_years, label_set, groups : as :func:`label_scale`
 
     Returns
     -------
-    fuel scale k [-] per vehicle, NaN where neither figure is given.
+    fuel scale [-] per vehicle.
+    """
+    if label_set is None and model_years is None:
+        label_set = epa_label.set_for_model_year(None)
+    a, b = getattr(label_set, kind) if label_set is not None else epa_label.coefficients(model_years, kind)
+    target = 1.0 / np.asarray(figure_mpg, float)
+    slope = b / np.asarray(sim_mpg, float)
+    if groups is not None:
+        a, target, slope = np.broadcast_arrays(a, target, slope)
+        valid = np.isfinite(target) & np.isfinite(slope) & np.isfinite(a)
+        a, target, slope = (group_mean(x, groups, valid) for x in (a, target, slope))
+    return (target - a) / slope
+
+
+def cycle_factors(figures, sim_ftp_mpg, sim_hwfet_mpg, model_years=None, groups=None) -> np.ndarray:
+    """Fuel multipliers per vehicle on (the FTP at 25 C, the HWFET at 25 C, any other cycle,
+    ambient or scenario): a measured FTP: k, k^s, k^s; a label: k, k^h, k^s' (:func:`label_split`);
+    a label with city and highway figures: k_C, the blend, k^s'' (:func:`label_blend`); 1 where
+    no figure is given. A row without a combined figure takes the 55/45 mean of its city and
+    highway figures.
+
+    Parameters
+    ----------
+    figures : dict from :func:`measured_figures`
+    sim_ftp_mpg, sim_hwfet_mpg : array, simulated FTP and HWFET at 25 C, uncalibrated [mpg]
+    model_years, groups : as :func:`label_scale` (a vehicle with a measured FTP takes no part in
+        its group)
+
+    Returns
+    -------
+    array (V, 3) of fuel multipliers [-].
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        from_ftp = np.asarray(sim_ftp_mpg, float) / np.asarray(measured_ftp_mpg, float)
-        label = np.where(np.isfinite(from_ftp), np.nan, np.asarray(label_combined_mpg, float))
-        return np.where(np.isfinite(from_ftp), from_ftp, label_scale(label, sim_ftp_mpg, sim_hwfet_mpg,
-                                                                     model_years, groups=groups))
+        k_ftp = np.asarray(sim_ftp_mpg, float) / figures["measured_ftp_mpg"]
+        measured = np.isfinite(k_ftp)
+        city, highway = (np.where(measured, np.nan, figures[f]) for f in ("label_city_mpg", "label_highway_mpg"))
+        both = np.isfinite(city) & np.isfinite(highway)
+        pair = 1.0 / (epa_label.CITY_SHARE / city + (1.0 - epa_label.CITY_SHARE) / highway)
+        combined = np.where(measured, np.nan, np.where(np.isfinite(figures["label_combined_mpg"]),
+                                                       figures["label_combined_mpg"], pair))
+        split, blend, s = label_split(), label_blend(), transfer_share()
+        k = label_scale(combined, sim_ftp_mpg, sim_hwfet_mpg, model_years, groups=groups,
+                        highway_share=split.highway_share)
+        out = np.c_[k, k ** split.highway_share, k ** split.transfer_share]
+        if both.any():
+            out[both] = _blend_factors(np.where(both, combined, np.nan), np.where(both, city, np.nan),
+                                       np.where(both, highway, np.nan), sim_ftp_mpg, sim_hwfet_mpg,
+                                       model_years, groups, blend)[both]
+        out[measured] = np.c_[k_ftp, k_ftp ** s, k_ftp ** s][measured]
+    return np.where(np.isfinite(out), out, 1.0)
 
 
-def carried_scale(k, exact, share):
-    """The fuel multiplier on a cycle: k on the calibration test itself (``exact``), k^share elsewhere.
+def _blend_factors(combined, city, highway, sim_ftp, sim_hwfet, model_years, groups, blend):
+    """(V, 3) multipliers of the city-and-highway route (:func:`cycle_factors`)."""
+    k = label_scale(combined, sim_ftp, sim_hwfet, model_years, groups=groups, highway_share=blend.highway_share)
+    k_city = figure_scale(city, sim_ftp, "city", model_years, groups=groups)
+    k_highway = figure_scale(highway, sim_hwfet, "highway", model_years, groups=groups)
+    hw = np.exp(blend.weight * np.log(k_highway) + (1.0 - blend.weight) * blend.highway_share * np.log(k))
+    return np.c_[k_city, hw, k ** blend.transfer_share]
+
+
+def factor_on(factors, cycle_name, at_nominal) -> np.ndarray:
+    """The column of :func:`cycle_factors` for ``cycle_name`` at the ambient (``at_nominal``: EPA's 25 C).
 
     Parameters
     ----------
-    k : float or array, fuel scale on the calibration test [-] (NaN: uncalibrated)
-    exact : bool or array, the cycle is the calibration test itself
-    share : float, the transfer share s [-] (:func:`transfer_share`)
+    factors : array (V, 3), :func:`cycle_factors`
+    cycle_name : str, the simulated cycle
+    at_nominal : bool, the ambient is EPA's nominal 25 C
 
     Returns
     -------
-    fuel multiplier [-], 1 where ``k`` is NaN.
+    array (V,), fuel multiplier [-].
     """
-    k = np.asarray(k, float)
-    return np.where(np.isfinite(k), np.where(exact, k, k ** share), 1.0)
+    column = 0 if at_nominal and cycle_name == "FTP" else 1 if at_nominal and cycle_name == "HWFET" else 2
+    return factors[:, column]
 
 
 def scale_result(result, factor):

@@ -305,3 +305,25 @@ class ElectricConstants:
 
 
 __all__ += ["EngineSet", "TransmissionSet", "ElectricConstants"]
+
+
+@dataclass(frozen=True)
+class LabelSplit:
+    """How a label's fuel scale k is carried (models/technology.toml ``[label_split]``,
+    fleetrun/simulation/measured.py): the HWFET at 25 C takes k^highway_share, every other
+    cycle, ambient and scenario k^transfer_share (the FTP at 25 C takes k)."""
+
+    highway_share: float
+    transfer_share: float
+
+
+@dataclass(frozen=True)
+class LabelBlend:
+    """A label's city and highway figures both given (models/technology.toml ``[label_split]``
+    ``blend_*``): the FTP at 25 C takes the city figure's k_C; the HWFET at 25 C
+    exp(weight log k_H + (1 - weight) highway_share log k), k_H the highway figure's scale and k
+    the combined figure's (with ``highway_share``); every other cycle k^transfer_share."""
+
+    highway_share: float
+    weight: float
+    transfer_share: float

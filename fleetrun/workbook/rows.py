@@ -205,7 +205,19 @@ def check_vehicle(p: dict, report: Report) -> bool:
         report("transmission_gear_ratios", f"{', '.join(f'{r:g}' for r in ratios)} is not in falling "
                "order (first gear first?)", warning=True)
     _vehicle_plausible(p, report)
+    _label_pair(p, report)
     return ok
+
+
+def _label_pair(p: dict, report: Report) -> None:
+    """A warning when one of the label's city and highway figures is given without the other:
+    the pair is used only together (docs/workbook.md)."""
+    city, highway = p.get("label_city_mpg"), p.get("label_highway_mpg")
+    if (city is None) != (highway is None):
+        given, missing = ("label_city_mpg", "label_highway_mpg") if highway is None else (
+            "label_highway_mpg", "label_city_mpg")
+        report(given, f"ignored: {missing} is empty (the label's city and highway figures are used together; "
+               "give both, or the combined figure in label_combined_mpg)", warning=True)
 
 
 def _vehicle_plausible(p: dict, report: Report) -> None:

@@ -133,6 +133,10 @@ VEHICLE_COLUMNS: tuple[Column, ...] = (
            minimum=3, maximum=200),
     Column("label_group", "text", False, "rows that share one EPA label (its model type's configurations): "
            "one fuel scale for them all"),
+    Column("label_city_mpg", "number", False, "its EPA label city [mpg]; with label_highway_mpg, used when no "
+           "measured FTP", minimum=3, maximum=200),
+    Column("label_highway_mpg", "number", False, "its EPA label highway [mpg]; with label_city_mpg, used when "
+           "no measured FTP", minimum=3, maximum=200),
 )
 
 # cycle_mix_MD / cycle_mix_HD go beyond docs/interface.md: heavy trucks cannot follow light-duty
