@@ -1,6 +1,6 @@
 """One effect concealed in several real Camry recordings, diagnosed jointly: does it get named?
 
-    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5] [--out DIR] [--why]
+    python validation/diagnose_concealed_joint.py [--design J1|J2|J3|W|W2|Wh|J3h|G|L|Lr|Lr5|C|C2] [--out DIR] [--why]
 
 A grade, an extra drag or an accessory load is a property of the vehicle and acts on every
 cycle it drives, with a different signature on each (drag ~ v^3, large on HWFET and US06; an
@@ -30,7 +30,7 @@ import argparse
 import re
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +107,19 @@ ROAD_REFIT.add("Lr5")
 #: design -> the road's knot spacing [m] where it is not fleetrun.diagnose.route.ROAD_KNOT_M
 #: (500 m since Lr5)
 ROAD_KNOT = {"L": 1000.0, "Lr": 1000.0}
+# pre-registered (docs/diagnose-realdata.md, 1i): Wh with a tie between two physical effects
+# compared once more on the rows where their signatures differ (Settings.contrast_rivals)
+DESIGNS["C"] = DESIGNS["J3"]
+WEIGHTING["C"] = "noise"
+HOT_STARTS.add("C")
+# pre-registered after C (not blind; docs/diagnose-realdata.md, 1i): C with the null's noise the
+# residual of the model with both effects
+DESIGNS["C2"] = DESIGNS["J3"]
+WEIGHTING["C2"] = "noise"
+HOT_STARTS.add("C2")
+#: design -> the contrast null's noise (Settings.contrast_noise) for designs whose rival check
+#: compares ties on contrast folds (fleetrun.diagnose.contrast)
+CONTRAST = {"C": "own", "C2": "both"}
 
 
 #: Design R (docs/diagnose-realdata.md, 1e): a real road's grade profile scaled by f, run
@@ -180,6 +193,8 @@ def run(design: str, workdir=None, sizes=SIZES, road: bool = False,
     ``settings`` the selection's (default ``Settings()``)."""
     workdir = Path(workdir or tempfile.mkdtemp())
     refit = design in ROAD_REFIT or road
+    if design in CONTRAST:
+        settings = replace(settings or Settings(), contrast_rivals=True, contrast_noise=CONTRAST[design])
     pairs = [(_data(t), _data(r)) for t, r in DESIGNS[design]]
     refs = [_write(rd, rm, workdir / f"ref_{rn}.csv") for _, (rn, rd, rm, _) in pairs]
     clean_paths = [_write(td, tm, workdir / f"{tn}.csv") for (tn, td, tm, _), _ in pairs]
@@ -288,8 +303,13 @@ def _why(result: dict) -> str:
     amb = "; ".join(" / ".join(a["effects"]) for a in result["ambiguities"])
     relaxed = [m.group(1) for f in result["findings"]
                for m in [re.search(r"penalty at (\S+) x the selection's", f["explanation"])] if m]
+    nan = float("nan")
+    contrasts = "; ".join(f"contrast {c['effect']} vs {c['contrast']['against']}: T {c['contrast'].get('T', nan):.4g} "
+                          f"(R true, 0.99: {c['contrast'].get('T_if_r', nan):.4g}; A true, 0.01: "
+                          f"{c['contrast'].get('T_if_a', nan):.4g}) -> {c['contrast']['winner'] or 'tie'}"
+                          for c in result["candidates"] if c.get("contrast"))
     return (", ".join(f"{k} {v:.4f}" for k, v in gains) + (f"; ambiguous: {amb}" if amb else "")
-            + (f"; refitted at {relaxed[0]} x the penalty" if relaxed else ""))
+            + (f"; refitted at {relaxed[0]} x the penalty" if relaxed else "") + (f"; {contrasts}" if contrasts else ""))
 
 
 def table(design: str, clean: dict, cases: list[JointCase]) -> str:

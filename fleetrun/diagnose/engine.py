@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from fleetrun.diagnose.contrast import compare
 from fleetrun.diagnose.openworld import drift_columns, review, unexplained
 from fleetrun.diagnose.recording import Recording
 from fleetrun.diagnose.records import Accepted, Finding, Selection, Unexplained
@@ -116,6 +117,10 @@ def windowed(problem: Problem, w: int) -> Problem:
                    initial_terms=[(m(c), lo, hi) for c, lo, hi in problem.initial_terms], integral=ig, coarse=None)
 
 
+#: The contrast null's random stream (with ``Settings.seed``), apart from the selection's.
+CONTRAST_STREAM = 16
+
+
 @dataclass
 class Settings:
     folds: int = 5
@@ -129,6 +134,13 @@ class Settings:
     min_gain: float = 0.01
     max_effects: int = 3
     seed: int = 0
+    #: where the rival check would make two physical effects ambiguous, compare them once
+    #: more on the rows where their signatures differ most (:mod:`.contrast`;
+    #: docs/diagnose-realdata.md, 1i)
+    contrast_rivals: bool = False
+    #: the contrast null's noise (:data:`fleetrun.diagnose.contrast.NOISE`): "own" (design C),
+    #: "both" (design C2, docs/diagnose-realdata.md 1i)
+    contrast_noise: str = "own"
 
 
 def _params(cand: Candidate, shape: dict, coef: float) -> dict:
@@ -349,34 +361,89 @@ def _forward_step(s: _Search) -> bool:
     return True
 
 
+def _rivals_of(s: _Search, a: Accepted, others: list, pool: list) -> list:
+    """Testable candidates of ``pool`` that fit what ``a`` explains about as well: each beats
+    the noise null alone, and with it in the model ``a`` adds nothing beyond noise.
+    ``(id, reason, candidate, column)`` each."""
+    r, n, st = s.r, len(s.r), s.settings
+    thr_dsse = _noise_threshold(s, others, a.column, a.cand, pool + [a.cand])
+    rivals = []
+    for c in pool:
+        ev = evaluate_candidate(r, others, c, s.folds, s.k)
+        if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= st.min_gain:
+            continue
+        ccol = chosen(c, ev)[1]
+        b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a.column,
+                           a.cand.lower, a.cand.upper, s.folds, s.k)
+        if b1 - a1 <= thr_dsse:
+            rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
+                                 f"it in the model, {a.id} adds nothing beyond noise", c, ccol))
+    return rivals
+
+
+def _contrast_decides(s: _Search, a: Accepted, others: list, rivals: list) -> tuple[list, tuple | None]:
+    """The rivals still tied with ``a`` after comparing each on the rows where their
+    signatures differ (:func:`fleetrun.diagnose.contrast.compare`), and the first rival that
+    wins over ``a`` there (None if none does; a later winner stays tied; blocks are never
+    compared). Each comparison's numbers go to the rival's status (``contrast``, extra key)."""
+    n = len(s.r)
+    lo_s = max(1, int(0.05 * n))
+    # a stream of its own: the contrast must not move the selection's later shift nulls
+    shifts = np.random.default_rng([s.settings.seed, CONTRAST_STREAM]).integers(lo_s, n - lo_s, s.settings.n_shifts)
+    tied, winner = [], None
+    for rival in rivals:
+        cand, ccol = rival[2], rival[3]
+        if cand.block is not None or a.cand.block is not None:
+            tied.append(rival)
+            continue
+        who, nums = compare(s.r, others, a.term(), (ccol, cand.lower, cand.upper), shifts, s.settings.quantile,
+                            s.settings.contrast_noise)
+        s.statuses[cand.id]["contrast"] = {"against": a.id, "winner": {"a": a.id, "r": cand.id}.get(who),
+                                           **{k: round(v, 6) for k, v in nums.items()}}
+        if who == "r" and winner is None:
+            winner = rival
+        elif who != "a":
+            tied.append(rival)
+    return tied, winner
+
+
+def _swap(s: _Search, a: Accepted, cand: Candidate, others: list) -> Accepted:
+    """``cand`` in ``a``'s place: it won the contrast (``a`` is rejected, with a note)."""
+    ev = evaluate_candidate(s.r, others, cand, s.folds, s.k)
+    shape, col = chosen(cand, ev)
+    s.statuses[a.id]["status"] = "rejected"
+    s.statuses[a.id]["note"] = (f"{cand.id} describes the same data and fits better where their "
+                                "signatures differ (contrast folds, docs/diagnose.md section 5)")
+    s.statuses[cand.id]["status"] = "accepted"
+    return Accepted(cand, shape, col, ev.rmse_before, ev.rmse_after, ev.gain)
+
+
 def _rival_check(s: _Search) -> None:
     """Confounding among testable candidates, judged with everything else in the model.
 
     A rival R makes an accepted effect A ambiguous when, with the other accepted effects in
     the model, R alone beats the noise null and A adds nothing beyond noise once R is in.
     Judging this only at the end matters: while another effect is still unmodelled, the
-    noise estimate holds its structure and every rival looks "as good".
+    noise estimate holds its structure and every rival looks "as good". With
+    ``Settings.contrast_rivals`` a tie is compared once more where the two signatures differ
+    (:func:`_contrast_decides`); a rival that wins there takes A's place and is checked in turn.
     """
-    r, n, st = s.r, len(s.r), s.settings
     taken = {a.id for a in s.accepted}
     remaining = [c for c in s.problem.candidates if c.id not in taken]
     keep = []
     for a in s.accepted:
         others = s.model_terms(without=a)
-        thr_dsse = _noise_threshold(s, others, a.column, a.cand, remaining + [a.cand])
-        rivals = []
-        for c in remaining:
-            ev = evaluate_candidate(r, others, c, s.folds, s.k)
-            if n * (ev.rmse_before ** 2 - ev.rmse_after ** 2) <= thr_dsse or ev.gain <= st.min_gain:
-                continue
-            ccol = chosen(c, ev)[1]
-            b1, a1, _ = cv_fit(r, others + [(ccol, c.lower, c.upper)], a.column,
-                               a.cand.lower, a.cand.upper, s.folds, s.k)
-            if b1 - a1 <= thr_dsse:
-                rivals.append((c.id, f"fits about as well ({ev.gain:.3f} held-out gain): with "
-                                     f"it in the model, {a.id} adds nothing beyond noise"))
+        rivals = _rivals_of(s, a, others, remaining)
+        if rivals and s.settings.contrast_rivals:
+            rivals, winner = _contrast_decides(s, a, others, rivals)
+            if winner is not None:
+                loser, a = a, _swap(s, a, winner[2], others)
+                remaining = [c for c in remaining if c.id != a.id]
+                rivals, again = _contrast_decides(s, a, others, _rivals_of(s, a, others, remaining))
+                rivals += [again] if again is not None else []
+                remaining.append(loser.cand)
         if rivals:
-            _ambiguity(a.id, rivals, s.statuses, s.ambiguities)
+            _ambiguity(a.id, [(rid, why) for rid, why, _, _ in rivals], s.statuses, s.ambiguities)
         else:
             keep.append(a)
     s.accepted = keep
