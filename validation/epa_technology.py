@@ -822,15 +822,10 @@ def main(argv=None):
           f"duplicates merged into their pair", flush=True)
     for text in report(r, table):
         print(text, flush=True)
-    if args.breakdown:
-        for text in breakdown_report(r, specs, table):
-            print(text, flush=True)
-    if args.vehicle_residual:
-        for text in vehicle_residual_report(r, specs, table):
-            print(text, flush=True)
-    if args.residuals:
-        for text in residual_report(r, specs, table):
-            print(text, flush=True)
+    optional = ((args.breakdown, breakdown_report), (args.vehicle_residual, vehicle_residual_report),
+                (args.residuals, residual_report))
+    for text in (line for wanted, lines in optional if wanted for line in lines(r, specs, table)):
+        print(text, flush=True)
     if args.write:
         write_models(r)
     return r

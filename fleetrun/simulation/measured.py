@@ -111,22 +111,33 @@ def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_
     -------
     fuel scale k [-], the broadcast shape of the arguments.
     """
-    if label_set is None and model_years is None:
-        label_set = epa_label.set_for_model_year(None)
-    if label_set is not None:
-        city, highway = label_set.city, label_set.highway
-    else:
-        city, highway = (epa_label.coefficients(model_years, kind) for kind in epa_label.KINDS)
+    city, highway = (_formula(kind, model_years, label_set) for kind in epa_label.KINDS)
     share = epa_label.CITY_SHARE
     a = share * city[0] + (1 - share) * highway[0]
     b_ftp = share * city[1] / np.asarray(ftp_mpg, float)
     b_hwfet = (1 - share) * highway[1] / np.asarray(hwfet_mpg, float)
     target = 1.0 / np.asarray(label_combined_mpg, float)
-    if groups is not None:
-        a, b_ftp, b_hwfet, target = np.broadcast_arrays(a, b_ftp, b_hwfet, target)
-        valid = np.isfinite(a) & np.isfinite(b_ftp) & np.isfinite(b_hwfet) & np.isfinite(target)
-        a, b_ftp, b_hwfet, target = (group_mean(x, groups, valid) for x in (a, b_ftp, b_hwfet, target))
+    a, b_ftp, b_hwfet, target = _shared_by_group((a, b_ftp, b_hwfet, target), groups)
     return split_root(target - a, b_ftp, b_hwfet, highway_share)
+
+
+def _formula(kind, model_years, label_set):
+    """(intercept [gal/mi], slope [-]) of the ``kind`` ("city" or "highway") label formula: the
+    set ``label_set``, else each model year's (fleetrun.physics.epa_label), else the set of a row
+    without a model year."""
+    if label_set is None and model_years is None:
+        label_set = epa_label.set_for_model_year(None)
+    return getattr(label_set, kind) if label_set is not None else epa_label.coefficients(model_years, kind)
+
+
+def _shared_by_group(arrays, groups):
+    """``arrays`` broadcast together, each entry replaced by its label group's mean over the
+    vehicles where every array is finite (:func:`group_mean`); as given when ``groups`` is None."""
+    if groups is None:
+        return arrays
+    arrays = np.broadcast_arrays(*arrays)
+    valid = np.logical_and.reduce([np.isfinite(x) for x in arrays])
+    return tuple(group_mean(x, groups, valid) for x in arrays)
 
 
 def split_root(rhs, b_ftp, b_hwfet, highway_share, iterations=40):
@@ -193,15 +204,10 @@ def figure_scale(figure_mpg, sim_mpg, kind, model_years=None, label_set=None, gr
     -------
     fuel scale [-] per vehicle.
     """
-    if label_set is None and model_years is None:
-        label_set = epa_label.set_for_model_year(None)
-    a, b = getattr(label_set, kind) if label_set is not None else epa_label.coefficients(model_years, kind)
+    a, b = _formula(kind, model_years, label_set)
     target = 1.0 / np.asarray(figure_mpg, float)
     slope = b / np.asarray(sim_mpg, float)
-    if groups is not None:
-        a, target, slope = np.broadcast_arrays(a, target, slope)
-        valid = np.isfinite(target) & np.isfinite(slope) & np.isfinite(a)
-        a, target, slope = (group_mean(x, groups, valid) for x in (a, target, slope))
+    a, target, slope = _shared_by_group((a, target, slope), groups)
     return (target - a) / slope
 
 
