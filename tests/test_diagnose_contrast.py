@@ -51,7 +51,8 @@ def test_the_true_effect_wins_where_the_pooled_fit_cannot_tell(truth):
         assert 0.85 < cos < 0.95
         x = grade if truth == "grade" else drag
         r = 0.3 * x / np.sqrt(np.mean(x ** 2)) + _noise(rng, len(x), 0.1)
-        who, nums = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(x)), 0.99)
+        nums = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(x)), 0.99)
+        who = nums.winner
         wins += who == ("a" if truth == "grade" else "r")
         assert who != ("r" if truth == "grade" else "a"), nums
     assert wins >= 9
@@ -63,7 +64,7 @@ def test_noise_alone_names_no_winner_mostly(noise):
     for seed in range(20):
         rng, grade, drag = _drive(seed=seed)
         r = _noise(rng, len(grade), 0.1)
-        who, _ = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(grade)), 0.99, noise)
+        who = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(grade)), 0.99, noise).winner
         winners += who is not None
     assert winners <= 2
 
@@ -75,7 +76,7 @@ def test_the_null_with_both_effects_in_names_the_true_one_and_never_the_other(tr
         rng, grade, drag = _drive(seed=seed)
         x = grade if truth == "grade" else drag
         r = 0.3 * x / np.sqrt(np.mean(x ** 2)) + _noise(rng, len(x), 0.1)
-        who, _ = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(x)), 0.99, "both")
+        who = compare(r, [], (grade, -15.0, 15.0), (drag, 0.0, 20.0), _shifts(rng, len(x)), 0.99, "both").winner
         wins += who == ("a" if truth == "grade" else "r")
         assert who != ("r" if truth == "grade" else "a")
     assert wins >= 9

@@ -18,9 +18,30 @@ Opt-in: ``Settings(contrast_rivals=True)`` (docs/diagnose.md, section 5).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from fleetrun.diagnose.select import _solve_bounded, full_fit
+from fleetrun.fileio import JsonDocument
+
+@dataclass(frozen=True)
+class Contrast:
+    """What :func:`compare` found: ``winner`` ``"a"`` (the accepted effect), ``"r"`` (the rival)
+    or None (still tied); the statistic ``T = SSE_R - SSE_A`` on the contrast folds, its null
+    quantile with R true (``T_if_r``) and its 1 - quantile with A true (``T_if_a``); the three
+    None when the rows do not split into contrast folds."""
+
+    winner: str | None
+    T: float | None = None
+    T_if_r: float | None = None
+    T_if_a: float | None = None
+
+    def as_json(self, digits: int = 6) -> JsonDocument:
+        """The numbers for the rival's status in diagnosis.json (none when the rows do not split)."""
+        numbers = {"T": self.T, "T_if_r": self.T_if_r, "T_if_a": self.T_if_a}
+        return {k: round(v, digits) for k, v in numbers.items() if v is not None}
+
 
 #: Fold of a row that is never held out (both columns zero there: it says nothing about which).
 ALWAYS_TRAIN = -1
@@ -95,7 +116,7 @@ def _pseudo(r, others: list, term: tuple, shifts, noise=None) -> np.ndarray:
 
 
 def compare(r, others: list, term_a: tuple, term_r: tuple, shifts, quantile: float,
-            noise: str = "own") -> tuple[str | None, dict]:
+            noise: str = "own") -> Contrast:
     """Which of two effects the rows where their signatures differ favour.
 
     Parameters
@@ -111,23 +132,19 @@ def compare(r, others: list, term_a: tuple, term_r: tuple, shifts, quantile: flo
 
     Returns
     -------
-    ``"a"``, ``"r"`` or None (neither passes: still ambiguous), and the numbers
-    ``{"T": ..., "T_if_r": quantile of T with R true, "T_if_a": 1 - quantile of T with A true}``.
+    Contrast: the winner ``"a"``, ``"r"`` or None (neither passes: still ambiguous), T, the
+    quantile of T with R true and the 1 - quantile of T with A true.
     """
     if noise not in NOISE:
         raise ValueError(f"noise must be one of {NOISE}, got {noise!r}")
     folds = contrast_folds(term_a[0], term_r[0])
     if folds is None:
-        return None, {}
+        return Contrast(None)
     e = None if noise == "own" else _residual(r, others + [term_a, term_r])[1]
     t = float(_statistic(r, others, term_a, term_r, folds)[0])
     if_r = float(np.quantile(_statistic(_pseudo(r, others, term_r, shifts, e), others, term_a, term_r, folds),
                              quantile))
     if_a = float(np.quantile(_statistic(_pseudo(r, others, term_a, shifts, e), others, term_a, term_r, folds),
                              1.0 - quantile))
-    numbers = {"T": t, "T_if_r": if_r, "T_if_a": if_a}
-    if t > if_r and t >= if_a:
-        return "a", numbers
-    if t < if_a and t <= if_r:
-        return "r", numbers
-    return None, numbers
+    winner = "a" if t > if_r and t >= if_a else "r" if t < if_a and t <= if_r else None
+    return Contrast(winner, t, if_r, if_a)

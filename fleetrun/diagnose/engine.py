@@ -396,10 +396,11 @@ def _contrast_decides(s: _Search, a: Accepted, others: list, rivals: list) -> tu
         if cand.block is not None or a.cand.block is not None:
             tied.append(rival)
             continue
-        who, nums = compare(s.r, others, a.term(), (ccol, cand.lower, cand.upper), shifts, s.settings.quantile,
-                            s.settings.contrast_noise)
+        found = compare(s.r, others, a.term(), (ccol, cand.lower, cand.upper), shifts, s.settings.quantile,
+                        s.settings.contrast_noise)
+        who = found.winner
         s.statuses[cand.id]["contrast"] = {"against": a.id, "winner": {"a": a.id, "r": cand.id}.get(who),
-                                           **{k: round(v, 6) for k, v in nums.items()}}
+                                           **found.as_json()}
         if who == "r" and winner is None:
             winner = rival
         elif who != "a":
