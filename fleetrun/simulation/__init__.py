@@ -260,7 +260,7 @@ def _calibrate_on_measured(result: FleetCycleResult, vehicles, cycle_name, ambie
     (simulation/measured.py)."""
     figures = measured.measured_figures(vehicles)
     ftp = figures["measured_ftp_mpg"]
-    rows = np.flatnonzero(np.any([np.isfinite(x) for x in figures.values()], axis=0))
+    rows = np.flatnonzero(measured.calibrated(figures))
     if rows.size == 0:
         return result
     sub = [vehicles[i] for i in rows]

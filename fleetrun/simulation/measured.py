@@ -87,6 +87,25 @@ def measured_figures(vehicles) -> dict[str, np.ndarray]:
     return {name: column(name) for name in FIGURES}
 
 
+def calibrated(figures) -> np.ndarray:
+    """Which vehicles a figure calibrates: a measured FTP, a label's combined figure, or its city
+    and highway figures together (one of the pair alone is ignored, with a warning from the
+    workbook's row check).
+
+    Parameters
+    ----------
+    figures : dict from :func:`measured_figures`
+
+    Returns
+    -------
+    bool array of shape (V,).
+    """
+    def given(name):
+        return np.isfinite(figures[name])
+    return (given("measured_ftp_mpg") | given("label_combined_mpg")
+            | (given("label_city_mpg") & given("label_highway_mpg")))
+
+
 def label_scale(label_combined_mpg, ftp_mpg, hwfet_mpg, model_years=None, label_set=None, groups=None,
                 highway_share=1.0):
     """Fuel scale k that makes the label formulas of the simulated FTP mpg / k and HWFET mpg /
