@@ -36,6 +36,7 @@ from fleetrun.output_folder import folder_lock
 from fleetrun.run.outputs import refuse_foreign_outputs, refuse_overwriting_inputs, write_run_outputs
 from fleetrun.run.runner import CHUNK_SIZE, run_fleet
 from fleetrun.workbook.reader import read_fleet
+from fleetrun.workbook.xlsx_safety import is_office_lock_file
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
@@ -155,7 +156,10 @@ def read_config(path: Path) -> BatchConfig:
     found: list[Path] = []
     for pattern in inputs:
         full = pattern if os.path.isabs(pattern) else str(base / pattern)
-        matches = sorted(glob.glob(full)) if glob.has_magic(full) else [full]
+        # a glob skips the lock files Excel keeps beside open workbooks (~$fleet.xlsx): a nightly
+        # batch over a shared folder must not fail because an analyst has a workbook open
+        matches = sorted(m for m in glob.glob(full) if not is_office_lock_file(Path(m))) \
+            if glob.has_magic(full) else [full]
         if not matches:
             raise InputError(f"'inputs' pattern '{pattern}' matches no file", file=path)
         found.extend(Path(m) for m in matches)

@@ -102,13 +102,43 @@ def parse_number(value) -> float:
         number = float(value)
     else:
         text = str(value).strip()
+        if _THOUSANDS.fullmatch(text):   # 2,524,145 typed as text (a pasted FHWA table): the number shown
+            text = text.replace(",", "")
         try:
             number = float(text)
         except ValueError:
-            raise CellProblem(f"{show(value)} is not a number") from None
+            raise CellProblem(f"{show(value)} is not a number; {_number_hint(text)}") from None
     if not math.isfinite(number):
         raise CellProblem(f"{show(value)} is not a finite number")
     return number
+
+
+# Thousands separators as US / UK Excel shows them (2,524,145 or 1,234.5): unambiguous, a
+# decimal comma has no three-digit groups after a non-zero lead (0,115 and 4,2 do not match)
+_THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+(\.\d+)?")
+_GROUPED = re.compile(r"[+-]?\d{1,3}([ .'\u00a0\u202f]\d{3})+(,\d+)?")   # 2 524 145, 2.524.145, 2'524'145
+_MONTHS = ("january", "february", "march", "april", "may", "june", "july", "august", "september",
+           "october", "november", "december")
+
+
+def _number_hint(text: str) -> str:
+    """What to type instead of ``text``, a cell that is not a number."""
+    lower = text.lower().rstrip(".")
+    months = [k for k, name in enumerate(_MONTHS, start=1) if len(lower) >= 3 and name.startswith(lower[:3])
+              and (name.startswith(lower) or lower in ("sept",))]
+    if months:
+        return f"give the month as a number 1-12 ({_MONTHS[months[0] - 1].capitalize()} = {months[0]})"
+    if text[:1] in "$€£" or text[1:2] in "$€£":
+        return "type the number without the currency sign"
+    if text.endswith("%"):
+        return "type the number without the % sign (1.5 for 1.5 %), or format the cell as Percentage"
+    if _GROUPED.fullmatch(text):
+        return f"type it without thousands separators ({re.sub(r'[^0-9,+-]', '', text).replace(',', '.')})"
+    if re.fullmatch(r"[+-]?\d+,\d+", text):
+        return f"write the decimal point as a point ({text.replace(',', '.')})"
+    if re.search(r"\d", text):
+        return "type the number alone, without units, labels or separators"
+    return "type a number"
 
 
 def parse_integer(value) -> int:
@@ -128,7 +158,13 @@ def parse_choice(value, choices) -> str:
     if skeleton(key) in lower:
         raise CellProblem(f"{show(value)} looks like {lower[skeleton(key)]} but has look-alike letters of "
                           f"another script: {', '.join(lookalike_letters(text))}; retype it")
+    if key.strip(" :") in _TOTAL_WORDS:
+        raise CellProblem(f"{show(value)} looks like a total row; delete the row (fleetrun adds the rows up "
+                          "itself, so a total row would count them twice)")
     raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
+
+
+_TOTAL_WORDS = {"total", "totals", "grand total", "grand_total", "sum", "all", "all vehicles", "total vehicles"}
 
 
 def parse_onroad(value):

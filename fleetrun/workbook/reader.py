@@ -320,7 +320,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
         if cells.is_blank(value):
             continue
         text = str(value).strip()
-        name = known.get(text.lower())
+        name = known.get(text.lower()) or known.get(re.sub(r"[\s-]+", "_", text.lower()))   # "Vehicle Class"
         if name is None and known.get(cells.skeleton(text).lower()):
             mistyped.add(known[cells.skeleton(text).lower()])
             problems.error(f"header {cells.show(text)} looks like {known[cells.skeleton(text).lower()]} but has "
@@ -343,8 +343,9 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
         columns[name] = index
     missing = [c.name for c in schema if c.required and c.name not in columns and c.name not in mistyped]
     if missing:
-        problems.error(f"missing required column(s) {', '.join(missing)}; add them to the header row",
-                       sheet, 1, name=None)
+        near = [f"'{found[0]}' for {m}" for m in missing if (found := closest_names(m, extra))]
+        problems.error(f"missing required column(s) {', '.join(missing)}; add them to the header row"
+                       + (f" (or rename {', '.join(near)})" if near else ""), sheet, 1, name=None)
     body: list[tuple[int, tuple]] = []
     headed = set(columns.values()) | set(extra.values())
     widest = max((len(r) for _, r in values.rows), default=0)
@@ -746,8 +747,13 @@ def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Proble
     """The Registrations rows as typed values (``_row``: the Excel row); a ``vehicle_id``
     must name a Vehicles row."""
     found = []
+    seen: dict[tuple, int] = {}   # a row's values -> the first row holding them
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, REGISTRATION_COLUMNS, row_number, values, problems)
+        same = seen.setdefault(tuple(v for k, v in parsed.items() if k != "_extra"), row_number)
+        if same != row_number:   # a pasted block twice: every vehicle of it counted twice
+            problems.warn(f"repeats row {same} exactly; both are counted (delete one if it is a copy)",
+                          table.sheet, row_number)
         vid = parsed.get("vehicle_id")
         if vid and vid not in vehicle_rows:
             problems.error(f"{cells.show(vid)} is not a vehicle_id of the Vehicles sheet", table.sheet, row_number,

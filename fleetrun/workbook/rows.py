@@ -56,6 +56,8 @@ def _parse_text_cached(column: Column, raw: str):
 def _parse(column: Column, raw):
     kind = column.kind
     if kind == "number":
+        if isinstance(raw, str) and raw.strip().endswith("%") and column.name.endswith(PERCENT_SUFFIXES):
+            return cells.parse_number(raw.strip()[:-1])   # "1.2%" typed as text: the percentage shown
         return cells.parse_number(raw)
     if kind == "integer":
         return cells.parse_integer(raw)

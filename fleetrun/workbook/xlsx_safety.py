@@ -43,6 +43,29 @@ DTD_SCAN_BYTES = 4096                    # a DOCTYPE must come before the root e
 HINT = "Save it from Excel (or LibreOffice) as an .xlsx workbook and try again."
 
 
+def is_office_lock_file(path: Path) -> bool:
+    """Whether ``path`` is the owner file Excel (or Word) keeps beside an open workbook,
+    ``~$fleet.xlsx``: not a workbook, and gone when the workbook is closed."""
+    return Path(path).name.startswith("~$")
+
+
+def _refuse_unopenable(path: Path) -> None:
+    """InputError for a workbook that cannot be opened (no permission, locked by another program),
+    is empty, or is an Office lock file: said as such, not as a corrupt workbook."""
+    try:
+        with open(path, "rb") as handle:
+            handle.read(1)
+    except OSError as exc:
+        raise InputError(f"cannot be read ({exc.strerror or exc})", file=path,
+                         hint="Check its permissions, or close the program that holds it, and try again") from None
+    if is_office_lock_file(path):
+        raise InputError("is the lock file Excel keeps while a workbook is open, not a workbook", file=path,
+                         hint=f"Give the workbook itself ({path.name[2:]})")
+    if path.stat().st_size == 0:
+        raise InputError("is empty (0 bytes)", file=path,
+                         hint="It was not saved completely (or is still being copied); save it again from Excel")
+
+
 def check_xlsx(path: Path) -> None:
     """Raise InputError unless ``path`` looks like a safe, genuine .xlsx workbook."""
     path = Path(path)
@@ -56,6 +79,7 @@ def check_xlsx(path: Path) -> None:
                            "Split the fleet into smaller workbooks (fleetrun run --config batch.toml runs them together)")
     if path.suffix.lower() in (".xlsm", ".xltm"):
         raise InputError("macro-enabled workbooks are refused", file=path, hint=HINT)
+    _refuse_unopenable(path)
     if not zipfile.is_zipfile(path):
         raise InputError("is not an .xlsx workbook (not a zip file; corrupt, or another format "
                          "such as .xls or .csv renamed)", file=path, hint=HINT)
