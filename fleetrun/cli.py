@@ -13,17 +13,20 @@ recolour it or move the cursor) are shown as ``\x1b`` and never reach a terminal
 """
 from __future__ import annotations
 
+import contextlib
 import gc
 import importlib
 import re
+import signal
 import sys
+import threading
 import traceback
 from pathlib import Path
 
 import click
 
 from fleetrun import __version__
-from fleetrun.errors import FleetrunError
+from fleetrun.errors import FleetrunError, Terminated, interruption
 from fleetrun.fileio import write_error_log
 
 EXIT_INTERNAL = 4
@@ -68,15 +71,16 @@ class FleetrunGroup(click.Group):
         streams = sys.stdout, sys.stderr
         sys.stdout, sys.stderr = Printable(sys.stdout), Printable(sys.stderr)
         try:
-            return self._invoke(ctx)
+            with _sigterm_as_interrupt():
+                return self._invoke(ctx)
         finally:
             sys.stdout, sys.stderr = streams
 
     def _invoke(self, ctx):
         try:
             return super().invoke(ctx)
-        except KeyboardInterrupt:
-            click.echo("Error: interrupted (Ctrl-C); nothing more was written and the output folder "
+        except KeyboardInterrupt as exc:
+            click.echo(f"Error: {interruption(exc)}; nothing more was written and the output folder "
                        "is as it was", err=True)
             ctx.exit(1)
         except FleetrunError as exc:
@@ -95,6 +99,25 @@ class FleetrunGroup(click.Group):
             ctx.exit(1)
         except Exception:  # a bug: its traceback in a log file, one Error line naming it
             _internal_error(ctx)
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) while a command runs, so a
+    scheduler's kill stops it as Ctrl-C does: an ``Error:`` line, exit 1, the log told, the
+    staging folder and lock removed. Only in the main thread (where Python runs handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(_signum, _frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 # C0 and C1 control characters but tab, newline and carriage return (the progress bar's), DEL,

@@ -84,3 +84,14 @@ def unknown_name_error(kind: str, name: str, valid, hint: str | None = None) -> 
         msg += f" (did you mean '{near[0]}'?)"
     msg += f"; valid: {', '.join(valid)}"
     return InputError(msg, hint=hint)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler's time limit, ``kill``, a shutdown) raised in the main thread as
+    Ctrl-C is: every ``finally`` runs, so a run stops with its output folder as it was, its
+    staging folder removed and its lock released (docs/batch.md)."""
+
+
+def interruption(exc: KeyboardInterrupt) -> str:
+    """What stopped the command, as the ``Error:`` line says it."""
+    return "stopped by SIGTERM" if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"

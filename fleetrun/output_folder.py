@@ -248,7 +248,9 @@ def folder_lock(target: Path, wait_s: float | None = None) -> Iterator[Path]:
         target.parent.mkdir(parents=True, exist_ok=True)
         handle = _acquire(lock, target, wait_s)
     except OSError as exc:
-        raise InputError(f"{target}: cannot write here ({exc.strerror or exc})",
+        blocking = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
+        reason = f"{blocking} is a file, not a folder" if blocking else exc.strerror or exc
+        raise InputError(f"{target}: cannot write here ({reason})",
                          hint="Choose an output folder you can write to") from None
     try:
         handle.seek(0)

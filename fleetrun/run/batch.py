@@ -27,7 +27,7 @@ import click
 
 from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
-from fleetrun.errors import FleetrunError, InputError
+from fleetrun.errors import FleetrunError, InputError, interruption
 from fleetrun.fileio import write_error_log
 from fleetrun.reports.changes import EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
@@ -326,6 +326,16 @@ def _what_changed(result: RunResult, out_dir: Path, fleet_path: Path) -> tuple[R
     return result, earlier
 
 
+def _earlier_outputs_note(out_dir: Path) -> str:
+    """After a failed run: a line saying that ``out_dir`` still holds an earlier run (when it
+    does), so that nobody takes its outputs for this run's."""
+    earlier = read_earlier(out_dir)
+    if earlier is None:
+        return ""
+    return (f"\n{out_dir} still holds the outputs of the earlier run of {earlier.manifest.get('created_utc', '?')}, "
+            "not of this workbook")
+
+
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[FleetWritten]]:
     """Run every fleet in the plan; return (exit code, error lines, what was written)."""
     errors: list[str] = []
@@ -336,9 +346,13 @@ def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], lis
         for fleet_path in plan.inputs:
             try:
                 written.append(run_one(plan, fleet_path, engine, progress_enabled=not quiet))
+            except KeyboardInterrupt as stop:   # the log of a cron job says why it ends here
+                log.error("%s: %s; nothing more was written and %s is as it was", fleet_path, interruption(stop),
+                          plan.out_dir(fleet_path))
+                raise
             except FleetrunError as exc:
-                errors.append(str(exc))
-                log.error("%s", exc)
+                errors.append(str(exc) + _earlier_outputs_note(plan.out_dir(fleet_path)))
+                log.error("%s", errors[-1])
             except Exception as exc:  # a bug: keep going with the other fleets, keep the traceback
                 internal = True
                 trace = traceback.format_exc()
