@@ -1,0 +1,221 @@
+"""The third hostile review ("nothing lost"): a revenue analyst's spreadsheet, a cron job and a
+manager's report, each case failing before its fix (noted per test) and kept as a regression.
+
+Every user mistake is exit 1 with one ``Error:`` line naming the file, sheet, cell, column and
+value and saying what to do, no traceback (docs/interface.md); an interrupted run says so, in
+the log too, and leaves its output folder as it was (docs/batch.md).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import openpyxl
+import pytest
+from click.testing import CliRunner
+
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+from fleetrun.workbook import xlsx_safety
+from fleetrun.workbook.reader import read_fleet
+from test_fleet_fakes import scenario, small_fleet, write_fleet
+
+SCENARIO_HEADER = ["scenario_id", "ambient_temp_C", "cycle_mix", "budget_years", "vmt_growth_pct_per_year",
+                   "state_tax_gasoline_usd_per_gal", "state_tax_diesel_usd_per_gal",
+                   "federal_tax_gasoline_usd_per_gal", "federal_tax_diesel_usd_per_gal", "first_fiscal_year",
+                   "base_year_vmt_million", "fiscal_year_start_month"]
+SCENARIO_ROW = ["s", 20, "default", 2, 1.0, 0.2, 0.2, 0.184, 0.244, 2027, 60000, 9]
+
+
+def invoke(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def first_line(result) -> str:
+    return (result.stderr.splitlines() or [""])[0]
+
+
+def registrations(path: Path, rows, header=("vehicle_class", "count"), scenario_changes=None) -> Path:
+    """A registrations-only workbook (as `fleetrun template` leads an analyst to make one):
+    ``rows`` under ``header``, one scenario (``scenario_changes``: column -> value)."""
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.title = "Registrations"
+    ws.append(list(header))
+    for row in rows:
+        ws.append(list(row))
+    sc = wb.create_sheet("Scenarios")
+    values = dict(zip(SCENARIO_HEADER, SCENARIO_ROW), **(scenario_changes or {}))
+    sc.append(list(values))
+    sc.append(list(values.values()))
+    wb.save(path)
+    return path
+
+
+MV1 = [("automobile", 2524145), ("truck", 2721534), ("bus", 5397), ("motorcycle", 115768)]
+
+
+def assert_user_error(result, *fragments):
+    """Exit 1, the first stderr line an ``Error:`` holding every fragment, no traceback."""
+    assert result.exit_code == 1, result.output
+    line = first_line(result)
+    assert line.startswith("Error: "), result.stderr
+    for fragment in fragments:
+        assert fragment in line, line
+    assert "Traceback" not in result.output
+
+
+# --- the workbook: what an analyst types ------------------------------------------------------
+
+def test_thousands_separators_typed_as_text_are_the_number_shown(tmp_path):
+    """Before: '2,524,145' (MV-1 pasted from FHWA's table) was "is not a number", exit 1."""
+    typed = read_fleet(registrations(tmp_path / "t.xlsx", [("automobile", "2,524,145"), ("bus", "5,397")]))
+    plain = read_fleet(registrations(tmp_path / "p.xlsx", [("automobile", 2524145), ("bus", 5397)]))
+    assert [r["count"] for r in typed.registrations] == [r["count"] for r in plain.registrations] == [2524145, 5397]
+
+
+@pytest.mark.parametrize("column, typed, where, hint", [
+    ("fiscal_year_start_month", "Sept", "Scenarios!L2 fiscal_year_start_month: 'Sept'", "(September = 9)"),
+    ("state_tax_gasoline_usd_per_gal", "$0.20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '$0.20'",
+     "without the currency sign"),
+    ("base_year_vmt_million", "60 000", "Scenarios!K2 base_year_vmt_million: '60 000'",
+     "without thousands separators (60000)"),
+    ("state_tax_gasoline_usd_per_gal", "0,20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '0,20'",
+     "decimal point as a point (0.20)"),
+    ("first_fiscal_year", "FY2027", "Scenarios!J2 first_fiscal_year: 'FY2027'", "type the number alone"),
+])
+def test_a_cell_that_is_not_a_number_says_what_to_type(tmp_path, column, typed, where, hint):
+    """Before: "'Sept' is not a number" and nothing on what to type instead."""
+    path = registrations(tmp_path / "f.xlsx", MV1, scenario_changes={column: typed})
+    for command in ("validate", "run"):
+        assert_user_error(invoke(command, path, *(["--out", tmp_path / "out"] if command == "run" else [])),
+                          str(path), where, "is not a number", hint)
+
+
+def test_percent_typed_as_text_in_a_percent_column_is_the_percentage_shown(tmp_path):
+    """Before: '1.5%' typed into vmt_growth_pct_per_year (a Text-formatted cell) was refused,
+    while the same value formatted as Percentage was read as 1.5 (docs/workbook.md)."""
+    fleet = read_fleet(registrations(tmp_path / "f.xlsx", MV1, scenario_changes={"vmt_growth_pct_per_year": "1.5%"}))
+    assert fleet.scenarios[0].vmt_growth_pct_per_year == 1.5
+
+
+@pytest.mark.parametrize("label", ["Total", "TOTAL", "Grand total"])
+def test_a_total_row_is_named_as_such(tmp_path, label):
+    """Before: "'Total' is not one of automobile, ..." without saying to delete the row."""
+    path = registrations(tmp_path / "f.xlsx", MV1 + [(label, 5366844)])
+    assert_user_error(invoke("validate", path), f"Registrations!A6 vehicle_class: '{label}' looks like a total row",
+                      "delete the row")
+
+
+def test_a_registration_row_pasted_twice_is_a_warning_naming_both_rows(tmp_path):
+    """Before: the copy was counted silently (1.3 billion more gallons for an MV-1 pasted twice)."""
+    result = invoke("validate", registrations(tmp_path / "f.xlsx", MV1 + MV1[:1]))
+    assert result.exit_code == 0, result.output
+    assert "Registrations!row 6: repeats row 2 exactly; both are counted" in result.stderr
+
+
+def test_a_header_typed_with_spaces_is_read_and_a_misspelt_one_is_named(tmp_path):
+    """Before: 'Vehicle Class' was "missing required column(s) vehicle_class" (and ignored)."""
+    fleet = read_fleet(registrations(tmp_path / "f.xlsx", MV1, header=("Vehicle Class", "Count")))
+    assert fleet.registrations[0]["vehicle_class"] == "automobile"
+    path = registrations(tmp_path / "g.xlsx", MV1, header=("vehicle_clas", "count"))
+    assert_user_error(invoke("validate", path), "Registrations!row 1: missing required column(s) vehicle_class",
+                      "(or rename 'vehicle_clas' for vehicle_class)")
+
+
+# --- the input file ---------------------------------------------------------------------------
+
+def test_an_unreadable_workbook_is_said_to_be_unreadable_not_corrupt(tmp_path, monkeypatch):
+    """Before: no read permission (or a file another program locks) was reported as "not an
+    .xlsx workbook (not a zip file; corrupt ...)": zipfile.is_zipfile swallows the error.
+    (Tests run as root here, where chmod 000 still reads: the refusal is stood in.)"""
+    path = small_fleet(tmp_path / "f.xlsx")
+
+    def refused(name, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(name))
+
+    monkeypatch.setattr(xlsx_safety, "open", refused, raising=False)
+    assert_user_error(invoke("validate", path), f"{path}: cannot be read (Permission denied)", "permissions")
+
+
+def test_an_empty_workbook_file_says_it_is_empty(tmp_path):
+    """Before: a 0-byte file (a copy still in progress) was "not a zip file; corrupt, ..."."""
+    path = tmp_path / "f.xlsx"
+    path.write_bytes(b"")
+    assert_user_error(invoke("run", path, "--out", tmp_path / "out"), f"{path}: is empty (0 bytes)")
+
+
+def test_excel_lock_file_named_and_skipped_by_a_batch_glob(tmp_path):
+    """Before: a nightly batch over fleets/*.xlsx exited 3 while an analyst had a workbook
+    open in Excel: its lock file ~$fleet.xlsx matched the glob and failed as a corrupt workbook."""
+    fleets = tmp_path / "fleets"
+    fleets.mkdir()
+    small_fleet(fleets / "fleet.xlsx")
+    lock = fleets / "~$fleet.xlsx"
+    lock.write_bytes(b"\x0bJ. Analyst" + b"\x00" * 150)
+    assert_user_error(invoke("validate", lock), "is the lock file Excel keeps", "(fleet.xlsx)")
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["fleets/*.xlsx"]\nout = "results"\n', encoding="utf-8")
+    result = fakes.invoke_run("--config", config, "--no-cache", "-q")
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (tmp_path / "results").iterdir()) == ["fleet", "fleetrun-run.log"]
+
+
+# --- the output folder ------------------------------------------------------------------------
+
+def test_a_failed_run_says_the_folder_still_holds_the_earlier_run(tmp_path):
+    """Before: a nightly run that failed on a bad workbook left yesterday's outputs in place
+    with nothing saying they were not today's."""
+    out = tmp_path / "out"
+    assert fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", out, "--no-cache", "-q").exit_code == 0
+    created = json.loads((out / "manifest.json").read_text(encoding="utf-8"))["created_utc"]
+    bad = write_fleet(tmp_path / "bad.xlsx", [fakes.vehicle(count=-1)], [scenario()])
+    result = fakes.invoke_run(bad, "--out", out, "--no-cache", "-q")
+    assert_user_error(result, "Vehicles!E2 count: -1")
+    assert f"{out} still holds the outputs of the earlier run of {created}, not of this workbook" in result.stderr
+
+
+def test_an_output_path_under_a_file_names_the_file(tmp_path):
+    """Before: "cannot write here (File exists)", not which file is in the way."""
+    (tmp_path / "results").write_text("notes", encoding="utf-8")
+    result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "results" / "may", "--no-cache")
+    assert_user_error(result, f"({tmp_path / 'results'} is a file, not a folder)")
+    assert (tmp_path / "results").read_text(encoding="utf-8") == "notes"
+
+
+# --- interrupted runs -------------------------------------------------------------------------
+
+def _stop_during_simulation(monkeypatch, stop):
+    from fleetrun.run import batch
+
+    def stopped(*args, **kwargs):
+        stop()
+        time.sleep(5)   # the signal's handler raises before this ends
+        raise AssertionError("not stopped")
+
+    monkeypatch.setattr(batch, "run_fleet", stopped)
+
+
+@pytest.mark.parametrize("how, said", [
+    (lambda: os.kill(os.getpid(), signal.SIGTERM), "stopped by SIGTERM"),
+    (lambda: (_ for _ in ()).throw(KeyboardInterrupt), "interrupted (Ctrl-C)"),
+])
+def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monkeypatch, how, said):
+    """Before: SIGTERM (a scheduler's time limit, `kill`) ended the process with no message,
+    exit -15, and no line in the log; Ctrl-C's message did not name the log, and the log
+    ended mid-run without a word."""
+    out, log = tmp_path / "out", tmp_path / "run.log"
+    fleet = small_fleet(tmp_path / "f.xlsx")
+    assert fakes.invoke_run(fleet, "--out", out, "--no-cache", "-q").exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    handler = signal.getsignal(signal.SIGTERM)
+    _stop_during_simulation(monkeypatch, how)
+    result = fakes.invoke_run(fleet, "--out", out, "--no-cache", "-q", "--log", log)
+    assert_user_error(result, said, f"(logged in {log})")
+    assert f"{said}; nothing more was written and {out} is as it was" in log.read_text(encoding="utf-8")
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.xlsx", "out", "run.log"]   # no staging, no lock
+    assert signal.getsignal(signal.SIGTERM) == handler   # restored after the command
