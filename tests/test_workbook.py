@@ -99,7 +99,7 @@ def test_every_problem_reported_at_once_with_cell_and_value(tmp_path):
                        [scenario(cycle_mix="UDDS:0.5,HWFX:0.5"), scenario("s2", budget_years=1.5,
                                                                           cycle_mix="UDDS:0.5")])
     problems = problems_of(path)
-    assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number" in problems
+    assert "Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number; type a number" in problems
     assert any(p.startswith("Vehicles!E3 count: -3 must be at least 0 (the range of count is 0 to ")
                for p in problems)
     assert "Vehicles!G3 fuel: 'kerosene' is not one of gasoline, diesel, electric" in problems
@@ -120,7 +120,7 @@ def test_cli_validate_one_error_message_first_line_counts(tmp_path):
     assert result.stderr.count("Error:") == 1
     first, *lines = result.stderr.strip().splitlines()
     # docs/interface.md: the first line names the file, sheet, cell and value; the others follow
-    assert first == f"Error: {path}: Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number"
+    assert first == f"Error: {path}: Vehicles!H2 peak_engine_torque_Nm: 'abc' is not a number; type a number"
     assert lines == ["  Vehicles!E3 count: -1 must be at least 0 (the range of count is 0 to "
                      "100,000,000; check the units)",
                      "2 problems in the fleet workbook; fix them and check again with "
@@ -276,7 +276,7 @@ def test_dates_booleans_and_errors_are_not_numbers(tmp_path):
     problems = problems_of(path)
     assert "Vehicles!F2 annual_miles: 2024-01-05 is a date, not a number (format the column as Number)" in problems
     assert "Vehicles!E2 count: True is not a number" in problems
-    assert "Vehicles!H2 peak_engine_torque_Nm: '#DIV/0!' is not a number" in problems
+    assert "Vehicles!H2 peak_engine_torque_Nm: '#DIV/0!' is not a number; an Excel error; fix the formula or type the value" in problems
 
 
 def test_large_fleet_reads_fast(tmp_path):

@@ -128,6 +128,8 @@ def _number_hint(text: str) -> str:
               and (name.startswith(lower) or lower in ("sept",))]
     if months:
         return f"give the month as a number 1-12 ({_MONTHS[months[0] - 1].capitalize()} = {months[0]})"
+    if text.startswith("#"):   # #DIV/0!, #N/A, #REF! as text
+        return "an Excel error; fix the formula or type the value"
     if text[:1] in "$€£" or text[1:2] in "$€£":
         return "type the number without the currency sign"
     if text.endswith("%"):
