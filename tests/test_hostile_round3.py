@@ -219,3 +219,47 @@ def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monke
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.xlsx", "out", "run.log"]   # no staging, no lock
     assert signal.getsignal(signal.SIGTERM) == handler   # restored after the command
+
+
+# --- import-registrations: a DMV extract ------------------------------------------------------
+
+def test_import_registrations_never_replaces_an_edited_workbook(tmp_path):
+    """Before: next month's import over last month's fleet.xlsx silently replaced it, and with
+    it the tax rates and VMT the analyst had typed into its Scenarios sheet."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_text("vehicle_class,count\nautomobile,100\n", encoding="utf-8")
+    workbook = tmp_path / "fleet.xlsx"
+    assert invoke("import-registrations", extract, "-o", workbook).exit_code == 0
+    edited = workbook.read_bytes()
+    assert_user_error(invoke("import-registrations", extract, "-o", workbook), f"'{workbook}' exists", "--force")
+    assert workbook.read_bytes() == edited
+    assert invoke("import-registrations", extract, "-o", workbook, "--force").exit_code == 0
+
+
+@pytest.mark.parametrize("content, said", [
+    (b"", "is empty (0 bytes)"),
+    (b"vehicle_class,count,make\nautomobile,1,Citro\xebn\n", "is not UTF-8 text (byte 0xeb"),
+    (b"vehicle_class,count\n", "has no data lines below the header"),
+])
+def test_import_registrations_unusable_extract_is_a_user_error(tmp_path, content, said):
+    """Before: an empty file and a Windows-1252 extract (Citroën) were internal errors (exit 4);
+    a header without lines wrote a workbook of no registrations (exit 0)."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_bytes(content)
+    assert_user_error(invoke("import-registrations", extract, "-o", tmp_path / "f.xlsx"), f"{extract}: {said}")
+    assert not (tmp_path / "f.xlsx").exists()
+
+
+def test_import_registrations_reads_what_excel_exports(tmp_path):
+    """Before: a semicolon-separated export (Excel where the decimal mark is a comma), headers
+    such as 'Vehicle Class' and counts with thousands separators were refused."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_text('Vehicle Class;Count\nautomobile;"2,524,145"\ntruck;2721534\n', encoding="utf-8-sig")
+    result = invoke("import-registrations", extract, "-o", tmp_path / "f.xlsx")
+    assert result.exit_code == 0, result.output
+    fleet = read_fleet(tmp_path / "f.xlsx")
+    assert {r["vehicle_class"]: r["count"] for r in fleet.registrations} == {"automobile": 2524145, "truck": 2721534}
+    total = tmp_path / "total.csv"
+    total.write_text("vehicle_class,count\nautomobile,5\nTotal,5\n", encoding="utf-8")
+    assert_user_error(invoke("import-registrations", total, "-o", tmp_path / "g.xlsx"),
+                      "line 3: vehicle_class 'total' looks like a total row")

@@ -9,12 +9,14 @@ extract of a state's 50,000 make/model/year combinations needs a few megabytes).
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from fleetrun.errors import InputError
+from fleetrun.workbook.cells import THOUSANDS_PATTERN, TOTAL_ROW, is_total_label
 from fleetrun.workbook.schema import FUELS, REGISTRATION_CLASSES
 
 KEYS = ("vehicle_class", "fuel", "make", "model", "model_year")
@@ -22,13 +24,24 @@ CHUNK_ROWS = 200_000
 MAX_COUNT = 1e9
 
 
-def _columns(path: Path) -> list[str]:
+def _name(header) -> str:
+    """A header as the sheet's column names are spelt (``Vehicle Class`` is vehicle_class)."""
+    return re.sub(r"[\s-]+", "_", str(header).strip().lower())
+
+
+def _columns(path: Path) -> tuple[list[str], str]:
+    """The extract's columns to read and its separator: a comma, or the semicolon or tab that
+    Excel writes in locales whose decimal mark is a comma."""
+    if path.stat().st_size == 0:
+        raise InputError("is empty (0 bytes)", file=path, hint="Export the extract again")
+    for sep in (",", ";", "\t"):
+        header = pd.read_csv(path, nrows=0, encoding="utf-8-sig", sep=sep)
+        names = {_name(c): c for c in header.columns}
+        if "vehicle_class" in names:
+            return [names[k] for k in (*KEYS, "count") if k in names], sep
     header = pd.read_csv(path, nrows=0, encoding="utf-8-sig")
-    names = {str(c).strip().lower(): c for c in header.columns}
-    if "vehicle_class" not in names:
-        raise InputError(f"has no vehicle_class column (columns: {', '.join(map(str, header.columns))})", file=path,
-                         hint="Name the FHWA class column vehicle_class (docs/registrations.md)")
-    return [names[k] for k in (*KEYS, "count") if k in names]
+    raise InputError(f"has no vehicle_class column (columns: {', '.join(map(str, header.columns))})", file=path,
+                     hint="Name the FHWA class column vehicle_class (docs/registrations.md)")
 
 
 def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
@@ -39,12 +52,14 @@ def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
         bad = values.notna() & ~values.isin(allowed)
         if bad.any():
             where = int(np.flatnonzero(bad.to_numpy())[0])
-            raise InputError(f"line {first_line + where}: {name} {values.iloc[where]!r} is not one of "
-                             f"{', '.join(allowed)}", file=path, hint="Fix the extract (docs/registrations.md)")
+            what = TOTAL_ROW if is_total_label(values.iloc[where]) else f"is not one of {', '.join(allowed)}"
+            raise InputError(f"line {first_line + where}: {name} {values.iloc[where]!r} {what}", file=path,
+                             hint="Fix the extract (docs/registrations.md)")
     for name, low, high in (("model_year", 1900, 2200), ("count", 0, MAX_COUNT)):
         if name not in chunk:
             continue
-        numbers = pd.to_numeric(chunk[name], errors="coerce")
+        grouped = chunk[name].str.fullmatch(THOUSANDS_PATTERN, na=False)   # "2,524,145": the number shown
+        numbers = pd.to_numeric(chunk[name].where(~grouped, chunk[name].str.replace(",", "")), errors="coerce")
         bad = (chunk[name].notna() & numbers.isna()) | (numbers < low) | (numbers > high)
         if bad.any():
             where = int(np.flatnonzero(bad.to_numpy())[0])
@@ -59,13 +74,21 @@ def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
     path = Path(path)
     if not path.is_file():
         raise InputError("does not exist", file=path, hint="Check the path of the registration extract")
-    usecols = _columns(path)
+    try:
+        return _aggregate(path, chunk_rows)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}; a Windows code page?)", file=path,
+                         hint="Save it as 'CSV UTF-8' (Excel) or re-export it in UTF-8") from None
+
+
+def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
+    usecols, sep = _columns(path)
     totals: pd.Series | None = None
     line = 2
     reader = pd.read_csv(path, usecols=usecols, chunksize=chunk_rows, dtype=str, encoding="utf-8-sig",
-                         keep_default_na=False, na_values=[""])
+                         keep_default_na=False, na_values=[""], sep=sep)
     for chunk in reader:
-        chunk.columns = [str(c).strip().lower() for c in chunk.columns]
+        chunk.columns = [_name(c) for c in chunk.columns]
         for name in ("vehicle_class", "fuel"):
             if name in chunk:
                 chunk[name] = chunk[name].str.strip().str.lower()
@@ -76,8 +99,8 @@ def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
         keys = [k for k in KEYS if k in chunk]
         part = chunk.groupby(keys, dropna=False, sort=False)["count"].sum()
         totals = part if totals is None else totals.add(part, fill_value=0.0)
-    if totals is None:
-        raise InputError("has no data lines below the header", file=path)
+    if totals is None or totals.empty:
+        raise InputError("has no data lines below the header", file=path, hint="Export the extract again")
     frame = totals.reset_index()
     for k in KEYS:
         if k not in frame:

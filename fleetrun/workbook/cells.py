@@ -116,6 +116,7 @@ def parse_number(value) -> float:
 # Thousands separators as US / UK Excel shows them (2,524,145 or 1,234.5): unambiguous, a
 # decimal comma has no three-digit groups after a non-zero lead (0,115 and 4,2 do not match)
 _THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+(\.\d+)?")
+THOUSANDS_PATTERN = _THOUSANDS.pattern   # the same rule for a CSV column (registrations.extract)
 _GROUPED = re.compile(r"[+-]?\d{1,3}([ .'\u00a0\u202f]\d{3})+(,\d+)?")   # 2 524 145, 2.524.145, 2'524'145
 _MONTHS = ("january", "february", "march", "april", "may", "june", "july", "august", "september",
            "october", "november", "december")
@@ -160,13 +161,19 @@ def parse_choice(value, choices) -> str:
     if skeleton(key) in lower:
         raise CellProblem(f"{show(value)} looks like {lower[skeleton(key)]} but has look-alike letters of "
                           f"another script: {', '.join(lookalike_letters(text))}; retype it")
-    if key.strip(" :") in _TOTAL_WORDS:
-        raise CellProblem(f"{show(value)} looks like a total row; delete the row (fleetrun adds the rows up "
-                          "itself, so a total row would count them twice)")
+    if is_total_label(key):
+        raise CellProblem(f"{show(value)} {TOTAL_ROW}")
     raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
 
 
 _TOTAL_WORDS = {"total", "totals", "grand total", "grand_total", "sum", "all", "all vehicles", "total vehicles"}
+TOTAL_ROW = ("looks like a total row; delete the row (fleetrun adds the rows up itself, so a total row "
+             "would count them twice)")
+
+
+def is_total_label(text: str) -> bool:
+    """Whether a class cell reads like the label of a total row (``Total``, ``Grand total``)."""
+    return str(text).strip(" :").lower().replace("-", "_") in _TOTAL_WORDS
 
 
 def parse_onroad(value):
