@@ -273,6 +273,9 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
     ``replaces`` are carried over; those in ``replaces`` disappear with the old folder.
     """
     staging, target = Path(staging), _resolve_target(target)
+    if _holds_working_folder(target):
+        _replace_in_place(staging, target, set(replaces))
+        return
     try:
         os.chmod(staging, _folder_mode(target))
         if target.exists():
@@ -295,6 +298,44 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
     if had_old:
         _rescue(old, target, set(replaces))
         _remove_tree(old)   # a locked leftover: the next run removes it
+
+
+def _holds_working_folder(target: Path) -> bool:
+    """Whether ``target`` is the working folder (``--out .``) or one of its parents (``--out ..``):
+    renamed aside and removed, it would leave the shell that started fleetrun in a removed
+    folder, where ``ls`` shows nothing: the outputs and the user's own files look lost."""
+    try:
+        here = Path(os.getcwd()).resolve()
+    except OSError:
+        return False
+    return here == target or target in here.parents
+
+
+def _replace_in_place(staging: Path, target: Path, replaced: set[str]) -> None:
+    """The swap for a working folder: ``staging``'s entries moved into ``target`` one atomic
+    rename each, ``manifest.json`` last (a reader that sees the new manifest sees every new
+    output), then the replaced outputs this run did not write removed; ``target`` itself and
+    every other entry of it stay where they are."""
+    entries = sorted(staging.iterdir(), key=lambda entry: entry.name == "manifest.json")
+    try:
+        for entry in entries:
+            twin = target / entry.name
+            if entry.is_dir() and twin.is_dir() and not twin.is_symlink():
+                _merge_new(entry, twin)     # earlier-runs/: the runs kept before stay
+            else:
+                os.replace(entry, twin)
+        for name in replaced - {entry.name for entry in entries}:
+            if (target / name).is_file():
+                os.unlink(target / name)
+    except OSError as exc:
+        raise _error(target, "cannot replace the outputs", exc) from None
+
+
+def _merge_new(source: Path, target: Path) -> None:
+    """Move the entries of ``source`` that ``target`` lacks into it."""
+    for entry in source.iterdir():
+        if not os.path.lexists(target / entry.name):
+            os.rename(entry, target / entry.name)
 
 
 def _rescue(old: Path, new: Path, replaced: set[str]) -> None:

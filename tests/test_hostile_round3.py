@@ -263,3 +263,24 @@ def test_import_registrations_reads_what_excel_exports(tmp_path):
     total.write_text("vehicle_class,count\nautomobile,5\nTotal,5\n", encoding="utf-8")
     assert_user_error(invoke("import-registrations", total, "-o", tmp_path / "g.xlsx"),
                       "line 3: vehicle_class 'total' looks like a total row")
+
+
+@pytest.mark.parametrize("out", [".", ".."])
+def test_out_naming_the_working_folder_keeps_the_shell_in_a_live_folder(tmp_path, monkeypatch, out):
+    """Before: `fleetrun run fleet.xlsx --out .` renamed the working folder aside and removed
+    it: the analyst's shell was left in a removed folder, where `ls` showed nothing (the
+    outputs and their own notes looked lost) and new files could not be made."""
+    folder = tmp_path / "fleets" / "may"
+    folder.mkdir(parents=True)
+    small_fleet(folder / "fleet.xlsx")
+    (folder / "notes.txt").write_text("mine", encoding="utf-8")
+    monkeypatch.chdir(folder)
+    for _ in range(2):   # the second run replaces the first's outputs, keeping it in earlier-runs/
+        result = fakes.invoke_run("fleet.xlsx", "--out", out, "-q", "--no-cache")
+        assert result.exit_code == 0, result.output
+        assert os.path.samefile(os.getcwd(), folder)   # still the live folder
+    written = set(os.listdir(out))
+    assert {"report.xlsx", "manifest.json", "results.csv", "earlier-runs"} <= written
+    assert (folder / "notes.txt").read_text(encoding="utf-8") == "mine"
+    assert len(os.listdir(Path(out) / "earlier-runs")) == 1
+    assert [p.name for p in tmp_path.rglob(".*")] == []   # no staging, old or lock left
