@@ -284,3 +284,23 @@ def test_out_naming_the_working_folder_keeps_the_shell_in_a_live_folder(tmp_path
     assert (folder / "notes.txt").read_text(encoding="utf-8") == "mine"
     assert len(os.listdir(Path(out) / "earlier-runs")) == 1
     assert [p.name for p in tmp_path.rglob(".*")] == []   # no staging, old or lock left
+
+
+def test_base_vmt_below_the_vehicles_rows_own_miles_is_refused_not_negative(tmp_path):
+    """Before: Vehicles rows driving 28 million miles beside registrations with
+    base_year_vmt_million = 1 left -27 million miles to the registrations: negative gallons and
+    negative tax in every output, exit 0."""
+    path = small_fleet(tmp_path / "f.xlsx")
+    wb = openpyxl.load_workbook(path)
+    wb["Registrations"].append(["automobile", 1000])
+    sc = wb["Scenarios"]
+    column = [c.value for c in sc[1]].index("base_year_vmt_million") + 1
+    for row in range(2, sc.max_row + 1):
+        sc.cell(row=row, column=column, value=1)
+    wb.save(path)
+    letter = openpyxl.utils.get_column_letter(column)
+    for args in (("validate", path), ("run", path, "--out", tmp_path / "out", "--no-cache")):
+        result = fakes.invoke_run(*args[1:]) if args[0] == "run" else invoke(*args)
+        assert_user_error(result, f"Scenarios!{letter}2 base_year_vmt_million: 1 million is not more than the "
+                                  "Vehicles rows' own first-year miles")
+    assert not (tmp_path / "out").exists()

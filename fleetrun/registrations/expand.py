@@ -51,6 +51,9 @@ class Expansion:
         totals = raw.sum(axis=0)
         if scenario.base_year_vmt_million is not None:
             target = scenario.base_year_vmt_million * 1e6 - other_year1_miles
+            if target <= 0:   # the reader refuses this first (reader._check_base_vmt); never negative miles
+                raise InputError(f"scenario {scenario.scenario_id}: base_year_vmt_million is not more than the "
+                                 "Vehicles rows' own miles", hint="give the whole fleet's vehicle-miles")
         else:
             target = totals[0]
         g = scenario.vmt_growth_pct_per_year / 100.0

@@ -264,6 +264,8 @@ def read_fleet(path) -> Fleet:
     registrations = _registrations(registration_table, vehicle_rows, problems) if registration_table else []
     if scenario_table is not None:
         _check_share_classes(scenarios, scenario_rows, registrations, scenario_table, problems)
+        if registrations:
+            _check_base_vmt(scenarios, scenario_rows, vehicles, scenario_table, problems)
 
     if problems.errors:
         errors = problems.sorted_errors()
@@ -726,6 +728,22 @@ def default_mix(text: str) -> dict[str, float]:
     if text.startswith("gem:"):
         return gem_cycle_mix(text[len("gem:"):])
     return cells.parse_cycle_mix(text)
+
+
+def _check_base_vmt(scenarios, scenario_rows, vehicles, table: _Table, problems: Problems) -> None:
+    """``base_year_vmt_million`` is the whole fleet's first-year miles, Vehicles rows included:
+    the registrations drive what is left (registrations.expand.Expansion.year_miles), so it
+    must exceed the Vehicles rows' own (count x annual_miles), or their miles and gallons would
+    come out negative."""
+    own = math.fsum(v.count * v.annual_miles for v in vehicles)
+    for s in scenarios:
+        if s.base_year_vmt_million is not None and s.base_year_vmt_million * 1e6 <= own:
+            problems.error(f"{s.base_year_vmt_million:,.6g} million is not more than the Vehicles rows' own first-year "
+                           f"miles ({own / 1e6:,.6g} million, count x annual_miles), so nothing is left for the "
+                           "registrations; give the whole fleet's vehicle-miles (Vehicles rows included), or set "
+                           "count 0 on Vehicles rows that only stand in for registrations", table.sheet,
+                           scenario_rows.get(s.scenario_id), table.columns.get("base_year_vmt_million"),
+                           "base_year_vmt_million")
 
 
 def _check_share_classes(scenarios, scenario_rows, registrations, table: _Table, problems: Problems) -> None:
