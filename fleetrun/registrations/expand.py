@@ -309,7 +309,8 @@ def _arrays(acc: _Cohorts, h: int, path) -> Expansion:
     warnings = []
     if acc.unmodelled:
         warnings.append(f"registrations: {acc.unmodelled:,.0f} vehicles have no representing vehicle (listed as "
-                        f"'{NOT_MODELLED}' in registrations.csv) and add no miles or fuel")
+                        f"'{NOT_MODELLED}' in registrations.csv) and add no miles or fuel, and no electric-vehicle fee "
+                        "(ev_fee_usd_per_vehicle_year counts the simulated vehicles only)")
     return Expansion(vehicles=vehicles, fhwa_class=classes, model_year=years, reference_year=np.array(refs),
                      counts=counts, miles_per_vehicle=miles, base_year=base,
                      choices=pd.DataFrame(acc.choices, columns=CHOICE_COLUMNS), warnings=warnings)
