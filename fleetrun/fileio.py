@@ -34,6 +34,13 @@ def prepare_output_folder(folder: Path, what: Path) -> None:
         raise InputError(f"{what}: {folder} is not a folder", hint="Choose another output path")
 
 
+def why_not_writable(path: Path, exc: OSError) -> str:
+    """Why ``path`` could not be created, for a message: a file standing where a folder of its
+    path should be (``results`` a file, ``--out results/may``), else the system's reason."""
+    blocking = next((p for p in Path(path).parents if p.exists() and not p.is_dir()), None)
+    return f"{blocking} is a file, not a folder" if blocking else str(exc.strerror or exc)
+
+
 def is_same_file(path: Path, other: Path) -> bool:
     """True when ``path`` and ``other`` both exist and are one file (by any name or link)."""
     return Path(path).exists() and Path(other).exists() and os.path.samefile(path, other)

@@ -46,6 +46,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from fleetrun.errors import InputError
+from fleetrun.fileio import why_not_writable
 
 STAGING = "staging"
 OLD = "old"
@@ -248,9 +249,7 @@ def folder_lock(target: Path, wait_s: float | None = None) -> Iterator[Path]:
         target.parent.mkdir(parents=True, exist_ok=True)
         handle = _acquire(lock, target, wait_s)
     except OSError as exc:
-        blocking = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
-        reason = f"{blocking} is a file, not a folder" if blocking else exc.strerror or exc
-        raise InputError(f"{target}: cannot write here ({reason})",
+        raise InputError(f"{target}: cannot write here ({why_not_writable(target, exc)})",
                          hint="Choose an output folder you can write to") from None
     try:
         handle.seek(0)

@@ -304,3 +304,18 @@ def test_base_vmt_below_the_vehicles_rows_own_miles_is_refused_not_negative(tmp_
         assert_user_error(result, f"Scenarios!{letter}2 base_year_vmt_million: 1 million is not more than the "
                                   "Vehicles rows' own first-year miles")
     assert not (tmp_path / "out").exists()
+
+
+def test_simulate_on_a_registrations_only_workbook_says_why_there_is_no_vehicle(tmp_path):
+    """Before: "unknown vehicle_id 'automobile'; valid: " and an empty list."""
+    path = registrations(tmp_path / "f.xlsx", MV1)
+    assert_user_error(invoke("simulate", path, "--vehicle", "automobile", "--cycle", "UDDS"),
+                      f"{path}: has no Vehicles rows, so no vehicle_id 'automobile'", "--vehicle-file")
+
+
+def test_a_log_path_under_a_file_names_the_file(tmp_path):
+    """Before: "cannot write the log (File exists)"."""
+    (tmp_path / "logs").write_text("notes", encoding="utf-8")
+    result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "--log",
+                              tmp_path / "logs" / "run.log", "--no-cache")
+    assert_user_error(result, f"cannot write the log ({tmp_path / 'logs'} is a file, not a folder)")

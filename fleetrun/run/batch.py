@@ -28,7 +28,7 @@ import click
 from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError, interruption
-from fleetrun.fileio import write_error_log
+from fleetrun.fileio import why_not_writable, write_error_log
 from fleetrun.reports.changes import EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
 from fleetrun.run.engines import make_engine
@@ -270,7 +270,7 @@ def _log_handler(log_file: Path) -> logging.Handler:
         log_file.parent.mkdir(parents=True, exist_ok=True)
         return logging.FileHandler(log_file, encoding="utf-8")
     except OSError as exc:
-        raise InputError(f"{log_file}: cannot write the log ({exc.strerror or exc})",
+        raise InputError(f"{log_file}: cannot write the log ({why_not_writable(log_file, exc)})",
                          hint="Choose a log file in a folder you can write to (--log)") from None
 
 

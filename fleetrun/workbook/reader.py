@@ -159,6 +159,10 @@ class Fleet:
         for v in self.vehicles:
             if v.vehicle_id == vehicle_id:
                 return v
+        if not self.vehicles:   # a fleet from registrations only: its vehicles are chosen by `run`
+            raise InputError(f"has no Vehicles rows, so no vehicle_id '{vehicle_id}' (a fleet from registrations: "
+                             "its vehicles are chosen from the library by `fleetrun run`, listed in registrations.csv)",
+                             file=self.path, hint="Add a Vehicles row for it, or give --vehicle-file")
         error = unknown_name_error("vehicle_id", vehicle_id, [v.vehicle_id for v in self.vehicles])
         error.file = self.path
         raise error
