@@ -319,3 +319,11 @@ def test_a_log_path_under_a_file_names_the_file(tmp_path):
     result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "--log",
                               tmp_path / "logs" / "run.log", "--no-cache")
     assert_user_error(result, f"cannot write the log ({tmp_path / 'logs'} is a file, not a folder)")
+
+
+def test_base_vmt_typed_in_billions_is_a_warning(tmp_path):
+    """Before: base_year_vmt_million = 60 (a state's 60 billion miles typed in billions) was read
+    silently as 60 million miles: every gallon 1,000 times too small."""
+    result = invoke("validate", registrations(tmp_path / "f.xlsx", MV1, scenario_changes={"base_year_vmt_million": 60}))
+    assert result.exit_code == 0, result.output
+    assert "Scenarios!K2 base_year_vmt_million: 60 is unusual (expected 100 to 4e+06); check the units" in result.stderr

@@ -201,7 +201,10 @@ SCENARIO_COLUMNS: tuple[Column, ...] = (
            "rate x (1 + i)^(y - 1) [% per year]", minimum=-50, maximum=50, plausible=(-5.0, 10.0)),
     # Registrations columns (docs/registrations.md)
     Column("base_year_vmt_million", "number", False, "the base fiscal year's vehicle-miles in millions "
-           "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7),
+           "(e.g. FHWA VM-2); all miles are scaled to it", strictly_positive=True, maximum=1e7,
+           # usual: a county's fleet (100) to the nation's (3.3 million million miles, FHWA VM-1 2019);
+           # below, VMT typed in billions (60 for 60,000) would shrink every mile 1,000 times
+           plausible=(100.0, 4_000_000.0)),
     Column("base_year_vmt_share_pct", "class_shares", False, "percent of the base year's vehicle-miles "
            "driven by FHWA class, e.g. combination_truck:9.1, single_unit_truck:4.6, bus:0.6 (your state's "
            "VMT by vehicle type, FHWA VM-4 / HPMS); classes not listed share the rest (docs/registrations.md)"),
