@@ -327,3 +327,16 @@ def test_base_vmt_typed_in_billions_is_a_warning(tmp_path):
     result = invoke("validate", registrations(tmp_path / "f.xlsx", MV1, scenario_changes={"base_year_vmt_million": 60}))
     assert result.exit_code == 0, result.output
     assert "Scenarios!K2 base_year_vmt_million: 60 is unusual (expected 100 to 4e+06); check the units" in result.stderr
+
+
+@pytest.mark.parametrize("rows, said", [
+    ([("automobile", 0), ("truck", 0)], "count: every count is 0"),
+    ([("automobile", 1000, None, "electric")], "count: every registration counted is electric"),
+])
+def test_a_fleet_with_nothing_to_forecast_is_refused(tmp_path, rows, said):
+    """Before: every count 0 ran to a report of $0 revenue (exit 0); registrations that were all
+    electric (which no library vehicle represents) crashed writing summary.html (exit 4)."""
+    path = registrations(tmp_path / "f.xlsx", rows, header=("vehicle_class", "count", "model_year", "fuel"))
+    for result in (invoke("validate", path), fakes.invoke_run(path, "--out", tmp_path / "out", "--no-cache")):
+        assert_user_error(result, f"{path}: Registrations: {said}", "nothing to forecast")
+    assert not (tmp_path / "out").exists()

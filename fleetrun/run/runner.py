@@ -27,7 +27,7 @@ from fleetrun.budget.uncertainty import read_error_model
 from fleetrun.cycles import load_cycle
 from fleetrun.differential import efficiency
 from fleetrun.effects import as_effect_list, efficiency_with_effects
-from fleetrun.errors import DomainError
+from fleetrun.errors import DomainError, InputError
 from fleetrun.resources import inputs_dir
 from fleetrun.run.engines import LocalEngine
 from fleetrun.simulation import DEFAULT_MODE
@@ -121,6 +121,9 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
     engine = engine or LocalEngine()
     vehicles, years, registrations = registration_vehicles(fleet, scenarios)
+    if not any(v.count > 0 for v in vehicles):   # the reader refuses this first (reader._check_something_to_forecast)
+        raise InputError("the fleet has no vehicles to forecast (every count is 0, or nothing represents them)",
+                         file=fleet.path, hint="Give the fleet's counts")
     # Rows that differ only in id, class, count or miles drive the same: simulate each
     # distinct physical vehicle once and hand its per-vehicle results to every such row.
     distinct, owner = distinct_vehicles(vehicles)
