@@ -340,3 +340,15 @@ def test_a_fleet_with_nothing_to_forecast_is_refused(tmp_path, rows, said):
     for result in (invoke("validate", path), fakes.invoke_run(path, "--out", tmp_path / "out", "--no-cache")):
         assert_user_error(result, f"{path}: Registrations: {said}", "nothing to forecast")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_registered_model_year_after_the_base_year_is_a_warning(tmp_path):
+    """Before: model_year 2031 (a typo for 2013) in counts of 2027 ran silently as brand-new
+    vehicles with the fuel economy of 2031."""
+    from fleetrun.registrations.expand import expand
+
+    fleet = read_fleet(registrations(tmp_path / "f.xlsx", [("automobile", 1000, 2031), ("automobile", 10, 2028)],
+                                     header=("vehicle_class", "count", "model_year")))
+    warnings = expand(fleet, fleet.scenarios).warnings
+    assert any("1 row(s) give a model year after 2028, though the counts describe 2027 (Registrations!row 2)" in w
+               for w in warnings), warnings

@@ -325,6 +325,11 @@ def expand(fleet, scenarios) -> Expansion | None:
     for label, row in rows:
         allocate(row, acc, label)
     expansion = build(acc, scenarios, fleet.path)
+    ahead = [label for label, row in rows if row.get("model_year") is not None and row["model_year"] > acc.base + 1]
+    if ahead:   # a model year sells from the autumn before; later ones are typos (2031 for 2013)
+        expansion.warnings.append(f"registrations: {len(ahead)} row(s) give a model year after {acc.base + 1}, though "
+                                  f"the counts describe {acc.base} ({', '.join(ahead[:5])}{' ...' if len(ahead) > 5 else ''});"
+                                  " counted as new vehicles from the base year, with that model year's fuel economy: check the model_year")
     if all(s.first_fiscal_year is None for s in scenarios):
         expansion.warnings.append(f"registrations: no scenario gives first_fiscal_year; the counts are taken to "
                                   f"describe {acc.base} (models/turnover.toml default_base_year) for ages and turnover")
