@@ -181,6 +181,22 @@ def _remove_tree(path: Path) -> None:
         shutil.rmtree(path, onerror=retry)
 
 
+def _lock_wait_s() -> float:
+    """``$FLEETRUN_LOCK_WAIT_S`` [s] (default :data:`LOCK_WAIT_S`); a value that is not a number
+    of seconds is the scheduler's mistake to fix (exit 1), not a bug."""
+    text = os.environ.get("FLEETRUN_LOCK_WAIT_S", "").strip()
+    if not text:
+        return LOCK_WAIT_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 <= value < 1e7:
+        raise InputError(f"$FLEETRUN_LOCK_WAIT_S '{text}' is not a number of seconds",
+                         hint="Set it to the seconds a run may wait for another run's output folder, e.g. 600")
+    return value
+
+
 def _lock_path(target: Path) -> Path:
     return target.parent / f".{target.name}.fleetrun-lock"
 
@@ -243,7 +259,7 @@ def folder_lock(target: Path, wait_s: float | None = None) -> Iterator[Path]:
             _HELD[key] -= 1
         return
     if wait_s is None:
-        wait_s = float(os.environ.get("FLEETRUN_LOCK_WAIT_S", LOCK_WAIT_S))
+        wait_s = _lock_wait_s()
     lock = _lock_path(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

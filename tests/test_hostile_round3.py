@@ -352,3 +352,10 @@ def test_a_registered_model_year_after_the_base_year_is_a_warning(tmp_path):
     warnings = expand(fleet, fleet.scenarios).warnings
     assert any("1 row(s) give a model year after 2028, though the counts describe 2027 (Registrations!row 2)" in w
                for w in warnings), warnings
+
+
+def test_a_lock_wait_that_is_not_a_number_is_the_jobs_error(tmp_path, monkeypatch):
+    """Before: FLEETRUN_LOCK_WAIT_S=10m (a cron job's typo) was an internal error, exit 4."""
+    monkeypatch.setenv("FLEETRUN_LOCK_WAIT_S", "10m")
+    result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "--no-cache")
+    assert_user_error(result, "$FLEETRUN_LOCK_WAIT_S '10m' is not a number of seconds")
