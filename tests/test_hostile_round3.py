@@ -175,7 +175,7 @@ def test_a_failed_run_says_the_folder_still_holds_the_earlier_run(tmp_path):
     bad = write_fleet(tmp_path / "bad.xlsx", [fakes.vehicle(count=-1)], [scenario()])
     result = fakes.invoke_run(bad, "--out", out, "--no-cache", "-q")
     assert_user_error(result, "Vehicles!E2 count: -1")
-    assert f"{out} still holds the outputs of the earlier run of {created}, not of this workbook" in result.stderr
+    assert f"{out} still holds the outputs of the earlier run of {created}, not of this run" in result.stderr
 
 
 def test_an_output_path_under_a_file_names_the_file(tmp_path):

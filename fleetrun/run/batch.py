@@ -333,7 +333,7 @@ def _earlier_outputs_note(out_dir: Path) -> str:
     if earlier is None:
         return ""
     return (f"\n{out_dir} still holds the outputs of the earlier run of {earlier.manifest.get('created_utc', '?')}, "
-            "not of this workbook")
+            "not of this run")
 
 
 def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], list[FleetWritten]]:
