@@ -359,3 +359,15 @@ def test_a_lock_wait_that_is_not_a_number_is_the_jobs_error(tmp_path, monkeypatc
     monkeypatch.setenv("FLEETRUN_LOCK_WAIT_S", "10m")
     result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "--no-cache")
     assert_user_error(result, "$FLEETRUN_LOCK_WAIT_S '10m' is not a number of seconds")
+
+
+def test_class_names_written_with_spaces_are_the_class(tmp_path):
+    """Before: 'Light Truck' and 'single unit truck' (as FHWA's tables print them) were "not one
+    of ... light_truck, single_unit_truck", in the sheet and in an extract alike."""
+    fleet = read_fleet(registrations(tmp_path / "f.xlsx", [("Light Truck", 5), ("single unit truck", 3)]))
+    assert [r["vehicle_class"] for r in fleet.registrations] == ["light_truck", "single_unit_truck"]
+    extract = tmp_path / "dmv.csv"
+    extract.write_text("vehicle_class,count\nLight Truck,5\nsingle-unit truck,3\n", encoding="utf-8")
+    assert invoke("import-registrations", extract, "-o", tmp_path / "g.xlsx").exit_code == 0
+    assert {r["vehicle_class"] for r in read_fleet(tmp_path / "g.xlsx").registrations} == {"light_truck",
+                                                                                          "single_unit_truck"}

@@ -91,7 +91,7 @@ def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
         chunk.columns = [_name(c) for c in chunk.columns]
         for name in ("vehicle_class", "fuel"):
             if name in chunk:
-                chunk[name] = chunk[name].str.strip().str.lower()
+                chunk[name] = chunk[name].str.strip().str.lower().str.replace(r"[\s-]+", "_", regex=True)
         _check(chunk, line, path)
         line += len(chunk)
         if "count" not in chunk:

@@ -154,7 +154,7 @@ def parse_integer(value) -> int:
 def parse_choice(value, choices) -> str:
     text = parse_text(value)
     lower = {c.lower(): c for c in choices}
-    key = text.lower().replace("-", "_")
+    key = re.sub(r"[\s-]+", "_", text.lower())   # light-truck, Light Truck: light_truck
     for candidate in (text.lower(), key):
         if candidate in lower:
             return lower[candidate]
