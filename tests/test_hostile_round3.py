@@ -371,3 +371,17 @@ def test_class_names_written_with_spaces_are_the_class(tmp_path):
     assert invoke("import-registrations", extract, "-o", tmp_path / "g.xlsx").exit_code == 0
     assert {r["vehicle_class"] for r in read_fleet(tmp_path / "g.xlsx").registrations} == {"light_truck",
                                                                                           "single_unit_truck"}
+
+
+def test_a_batch_glob_skips_the_reports_of_earlier_runs(tmp_path):
+    """Before: with inputs = ["regions/*/*.xlsx"] and out = "regions", the second night read
+    the first night's regions/north-fleet/report.xlsx as a fleet and exited 3."""
+    for region in ("north", "south"):
+        (tmp_path / "regions" / region).mkdir(parents=True)
+        small_fleet(tmp_path / "regions" / region / "fleet.xlsx")
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["regions/*/*.xlsx"]\nout = "regions"\n', encoding="utf-8")
+    for night in range(2):
+        result = fakes.invoke_run("--config", config, "--no-cache", "-q")
+        assert result.exit_code == 0, result.output
+    assert (tmp_path / "regions" / "north-fleet" / "earlier-runs").is_dir()

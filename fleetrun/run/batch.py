@@ -131,6 +131,12 @@ class FleetWritten:
     result: RunResult
 
 
+def _not_a_fleet(path: Path) -> bool:
+    """A file a glob of workbooks meets that is no fleet: an Office lock file, or a run's own
+    report.xlsx (beside the manifest.json that lists it)."""
+    return is_office_lock_file(path) or (path.name == "report.xlsx" and (path.parent / "manifest.json").is_file())
+
+
 def read_config(path: Path) -> BatchConfig:
     """``batch.toml`` as checked values; paths resolved against the file's folder."""
     path = Path(path)
@@ -156,9 +162,9 @@ def read_config(path: Path) -> BatchConfig:
     found: list[Path] = []
     for pattern in inputs:
         full = pattern if os.path.isabs(pattern) else str(base / pattern)
-        # a glob skips the lock files Excel keeps beside open workbooks (~$fleet.xlsx): a nightly
-        # batch over a shared folder must not fail because an analyst has a workbook open
-        matches = sorted(m for m in glob.glob(full) if not is_office_lock_file(Path(m))) \
+        # a glob skips the lock files Excel keeps beside open workbooks (~$fleet.xlsx), and the
+        # reports of earlier runs (out beside the fleets): a nightly batch must not fail on them
+        matches = sorted(m for m in glob.glob(full) if not _not_a_fleet(Path(m))) \
             if glob.has_magic(full) else [full]
         if not matches:
             raise InputError(f"'inputs' pattern '{pattern}' matches no file", file=path)
