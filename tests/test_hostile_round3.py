@@ -385,3 +385,10 @@ def test_a_batch_glob_skips_the_reports_of_earlier_runs(tmp_path):
         result = fakes.invoke_run("--config", config, "--no-cache", "-q")
         assert result.exit_code == 0, result.output
     assert (tmp_path / "regions" / "north-fleet" / "earlier-runs").is_dir()
+
+
+def test_true_typed_in_a_yes_no_column_is_yes(tmp_path):
+    """Before: TRUE in calibrate_to_observed (Excel makes it a boolean cell) was "True is not text"."""
+    fleet = read_fleet(registrations(tmp_path / "f.xlsx", MV1, scenario_changes={
+        "calibrate_to_observed": True, "observed_base_gallons_gasoline": 3e9}))
+    assert fleet.scenarios[0].calibrate_to_observed is True

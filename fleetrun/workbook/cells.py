@@ -152,6 +152,8 @@ def parse_integer(value) -> int:
 
 
 def parse_choice(value, choices) -> str:
+    if isinstance(value, bool) and {"yes", "no"} <= set(choices):   # TRUE / FALSE typed in Excel
+        return "yes" if value else "no"
     text = parse_text(value)
     lower = {c.lower(): c for c in choices}
     key = re.sub(r"[\s-]+", "_", text.lower())   # light-truck, Light Truck: light_truck
