@@ -392,3 +392,12 @@ def test_true_typed_in_a_yes_no_column_is_yes(tmp_path):
     fleet = read_fleet(registrations(tmp_path / "f.xlsx", MV1, scenario_changes={
         "calibrate_to_observed": True, "observed_base_gallons_gasoline": 3e9}))
     assert fleet.scenarios[0].calibrate_to_observed is True
+
+
+def test_a_total_row_under_the_vehicles_table_is_named_as_such(tmp_path):
+    """Before: "14 required cells are empty: ..." for a row `Total | 2465000` under the table."""
+    path = small_fleet(tmp_path / "f.xlsx")
+    wb = openpyxl.load_workbook(path)
+    wb["Vehicles"].append(["Total", None, None, None, 2600])
+    wb.save(path)
+    assert_user_error(invoke("validate", path), "Vehicles!row 6: 'Total' looks like a total row; delete the row")

@@ -425,7 +425,9 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
     if len(blanks) >= ROW_MOSTLY_EMPTY:
         # A half-filled row: one line for the row, not one per cell.
         listed = ", ".join(f"{c.name} ({get_column_letter(i)})" for c, i in blanks)
-        problems.error(f"{len(blanks)} required cells are empty: {listed}", table.sheet, row_number)
+        label = next((v for v in values if isinstance(v, str) and cells.is_total_label(v)), None)
+        total = f"{cells.show(label)} {cells.TOTAL_ROW}; else " if label else ""   # a Total row under the table
+        problems.error(f"{total}{len(blanks)} required cells are empty: {listed}", table.sheet, row_number)
     for column, index in (blanks if len(blanks) < ROW_MOSTLY_EMPTY else ()):
         problems.error("is empty (required)", table.sheet, row_number, index, column.name)
     extra = {name: _cell(values, index) for name, index in table.extra_columns.items()}
