@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -106,6 +107,19 @@ def write_text_atomic(path: Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     with atomic_file(path) as temporary:
         temporary.write_text(text, encoding="utf-8")
+
+
+def link_or_copy(source, target) -> None:
+    """``target`` as a hard link of ``source`` (a symlink as a symlink), a copy where the file
+    system has no hard links. For fleetrun's own outputs, which are replaced, never written in
+    place: a kept earlier run then costs no bytes and no copying time."""
+    if os.path.islink(source):
+        os.symlink(os.readlink(source), target)
+        return
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copy2(source, target)
 
 
 def write_error_log(text: str, log_file: Path | None = None) -> Path:

@@ -46,7 +46,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from fleetrun.errors import InputError
-from fleetrun.fileio import why_not_writable
+from fleetrun.fileio import link_or_copy, why_not_writable
 
 STAGING = "staging"
 OLD = "old"
@@ -109,19 +109,10 @@ def _carry_over(old: Path, new: Path, replaced: set[str]) -> None:
         if entry.name in replaced or (new / entry.name).exists():
             continue
         if entry.is_dir() and not entry.is_symlink():
-            shutil.copytree(entry, new / entry.name, symlinks=True, copy_function=_link_or_copy)
+            shutil.copytree(entry, new / entry.name, symlinks=True, copy_function=link_or_copy)
         else:
-            _link_or_copy(entry, new / entry.name)
+            link_or_copy(entry, new / entry.name)
 
-
-def _link_or_copy(source, target) -> None:
-    if os.path.islink(source):
-        os.symlink(os.readlink(source), target)
-        return
-    try:
-        os.link(source, target)
-    except OSError:
-        shutil.copy2(source, target)
 
 
 def _folder_mode(target: Path) -> int:

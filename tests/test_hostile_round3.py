@@ -401,3 +401,17 @@ def test_a_total_row_under_the_vehicles_table_is_named_as_such(tmp_path):
     wb["Vehicles"].append(["Total", None, None, None, 2600])
     wb.save(path)
     assert_user_error(invoke("validate", path), "Vehicles!row 6: 'Total' looks like a total row; delete the row")
+
+
+def test_kept_earlier_runs_are_linked_not_copied_again_every_night(tmp_path):
+    """Before: every run copied every earlier run it kept (earlier-runs/), byte for byte, so a
+    nightly job's write time and disk grew with each night until the disk was full and the
+    outputs stopped changing. Now each is a hard link of the file it keeps (tmp_path's file
+    system has them)."""
+    out, fleet = tmp_path / "out", small_fleet(tmp_path / "f.xlsx")
+    inodes = []
+    for night in range(3):
+        assert fakes.invoke_run(fleet, "--out", out, "--no-cache", "-q").exit_code == 0
+        inodes.append(os.stat(out / "results.csv").st_ino)
+    kept = {os.stat(p).st_ino for p in (out / "earlier-runs").glob("*/results.csv")}
+    assert kept == set(inodes[:2])   # the same files, kept where they were

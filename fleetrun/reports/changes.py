@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from fleetrun.budget.result import ChangeCause, InputChange, RunChanges, TotalChange
-from fleetrun.fileio import JsonDocument
+from fleetrun.fileio import JsonDocument, link_or_copy
 
 EARLIER_DIR = "earlier-runs"
 TOTAL_COLUMNS = ("fuel_gal_total", "state_tax_usd", "federal_tax_usd", "kwh_total", "ev_fee_usd")
@@ -263,12 +263,15 @@ def keep_earlier_run(out_dir: Path, staging: Path, earlier: EarlierRun, files) -
     digest = hashlib.sha256((out_dir / "manifest.json").read_bytes()).hexdigest()[:8]
     kept = staging / EARLIER_DIR / f"{earlier.folder_name()}-{digest}"
     kept.mkdir(parents=True, exist_ok=True)
+    # hard links: every night's run kept its predecessors by copying them all, so the write
+    # time and the disk grew with every run kept (fileio.link_or_copy: outputs are replaced,
+    # never written in place, so a link keeps the earlier bytes)
     for name in files:
         if (out_dir / name).is_file():
-            shutil.copy2(out_dir / name, kept / name)
+            link_or_copy(out_dir / name, kept / name)
     older = out_dir / EARLIER_DIR
     if older.is_dir():
         for item in sorted(older.iterdir()):
             if item.is_dir() and not (staging / EARLIER_DIR / item.name).exists():
-                shutil.copytree(item, staging / EARLIER_DIR / item.name)
+                shutil.copytree(item, staging / EARLIER_DIR / item.name, symlinks=True, copy_function=link_or_copy)
     return kept
