@@ -103,21 +103,25 @@ class FleetrunGroup(click.Group):
 
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
-    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) while a command runs, so a
-    scheduler's kill stops it as Ctrl-C does: an ``Error:`` line, exit 1, the log told, the
+    """SIGTERM and SIGHUP raise :class:`Terminated` (a KeyboardInterrupt) while a command runs, so
+    a scheduler's kill or a closed ssh session stops it as Ctrl-C does: an ``Error:`` line, exit 1, the log told, the
     staging folder and lock removed. Only in the main thread (where Python runs handlers)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
-    def stop(_signum, _frame):
-        raise Terminated()
+    def stop(signum, _frame):
+        raise Terminated(signal.Signals(signum).name)
 
-    previous = signal.signal(signal.SIGTERM, stop)
+    # a signal the caller ignores stays ignored (`nohup fleetrun run ...` must outlive the terminal)
+    stopping = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
+                if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN]
+    previous = {number: signal.signal(number, stop) for number in stopping}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 # C0 and C1 control characters but tab, newline and carriage return (the progress bar's), DEL,

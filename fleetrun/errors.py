@@ -87,11 +87,16 @@ def unknown_name_error(kind: str, name: str, valid, hint: str | None = None) -> 
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM (a scheduler's time limit, ``kill``, a shutdown) raised in the main thread as
-    Ctrl-C is: every ``finally`` runs, so a run stops with its output folder as it was, its
-    staging folder removed and its lock released (docs/batch.md)."""
+    """SIGTERM (a scheduler's time limit, ``kill``, a shutdown) or SIGHUP (the terminal or ssh
+    session closed) raised in the main thread as Ctrl-C is: every ``finally`` runs, so a run
+    stops with its output folder as it was, its staging folder removed and its lock released
+    (docs/batch.md). ``signal_name``: which."""
+
+    def __init__(self, signal_name: str = "SIGTERM"):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
 
 
 def interruption(exc: KeyboardInterrupt) -> str:
     """What stopped the command, as the ``Error:`` line says it."""
-    return "stopped by SIGTERM" if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
+    return f"stopped by {exc.signal_name}" if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"

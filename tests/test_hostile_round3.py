@@ -201,24 +201,25 @@ def _stop_during_simulation(monkeypatch, stop):
 
 @pytest.mark.parametrize("how, said", [
     (lambda: os.kill(os.getpid(), signal.SIGTERM), "stopped by SIGTERM"),
+    (lambda: os.kill(os.getpid(), signal.SIGHUP), "stopped by SIGHUP"),
     (lambda: (_ for _ in ()).throw(KeyboardInterrupt), "interrupted (Ctrl-C)"),
 ])
 def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monkeypatch, how, said):
-    """Before: SIGTERM (a scheduler's time limit, `kill`) ended the process with no message,
-    exit -15, and no line in the log; Ctrl-C's message did not name the log, and the log
+    """Before: SIGTERM (a scheduler's time limit, `kill`) and SIGHUP (the ssh session closed)
+    ended the process with no message, exit -15 / -1, and no line in the log; Ctrl-C's message did not name the log, and the log
     ended mid-run without a word."""
     out, log = tmp_path / "out", tmp_path / "run.log"
     fleet = small_fleet(tmp_path / "f.xlsx")
     assert fakes.invoke_run(fleet, "--out", out, "--no-cache", "-q").exit_code == 0
     before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
-    handler = signal.getsignal(signal.SIGTERM)
+    handlers = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGHUP)
     _stop_during_simulation(monkeypatch, how)
     result = fakes.invoke_run(fleet, "--out", out, "--no-cache", "-q", "--log", log)
     assert_user_error(result, said, f"(logged in {log})")
     assert f"{said}; nothing more was written and {out} is as it was" in log.read_text(encoding="utf-8")
     assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f.xlsx", "out", "run.log"]   # no staging, no lock
-    assert signal.getsignal(signal.SIGTERM) == handler   # restored after the command
+    assert (signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGHUP)) == handlers   # restored
 
 
 # --- import-registrations: a DMV extract ------------------------------------------------------
@@ -415,3 +416,15 @@ def test_kept_earlier_runs_are_linked_not_copied_again_every_night(tmp_path):
         inodes.append(os.stat(out / "results.csv").st_ino)
     kept = {os.stat(p).st_ino for p in (out / "earlier-runs").glob("*/results.csv")}
     assert kept == set(inodes[:2])   # the same files, kept where they were
+
+
+def test_nohup_still_outlives_the_terminal(tmp_path, monkeypatch):
+    """A SIGHUP the caller ignores (`nohup fleetrun run ...`) stays ignored while the command runs."""
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        seen = []
+        _stop_during_simulation(monkeypatch, lambda: seen.append(signal.getsignal(signal.SIGHUP)) or (_ for _ in ()).throw(KeyboardInterrupt))
+        fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", tmp_path / "out", "--no-cache", "-q")
+        assert seen == [signal.SIG_IGN]
+    finally:
+        signal.signal(signal.SIGHUP, previous)
