@@ -428,3 +428,11 @@ def test_nohup_still_outlives_the_terminal(tmp_path, monkeypatch):
         assert seen == [signal.SIG_IGN]
     finally:
         signal.signal(signal.SIGHUP, previous)
+
+
+def test_a_csv_given_as_the_workbook_points_to_import_registrations(tmp_path):
+    """Before: "is not an .xlsx workbook (not a zip file; corrupt, ...)" for the analyst's DMV CSV."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_text("vehicle_class,count\nautomobile,100\n", encoding="utf-8")
+    assert_user_error(invoke("run", extract, "--out", tmp_path / "out"), f"{extract}: is a CSV file, not a fleet workbook",
+                      "fleetrun import-registrations dmv.csv -o dmv.xlsx")

@@ -80,6 +80,10 @@ def check_xlsx(path: Path) -> None:
     if path.suffix.lower() in (".xlsm", ".xltm"):
         raise InputError("macro-enabled workbooks are refused", file=path, hint=HINT)
     _refuse_unopenable(path)
+    if path.suffix.lower() in (".csv", ".txt") and not zipfile.is_zipfile(path):
+        raise InputError("is a CSV file, not a fleet workbook", file=path,
+                         hint=f"A registration extract becomes one with `fleetrun import-registrations {path.name} -o "
+                              f"{path.stem}.xlsx`; a fleet saved as CSV: save it from Excel as an .xlsx workbook")
     if not zipfile.is_zipfile(path):
         raise InputError("is not an .xlsx workbook (not a zip file; corrupt, or another format "
                          "such as .xls or .csv renamed)", file=path, hint=HINT)
