@@ -46,7 +46,7 @@ from epa_table import epa_fleet  # noqa: E402
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
-from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
+from fleetrun.simulation.core import idle_fuel_rate_g_per_s, technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import (FUEL_TERMS, fuel_coefficients, fuel_power_terms_W,  # noqa: E402
                                         mean_piston_speed_m_s, mep_power_W_per_kPa)
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
@@ -152,8 +152,14 @@ def build_dataset(specs, table):
     d["lhv"], d["rho"] = va.lhv[d.vehicle], va.density[d.vehicle]
     d["manufacturer"] = table.manufacturer.to_numpy()[d.vehicle]
     d["measured_fuel_g"] = d.miles / d.measured_mpg * GAL_L * d.rho * 1000.0
+    d["X_stop_off_idle"] = d.X_stop_off_time.to_numpy() * idle_fuel_power_W(va)[d.vehicle]
     d.attrs["constants"] = va.fuel_constants
     return d
+
+
+def idle_fuel_power_W(va):
+    """Each vehicle's idle fuel power [W] with the stored constants (core.idle_fuel_rate_g_per_s x LHV)."""
+    return idle_fuel_rate_g_per_s(va) * va.lhv * 1e3
 
 
 def design(d, extra=()):
@@ -574,7 +580,12 @@ def _summary_line(label, s):
         f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
 
 
-STOP = ("X_stop_off_time",)   # start-stop's stop power is fitted with the constants (models/technology.toml)
+#: start-stop's stop fuel, fitted with the constants (models/technology.toml): "constant" a fuel power
+#: [W] per second of engine-off standstill, "idle_share" a share of the vehicle's own idle fuel power
+#: (docs/validation-epa.md "Hypothesis S1"), "both" the two side by side
+STOP_FORMS = {"constant": ("X_stop_off_time",), "idle_share": ("X_stop_off_idle",),
+              "both": ("X_stop_off_time", "X_stop_off_idle")}
+STOP = STOP_FORMS["constant"]
 
 
 def run(specs, table):

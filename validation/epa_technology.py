@@ -56,7 +56,7 @@ from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
-from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
+from fleetrun.simulation.params import GEARBOX_TYPES, vehicle_arrays  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
 STOP_COLUMN = "X_stop_off_time"
@@ -136,7 +136,7 @@ def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
     transient form "both", the ARRB acceleration term; then the friction form's columns)."""
     arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
-    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
+    return efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
 
 
 def with_bore_terms(d, specs):
@@ -199,13 +199,14 @@ def one_number(err, sigma):
 #: term groups of the fuel equation (engine.FUEL_TERMS, then the stop-power column): the
 #: Willans-slope fuel (brake, high load, acceleration) and the offset fuel (friction x 3,
 #: throttle pumping, accessories, start-stop stops)
-SLOPE_TERMS, OFFSET_TERMS = (0, 1, 7), (2, 3, 4, 5, 6, 8)
+SLOPE_TERMS, OFFSET_TERMS = (0, 1, 7), (2, 3, 4, 5, 6)
 SPLIT_GRID = np.round(np.arange(0.0, 0.3001, 0.01), 2)
 
 
-def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
+def loss_split(d, fits, table, extra=None):
     """Per vehicle and test (FTP composite, HWFET, US06), the fuel per mile [g/mi] of each fold's
     prediction split into the slope, offset and cold-start parts: {"B", "O", "C"} -> tables."""
+    extra = stop_extra() if extra is None else extra
     parts = []
     for g, coef in fits.items():
         dm = d[(d.manufacturer == g).to_numpy()]
@@ -215,7 +216,8 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         slope_extras = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]
-        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
+        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra)
+                                  if x.startswith(("X_friction", "X_stop"))]
         slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, slope_extras].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
                                        B=slope, O=terms[:, offset].sum(1), C=cold)))
@@ -406,8 +408,10 @@ def report(r, table):
                  f"{w[:, 0].min():.2f}-{w[:, 0].max():.2f}, w_O {w[:, 1].min():.2f}-{w[:, 1].max():.2f}; median FTP fuel "
                  "shares B/O/C " + "/".join(f"{r['split_parts'][k]:.3f}" for k in "BOC"))
     n = len(FUEL_TERMS)
-    stop = [f["gasoline"][n] for f in r["folds"].values()]
-    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    for j, col in enumerate(efe.STOP):
+        stop = [f["gasoline"][n + j] for f in r["folds"].values()]
+        unit = "share of the idle fuel power" if col == "X_stop_off_idle" else "stop power [W]"
+        lines.append(f"start-stop {unit}: final {r['final']['gasoline'][n + j]:.4g}; folds {min(stop):.4g}-{max(stop):.4g}")
     if TRANSIENT_FORM != "constant":
         j = n + stop_extra().index(ARRB_COLUMN) if TRANSIENT_FORM == "both" else n - 1
         k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
@@ -518,7 +522,7 @@ def road_load_candidates(r, specs, table):
     rows = np.flatnonzero(r["single"])
     for name, work in road_load_work_J(d, specs).items():
         col = f"X_road_load_{name}"
-        extra = (STOP_COLUMN, col)
+        extra = efe.STOP + (col,)
         pred, fits = efe.held_out(d.assign(**{col: work}), paired.iloc[rows].set_index(pd.Index(rows)),
                                   extra=extra, lower=[0.0, -np.inf])
         err = pd.DataFrame({t: pred[t] / paired[t].to_numpy()[pred.index] - 1.0 for t in TESTS})
@@ -853,7 +857,18 @@ def ratio_report(r, specs, table):
              f"corr with bag 3's error {parts.highway.corr(L['FTP:bag3']):+.2f}, with HWFET's {parts.highway.corr(L.HWFET):+.2f}"]
     lines += ratio_counterfactuals(L, r["paired_table"], mf)
     lines += ratio_features(parts, one, specs, table, mf)
-    return lines
+    return lines + ratio_groups(parts, specs, table)
+
+
+def ratio_groups(parts, specs, table):
+    """Median of the highway part by gearbox type, technology class and cylinder count."""
+    feats = vehicle_features(specs, table, features(specs, table)).loc[parts.index]
+    h = parts.highway
+    cells = [f"{k} {h[table.gearbox_type.loc[h.index] == k].median():+.1%}" for k in GEARBOX_TYPES]
+    cells += [f"{k} {h[feats[k] == 1].median():+.1%} / without {h[feats[k] == 0].median():+.1%}"
+              for k in ("start_stop", "mild_hybrid_48v", "cylinder_deactivation", "atkinson", "awd")]
+    cells += [f"{c:.0f} cylinders {h[feats.cylinders == c].median():+.1%}" for c in (4, 6, 8)]
+    return ["highway part, median by group: " + ", ".join(cells)]
 
 
 def ratio_features(parts, one, specs, table, mf):
@@ -914,10 +929,13 @@ def main(argv=None):
                     help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--slope-form", choices=tuple(SLOPE_FORMS), default="constant",
                     help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--stop-form", choices=tuple(efe.STOP_FORMS), default="constant",
+                    help="start-stop's stop fuel (measured, docs/validation-epa.md \"Hypothesis S1\"; default: constant power)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
+    efe.STOP = efe.STOP_FORMS[args.stop_form]
     global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM
     TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
     specs, table = epa_fleet()
