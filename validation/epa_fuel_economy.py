@@ -50,7 +50,7 @@ from fleetrun.simulation.core import idle_fuel_rate_g_per_s, technology_fuel_inp
 from fleetrun.simulation.engine import (FUEL_TERMS, fuel_coefficients, fuel_power_terms_W,  # noqa: E402
                                         mean_piston_speed_m_s, mep_power_W_per_kPa)
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
-from fleetrun.simulation.technology import technology_constants  # noqa: E402
+from fleetrun.simulation.technology import TECHNOLOGIES, technology_constants  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 from fleetrun.units import RAD_S_PER_RPM  # noqa: E402
 
@@ -83,7 +83,7 @@ def trace_terms(va, tr):
 
 
 EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb",
-              "friction_piston_speed2")
+              "friction_piston_speed2", "deac_credit")
 
 
 def trace_extras(va, tr):
@@ -108,8 +108,21 @@ def trace_extras(va, tr):
     c_m = mean_piston_speed_m_s(tr.engine_speed_rpm, va.stroke_m[:, None])
     friction_cm2 = mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * c_m ** 2 * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2, deactivation_credit(va, tr, v, warm)]
     return np.stack(out, axis=2)
+
+
+def deactivation_credit(va, tr, v, warm):
+    """Minus the mean-effective-pressure power of half the displacement x dt over the warm steps
+    in the cylinder-deactivation window (technology.deactivated_pumping_share's: moving, load below
+    ``deac_max_load``, speed within its rpm window; vehicles with the class) [J/kPa]
+    (docs/validation-epa.md "Hypothesis D1")."""
+    c = technology_constants()
+    n = tr.engine_speed_rpm
+    load = np.clip(np.maximum(tr.engine_torque_Nm, 0.0) / np.maximum(tr.engine_max_torque_Nm, 1e-9), 0.0, 1.0)
+    deac = va.technology[:, TECHNOLOGIES.index("cylinder_deactivation")][:, None]
+    window = deac & (v > 1e-6) & (load < c.deac_max_load) & (n >= c.deac_min_rpm) & (n <= c.deac_max_rpm)
+    return -mep_power_W_per_kPa(n, 0.5 * va.displacement_L[:, None]) * warm * window
 
 
 def cycle_sums(specs, cycle):

@@ -129,6 +129,11 @@ FRICTION_FORM = "chen_flynn"
 #: the fuel equation's, "bore" + the brake work x B_ref / B (heat loss ~ surface / volume); slope fuel
 SLOPE_FORMS = {"constant": (), "bore": ("X_brake_bore",)}
 SLOPE_FORM = "constant"
+#: cylinder deactivation's form (``--deactivation-form``; docs/validation-epa.md "Hypothesis D1"):
+#: "pumping" the fuel equation's (the window's pumping share), "half_offset" + a fitted credit of the
+#: deactivated half's gas-exchange loss [kPa] in the window (offset fuel)
+DEACTIVATION_FORMS = {"pumping": (), "half_offset": ("X_deac_credit",)}
+DEACTIVATION_FORM = "pumping"
 BORE_REF_M = 0.086   # B_ref [m] of the bore forms (docs/validation-epa.md: 86 mm; about a square 2.0 L four, engine.stroke_m)
 
 
@@ -136,7 +141,7 @@ def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
     transient form "both", the ARRB acceleration term; then the friction form's columns)."""
     arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
-    return efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
+    return efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM] + DEACTIVATION_FORMS[DEACTIVATION_FORM]
 
 
 def with_bore_terms(d, specs):
@@ -217,7 +222,7 @@ def loss_split(d, fits, table, extra=None):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         slope_extras = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]
         offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra)
-                                  if x.startswith(("X_friction", "X_stop"))]
+                                  if x.startswith(("X_friction", "X_stop", "X_deac"))]
         slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, slope_extras].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
                                        B=slope, O=terms[:, offset].sum(1), C=cold)))
@@ -417,6 +422,10 @@ def report(r, table):
         k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
         kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in DEACTIVATION_FORMS[DEACTIVATION_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        kf = r["final"]["gasoline"][n + stop_extra().index(col)] / r["final"]["gasoline"][0]
+        lines.append(f"deactivation credit [kPa of the deactivated half]: final {kf:.2f}; folds {min(k):.2f}-{max(k):.2f}")
     for col in SLOPE_FORMS[SLOPE_FORM]:
         k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
         lines.append(f"slope form {SLOPE_FORM}: {col} coefficient / Willans slope: final "
@@ -929,6 +938,8 @@ def main(argv=None):
                     help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--slope-form", choices=tuple(SLOPE_FORMS), default="constant",
                     help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--deactivation-form", choices=tuple(DEACTIVATION_FORMS), default="pumping",
+                    help="cylinder deactivation's form (measured, docs/validation-epa.md \"Hypothesis D1\")")
     ap.add_argument("--stop-form", choices=tuple(efe.STOP_FORMS), default="constant",
                     help="start-stop's stop fuel (measured, docs/validation-epa.md \"Hypothesis S1\"; default: constant power)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
@@ -936,8 +947,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
     efe.STOP = efe.STOP_FORMS[args.stop_form]
-    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM
+    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM, DEACTIVATION_FORM
     TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
+    DEACTIVATION_FORM = args.deactivation_form
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
