@@ -83,7 +83,7 @@ def trace_terms(va, tr):
 
 
 EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb",
-              "friction_piston_speed2", "deac_credit")
+              "friction_piston_speed2", "deac_credit", "idle_mep")
 
 
 def trace_extras(va, tr):
@@ -108,7 +108,8 @@ def trace_extras(va, tr):
     c_m = mean_piston_speed_m_s(tr.engine_speed_rpm, va.stroke_m[:, None])
     friction_cm2 = mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * c_m ** 2 * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2, deactivation_credit(va, tr, v, warm)]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2, deactivation_credit(va, tr, v, warm),
+           mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * warm * (v <= 0.0)]
     return np.stack(out, axis=2)
 
 

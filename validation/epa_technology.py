@@ -134,6 +134,11 @@ SLOPE_FORM = "constant"
 #: deactivated half's gas-exchange loss [kPa] in the window (offset fuel)
 DEACTIVATION_FORMS = {"pumping": (), "half_offset": ("X_deac_credit",)}
 DEACTIVATION_FORM = "pumping"
+#: the warm idle's form (``--idle-form``; docs/validation-epa.md "Hypothesis I1"): "equation" the fuel
+#: equation at idle speed and zero load, "mep" + a fitted idle mean effective pressure [kPa] (offset
+#: fuel), "mep_share" the same with start-stop's stop fuel as a share of the idle fuel (S1)
+IDLE_FORMS = {"equation": (), "mep": ("X_idle_mep",), "mep_share": ("X_idle_mep",)}
+IDLE_FORM = "equation"
 BORE_REF_M = 0.086   # B_ref [m] of the bore forms (docs/validation-epa.md: 86 mm; about a square 2.0 L four, engine.stroke_m)
 
 
@@ -141,7 +146,8 @@ def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
     transient form "both", the ARRB acceleration term; then the friction form's columns)."""
     arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
-    return efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM] + DEACTIVATION_FORMS[DEACTIVATION_FORM]
+    return (efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM] + DEACTIVATION_FORMS[DEACTIVATION_FORM]
+            + IDLE_FORMS[IDLE_FORM])
 
 
 def with_bore_terms(d, specs):
@@ -222,7 +228,7 @@ def loss_split(d, fits, table, extra=None):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         slope_extras = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]
         offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra)
-                                  if x.startswith(("X_friction", "X_stop", "X_deac"))]
+                                  if x.startswith(("X_friction", "X_stop", "X_deac", "X_idle"))]
         slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, slope_extras].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
                                        B=slope, O=terms[:, offset].sum(1), C=cold)))
@@ -422,6 +428,10 @@ def report(r, table):
         k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
         kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in IDLE_FORMS[IDLE_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        kf = r["final"]["gasoline"][n + stop_extra().index(col)] / r["final"]["gasoline"][0]
+        lines.append(f"idle mean effective pressure [kPa]: final {kf:.2f}; folds {min(k):.2f}-{max(k):.2f}")
     for col in DEACTIVATION_FORMS[DEACTIVATION_FORM]:
         k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
         kf = r["final"]["gasoline"][n + stop_extra().index(col)] / r["final"]["gasoline"][0]
@@ -940,6 +950,8 @@ def main(argv=None):
                     help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--deactivation-form", choices=tuple(DEACTIVATION_FORMS), default="pumping",
                     help="cylinder deactivation's form (measured, docs/validation-epa.md \"Hypothesis D1\")")
+    ap.add_argument("--idle-form", choices=tuple(IDLE_FORMS), default="equation",
+                    help="the warm idle's form (measured, docs/validation-epa.md \"Hypothesis I1\")")
     ap.add_argument("--stop-form", choices=tuple(efe.STOP_FORMS), default="constant",
                     help="start-stop's stop fuel (measured, docs/validation-epa.md \"Hypothesis S1\"; default: constant power)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
@@ -947,9 +959,11 @@ def main(argv=None):
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
     efe.STOP = efe.STOP_FORMS[args.stop_form]
-    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM, DEACTIVATION_FORM
+    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM, DEACTIVATION_FORM, IDLE_FORM
     TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
-    DEACTIVATION_FORM = args.deactivation_form
+    DEACTIVATION_FORM, IDLE_FORM = args.deactivation_form, args.idle_form
+    if IDLE_FORM == "mep_share":
+        efe.STOP = efe.STOP_FORMS["idle_share"]
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
