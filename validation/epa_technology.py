@@ -837,21 +837,21 @@ def one_ftp_parts(parts, L, one):
 def ratio_counterfactuals(L, table, manufacturer):
     """One-FTP HWFET within 5 % (s refitted per fold), the ratio within 5 % (s = 1) and the FTP
     within 5 % when one part is made right: bag 1's error := bag 3's (cold), bag 2's := bag 3's
-    (stop-and-go), HWFET's := bag 3's (highway), from EPA's weighting of the bags."""
+    (stop-and-go), HWFET's := bag 3's (highway), from EPA's weighting of the bags.
+    Returns {case: (one-FTP HWFET, ratio, FTP) shares within 5 %}."""
     idx, d1, d2 = L.index.to_numpy(), *udds_miles()
     m = {b: table[f"FTP:{b}"].to_numpy()[idx] for b in efe.BAGS}
     ftp = lambda a, b, c: 1.0 / ftp_weighted_per_mile(d1 / a, d2 / b, d1 / c, d1, d2, d1)  # noqa: E731
     p = {b: m[b] * np.exp(L[f"FTP:{b}"].to_numpy()) for b in efe.BAGS}
     right = {b: m[b] * p["bag3"] / m["bag3"] for b in ("bag1", "bag2")}
     LH, L3 = L.HWFET.to_numpy(), L["FTP:bag3"].to_numpy()
-    out = []
+    out = {}
     for name, bags, lh in (("as is", (p["bag1"], p["bag2"]), LH), ("cold right", (right["bag1"], p["bag2"]), LH),
                            ("stop-and-go right", (p["bag1"], right["bag2"]), LH),
                            ("cold and stop-and-go right", (right["bag1"], right["bag2"]), LH),
                            ("highway right (HWFET error := bag 3's)", (p["bag1"], p["bag2"]), L3)):
         LF = np.log(ftp(*bags, p["bag3"]) / ftp(m["bag1"], m["bag2"], m["bag3"]))
-        out.append(f"{name}: one-FTP HWFET {_one_ftp_share(lh, LF, manufacturer)[0]:.1%}, ratio {_share(lh - LF):.1%}, "
-                   f"FTP {_share(LF):.1%}")
+        out[name] = (_one_ftp_share(lh, LF, manufacturer)[0], _share(lh - LF), _share(LF))
     return out
 
 
@@ -874,7 +874,8 @@ def ratio_report(r, specs, table):
              "highway part: share of its variance between manufacturers (eta^2) "
              f"{1 - np.var(parts.highway - parts.highway.groupby(mf).transform('mean')) / np.var(parts.highway):.2f}; "
              f"corr with bag 3's error {parts.highway.corr(L['FTP:bag3']):+.2f}, with HWFET's {parts.highway.corr(L.HWFET):+.2f}"]
-    lines += ratio_counterfactuals(L, r["paired_table"], mf)
+    lines += [f"{name}: one-FTP HWFET {a:.1%}, ratio {b:.1%}, FTP {c:.1%}"
+              for name, (a, b, c) in ratio_counterfactuals(L, r["paired_table"], mf).items()]
     lines += ratio_features(parts, one, specs, table, mf)
     return lines + ratio_groups(parts, specs, table)
 
