@@ -3,6 +3,7 @@ Automotive Trends, and the pre-registered candidates' findings (validation/turno
 docs/validation-state-fuel.md, "Why the model's fleet loses mpg over 2000-2008").
 
 Published numbers: EPA Automotive Trends 2022 edition, car / truck real-world and 2-cycle mpg
+and production (M5)
 (``inputs/epa_trends/``); FHWA VM-1 on-road mpg of 2000 (passenger cars 22.0, other 2-axle
 4-tire vehicles 17.5; ``inputs/state_statistics/national_years.csv``) and VM-1's change
 2000 -> 2001 (+0.91 / +1.15 %/yr) and 2003 -> 2004 (+1.35 / 0.00 %/yr).
@@ -96,3 +97,54 @@ def test_m2_age_distribution_is_production_times_survival():
     early = candidates.production_age_distribution("light_truck", 2000)
     truck_survival = turnover.survival("light_truck")
     assert early[26] / early[25] == pytest.approx(truck_survival[26] / truck_survival[25], rel=1e-12)
+
+
+def test_m5_entering_volumes_are_scaled_production():
+    """Candidate M5 (pre-registered, docs/validation-state-fuel.md): model year y enters k x P(y)
+    vehicles, k = N / sum_a P(B - a) S(a). Trends 2022 export: cars MY2001 9,148 thousand, trucks
+    MY2009 3,071 thousand; after the table (MY2021) and for classes without a Trends column the
+    scrapped vehicles are replaced (stock kept at the previous year's count)."""
+    import numpy as np
+
+    _, candidates = _modules()
+    from fleetrun.registrations import turnover
+
+    survival = turnover.survival("automobile")
+    cars = candidates.production("automobile")
+    years = np.clip(2000 - np.arange(len(survival)), 1975, 2021)
+    expected_k = 1e6 / float((cars.reindex(years).to_numpy(float) * survival).sum())
+    total, kept = np.array([1e6, 9.4e5]), np.array([1e6, 9.4e5])
+    sold, rule = candidates.entering("automobile", 2000, total, kept, 1)
+    assert sold == pytest.approx(expected_k * 9148, rel=1e-12) and "Trends production" in rule
+    assert candidates.production("light_truck")[2009] == 3071
+    sold, rule = candidates.entering("automobile", 2021, total, kept, 1)
+    assert sold == pytest.approx(6e4, rel=1e-12) and "replacement" in rule
+    assert candidates.entering("bus", 2000, total, kept, 1)[0] == pytest.approx(6e4, rel=1e-12)
+
+
+def test_m5_measured_leaves_75_of_98_within():
+    """M5 measured on the 98 MV-1-only state-years (validation/data/turnover_candidates_m5_state_years.csv,
+    judged by validation/gasoline_by_year.py as pre-registered P2): 75 within under both the shipped
+    rule and M5, so M5's adoption condition (more state-years within) fails; 2000->01 / 2003->04
+    move down, away from their ranges, 2008->09 / 2009->10 down but still above; the base-year
+    gasoline is identical (the base year has no new sales)."""
+    _, candidates = _modules()
+    import gasoline_by_year
+
+    table = pd.read_csv(ROOT / "validation" / "data" / "turnover_candidates_m5_state_years.csv")
+    shipped, m5 = (table[table.candidate == name].set_index(["state", "year"]) for name in ("shipped", "M5"))
+    stored = pd.read_csv(ROOT / "docs" / "validation-state-fuel.csv")
+    stored = stored[stored.inputs == "mv1"].set_index(["state", "year"])
+    assert (shipped.ld_mpg_change_pct_per_year - stored.ld_mpg_change_pct_per_year).abs().max() == 0.0
+    assert (m5.gasoline_model_Mgal - shipped.gasoline_model_Mgal).abs().max() == 0.0
+    periods = {name: gasoline_by_year.turnover_by_period(part.reset_index()).set_index(["start", "end"])
+               for name, part in (("shipped", shipped), ("M5", m5))}
+    verdicts = {name: gasoline_by_year.turnover_verdict(p.reset_index()) for name, p in periods.items()}
+    assert verdicts["shipped"]["within"] == verdicts["M5"]["within"] == 75
+    assert (periods["M5"].within >= periods["shipped"].within).all()
+    moved = m5.ld_mpg_change_pct_per_year - shipped.ld_mpg_change_pct_per_year
+    for year in (2000, 2003, 2008, 2009):
+        assert (moved.xs(year, level="year") < 0).all(), year
+    for period in ((2008, 2009), (2009, 2010)):
+        row = periods["M5"].loc[period]
+        assert row.vm1_high < row.model_low, period

@@ -27,7 +27,14 @@ truck mpg. Candidates change only how a cohort's model year scales its simulated
 - ``M2``: the shipped default with the base year's age distribution of automobiles and light
   trucks from the model years' own sales, P(B - a) x S(a) normalised, P Trends' car / truck
   production (``inputs/epa_trends/trends_2022_production.csv``; before 1975, 1975's) in place of
-  the constant-sales steady state (docs/validation-state-fuel.md, pre-registration M2).
+  the constant-sales steady state (docs/validation-state-fuel.md, pre-registration M2);
+- ``M5``: the shipped default with the entering model years' own volumes: model year y of
+  automobiles (light trucks) enters k x P(y), P Trends' car (truck) production, k = N / sum_a
+  P(B - a) S(a) the base-year stock N of the class and fuel read as survived production; after
+  the table (MY2021) the scrapped vehicles are replaced, the stock kept at the previous year's
+  count (docs/validation-state-fuel.md, pre-registration M5). ``--state-years`` runs it on
+  validation/state_fuel.py's MV-1 state-years and judges every period as
+  validation/gasoline_by_year.py does.
 """
 from __future__ import annotations
 
@@ -57,7 +64,7 @@ expand = importlib.import_module("fleetrun.registrations.expand")   # the module
 
 NATIONAL = ROOT / "inputs" / "state_statistics" / "national_sum_years.csv"
 LIGHT_DUTY = ("automobile", "light_truck")
-CANDIDATES = ("shipped", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe", "M2")
+CANDIDATES = ("shipped", "rw_all", "H1a", "H1b", "H2", "H2lab", "H3", "H4", "H1ae", "H2e", "H2labe", "M2", "M5")
 PRODUCTION = ROOT / "inputs" / "epa_trends" / "trends_2022_production.csv"
 TRENDS_CLASS = {"automobile": "car", "light_truck": "truck"}
 PHASE_IN_END = 2005        # Trends: shortfall phased in over MY1986-2004, derived 5-cycle from 2005
@@ -124,11 +131,64 @@ def _m2_model_years(shipped):
     return model_years
 
 
+def production(fhwa_class: str) -> pd.Series:
+    """Trends' production [thousand] of the class's regulatory class by model year."""
+    table = pd.read_csv(PRODUCTION)
+    return table[table.regulatory_class == TRENDS_CLASS[fhwa_class]].set_index("model_year").production_thousand
+
+
+def production_scale(fhwa_class: str, base: int, stock: float) -> float:
+    """M5: k = N / sum_a P(base - a) S(a), vehicles of the state per vehicle produced."""
+    table = production(fhwa_class)
+    survival = turnover.survival(fhwa_class)
+    years = np.clip(base - np.arange(len(survival)), table.index.min(), table.index.max())
+    return stock / float((table.reindex(years).to_numpy(float) * survival).sum())
+
+
+def entering(fhwa_class: str, base: int, total: np.ndarray, kept: np.ndarray, j: int) -> tuple[float, str]:
+    """M5: vehicles of model year base + j entering, and the rule that gave them."""
+    if fhwa_class in TRENDS_CLASS:
+        table = production(fhwa_class)
+        if base + j in table.index:
+            return production_scale(fhwa_class, base, total[0]) * float(table[base + j]), "Trends production (M5)"
+    return max(kept[j - 1] - kept[j], 0.0), "replacement of the scrapped (M5, after the table)"
+
+
+def m5_new_sales(acc, keys, counts0, h) -> None:
+    """M5's ``expand._new_sales``: the shipped function's loop with :func:`entering`."""
+    base = acc.base
+    ages0 = np.array([max(base - k[3], 0) for k in keys])
+    stock = expand._cohort_counts([k[1] for k in keys], ages0, counts0, h)
+    groups: dict[tuple, np.ndarray] = {}
+    for i, k in enumerate(keys):
+        groups[(k[1], k[2])] = groups.get((k[1], k[2]), np.zeros(h)) + stock[i]
+    for (fhwa_class, fuel), total in groups.items():
+        mix, assumed = expand.lib.class_mix(fhwa_class, fuel)
+        if not mix:
+            continue
+        kept = total.copy()
+        for j in range(1, h):
+            sold, rule = entering(fhwa_class, base, total, kept, j)
+            if sold <= 0:
+                continue
+            kept = kept + sold * expand._shifted_survival(fhwa_class, h, j)
+            for v, share in mix:
+                acc.add(v.library_id, v, fhwa_class, fuel, base + j, None, 0.0)
+                key = (v.library_id, fhwa_class, fuel, base + j, None)
+                acc.new_sales[key] = acc.new_sales.get(key, 0.0) + sold * share
+            acc.choices.append({"registration_row": "new sales", "vehicle_class": fhwa_class,
+                                "fhwa_class": fhwa_class, "fuel": fuel, "count": sold, "model_year": base + j,
+                                "vehicle": f"default {fhwa_class} {fuel} mix", "matched_on": "turnover",
+                                "assumed": "; ".join(t for t in (rule, assumed) if t)})
+
+
 @contextmanager
 def candidate_patch(candidate: str):
     """The candidate's turnover functions in place for the duration."""
     saved = turnover.fuel_factor, turnover.miles_by_age
-    saved_years = expand._model_years
+    saved_years, saved_sales = expand._model_years, expand._new_sales
+    if candidate == "M5":
+        expand._new_sales = m5_new_sales
     if candidate == "M2":
         expand._model_years = _m2_model_years(saved_years)
     factor = fuel_factor_for(candidate)
@@ -145,7 +205,7 @@ def candidate_patch(candidate: str):
         yield
     finally:
         turnover.fuel_factor, turnover.miles_by_age = saved
-        expand._model_years = saved_years
+        expand._model_years, expand._new_sales = saved_years, saved_sales
 
 
 def run_year(candidate: str, row: pd.Series, later: pd.Series, folder: Path) -> dict:
@@ -172,12 +232,55 @@ def run_year(candidate: str, row: pd.Series, later: pd.Series, folder: Path) -> 
             "light_truck_mpg": cls.miles["light_truck"] / cls.fuel_gal["light_truck"]}
 
 
+def state_years(candidate: str, years: str = "") -> pd.DataFrame:
+    """validation/state_fuel.py's MV-1-only runs of every base state-year (``years``: a comma
+    list of base years, default all) under ``candidate``."""
+    data = pd.read_csv(state_fuel.DATA)
+    bases = data[data.mv1_automobiles.notna()]
+    if years:
+        bases = bases[bases.year.isin([int(y) for y in years.split(",")])]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp, candidate_patch(candidate):
+        for _, row in bases.iterrows():
+            rows.append(state_fuel.run_state(row, state_fuel.later_year(data, row), Path(tmp)))
+    return pd.DataFrame(rows)
+
+
+def judge_state_years(table: pd.DataFrame) -> None:
+    """Print every period's judgement (validation/gasoline_by_year.py, its one owner) and the
+    calibrated next-year gasoline forecast errors against the naive ones."""
+    import gasoline_by_year
+
+    periods = gasoline_by_year.turnover_by_period(table)
+    print(periods[["start", "end", "state_years", "model_low", "model_high", "vm1_low", "vm1_high",
+                   "within", "below", "above"]].round(2).to_string(index=False))
+    print(gasoline_by_year.turnover_verdict(periods))
+    fc = table.reindex(columns=[*table.columns, "gasoline_forecast_error_pct"]).dropna(subset=["gasoline_forecast_error_pct"])
+    fc = fc.loc[:, ~fc.columns.duplicated()]
+    print(f"gasoline forecast: {len(fc)} state-years, mean |error| {fc.gasoline_forecast_error_pct.abs().mean():.3f} %, "
+          f"better than naive {(fc.gasoline_forecast_error_pct.abs() < fc.gasoline_naive_error_pct.abs()).sum()}")
+
+
 def main(argv=None) -> pd.DataFrame:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--candidates", default=",".join(CANDIDATES))
+    parser.add_argument("--state-years", action="store_true",
+                        help="run the candidates on validation/state_fuel.py's MV-1 state-years and judge every period")
+    parser.add_argument("--base-years", default="", help="with --state-years: comma list of base years (default all)")
     parser.add_argument("--years", default="2000,2003,2006,2008,2009,2010,2017")
     parser.add_argument("--out", type=Path, default=None, help="CSV of every run")
     args = parser.parse_args(argv)
+    if args.state_years:
+        tables = []
+        for candidate in args.candidates.split(","):
+            table = state_years(candidate, args.base_years).assign(candidate=candidate)
+            print(f"== {candidate}", flush=True)
+            judge_state_years(table)
+            tables.append(table)
+        table = pd.concat(tables, ignore_index=True)
+        if args.out:
+            table.to_csv(args.out, index=False, float_format="%.4g")
+        return table
     nation = pd.read_csv(NATIONAL).set_index("year", drop=False)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
