@@ -2,7 +2,7 @@
 period's published on-road change (docs/validation-state-fuel.md, "Where the state gasoline
 error comes from" and "Turnover against the same period").
 
-    python validation/gasoline_by_year.py [--no-runs]
+    python validation/gasoline_by_year.py [--no-runs] [--write]
 
 1. per base year of ``docs/validation-state-fuel.csv`` (MV-1-only runs): the VMT-weighted error
    of the year's state-years, their median, and the sample's observed gasoline per 1,000
@@ -18,7 +18,12 @@ error comes from" and "Turnover against the same period").
    the same calendar years (pre-registration P2 of the docs page: every published on-road series
    of one table and one light-duty category giving both years, ``vm1_onroad_mpg.csv`` and
    ``ld_onroad_mpg_series.csv``), state-years within / below / above, and the nation's miles per
-   gallon of highway gasoline.
+   gallon of highway gasoline;
+4. P3 (pre-registered, beside P2): the same model change against the range of the published
+   series' trends around the period (least-squares slope of ln(mpg) over the period plus two
+   years each side, one source and one category, at least 4 years, no category break), W = 3
+   and W = 7 printed as information; ``--write`` stores the tables in ``validation/data``
+   (``turnover_trend_p3.csv``, ``turnover_trend_p3_series.csv``).
 
 Every input is in ``inputs/state_statistics/`` (PROVENANCE.md there); no constant is fitted.
 """
@@ -29,6 +34,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,6 +45,7 @@ import state_fuel  # noqa: E402  (the state validation's workbook and run, the o
 
 STATS = ROOT / "inputs" / "state_statistics"
 RESULTS = ROOT / "docs" / "validation-state-fuel.csv"
+DATA_OUT = ROOT / "validation" / "data"
 MV1_COLUMNS = ["mv1_automobiles", "mv1_buses", "mv1_trucks", "mv1_motorcycles"]
 
 
@@ -196,11 +203,10 @@ def judge(model: pd.Series, low: float, high: float) -> dict:
             "above": int((model > high).sum()), "not_judged": 0}
 
 
-def turnover_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
-    """Per base year and period of the runs of one input variant (``mv1``: the issue's workbook;
-    ``mv1+vm4``): the model's light-duty mpg change against the published range of the same
-    calendar years."""
-    mv1 = results[results.inputs == inputs].copy()
+def runs_with_end(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
+    """The runs of one input variant with the calendar year each run ends (``end``: the state's
+    next judged year, or the next year)."""
+    runs = results[results.inputs == inputs].copy()
     data = pd.read_csv(state_fuel.DATA)
     by_key = {(r.state, r.year): r for _, r in data.iterrows()}
 
@@ -208,9 +214,16 @@ def turnover_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFra
         later = state_fuel.later_year(data, by_key[(state, year)])
         return int(later.year) if later is not None else year + 1
 
-    mv1["end"] = [end_year(s, y) for s, y in zip(mv1.state, mv1.year)]
+    runs["end"] = [end_year(s, y) for s, y in zip(runs.state, runs.year)]
+    return runs
+
+
+def turnover_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
+    """Per base year and period of the runs of one input variant (``mv1``: the issue's workbook;
+    ``mv1+vm4``): the model's light-duty mpg change against the published range of the same
+    calendar years."""
     rows = []
-    for (start, end), part in mv1.groupby(["year", "end"]):
+    for (start, end), part in runs_with_end(results, inputs).groupby(["year", "end"]):
         published = published_change(int(start), int(end))
         model = part.ld_mpg_change_pct_per_year
         counts = judge(model, published["vm1_low"], published["vm1_high"])
@@ -230,9 +243,92 @@ def turnover_verdict(table: pd.DataFrame) -> dict:
             "periods_outside": [f"{r.start}->{r.end}" for r in judged.itertuples() if r.below + r.above]}
 
 
+# P3 (docs/validation-state-fuel.md, "P3, pre-registered"): the published trend around a period
+TREND_WIDTH = 5                      # the judgement's window: the period plus 2 years each side
+TREND_WIDTHS_INFO = (3, 7)           # printed beside it, information only
+TREND_MIN_YEARS = 4                  # a series is usable with at least 4 of the window's years
+# category breaks the stored labels do not carry: (source, category) -> first year of the new
+# category (TEDB 37's cars / light trucks are VM-1's categories through 2008, ORNL's own from 2010)
+CATEGORY_BREAKS = {("TEDB-37", "car"): 2010, ("TEDB-37", "light_truck"): 2010}
+
+
+def trend_pct_per_year(years, mpg) -> float:
+    """The least-squares slope b of ln(mpg) against the calendar year, as 100 (exp(b) - 1)
+    [%/yr]."""
+    slope = np.polyfit(np.asarray(years, dtype=float), np.log(np.asarray(mpg, dtype=float)), 1)[0]
+    return 100 * (np.exp(slope) - 1)
+
+
+def trend_window(start: int, end: int, width: int = TREND_WIDTH) -> tuple[int, int]:
+    """First and last calendar year of the window: the period plus (width - 1) / 2 years on each
+    side."""
+    side = (width - 1) // 2
+    return start - side, end + side
+
+
+def crosses_break(source: str, category: str, years) -> bool:
+    """Whether a series' years lie on both sides of a tagged category break."""
+    first_new = CATEGORY_BREAKS.get((source, category))
+    return first_new is not None and min(years) < first_new <= max(years)
+
+
+def series_trends(start: int, end: int, width: int = TREND_WIDTH) -> pd.DataFrame:
+    """Every published series (one source, one category) with a value in the window of the
+    period: its years there, whether it is usable (at least ``TREND_MIN_YEARS`` years, no
+    category break inside) and, if so, its trend [%/yr]."""
+    first, last = trend_window(start, end, width)
+    values = published_series()
+    values = values[(values.year >= first) & (values.year <= last)]
+    rows = []
+    for (source, category), part in values.groupby(["source", "category"]):
+        years = sorted(part.year)
+        enough, broken = len(years) >= TREND_MIN_YEARS, crosses_break(source, category, years)
+        usable = enough and not broken
+        rows.append({"source": source, "category": category, "first_year": years[0], "last_year": years[-1],
+                     "years": len(years), "usable": usable,
+                     "excluded": "" if usable else ("category break" if broken else f"fewer than {TREND_MIN_YEARS} years"),
+                     "trend_pct_per_year": trend_pct_per_year(part.year, part.mpg) if usable else float("nan")})
+    return pd.DataFrame(rows)
+
+
+def published_trend(start: int, end: int, width: int = TREND_WIDTH) -> dict:
+    """The P3 range [%/yr]: min and max of the usable series' trends (NaN if none)."""
+    trends = series_trends(start, end, width)
+    usable = trends[trends.usable].trend_pct_per_year if len(trends) else pd.Series(dtype=float)
+    return {"trend_low": usable.min() if len(usable) else float("nan"),
+            "trend_high": usable.max() if len(usable) else float("nan"), "trend_series": len(usable)}
+
+
+def trend_by_period(results: pd.DataFrame, inputs: str = "mv1") -> pd.DataFrame:
+    """P3 per period: the model's light-duty mpg change of each state-year against the range of
+    the published series' trends around the period (W = 5, judged), with W = 3 and W = 7 beside
+    it (information only)."""
+    rows = []
+    for (start, end), part in runs_with_end(results, inputs).groupby(["year", "end"]):
+        model = part.ld_mpg_change_pct_per_year
+        trend = published_trend(int(start), int(end))
+        row = {"start": int(start), "end": int(end), "state_years": len(part), "model_low": model.min(),
+               "model_high": model.max(), **trend, **judge(model, trend["trend_low"], trend["trend_high"])}
+        for width in TREND_WIDTHS_INFO:
+            info = published_trend(int(start), int(end), width)
+            row |= {f"w{width}_low": info["trend_low"], f"w{width}_high": info["trend_high"],
+                    f"w{width}_series": info["trend_series"],
+                    f"w{width}_within": judge(model, info["trend_low"], info["trend_high"])["within"]}
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def write_trend(out: dict, folder: Path = DATA_OUT) -> None:
+    """P3's tables as ``validation/data`` stores them (PROVENANCE.md there)."""
+    out["trend"].to_csv(folder / "turnover_trend_p3.csv", index=False, float_format="%.6f")
+    out["trend_series"].to_csv(folder / "turnover_trend_p3_series.csv", index=False, float_format="%.6f")
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--no-runs", action="store_true", help="only the analyses of the saved results")
+    parser.add_argument("--write", action="store_true",
+                        help="store P3's tables in validation/data (turnover_trend_p3*.csv)")
     args = parser.parse_args(argv)
     results = pd.read_csv(RESULTS)
     out = {"sample": sample_by_year(results), "turnover": turnover_by_period(results)}
@@ -241,6 +337,14 @@ def main(argv=None) -> dict:
     out["turnover_vm4"] = turnover_by_period(results, "mv1+vm4")
     out["turnover_verdict"] = pd.DataFrame([{"inputs": name, **turnover_verdict(out[key])}
                                             for name, key in (("mv1", "turnover"), ("mv1+vm4", "turnover_vm4"))])
+    out["trend"] = trend_by_period(results)
+    out["trend_series"] = pd.concat([series_trends(r.start, r.end).assign(start=r.start, end=r.end)
+                                     for r in out["trend"].itertuples()], ignore_index=True)
+    out["trend_vm4"] = trend_by_period(results, "mv1+vm4")
+    out["trend_verdict"] = pd.DataFrame([{"inputs": name, **turnover_verdict(out[key])}
+                                         for name, key in (("mv1", "trend"), ("mv1+vm4", "trend_vm4"))])
+    if args.write:
+        write_trend(out)
     if not args.no_runs:
         nation = national_runs()
         out["national"] = nation
