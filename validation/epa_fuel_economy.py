@@ -87,7 +87,7 @@ EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off
 
 
 def trace_extras(va, tr):
-    """(V, N, 8) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    """(V, N, len(EXTRA_SUMS)) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
     time [s], the time the engine turns in fuel cut-off [s] (warm engine), the standstill
     time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
@@ -95,7 +95,10 @@ def trace_extras(va, tr):
     ARRB power model's form, max(a, 0) P_acc+ over the steps the fuel equation covers [J m/s^2]
     (docs/validation-epa.md "acceleration term in ARRB's form") and Chen & Flynn's c_m^2 friction
     term, FMEP power x c_m^2 over the same steps [W s^3/(kPa m^2)] (docs/validation-epa.md
-    "friction by bore and by speed squared")."""
+    "friction by bore and by speed squared"), the cylinder-deactivation credit
+    (:func:`deactivation_credit`) [J/kPa] and the mean-effective-pressure power of the
+    displacement over the fuelled standstill steps [J/kPa] (docs/validation-epa.md "Hypothesis D1",
+    "Hypothesis I1")."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg

@@ -85,8 +85,8 @@ def split_parts(d, folds, specs):
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         work = sum(et.road_load_work_J(dm, specs).values())
-        cols = {k: terms[:, list(j) + (list(range(9, terms.shape[1])) if k == "S" else [])].sum(axis=1)
-                for k, j in PART_TERMS.items()}   # further extra columns: with the stops
+        later = list(range(PART_TERMS["S"][0] + 1, terms.shape[1]))    # further extra columns: with the stops
+        cols = {k: terms[:, list(j) + (later if k == "S" else [])].sum(axis=1) for k, j in PART_TERMS.items()}
         cols.update(C=cold, R=c[:, 0] * work / (dm.lhv.to_numpy() * 1e3))
         rows.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(),
                                       miles=dm.miles.to_numpy(), **cols)))

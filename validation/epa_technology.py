@@ -59,7 +59,6 @@ from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
 from fleetrun.simulation.params import GEARBOX_TYPES, vehicle_arrays  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
-STOP_COLUMN = "X_stop_off_time"
 ARRB_COLUMN = "X_transient_arrb"
 #: the acceleration term's form (``--transient-form``; docs/validation-epa.md "acceleration term in
 #: ARRB's form"): "constant" k_tr P_acc+ (the fuel equation), "arrb" k_a max(a, 0) P_acc+ in its place,
