@@ -802,7 +802,8 @@ def ratio_parts(err, table):
     d1, d2 = udds_miles()
     g = {b: m / table[f"FTP:{b}"].to_numpy()[idx] for b, m in (("bag1", d1), ("bag2", d2), ("bag3", d1))}
     ftp = ftp_weighted_per_mile(g["bag1"], g["bag2"], g["bag3"], d1, d2, d1)
-    phi1, phi2 = 0.43 * g["bag1"] / (d1 + d2) / ftp, g["bag2"] / (d1 + d2) / ftp
+    phi1 = ftp_weighted_per_mile(g["bag1"], 0.0, 0.0, d1, d2, d1) / ftp     # each bag's share of the composite
+    phi2 = ftp_weighted_per_mile(0.0, g["bag2"], 0.0, d1, d2, d1) / ftp
     cold, stop = L["FTP:bag1"] - L["FTP:bag3"], L["FTP:bag2"] - L["FTP:bag3"]
     parts = pd.DataFrame({"highway": L.HWFET - L["FTP:bag3"], "cold": -phi1 * cold, "stop_and_go": -phi2 * stop})
     parts["rest"] = (L.HWFET - L.FTP) - parts.sum(axis=1)
