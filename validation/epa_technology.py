@@ -877,7 +877,24 @@ def ratio_report(r, specs, table):
     lines += [f"{name}: one-FTP HWFET {a:.1%}, ratio {b:.1%}, FTP {c:.1%}"
               for name, (a, b, c) in ratio_counterfactuals(L, r["paired_table"], mf).items()]
     lines += ratio_features(parts, one, specs, table, mf)
-    return lines + ratio_groups(parts, specs, table)
+    return lines + ratio_groups(parts, specs, table) + ratio_operating_point(parts, r, mf)
+
+
+def ratio_operating_point(parts, r, mf):
+    """Rank correlation, within manufacturers (each one's median removed), of the highway part with
+    the model's mean bmep on the HWFET and bag 3 (brake work / friction-term sum [kPa]) and the
+    offset share of the HWFET fuel (friction, pumping, accessories, stops; the final fit)."""
+    d = r["dataset_pairs"]
+    terms = efe.design(d, stop_extra()) * r["final"]["gasoline"]
+    offset = list(OFFSET_TERMS) + list(range(len(FUEL_TERMS), terms.shape[1]))
+    d = d.assign(O=terms[:, offset].sum(1), F=terms.sum(1))
+    w = d.pivot_table(index="vehicle", columns="test", values=["S_brake", "S_friction", "O", "F"]).reindex(parts.index)
+    q = pd.DataFrame({"mean bmep HWFET": w.S_brake.HWFET / w.S_friction.HWFET,
+                      "mean bmep bag 3": w.S_brake["FTP:bag3"] / w.S_friction["FTP:bag3"],
+                      "offset share HWFET": w.O.HWFET / w.F.HWFET, "highway": parts.highway})
+    q = q - q.groupby(mf).transform("median")
+    return ["highway part within manufacturers, rank correlation with " + ", ".join(
+        f"{c} {q.highway.corr(q[c], method='spearman'):+.2f}" for c in q.columns[:-1])]
 
 
 def ratio_groups(parts, specs, table):
