@@ -144,3 +144,44 @@ def test_friction_by_bore_and_speed_squared_are_measured_and_not_adopted():
     k = [f["gasoline"][len(et.FUEL_TERMS) + 1] / f["gasoline"][0] for f in fit.values()]
     assert 0.3 < min(k) and max(k) < 1.2
     assert _within(err.reindex(np.flatnonzero(joined)), "HWFET") < out["chen_flynn"]["HWFET"]
+
+
+@pytest.mark.slow
+def test_the_ratio_error_is_the_highway_part_and_start_stop_from_idle_is_not_better():
+    """Issue 22, sixth round (docs/validation-epa.md "The HWFET / FTP ratio, by bag"), held out by
+    manufacturer, pairs merged, 890 vehicles with three bags and HWFET. Measured: the highway part
+    (HWFET against the hot-start bag) carries 0.75 of the ratio's log-error variance and 0.87 of the
+    one-FTP HWFET error's, the cold start -0.01 / -0.02; made right, the cold start and stop-and-go
+    lower the one-FTP HWFET share (79.2 -> 76.1 %), the highway part raises it to 93.5 %.
+    S1 (pre-registered, start-stop's stop fuel as a share f of the idle fuel): f 0.30-0.60 over the
+    folds, one-FTP HWFET 80.5 -> 81.1 %, US06 81.6 -> 80.0 %: fails its rule (US06 down > 1 point).
+    Tolerances: 0.1 on variance shares, 1.5 points (13 vehicles) on shares."""
+    import pandas as pd
+
+    import validation.epa_technology as et
+    from validation.epa_table import epa_fleet
+
+    efe = et.efe     # the module epa_technology fits with (imported by its own path)
+    specs, table = epa_fleet()
+    r = et.run(specs, table)
+    parts, L, _, _ = et.ratio_parts(r["pairs"], r["paired_table"])
+    mf = table.manufacturer.to_numpy()[L.index]
+    share = lambda p, total: float(np.cov(p, total)[0, 1] / total.var())  # noqa: E731
+    ratio = L.HWFET - L.FTP
+    assert share(parts.highway, ratio) == pytest.approx(0.75, abs=0.1)
+    assert abs(share(parts.cold, ratio)) < 0.1
+    _, one = et._one_ftp_share(L.HWFET.to_numpy(), L.FTP.to_numpy(), mf)
+    one = pd.Series(one, index=L.index)
+    assert share(et.one_ftp_parts(parts, L, one).highway, one) == pytest.approx(0.87, abs=0.1)
+    cases = et.ratio_counterfactuals(L, r["paired_table"], mf)
+    assert cases["cold and stop-and-go right"][0] < cases["as is"][0]
+    assert cases["highway right (HWFET error := bag 3's)"][0] > 0.9
+    try:
+        efe.STOP = efe.STOP_FORMS["idle_share"]
+        s1 = et.run(specs, table)
+    finally:
+        efe.STOP = efe.STOP_FORMS["constant"]
+    f = [fit["gasoline"][len(et.FUEL_TERMS)] for fit in s1["folds"].values()]
+    assert 0.2 < min(f) and max(f) < 0.7
+    assert _within(s1["one_number"], "HWFET") == pytest.approx(0.811, abs=0.015)
+    assert _within(s1["one_number"], "US06") < _within(r["one_number"], "US06") - 0.01

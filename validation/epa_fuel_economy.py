@@ -46,11 +46,11 @@ from epa_table import epa_fleet  # noqa: E402
 from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.simulation import simulate  # noqa: E402
-from fleetrun.simulation.core import technology_fuel_inputs, trace_kinematics  # noqa: E402
+from fleetrun.simulation.core import idle_fuel_rate_g_per_s, technology_fuel_inputs, trace_kinematics  # noqa: E402
 from fleetrun.simulation.engine import (FUEL_TERMS, fuel_coefficients, fuel_power_terms_W,  # noqa: E402
                                         mean_piston_speed_m_s, mep_power_W_per_kPa)
 from fleetrun.simulation.params import FUEL_CONSTANTS, vehicle_arrays  # noqa: E402
-from fleetrun.simulation.technology import technology_constants  # noqa: E402
+from fleetrun.simulation.technology import TECHNOLOGIES, technology_constants  # noqa: E402
 from fleetrun.simulation.thermal import thermal_constants  # noqa: E402
 from fleetrun.units import RAD_S_PER_RPM  # noqa: E402
 
@@ -83,11 +83,11 @@ def trace_terms(va, tr):
 
 
 EXTRA_SUMS = ("speed", "speed2", "speed3", "idle_time", "cutoff_time", "stop_off_time", "transient_arrb",
-              "friction_piston_speed2")
+              "friction_piston_speed2", "deac_credit", "idle_mep")
 
 
 def trace_extras(va, tr):
-    """(V, N, 8) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
+    """(V, N, len(EXTRA_SUMS)) step quantities x dt for the candidate terms (``--candidates``): v, v^2, v^3 over
     the fuelled steps with positive wheel power [m, m^2/s, m^3/s^2], the fuelled standstill
     time [s], the time the engine turns in fuel cut-off [s] (warm engine), the standstill
     time with the engine off under start-stop [s] (technology classes: its fuel power is fitted;
@@ -95,7 +95,10 @@ def trace_extras(va, tr):
     ARRB power model's form, max(a, 0) P_acc+ over the steps the fuel equation covers [J m/s^2]
     (docs/validation-epa.md "acceleration term in ARRB's form") and Chen & Flynn's c_m^2 friction
     term, FMEP power x c_m^2 over the same steps [W s^3/(kPa m^2)] (docs/validation-epa.md
-    "friction by bore and by speed squared")."""
+    "friction by bore and by speed squared"), the cylinder-deactivation credit
+    (:func:`deactivation_credit`) [J/kPa] and the mean-effective-pressure power of the
+    displacement over the fuelled standstill steps [J/kPa] (docs/validation-epa.md "Hypothesis D1",
+    "Hypothesis I1")."""
     fueled = (tr.fuel_rate_g_per_s - tr.cold_start_fuel_g_per_s) > 0
     k = trace_kinematics(tr)
     dt, v = np.broadcast_to(k.dt, fueled.shape), k.v_avg
@@ -108,8 +111,22 @@ def trace_extras(va, tr):
     c_m = mean_piston_speed_m_s(tr.engine_speed_rpm, va.stroke_m[:, None])
     friction_cm2 = mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * c_m ** 2 * warm
     out = [v * driving, v ** 2 * driving, v ** 3 * driving, dt * (fueled & (v <= 0.0)),
-           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2]
+           dt * (~fueled & (tr.engine_speed_rpm > 0)), stop_off, arrb, friction_cm2, deactivation_credit(va, tr, v, warm),
+           mep_power_W_per_kPa(tr.engine_speed_rpm, va.displacement_L[:, None]) * warm * (v <= 0.0)]
     return np.stack(out, axis=2)
+
+
+def deactivation_credit(va, tr, v, warm):
+    """Minus the mean-effective-pressure power of half the displacement x dt over the warm steps
+    in the cylinder-deactivation window (technology.deactivated_pumping_share's: moving, load below
+    ``deac_max_load``, speed within its rpm window; vehicles with the class) [J/kPa]
+    (docs/validation-epa.md "Hypothesis D1")."""
+    c = technology_constants()
+    n = tr.engine_speed_rpm
+    load = np.clip(np.maximum(tr.engine_torque_Nm, 0.0) / np.maximum(tr.engine_max_torque_Nm, 1e-9), 0.0, 1.0)
+    deac = va.technology[:, TECHNOLOGIES.index("cylinder_deactivation")][:, None]
+    window = deac & (v > 1e-6) & (load < c.deac_max_load) & (n >= c.deac_min_rpm) & (n <= c.deac_max_rpm)
+    return -mep_power_W_per_kPa(n, 0.5 * va.displacement_L[:, None]) * warm * window
 
 
 def cycle_sums(specs, cycle):
@@ -152,8 +169,14 @@ def build_dataset(specs, table):
     d["lhv"], d["rho"] = va.lhv[d.vehicle], va.density[d.vehicle]
     d["manufacturer"] = table.manufacturer.to_numpy()[d.vehicle]
     d["measured_fuel_g"] = d.miles / d.measured_mpg * GAL_L * d.rho * 1000.0
+    d["X_stop_off_idle"] = d.X_stop_off_time.to_numpy() * idle_fuel_power_W(va)[d.vehicle]
     d.attrs["constants"] = va.fuel_constants
     return d
+
+
+def idle_fuel_power_W(va):
+    """Each vehicle's idle fuel power [W] with the stored constants (core.idle_fuel_rate_g_per_s x LHV)."""
+    return idle_fuel_rate_g_per_s(va) * va.lhv * 1e3
 
 
 def design(d, extra=()):
@@ -574,7 +597,12 @@ def _summary_line(label, s):
         f"{v['mean']:+.1%} / {v['median_abs']:.1%} / {v['within_5pct']:.0%}" for t, v in s.items()) + " |"
 
 
-STOP = ("X_stop_off_time",)   # start-stop's stop power is fitted with the constants (models/technology.toml)
+#: start-stop's stop fuel, fitted with the constants (models/technology.toml): "constant" a fuel power
+#: [W] per second of engine-off standstill, "idle_share" a share of the vehicle's own idle fuel power
+#: (docs/validation-epa.md "Hypothesis S1"), "both" the two side by side
+STOP_FORMS = {"constant": ("X_stop_off_time",), "idle_share": ("X_stop_off_idle",),
+              "both": ("X_stop_off_time", "X_stop_off_idle")}
+STOP = STOP_FORMS["constant"]
 
 
 def run(specs, table):

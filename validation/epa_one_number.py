@@ -65,7 +65,7 @@ def prepare(specs, table):
     paired = et.pair_targets(table, rep)
     d1["measured_mpg"] = [paired[t].to_numpy()[v] for t, v in zip(d1.test, d1.vehicle)]
     d1["measured_fuel_g"] = d1.miles / d1.measured_mpg * efe.GAL_L * d1.rho * 1000.0
-    err, _, folds = et.heldout_errors(d1, paired, single, extra=(et.STOP_COLUMN,))
+    err, _, folds = et.heldout_errors(d1, paired, single, extra=et.stop_extra())
     d = d1[d1.vehicle.isin(np.flatnonzero(single))]
     parts = split_parts(d, folds, specs)
     g_per_gal = d.groupby("vehicle").rho.first() * efe.GAL_L * 1000.0
@@ -80,12 +80,13 @@ def split_parts(d, folds, specs):
     for g, coef in folds.items():
         dm = d[(d.manufacturer == g).to_numpy()]
         c = np.where((dm.fuel == "gasoline").to_numpy()[:, None], coef["gasoline"], coef["diesel"])
-        terms = efe.design(dm, (et.STOP_COLUMN,)) * c
+        terms = efe.design(dm, et.stop_extra()) * c
         warm, sim_warm = terms.sum(axis=1), (dm.sim_fuel_g - dm.cold_g).to_numpy()
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         work = sum(et.road_load_work_J(dm, specs).values())
-        cols = {k: terms[:, list(j)].sum(axis=1) for k, j in PART_TERMS.items()}
+        later = list(range(PART_TERMS["S"][0] + 1, terms.shape[1]))    # further extra columns: with the stops
+        cols = {k: terms[:, list(j) + (later if k == "S" else [])].sum(axis=1) for k, j in PART_TERMS.items()}
         cols.update(C=cold, R=c[:, 0] * work / (dm.lhv.to_numpy() * 1e3))
         rows.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(),
                                       miles=dm.miles.to_numpy(), **cols)))

@@ -56,10 +56,9 @@ from fleetrun.cycles import ftp_weighted_per_mile  # noqa: E402
 from fleetrun.simulation.coastdown_driveline import VARIANTS  # noqa: E402
 from fleetrun.epa.technology import match_configuration  # noqa: E402
 from fleetrun.simulation.engine import FUEL_TERMS  # noqa: E402
-from fleetrun.simulation.params import vehicle_arrays  # noqa: E402
+from fleetrun.simulation.params import GEARBOX_TYPES, vehicle_arrays  # noqa: E402
 
 TESTS = ("FTP", "HWFET", "US06")
-STOP_COLUMN = "X_stop_off_time"
 ARRB_COLUMN = "X_transient_arrb"
 #: the acceleration term's form (``--transient-form``; docs/validation-epa.md "acceleration term in
 #: ARRB's form"): "constant" k_tr P_acc+ (the fuel equation), "arrb" k_a max(a, 0) P_acc+ in its place,
@@ -129,6 +128,16 @@ FRICTION_FORM = "chen_flynn"
 #: the fuel equation's, "bore" + the brake work x B_ref / B (heat loss ~ surface / volume); slope fuel
 SLOPE_FORMS = {"constant": (), "bore": ("X_brake_bore",)}
 SLOPE_FORM = "constant"
+#: cylinder deactivation's form (``--deactivation-form``; docs/validation-epa.md "Hypothesis D1"):
+#: "pumping" the fuel equation's (the window's pumping share), "half_offset" + a fitted credit of the
+#: deactivated half's gas-exchange loss [kPa] in the window (offset fuel)
+DEACTIVATION_FORMS = {"pumping": (), "half_offset": ("X_deac_credit",)}
+DEACTIVATION_FORM = "pumping"
+#: the warm idle's form (``--idle-form``; docs/validation-epa.md "Hypothesis I1"): "equation" the fuel
+#: equation at idle speed and zero load, "mep" + a fitted idle mean effective pressure [kPa] (offset
+#: fuel), "mep_share" the same with start-stop's stop fuel as a share of the idle fuel (S1)
+IDLE_FORMS = {"equation": (), "mep": ("X_idle_mep",), "mep_share": ("X_idle_mep",)}
+IDLE_FORM = "equation"
 BORE_REF_M = 0.086   # B_ref [m] of the bore forms (docs/validation-epa.md: 86 mm; about a square 2.0 L four, engine.stroke_m)
 
 
@@ -136,7 +145,8 @@ def stop_extra():
     """The extra columns of the technology fit: the start-stop stop power (and, with the
     transient form "both", the ARRB acceleration term; then the friction form's columns)."""
     arrb = (ARRB_COLUMN,) if TRANSIENT_FORM == "both" else ()
-    return (STOP_COLUMN,) + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM]
+    return (efe.STOP + arrb + FRICTION_FORMS[FRICTION_FORM] + SLOPE_FORMS[SLOPE_FORM] + DEACTIVATION_FORMS[DEACTIVATION_FORM]
+            + IDLE_FORMS[IDLE_FORM])
 
 
 def with_bore_terms(d, specs):
@@ -199,13 +209,14 @@ def one_number(err, sigma):
 #: term groups of the fuel equation (engine.FUEL_TERMS, then the stop-power column): the
 #: Willans-slope fuel (brake, high load, acceleration) and the offset fuel (friction x 3,
 #: throttle pumping, accessories, start-stop stops)
-SLOPE_TERMS, OFFSET_TERMS = (0, 1, 7), (2, 3, 4, 5, 6, 8)
+SLOPE_TERMS, OFFSET_TERMS = (0, 1, 7), (2, 3, 4, 5, 6)
 SPLIT_GRID = np.round(np.arange(0.0, 0.3001, 0.01), 2)
 
 
-def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
+def loss_split(d, fits, table, extra=None):
     """Per vehicle and test (FTP composite, HWFET, US06), the fuel per mile [g/mi] of each fold's
     prediction split into the slope, offset and cold-start parts: {"B", "O", "C"} -> tables."""
+    extra = stop_extra() if extra is None else extra
     parts = []
     for g, coef in fits.items():
         dm = d[(d.manufacturer == g).to_numpy()]
@@ -215,7 +226,8 @@ def loss_split(d, fits, table, extra=(STOP_COLUMN,)):
         with np.errstate(divide="ignore", invalid="ignore"):
             cold = np.where(sim_warm > 0, dm.cold_g.to_numpy() * warm / sim_warm, 0.0)
         slope_extras = [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x in (ARRB_COLUMN, "X_brake_bore")]
-        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra) if x.startswith("X_friction")]
+        offset = list(OFFSET_TERMS) + [len(FUEL_TERMS) + j for j, x in enumerate(extra)
+                                  if x.startswith(("X_friction", "X_stop", "X_deac", "X_idle"))]
         slope = terms[:, SLOPE_TERMS].sum(1) + terms[:, slope_extras].sum(1)
         parts.append(pd.DataFrame(dict(vehicle=dm.vehicle.to_numpy(), test=dm.test.to_numpy(), miles=dm.miles.to_numpy(),
                                        B=slope, O=terms[:, offset].sum(1), C=cold)))
@@ -406,13 +418,23 @@ def report(r, table):
                  f"{w[:, 0].min():.2f}-{w[:, 0].max():.2f}, w_O {w[:, 1].min():.2f}-{w[:, 1].max():.2f}; median FTP fuel "
                  "shares B/O/C " + "/".join(f"{r['split_parts'][k]:.3f}" for k in "BOC"))
     n = len(FUEL_TERMS)
-    stop = [f["gasoline"][n] for f in r["folds"].values()]
-    lines.append(f"start-stop stop power [W]: final {r['final']['gasoline'][n]:.0f}; folds {min(stop):.0f}-{max(stop):.0f}")
+    for j, col in enumerate(efe.STOP):
+        stop = [f["gasoline"][n + j] for f in r["folds"].values()]
+        unit = "share of the idle fuel power" if col == "X_stop_off_idle" else "stop power [W]"
+        lines.append(f"start-stop {unit}: final {r['final']['gasoline'][n + j]:.4g}; folds {min(stop):.4g}-{max(stop):.4g}")
     if TRANSIENT_FORM != "constant":
         j = n + stop_extra().index(ARRB_COLUMN) if TRANSIENT_FORM == "both" else n - 1
         k = np.array([f["gasoline"][j] / f["gasoline"][0] for f in r["folds"].values()])
         kf = r["final"]["gasoline"][j] / r["final"]["gasoline"][0]
         lines.append(f"ARRB acceleration coefficient k_a [s^2/m] ({TRANSIENT_FORM}): final {kf:.3f}; folds {k.min():.3f}-{k.max():.3f}")
+    for col in IDLE_FORMS[IDLE_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        kf = r["final"]["gasoline"][n + stop_extra().index(col)] / r["final"]["gasoline"][0]
+        lines.append(f"idle mean effective pressure [kPa]: final {kf:.2f}; folds {min(k):.2f}-{max(k):.2f}")
+    for col in DEACTIVATION_FORMS[DEACTIVATION_FORM]:
+        k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
+        kf = r["final"]["gasoline"][n + stop_extra().index(col)] / r["final"]["gasoline"][0]
+        lines.append(f"deactivation credit [kPa of the deactivated half]: final {kf:.2f}; folds {min(k):.2f}-{max(k):.2f}")
     for col in SLOPE_FORMS[SLOPE_FORM]:
         k = [f["gasoline"][n + stop_extra().index(col)] / f["gasoline"][0] for f in r["folds"].values()]
         lines.append(f"slope form {SLOPE_FORM}: {col} coefficient / Willans slope: final "
@@ -518,7 +540,7 @@ def road_load_candidates(r, specs, table):
     rows = np.flatnonzero(r["single"])
     for name, work in road_load_work_J(d, specs).items():
         col = f"X_road_load_{name}"
-        extra = (STOP_COLUMN, col)
+        extra = efe.STOP + (col,)
         pred, fits = efe.held_out(d.assign(**{col: work}), paired.iloc[rows].set_index(pd.Index(rows)),
                                   extra=extra, lower=[0.0, -np.inf])
         err = pd.DataFrame({t: pred[t] / paired[t].to_numpy()[pred.index] - 1.0 for t in TESTS})
@@ -765,6 +787,144 @@ def vehicle_residual_report(r, specs, table):
     return lines
 
 
+RATIO_FEATURES = ("cvt", "awd", "mild_hybrid_48v", "cylinder_deactivation", "atkinson", "automated_manual", "manual",
+                  "road_load", "nv", "cylinders")
+
+
+def ratio_parts(err, table):
+    """The physics' HWFET / FTP log-ratio error per vehicle split by the FTP's bags (EPA's weighting
+    linearised in fuel per mile, phi_b the measured bag's share of the composite's fuel):
+    log r = (L_H - L_3) - phi_1 (L_1 - L_3) - phi_2 (L_2 - L_3) + rest, L the log mpg errors.
+    Returns (parts table, phi_1, phi_2, the vehicles with three bags and HWFET)."""
+    cols = ["FTP:bag1", "FTP:bag2", "FTP:bag3", "HWFET", "FTP"]
+    L = np.log1p(err[cols]).dropna()
+    idx = L.index.to_numpy()
+    d1, d2 = udds_miles()
+    g = {b: m / table[f"FTP:{b}"].to_numpy()[idx] for b, m in (("bag1", d1), ("bag2", d2), ("bag3", d1))}
+    ftp = ftp_weighted_per_mile(g["bag1"], g["bag2"], g["bag3"], d1, d2, d1)
+    phi1 = ftp_weighted_per_mile(g["bag1"], 0.0, 0.0, d1, d2, d1) / ftp     # each bag's share of the composite
+    phi2 = ftp_weighted_per_mile(0.0, g["bag2"], 0.0, d1, d2, d1) / ftp
+    cold, stop = L["FTP:bag1"] - L["FTP:bag3"], L["FTP:bag2"] - L["FTP:bag3"]
+    parts = pd.DataFrame({"highway": L.HWFET - L["FTP:bag3"], "cold": -phi1 * cold, "stop_and_go": -phi2 * stop})
+    parts["rest"] = (L.HWFET - L.FTP) - parts.sum(axis=1)
+    return parts, L, phi1, phi2
+
+
+def _variance_shares(parts, total):
+    return ", ".join(f"{k} {np.cov(parts[k], total)[0, 1] / total.var():+.2f} (sd {parts[k].std():.2%})" for k in parts)
+
+
+def _one_ftp_share(LH, LF, manufacturer):
+    """HWFET within 5 % with each vehicle calibrated on its FTP, the share s fitted without its manufacturer."""
+    out = np.full(len(LH), np.nan)
+    for g in np.unique(manufacturer):
+        o = manufacturer != g
+        out[manufacturer == g] = LH[manufacturer == g] - (LH[o] * LF[o]).sum() / (LF[o] ** 2).sum() * LF[manufacturer == g]
+    return _share(out), out
+
+
+def one_ftp_parts(parts, L, one):
+    """The one-FTP HWFET log error L_H - s L_F split as the highway part, the warm level (1 - s) L_3,
+    s x the cold and stop-and-go parts and the rest (s per vehicle: its fold's)."""
+    LF = L.FTP
+    s = (L.HWFET - one) / LF.where(LF != 0)
+    out = pd.DataFrame({"highway": parts.highway, "warm level": (1 - s) * L["FTP:bag3"], "cold": s * parts.cold,
+                        "stop_and_go": s * parts.stop_and_go})
+    out["rest"] = one - out.sum(axis=1)
+    return out
+
+
+def ratio_counterfactuals(L, table, manufacturer):
+    """One-FTP HWFET within 5 % (s refitted per fold), the ratio within 5 % (s = 1) and the FTP
+    within 5 % when one part is made right: bag 1's error := bag 3's (cold), bag 2's := bag 3's
+    (stop-and-go), HWFET's := bag 3's (highway), from EPA's weighting of the bags.
+    Returns {case: (one-FTP HWFET, ratio, FTP) shares within 5 %}."""
+    idx, d1, d2 = L.index.to_numpy(), *udds_miles()
+    m = {b: table[f"FTP:{b}"].to_numpy()[idx] for b in efe.BAGS}
+    ftp = lambda a, b, c: 1.0 / ftp_weighted_per_mile(d1 / a, d2 / b, d1 / c, d1, d2, d1)  # noqa: E731
+    p = {b: m[b] * np.exp(L[f"FTP:{b}"].to_numpy()) for b in efe.BAGS}
+    right = {b: m[b] * p["bag3"] / m["bag3"] for b in ("bag1", "bag2")}
+    LH, L3 = L.HWFET.to_numpy(), L["FTP:bag3"].to_numpy()
+    out = {}
+    for name, bags, lh in (("as is", (p["bag1"], p["bag2"]), LH), ("cold right", (right["bag1"], p["bag2"]), LH),
+                           ("stop-and-go right", (p["bag1"], right["bag2"]), LH),
+                           ("cold and stop-and-go right", (right["bag1"], right["bag2"]), LH),
+                           ("highway right (HWFET error := bag 3's)", (p["bag1"], p["bag2"]), L3)):
+        LF = np.log(ftp(*bags, p["bag3"]) / ftp(m["bag1"], m["bag2"], m["bag3"]))
+        out[name] = (_one_ftp_share(lh, LF, manufacturer)[0], _share(lh - LF), _share(LF))
+    return out
+
+
+def ratio_report(r, specs, table):
+    """``--ratio-decomposition``: the physics' HWFET / FTP ratio error, pairs merged, split into
+    the FTP's cold start, stop-and-go and the highway against the hot-start bag
+    (docs/validation-epa.md "The HWFET / FTP ratio, by bag"); what carries the highway part."""
+    parts, L, phi1, phi2 = ratio_parts(r["pairs"], r["paired_table"])
+    mf = table.manufacturer.to_numpy()[L.index]
+    ratio = L.HWFET - L.FTP
+    share, one = _one_ftp_share(L.HWFET.to_numpy(), L.FTP.to_numpy(), mf)
+    one = pd.Series(one, index=L.index)
+    lines = [f"ratio: {len(L)} vehicles (three bags and HWFET); phi_1 median {np.median(phi1):.3f}, phi_2 "
+             f"{np.median(phi2):.3f}; log ratio error sd {ratio.std():.2%}, within 5 % {_share(ratio):.1%}; "
+             f"one-FTP HWFET within 5 % {share:.1%}",
+             "ratio variance by part (cov / var): " + _variance_shares(parts, ratio),
+             "one-FTP HWFET variance by part (cov / var): " + _variance_shares(one_ftp_parts(parts, L, one), one),
+             "correlation of the parts: " + ", ".join(f"{a}-{b} {parts[a].corr(parts[b]):+.2f}"
+                                                      for a, b in (("highway", "cold"), ("highway", "stop_and_go"))),
+             "highway part: share of its variance between manufacturers (eta^2) "
+             f"{1 - np.var(parts.highway - parts.highway.groupby(mf).transform('mean')) / np.var(parts.highway):.2f}; "
+             f"corr with bag 3's error {parts.highway.corr(L['FTP:bag3']):+.2f}, with HWFET's {parts.highway.corr(L.HWFET):+.2f}"]
+    lines += [f"{name}: one-FTP HWFET {a:.1%}, ratio {b:.1%}, FTP {c:.1%}"
+              for name, (a, b, c) in ratio_counterfactuals(L, r["paired_table"], mf).items()]
+    lines += ratio_features(parts, one, specs, table, mf)
+    return lines + ratio_groups(parts, specs, table) + ratio_operating_point(parts, r, mf)
+
+
+def ratio_operating_point(parts, r, mf):
+    """Rank correlation, within manufacturers (each one's median removed), of the highway part with
+    the model's mean bmep on the HWFET and bag 3 (brake work / friction-term sum [kPa]) and the
+    offset share of the HWFET fuel (friction, pumping, accessories, stops; the final fit)."""
+    d = r["dataset_pairs"]
+    terms = efe.design(d, stop_extra()) * r["final"]["gasoline"]
+    offset = list(OFFSET_TERMS) + list(range(len(FUEL_TERMS), terms.shape[1]))
+    d = d.assign(O=terms[:, offset].sum(1), F=terms.sum(1))
+    w = d.pivot_table(index="vehicle", columns="test", values=["S_brake", "S_friction", "O", "F"]).reindex(parts.index)
+    q = pd.DataFrame({"mean bmep HWFET": w.S_brake.HWFET / w.S_friction.HWFET,
+                      "mean bmep bag 3": w.S_brake["FTP:bag3"] / w.S_friction["FTP:bag3"],
+                      "offset share HWFET": w.O.HWFET / w.F.HWFET, "highway": parts.highway})
+    q = q - q.groupby(mf).transform("median")
+    return ["highway part within manufacturers, rank correlation with " + ", ".join(
+        f"{c} {q.highway.corr(q[c], method='spearman'):+.2f}" for c in q.columns[:-1])]
+
+
+def ratio_groups(parts, specs, table):
+    """Median of the highway part by gearbox type, technology class and cylinder count."""
+    feats = vehicle_features(specs, table, features(specs, table)).loc[parts.index]
+    h = parts.highway
+    cells = [f"{k} {h[table.gearbox_type.loc[h.index] == k].median():+.1%}" for k in GEARBOX_TYPES]
+    cells += [f"{k} {h[feats[k] == 1].median():+.1%} / without {h[feats[k] == 0].median():+.1%}"
+              for k in ("start_stop", "mild_hybrid_48v", "cylinder_deactivation", "atkinson", "awd")]
+    cells += [f"{c:.0f} cylinders {h[feats.cylinders == c].median():+.1%}" for c in (4, 6, 8)]
+    return ["highway part, median by group: " + ", ".join(cells)]
+
+
+def ratio_features(parts, one, specs, table, mf):
+    """Held-out (by manufacturer) share of variance a straight line in each feature explains of the
+    highway part, and of the one-FTP HWFET error (and the one-FTP share with that line removed)."""
+    feats = vehicle_features(specs, table, features(specs, table)).loc[parts.index]
+    lines = []
+    for cols in [(c,) for c in RATIO_FEATURES] + [RATIO_FEATURES[:5], RATIO_FEATURES]:
+        X = feats[list(cols)].astype(float)
+        X = X.fillna(X.median()).to_numpy()
+        cells = []
+        for name, y in (("highway part", parts.highway.to_numpy()), ("one-FTP HWFET", one.to_numpy())):
+            pred = _grouped_prediction(X, y, mf)
+            cells.append(f"{name} cvR2 {1 - np.mean((y - pred) ** 2) / np.var(y):+.3f}")
+        cells.append(f"one-FTP HWFET within 5 % with the line removed {_share(one.to_numpy() - pred):.1%}")
+        lines.append(f"ratio feature {'+'.join(cols)}: " + "; ".join(cells))
+    return lines
+
+
 def write_models(r):
     """models/technology.toml ``transfer_share`` (the stop power is epa_fuel_economy.py --write's)
     and models/fuel_economy_bias.toml."""
@@ -796,6 +956,8 @@ def main(argv=None):
     ap.add_argument("--breakdown", action="store_true", help="the held-out error by cycle, grouping and part (joined vehicles)")
     ap.add_argument("--vehicle-residual", action="store_true",
                     help="the vehicle-level residual regressed on engine, drivetrain and body, held out (scikit-learn)")
+    ap.add_argument("--ratio-decomposition", action="store_true",
+                    help="the HWFET / FTP ratio error split by the FTP's bags, pairs merged (docs/validation-epa.md)")
     ap.add_argument("--transient-form", choices=TRANSIENT_FORMS, default="constant",
                     help="the acceleration term's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--cold-start-basis", choices=("displacement", "engine_mass"), default="displacement",
@@ -804,12 +966,22 @@ def main(argv=None):
                     help="the friction's form (measured, docs/validation-epa.md; default: the fuel equation's)")
     ap.add_argument("--slope-form", choices=tuple(SLOPE_FORMS), default="constant",
                     help="the Willans slope's form (measured, docs/validation-epa.md; default: the fuel equation's)")
+    ap.add_argument("--deactivation-form", choices=tuple(DEACTIVATION_FORMS), default="pumping",
+                    help="cylinder deactivation's form (measured, docs/validation-epa.md \"Hypothesis D1\")")
+    ap.add_argument("--idle-form", choices=tuple(IDLE_FORMS), default="equation",
+                    help="the warm idle's form (measured, docs/validation-epa.md \"Hypothesis I1\")")
+    ap.add_argument("--stop-form", choices=tuple(efe.STOP_FORMS), default="constant",
+                    help="start-stop's stop fuel (measured, docs/validation-epa.md \"Hypothesis S1\"; default: constant power)")
     ap.add_argument("--coastdown-driveline", choices=VARIANTS,
                     help="driveline spin loss taken out of the road load (default: models/road_load.toml)")
     args = ap.parse_args(argv)
     efe.COASTDOWN_DRIVELINE = args.coastdown_driveline
-    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM
+    efe.STOP = efe.STOP_FORMS[args.stop_form]
+    global TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM, DEACTIVATION_FORM, IDLE_FORM
     TRANSIENT_FORM, FRICTION_FORM, SLOPE_FORM = args.transient_form, args.friction_form, args.slope_form
+    DEACTIVATION_FORM, IDLE_FORM = args.deactivation_form, args.idle_form
+    if IDLE_FORM == "mep_share":
+        efe.STOP = efe.STOP_FORMS["idle_share"]
     specs, table = epa_fleet()
     if args.subset:
         keep = np.arange(0, len(specs), args.subset)
@@ -823,7 +995,7 @@ def main(argv=None):
     for text in report(r, table):
         print(text, flush=True)
     optional = ((args.breakdown, breakdown_report), (args.vehicle_residual, vehicle_residual_report),
-                (args.residuals, residual_report))
+                (args.residuals, residual_report), (args.ratio_decomposition, ratio_report))
     for text in (line for wanted, lines in optional if wanted for line in lines(r, specs, table)):
         print(text, flush=True)
     if args.write:
