@@ -121,8 +121,8 @@ def run_fleet(fleet: Fleet, scenario_ids: Sequence[str] = (), *, engine=None, ph
     scenarios = [fleet.scenario(s) for s in dict.fromkeys(scenario_ids)] if scenario_ids else list(fleet.scenarios)
     engine = engine or LocalEngine()
     vehicles, years, registrations = registration_vehicles(fleet, scenarios)
-    if not any(v.count > 0 for v in vehicles):   # the reader refuses this first (reader._check_something_to_forecast)
-        raise InputError("the fleet has no vehicles to forecast (every count is 0, or nothing represents them)",
+    if not vehicles:   # the reader refuses this first (reader._check_something_to_forecast)
+        raise InputError("the fleet has no vehicles to forecast (nothing represents its registrations)",
                          file=fleet.path, hint="Give the fleet's counts")
     # Rows that differ only in id, class, count or miles drive the same: simulate each
     # distinct physical vehicle once and hand its per-vehicle results to every such row.

@@ -266,8 +266,8 @@ def read_fleet(path) -> Fleet:
     if scenario_table is not None:
         scenarios, scenario_rows = _scenarios(scenario_table, problems, path.parent)
     registrations = _registrations(registration_table, vehicle_rows, problems) if registration_table else []
-    if not problems.errors and (vehicle_table or registration_table):
-        _check_something_to_forecast(vehicles, registrations, vehicle_table, registration_table, problems)
+    if not problems.errors and registrations:
+        _check_something_to_forecast(vehicles, registrations, registration_table, problems)
     if scenario_table is not None:
         _check_share_classes(scenarios, scenario_rows, registrations, scenario_table, problems)
         if registrations:
@@ -738,17 +738,17 @@ def default_mix(text: str) -> dict[str, float]:
     return cells.parse_cycle_mix(text)
 
 
-def _check_something_to_forecast(vehicles, registrations, vehicle_table, registration_table,
-                                 problems: Problems) -> None:
-    """A fleet whose every count is 0, or whose registrations are all vehicles nothing in the
-    library represents (electric: docs/registrations.md), would forecast no miles and no
-    revenue at all (or fail writing its report): an error, not a report of zeros."""
+def _check_something_to_forecast(vehicles, registrations, table: _Table, problems: Problems) -> None:
+    """A fleet from registrations whose every count is 0, or whose registrations are all
+    vehicles nothing in the library represents (electric: docs/registrations.md), would spread
+    ``base_year_vmt_million`` over no vehicle and forecast no revenue at all (or fail writing
+    its report): an error, not a report of zeros. (A Vehicles-only fleet of count 0 still runs
+    to a report of zeros: tests/test_report.py.)"""
     if any(v.count > 0 for v in vehicles):
         return
     counted = [r for r in registrations if r["count"] > 0]
     if any(r.get("fuel") != "electric" or r.get("vehicle_id") for r in counted):
         return
-    table = registration_table if registrations else vehicle_table
     what = ("every registration counted is electric, which no library vehicle represents (docs/registrations.md)"
             if counted else "every count is 0")
     problems.error(f"count: {what}, and no Vehicles row has a count above 0: nothing to forecast; give the "
