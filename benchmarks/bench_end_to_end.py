@@ -55,7 +55,7 @@ def pinned(command: list[str]) -> list[str]:
 def make_fleet(rows: int, folder: Path, env: dict, seed: int = 1) -> Path:
     """The EPA list imported, its rows repeated to ``rows`` distinct vehicles, one UDDS scenario."""
     imported = folder / "epa.xlsx"
-    subprocess.run([sys.executable, "-m", "fleetrun", "import-epa", str(LIST), "-o", str(imported)], check=True,
+    subprocess.run([sys.executable, "-m", "fleetrun", "import-epa", str(LIST), "-o", str(imported), "--force"], check=True,
                    cwd=ROOT, env=env, capture_output=True)
     wb = load_workbook(imported)
     ws = wb["Vehicles"]

@@ -60,7 +60,7 @@ def main(argv=None):
             cache = tempfile.mkdtemp(dir=tmp, prefix="maps-")   # empty: the first run builds the maps
             fleet, three = tmp / "fleet.xlsx", tmp / "fleet3.xlsx"
             steps = [
-                ("import-epa (whole 2022 list)", ("import-epa", LIST, "-o", fleet, "--measured-out", tmp / "m.csv")),
+                ("import-epa (whole 2022 list)", ("import-epa", LIST, "-o", fleet, "--measured-out", tmp / "m.csv", "--force")),
                 ("run, default scenario (FTP + HWFET), cold map cache", ("run", fleet, "--out", tmp / f"o1-{k}")),
                 ("run, default scenario, warm map cache", ("run", fleet, "--out", tmp / f"o2-{k}")),
                 ("run, FTP + HWFET + US06, warm map cache", ("run", three, "--out", tmp / f"o3-{k}")),

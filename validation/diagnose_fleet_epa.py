@@ -24,7 +24,7 @@ def run(out_dir: Path, img_dir: Path | None = None) -> dict:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     res = CliRunner().invoke(cli, ["import-epa", str(inputs_dir() / "epa" / "22-tstcar.csv"), "-o",
-                                   str(out_dir / "epa_fleet.xlsx"), "--measured-out", str(out_dir / "epa_measured.csv")])
+                                   str(out_dir / "epa_fleet.xlsx"), "--measured-out", str(out_dir / "epa_measured.csv"), "--force"])
     if res.exit_code != 0:
         raise SystemExit(res.output)
     result = diagnose_fleet(out_dir / "epa_fleet.xlsx", out_dir / "epa_measured.csv", out=out_dir / "diagnosis")

@@ -48,7 +48,7 @@ def import_list(tstcar: Path, folder: Path):
     """The list as a fleet workbook and measured CSV (``fleetrun import-epa``)."""
     fleet, measured = folder / "fleet.xlsx", folder / "measured.csv"
     subprocess.run([sys.executable, "-m", "fleetrun", "import-epa", str(tstcar), "-o", str(fleet),
-                    "--measured-out", str(measured)], check=True, cwd=ROOT, capture_output=True)
+                    "--measured-out", str(measured), "--force"], check=True, cwd=ROOT, capture_output=True)
     return read_fleet(fleet).vehicles, pd.read_csv(measured)
 
 

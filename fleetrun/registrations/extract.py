@@ -9,6 +9,7 @@ extract of a state's 50,000 make/model/year combinations needs a few megabytes).
 """
 from __future__ import annotations
 
+import csv
 import re
 from pathlib import Path
 
@@ -44,7 +45,25 @@ def _columns(path: Path) -> tuple[list[str], str]:
                      hint="Name the FHWA class column vehicle_class (docs/registrations.md)")
 
 
-def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
+def _file_line(path: Path, sep: str, data_row: int) -> int:
+    """The file's line number (1-based) of data row ``data_row`` (0-based) as pandas counts
+    them: blank and whitespace-only lines are skipped, so after one the rows' count and the
+    file's lines part (a quoted value may also span lines)."""
+    with open(path, encoding="utf-8-sig", newline="") as handle:
+        reader = csv.reader(handle, delimiter=sep)
+        rows = -1          # the first line that is not blank is the header
+        for cells in reader:
+            if not cells or (len(cells) == 1 and not cells[0].strip()):
+                continue
+            if rows == data_row:
+                return reader.line_num
+            rows += 1
+    return data_row + 2
+
+
+def _check(chunk: pd.DataFrame, first_row: int, path: Path, sep: str) -> None:
+    """InputError naming the file's line of the first bad value in ``chunk``, whose first row
+    is data row ``first_row`` (0-based) of the file."""
     for name, allowed in (("vehicle_class", REGISTRATION_CLASSES), ("fuel", FUELS)):
         if name not in chunk:
             continue
@@ -53,7 +72,8 @@ def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
         if bad.any():
             where = int(np.flatnonzero(bad.to_numpy())[0])
             what = TOTAL_ROW if is_total_label(values.iloc[where]) else f"is not one of {', '.join(allowed)}"
-            raise InputError(f"line {first_line + where}: {name} {values.iloc[where]!r} {what}", file=path,
+            line = _file_line(path, sep, first_row + where)
+            raise InputError(f"line {line}: {name} {values.iloc[where]!r} {what}", file=path,
                              hint="Fix the extract (docs/registrations.md)")
     for name, low, high in (("model_year", 1900, 2200), ("count", 0, MAX_COUNT)):
         if name not in chunk:
@@ -63,7 +83,8 @@ def _check(chunk: pd.DataFrame, first_line: int, path: Path) -> None:
         bad = (chunk[name].notna() & numbers.isna()) | (numbers < low) | (numbers > high)
         if bad.any():
             where = int(np.flatnonzero(bad.to_numpy())[0])
-            raise InputError(f"line {first_line + where}: {name} {chunk[name].iloc[where]!r} is not a number "
+            line = _file_line(path, sep, first_row + where)
+            raise InputError(f"line {line}: {name} {chunk[name].iloc[where]!r} is not a number "
                              f"from {low} to {high:g}", file=path, hint="Fix the extract (docs/registrations.md)")
         chunk[name] = numbers
 
@@ -84,7 +105,7 @@ def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
 def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
     usecols, sep = _columns(path)
     totals: pd.Series | None = None
-    line = 2
+    row = 0
     reader = pd.read_csv(path, usecols=usecols, chunksize=chunk_rows, dtype=str, encoding="utf-8-sig",
                          keep_default_na=False, na_values=[""], sep=sep)
     for chunk in reader:
@@ -92,8 +113,8 @@ def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
         for name in ("vehicle_class", "fuel"):
             if name in chunk:
                 chunk[name] = chunk[name].str.strip().str.lower().str.replace(r"[\s-]+", "_", regex=True)
-        _check(chunk, line, path)
-        line += len(chunk)
+        _check(chunk, row, path, sep)
+        row += len(chunk)
         if "count" not in chunk:
             chunk["count"] = 1.0
         keys = [k for k in KEYS if k in chunk]

