@@ -116,3 +116,57 @@ def test_foreign_manifest_still_names_the_foreign_files(tmp_path, fake_simulatio
     (out / "results.csv").write_text("theirs\n")
     result = fakes.invoke_run(small_fleet(tmp_path / "f.xlsx"), "--out", out, "-q", "--no-cache")
     assert_user_error(result, "holds results.csv, manifest.json that fleetrun did not write")
+
+
+# --- earlier-runs/ bounded -------------------------------------------------------------------------
+
+def _run_dated(fleet: Path, out: Path, day: int, *options) -> None:
+    """One run into ``out``, its manifest then dated 2026-01-<day> (runs of one second apart
+    would otherwise share a creation time)."""
+    result = fakes.invoke_run(fleet, "--out", out, "-q", "--no-cache", *options)
+    assert result.exit_code == 0, result.output
+    manifest = out / "manifest.json"
+    data = json.loads(manifest.read_text(encoding="utf-8"))
+    data["created_utc"] = f"2026-01-{day:02d}T02:00:00+00:00"
+    manifest.write_text(json.dumps(data), encoding="utf-8")
+
+
+def test_earlier_runs_keep_the_newest_n_and_nothing_else_is_removed(tmp_path, fake_simulation):
+    """Before: a nightly run kept every earlier run in earlier-runs/ forever (one folder a night).
+    With --keep-runs 2 the two newest stay; a user's folder and a user's file inside a removed
+    run's folder stay."""
+    fleet, out = small_fleet(tmp_path / "f.xlsx"), tmp_path / "out"
+    for day in (1, 2, 3):
+        _run_dated(fleet, out, day, "--keep-runs", "2")
+    kept = sorted(p.name for p in (out / "earlier-runs").iterdir())
+    assert [name[:10] for name in kept] == ["2026-01-01", "2026-01-02"], kept
+    notes = out / "earlier-runs" / "my-notes"
+    notes.mkdir()
+    (notes / "a.txt").write_text("mine")
+    (out / "earlier-runs" / kept[0] / "why.txt").write_text("mine too")
+    _run_dated(fleet, out, 4, "--keep-runs", "2")
+    now = sorted(p.name for p in (out / "earlier-runs").iterdir())
+    assert [name[:10] for name in now] == ["2026-01-01", "2026-01-02", "2026-01-03", "my-notes"], now
+    assert sorted(p.name for p in (out / "earlier-runs" / kept[0]).iterdir()) == ["why.txt"]
+    assert (notes / "a.txt").read_text() == "mine"
+
+
+def test_earlier_runs_default_bound_and_batch_setting(tmp_path, fake_simulation):
+    """The default keeps KEEP_RUNS runs; the batch config's keep_runs sets it; a bad value is exit 1."""
+    from fleetrun.reports.changes import KEEP_RUNS
+
+    assert KEEP_RUNS == 30
+    fleet = small_fleet(tmp_path / "fleet.xlsx")
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["fleet.xlsx"]\nkeep_runs = 1\n')
+    out = tmp_path / "results" / "fleet"
+    for day in (1, 2, 3):
+        result = fakes.invoke_run("--config", config, "-q", "--no-cache")
+        assert result.exit_code == 0, result.output
+        data = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+        data["created_utc"] = f"2026-01-{day:02d}T02:00:00+00:00"
+        (out / "manifest.json").write_text(json.dumps(data), encoding="utf-8")
+    assert [p.name[:10] for p in (out / "earlier-runs").iterdir()] == ["2026-01-02"]
+    config.write_text('inputs = ["fleet.xlsx"]\nkeep_runs = -1\n')
+    assert_user_error(fakes.invoke_run("--config", config, "-q"), "'keep_runs' must be a whole number")
+    assert fleet.is_file()

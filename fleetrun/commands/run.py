@@ -18,6 +18,7 @@ import click
 from fleetrun.effects import parse_with
 from fleetrun.errors import InputError, interruption, unknown_name_error
 from fleetrun.fileio import refuse_replacing_inputs
+from fleetrun.reports.changes import KEEP_RUNS
 from fleetrun.run import batch
 from fleetrun.run.batch import read_config
 from fleetrun.run.outputs import OUTPUT_FILES, REGISTRATION_FILES
@@ -29,7 +30,8 @@ CONFIG_KEY = "fleetrun.run.config"
 # batch.toml keys that are defaults of an option of the same meaning (click's default_map):
 # an option given on the command line overrides the file
 OPTION_OF_KEY = {"out": "out", "scenarios": "scenarios", "engine": "engine", "scheduler": "scheduler",
-                 "physics": "physics", "mode": "mode", "cache_dir": "cache_dir", "log": "log_file"}
+                 "physics": "physics", "mode": "mode", "cache_dir": "cache_dir", "log": "log_file",
+                 "keep_runs": "keep_runs"}
 
 
 def _load_config(ctx, config):
@@ -73,10 +75,13 @@ def _load_config(ctx, config):
               help="Append log lines to this file [batch: <out>/fleetrun-run.log].")
 @click.option("--replace", is_flag=True,
               help="Replace the run already in the output folder instead of keeping it in earlier-runs/.")
+@click.option("--keep-runs", type=click.IntRange(min=0), default=None, metavar="N",
+              help=f"Keep the newest N earlier runs in earlier-runs/, remove older ones [{KEEP_RUNS}; "
+                   "batch: the config's 'keep_runs'].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar, log lines or summary on stdout or stderr (errors still go to stderr).")
 @click.pass_context
 def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, mode, with_effects, cache_dir,
-            no_cache, log_file, replace, quiet):
+            no_cache, log_file, replace, keep_runs, quiet):
     """Simulate every vehicle type of WORKBOOK over each scenario's cycle mix and write
     report.xlsx, summary.html, results.csv, results.parquet, class_summary.csv, fiscal_summary.csv and
     manifest.json."""
@@ -114,6 +119,7 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
                          physics=physics or "thesis", mode=mode or "auto", effects=effects,
                          cache_dir=cache, log=log_file, chunk_size=settings.chunk_size if settings else None)
     plan.replace = replace
+    plan.keep_runs = KEEP_RUNS if keep_runs is None else keep_runs
     # What a caller injects through click's context object (tests: a stand-in simulation, a
     # fixture error distribution); the command line itself never sets it.
     injected = ctx.obj or {}

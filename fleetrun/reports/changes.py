@@ -4,13 +4,16 @@ A run into a folder that holds an earlier run reads the earlier ``manifest.json`
 inputs' sha256 and, from this version on, its totals by scenario; older manifests: the totals
 are summed from its ``class_summary.csv``) and compares. The comparison goes into the log,
 ``summary.html``, the ``What changed`` sheet and ``manifest.json``. The earlier run's files
-are kept in ``earlier-runs/<its creation time>/`` of the new folder unless ``--replace``.
+are kept in ``earlier-runs/<its creation time>-<manifest hash>/`` of the new folder unless
+``--replace``; beyond the newest ``--keep-runs`` (``KEEP_RUNS``) the oldest are removed
+(:func:`prune_earlier_runs`: only folders and files fleetrun wrote there).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import math
+import re
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +24,8 @@ from fleetrun.budget.result import ChangeCause, InputChange, RunChanges, TotalCh
 from fleetrun.fileio import JsonDocument, link_or_copy
 
 EARLIER_DIR = "earlier-runs"
+KEEP_RUNS = 30      # earlier runs kept by default: a month of nightly runs (docs/batch.md)
+KEPT_NAME = re.compile(r"[0-9A-Za-z_.TZ-]+-[0-9a-f]{8}")   # keep_earlier_run's folder names
 TOTAL_COLUMNS = ("fuel_gal_total", "state_tax_usd", "federal_tax_usd", "kwh_total", "ev_fee_usd")
 
 
@@ -275,3 +280,43 @@ def keep_earlier_run(out_dir: Path, staging: Path, earlier: EarlierRun, files) -
             if item.is_dir() and not (staging / EARLIER_DIR / item.name).exists():
                 shutil.copytree(item, staging / EARLIER_DIR / item.name, symlinks=True, copy_function=link_or_copy)
     return kept
+
+
+def _kept_run(folder: Path) -> dict | None:
+    """The manifest of an earlier run fleetrun kept in ``folder`` (its name as
+    :func:`keep_earlier_run` gives it, a fleetrun run manifest inside); None for anything else."""
+    from fleetrun.reports.manifest import SCHEMA
+
+    if folder.is_symlink() or not folder.is_dir() or not KEPT_NAME.fullmatch(folder.name):
+        return None
+    try:
+        data = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or str(data.get("schema", "")).split("/")[0] != SCHEMA.split("/")[0]:
+        return None
+    return data
+
+
+def prune_earlier_runs(out_dir: Path, keep: int) -> list[Path]:
+    """Remove the oldest runs of ``out_dir/earlier-runs/`` beyond the newest ``keep`` (by the
+    manifest's creation time); the folders removed. Only runs fleetrun kept there are counted
+    and only the files their manifest lists are deleted (``manifest.json`` last, so a removal
+    cut short is finished by the next run); a folder left with other files stays."""
+    root = Path(out_dir) / EARLIER_DIR
+    if not root.is_dir():
+        return []
+    runs = [(str(data.get("created_utc") or ""), entry.name, entry, data)
+            for entry in root.iterdir() if (data := _kept_run(entry)) is not None]
+    runs.sort(key=lambda run: run[:2], reverse=True)
+    removed = []
+    for *_, folder, data in runs[keep:]:
+        outputs = data.get("outputs") if isinstance(data.get("outputs"), dict) else {}
+        for name in [*outputs, "manifest.json"]:
+            path = folder / str(name)
+            if path.parent == folder and path.is_file() and not path.is_symlink():
+                path.unlink()
+        if not any(folder.iterdir()):
+            folder.rmdir()
+        removed.append(folder)
+    return removed

@@ -29,7 +29,7 @@ from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError, interruption
 from fleetrun.fileio import why_not_writable, write_error_log
-from fleetrun.reports.changes import EarlierRun, compare, describe, read_earlier, scenario_totals_dict
+from fleetrun.reports.changes import KEEP_RUNS, EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
 from fleetrun.run.engines import make_engine
 from fleetrun.output_folder import folder_lock
@@ -41,7 +41,7 @@ from fleetrun.workbook.xlsx_safety import is_office_lock_file
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
 CONFIG_KEYS = {"inputs", "scenarios", "out", "engine", "scheduler", "physics", "mode", "with", "cache_dir",
-               "log", "chunk_size"}
+               "log", "chunk_size", "keep_runs"}
 
 log = logging.getLogger("fleetrun.run")
 
@@ -63,6 +63,7 @@ class RunPlan:
     chunk_size: int | None = None
     simulate: object = None               # the simulation function (None: fleetrun.simulation.simulate)
     replace: bool = False                 # --replace: do not keep the earlier run in earlier-runs/
+    keep_runs: int = KEEP_RUNS            # --keep-runs: earlier runs kept in earlier-runs/, the oldest removed
     error_model: object = "default"       # measured fuel-economy error (run_fleet's error_model)
 
     def out_dir(self, fleet_path: Path) -> Path:
@@ -120,6 +121,7 @@ class BatchConfig:
     mode: str | None = None
     effects: tuple | None = None        # 'with': (Effect, params) pairs from parse_with
     chunk_size: int | None = None
+    keep_runs: int | None = None
 
 
 @dataclass(frozen=True)
@@ -208,6 +210,11 @@ def read_config(path: Path) -> BatchConfig:
         if type(data["chunk_size"]) is not int or data["chunk_size"] < 1:   # true is no size
             raise InputError("'chunk_size' must be a positive whole number", file=path)
         config["chunk_size"] = data["chunk_size"]
+    if "keep_runs" in data:
+        if type(data["keep_runs"]) is not int or data["keep_runs"] < 0:
+            raise InputError("'keep_runs' must be a whole number, 0 or more (earlier runs kept in "
+                             f"earlier-runs/; default {KEEP_RUNS})", file=path)
+        config["keep_runs"] = data["keep_runs"]
     return BatchConfig(**config)
 
 
@@ -308,7 +315,8 @@ def run_one(plan: RunPlan, fleet_path: Path, engine, progress_enabled: bool) -> 
     with folder_lock(out_dir):   # one run at a time compares with and replaces the folder
         refuse_foreign_outputs(out_dir)
         result, earlier = _what_changed(result, out_dir, fleet_path)
-        outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier)
+        outputs = write_run_outputs(result, out_dir, earlier=None if plan.replace else earlier,
+                                    keep_runs=plan.keep_runs)
     if earlier is not None and not plan.replace:
         log.info("%s: the earlier run is kept in %s", fleet_path.name, out_dir / "earlier-runs")
     log.info("%s: wrote %s (read %.1f s, simulate %.1f s, write %.1f s)", fleet_path.name, out_dir,

@@ -20,7 +20,7 @@ import pyarrow.compute as pc
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
 from fleetrun.output_folder import new_output_folder
-from fleetrun.reports.changes import EarlierRun, keep_earlier_run
+from fleetrun.reports.changes import KEEP_RUNS, EarlierRun, keep_earlier_run, prune_earlier_runs
 from fleetrun.reports.html import write_summary_html
 from fleetrun.reports.manifest import SCHEMA, write_manifest
 from fleetrun.reports.xlsx import write_report_xlsx
@@ -209,11 +209,13 @@ def refuse_foreign_outputs(out_dir: Path) -> None:
                          hint="Move them away, or choose another output folder (--out)")
 
 
-def write_run_outputs(result, out_dir: Path, earlier: EarlierRun | None = None) -> dict[str, Path]:
+def write_run_outputs(result, out_dir: Path, earlier: EarlierRun | None = None,
+                      keep_runs: int = KEEP_RUNS) -> dict[str, Path]:
     """Write the outputs (docs/report.md) of a run into ``out_dir``, all or nothing: the folder changes as
     one step (:func:`fleetrun.output_folder.new_output_folder`). ``earlier``: the run
     already there (its manifest), whose files are then kept in ``earlier-runs/``
-    (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it."""
+    (:func:`fleetrun.reports.changes.keep_earlier_run`); None replaces it. Of the runs kept
+    there, the newest ``keep_runs`` stay (:func:`fleetrun.reports.changes.prune_earlier_runs`)."""
 
     out_dir = Path(out_dir)
     refuse_overwriting_inputs(out_dir, [result.fleet.path, *result.cycle_inputs])
@@ -233,4 +235,5 @@ def write_run_outputs(result, out_dir: Path, earlier: EarlierRun | None = None) 
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}
         write_manifest(result, staging / "manifest.json", digests)
+    prune_earlier_runs(out_dir, keep_runs)   # after the swap: the new folder holds them all
     return {name: out_dir / name for name in OUTPUT_FILES}
