@@ -170,3 +170,38 @@ def test_earlier_runs_default_bound_and_batch_setting(tmp_path, fake_simulation)
     config.write_text('inputs = ["fleet.xlsx"]\nkeep_runs = -1\n')
     assert_user_error(fakes.invoke_run("--config", config, "-q"), "'keep_runs' must be a whole number")
     assert fleet.is_file()
+
+
+# --- report.xlsx / summary.html: which 90 % range is which -----------------------------------------
+
+def test_summary_shows_one_range_per_total_and_says_what_the_row_ranges_are(tmp_path, fake_simulation):
+    """Before: the Summary sheet's table gave fuel_gal_low_total / _high_total (the sum of each
+    fuel's and year's 5th / 95th percentile: the example baseline 5.14 to 6.11 billion gal) and
+    the headline below it the range of the total (5.24 to 6.01 billion), neither saying which
+    it was. Now the Summary gives each total one range, the headline's, and both reports say
+    in the same words (fleetrun.reports.text) what the rows' ranges are."""
+    import html
+
+    import openpyxl
+    import pandas as pd
+
+    from fleetrun.reports import text
+
+    out = fakes.run_small_fleet_with_fake(tmp_path)
+    sheet = openpyxl.load_workbook(out / "report.xlsx")["Summary"]
+    cells = [c.value for row in sheet.iter_rows() for c in row if isinstance(c.value, str)]
+    header = next(row for row in sheet.iter_rows(values_only=True) if row[0] == "scenario_id")
+    assert "fuel_gal_total" in header and not {"fuel_gal_low_total", "fuel_gal_high_total"} & set(header)
+    for words in (text.HEADLINE_HEADING, text.TOTAL_RANGE, text.ROW_RANGES):
+        assert words in cells
+    page = html.unescape((out / "summary.html").read_text(encoding="utf-8"))
+    assert text.TOTAL_RANGE in page and text.ROW_RANGES in page
+    # what the words claim, on this run: per fiscal year the all-fuels range lies inside the
+    # fuels' summed ends, strictly somewhere (ranges do not add)
+    memo = pd.read_csv(out / "revenue_memo.csv")
+    fuels = memo[memo.fuel != "all fuels"].groupby(["scenario_id", "fiscal_year"])[["fuel_gal_low", "fuel_gal_high"]].sum()
+    total = memo[memo.fuel == "all fuels"].set_index(["scenario_id", "fiscal_year"])[["fuel_gal_low", "fuel_gal_high"]]
+    assert len(total) and (memo.fuel != "all fuels").sum() > len(total)
+    assert (total.fuel_gal_low >= fuels.fuel_gal_low * (1 - 1e-12)).all()
+    assert (total.fuel_gal_high <= fuels.fuel_gal_high * (1 + 1e-12)).all()
+    assert (total.fuel_gal_low > fuels.fuel_gal_low * (1 + 1e-6)).any()

@@ -171,7 +171,8 @@ def render_summary(result: RunResult) -> str:
         class_rows=_table_rows(result.classes, CLASS_TABLE_COLUMNS), fuel_chart=fuel_chart, maps=maps,
         scale=scale, warnings=result.warnings, inputs=info["inputs"],
         assumptions=_assumption_rows(result), scenario_ids=scenario_ids,
-        ranges=report_text.range_source_lines(result.error_model),
+        ranges=report_text.range_source_lines(result.error_model), total_range=report_text.TOTAL_RANGE,
+        row_ranges=report_text.ROW_RANGES,
         fiscal_columns=FISCAL_TABLE_COLUMNS, fiscal_groups=_fiscal_groups(result),
         calibration_columns=list(calibration.columns) if calibration is not None and len(calibration) else [],
         calibration_rows=_table_rows(calibration, list(calibration.columns))

@@ -173,6 +173,19 @@ def driver_rows(s) -> list[tuple[str, str]]:
     return rows
 
 
+# Two kinds of 90 % range appear in the outputs (docs/budget.md, "Ranges"); both reports say
+# which is which in these words.
+HEADLINE_HEADING = ("Headline: totals over the budget period, each with the 90 % range of that total "
+                    "(the range to quote), rounded to the digit the range supports")
+TOTAL_RANGE = ("The range given with a total (the headline, each row of the revenue memo) is "
+               "the 90 % range of that total itself (5th to 95th percentile): the range to quote.")
+ROW_RANGES = ("Per-row ranges: fuel_gal_low / fuel_gal_high (fuel_gal_low_total / fuel_gal_high_total over the "
+              "budget period) of the ByVehicle, ByClass and Fiscal years sheets, results.csv, class_summary.csv and "
+              "fiscal_summary.csv are each row's share of its fuel's own 5th / 95th percentile in each fiscal year, "
+              "so that they add up over rows and years; added up they are wider than the range of the total "
+              "(ranges do not add), so do not quote their sums as a total's range.")
+
+
 def range_source_lines(error_model) -> list[str]:
     """Where the ranges come from, in short lines (docs/budget.md, "Ranges")."""
     from fleetrun.budget import drivers

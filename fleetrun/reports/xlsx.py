@@ -372,7 +372,9 @@ def _summary(book: Book, result: RunResult, totals: pd.DataFrame):
     page_setup(sheet, title_row=None, one_page=True)
     descriptions = {s.scenario_id: s.description for s in result.scenarios}
     years = {s.scenario_id: s.budget_years for s in result.scenarios}
-    frame = report_text.totals_with_fuel_mpg(totals, result.results)
+    # one range per total on this sheet, the headline's (the rows' summed ends: ByClass, CSVs)
+    frame = report_text.totals_with_fuel_mpg(totals, result.results).drop(
+        columns=["fuel_gal_low_total", "fuel_gal_high_total"])
     frame.insert(1, "description", [descriptions.get(s, "") for s in frame["scenario_id"]])
     frame.insert(2, "budget_years", [years.get(s) for s in frame["scenario_id"]])
     widths = fit_frame(sheet, [frame], minimum=12)
@@ -407,7 +409,7 @@ def _summary_words(sheet: Sheet, result: RunResult, columns: int, chars_per_line
     ranges = report_text.scenario_ranges(result.fiscal, result.scenarios, result.period_ranges)
     labels = ((1, "Fuel"), (5, "State fuel tax"), (9, "Federal fuel tax"))
     sheet.append([])
-    sheet.append(["Headline: totals over the budget period, rounded to the digit their 90 % range supports"], "bold")
+    sheet.append([report_text.HEADLINE_HEADING], "bold")
     heads = ["scenario_id"] + [None] * 12
     for column, label in labels:
         heads[column] = label
@@ -418,7 +420,8 @@ def _summary_words(sheet: Sheet, result: RunResult, columns: int, chars_per_line
         for column, label in labels:
             line[column] = texts[label]
         sheet.append(line)
-    sentences = report_text.range_source_lines(result.error_model) + [
+    sources = report_text.range_source_lines(result.error_model)
+    sentences = sources[:1] + [report_text.TOTAL_RANGE, report_text.ROW_RANGES] + sources[1:] + [
         "Rates, mixes, growth, temperature and on-road fuel of each scenario: see the Assumptions sheet; "
         "fiscal year x fuel with ranges: the Revenue memo sheet."]
     for sentence in sentences:
