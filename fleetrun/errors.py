@@ -100,3 +100,12 @@ class Terminated(KeyboardInterrupt):
 def interruption(exc: KeyboardInterrupt) -> str:
     """What stopped the command, as the ``Error:`` line says it."""
     return f"stopped by {exc.signal_name}" if isinstance(exc, Terminated) else "interrupted (Ctrl-C)"
+
+
+def interrupted_outputs(exc: KeyboardInterrupt, folder: str) -> str:
+    """What an interruption left of the output ``folder``: as it was, or, for a signal held
+    until an output folder's swap ended (fleetrun.output_folder), the new outputs in place."""
+    done = getattr(exc, "outputs_in_place", None)
+    if done:
+        return f"it came as the outputs were moved in: {done} holds this run's complete outputs; nothing more was written"
+    return f"nothing more was written and {folder} is as it was"

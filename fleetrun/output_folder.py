@@ -15,7 +15,10 @@ run does not write (an input workbook, the user's notes) are carried into the ne
 as hard links (copies where the file system has none), so the swap loses nothing.
 
 Crashes: a process killed while writing leaves ``.out-staging-<pid>-<token>``; one killed
-between the two renames leaves ``.out-old-...`` and no ``out``. The next run into the same
+(SIGKILL, a power cut) between the two renames leaves ``.out-old-...`` and no ``out``. Ctrl-C,
+SIGTERM and SIGHUP are held back from the first rename until the old folder's late files are
+rescued (:func:`_signals_held`), so a signal stops the run before or after the swap, never
+within it. The next run into the same
 folder removes stale staging folders and puts a stranded old folder back first
 (:func:`clean_leftovers`); folders of a process that is still running are left alone.
 
@@ -40,6 +43,8 @@ import errno
 import os
 import secrets
 import shutil
+import signal
+import threading
 import sys
 import time
 from collections.abc import Iterable, Iterator
@@ -53,6 +58,24 @@ OLD = "old"
 STALE_AFTER_S = 24 * 3600     # where a process cannot be asked whether it runs (Windows)
 LOCK_WAIT_S = 600.0           # default wait for another run's lock ($FLEETRUN_LOCK_WAIT_S)
 _HELD: dict[str, int] = {}    # locks this process holds (resolved folder -> depth)
+
+
+HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Block Ctrl-C, SIGTERM and SIGHUP in the block (the main thread's signal mask: Python runs
+    signal handlers there); one that arrives meanwhile is delivered when the block ends. Where
+    masks are not available (Windows) or off the main thread, the block runs as it is."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _sibling(target: Path, kind: str) -> Path:
@@ -280,7 +303,8 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
     """
     staging, target = Path(staging), _resolve_target(target)
     if _holds_working_folder(target):
-        _replace_in_place(staging, target, set(replaces))
+        with _signals_held():
+            _replace_in_place(staging, target, set(replaces))
         return
     try:
         os.chmod(staging, _folder_mode(target))
@@ -291,19 +315,31 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
     old = _sibling(target, OLD)
     had_old = target.exists()
     try:
-        if had_old:
+        with _signals_held():   # a signal between the renames would leave no target until the next run
+            _rename_pair(staging, target, old if had_old else None)
+            if had_old:
+                _rescue(old, target, set(replaces))
+    except KeyboardInterrupt as stop:   # held until here: the new folder is in place
+        stop.outputs_in_place = str(target)
+        raise
+    if had_old:
+        _remove_tree(old)   # a locked leftover (or a signal now): the next run removes it
+
+
+def _rename_pair(staging: Path, target: Path, old: Path | None) -> None:
+    """``target -> old`` (when ``old``), then ``staging -> target``; the first undone if the
+    second fails."""
+    try:
+        if old is not None:
             os.rename(target, old)
     except OSError as exc:
         raise _error(target, "cannot replace the output folder", exc) from None
     try:
         os.rename(staging, target)
     except OSError as exc:
-        if had_old:
+        if old is not None:
             os.rename(old, target)
         raise _error(target, "cannot replace the output folder", exc) from None
-    if had_old:
-        _rescue(old, target, set(replaces))
-        _remove_tree(old)   # a locked leftover: the next run removes it
 
 
 def _holds_working_folder(target: Path) -> bool:

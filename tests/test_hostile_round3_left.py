@@ -205,3 +205,75 @@ def test_summary_shows_one_range_per_total_and_says_what_the_row_ranges_are(tmp_
     assert (total.fuel_gal_low >= fuels.fuel_gal_low * (1 - 1e-12)).all()
     assert (total.fuel_gal_high <= fuels.fuel_gal_high * (1 + 1e-12)).all()
     assert (total.fuel_gal_low > fuels.fuel_gal_low * (1 + 1e-6)).any()
+
+
+# --- a signal between the two renames of the output folder's swap ---------------------------------
+
+def _signal_at_first_rename(monkeypatch, signum):
+    """os.rename sends ``signum`` to this process right after its first call (target -> old)."""
+    import os
+
+    from fleetrun import output_folder
+
+    real, calls = os.rename, []
+
+    def rename(source, destination):
+        real(source, destination)
+        calls.append(Path(destination).name)
+        if len(calls) == 1:
+            os.kill(os.getpid(), signum)
+
+    monkeypatch.setattr(output_folder.os, "rename", rename)
+    return calls
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signal masks")
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGINT", "SIGHUP"])
+def test_signal_within_the_swap_waits_until_the_folder_is_in_place(tmp_path, monkeypatch, name):
+    """Before: a signal arriving between `out -> .out-old-*` and `staging -> out` stopped the run
+    there: no `out` at all until the next run put the old folder back. Now the signal is held
+    until both renames are done (and the user's late files rescued), then delivered."""
+    import signal
+
+    from fleetrun.output_folder import swap_in
+
+    signum = getattr(signal, name)
+    target, staging = tmp_path / "out", tmp_path / ".out-staging-1-ab"
+    target.mkdir()
+    (target / "results.csv").write_text("old\n")
+    (target / "notes.txt").write_text("mine\n")
+    staging.mkdir()
+    (staging / "results.csv").write_text("new\n")
+    calls = _signal_at_first_rename(monkeypatch, signum)
+
+    def stop(number, frame):
+        raise KeyboardInterrupt(number)
+
+    previous = signal.signal(signum, stop)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            swap_in(staging, target, replaces=["results.csv"])
+    finally:
+        signal.signal(signum, previous)
+    assert len(calls) == 2 and calls[1] == "out"          # both renames ran before the signal's handler
+    assert (target / "results.csv").read_text() == "new\n" and (target / "notes.txt").read_text() == "mine\n"
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == set()   # nothing left blocked
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signal masks")
+def test_sigterm_within_the_swap_of_a_run_leaves_the_output_folder(tmp_path, monkeypatch, fake_simulation):
+    """The same through `fleetrun run`: SIGTERM during the swap is exit 1 `stopped by SIGTERM`
+    saying the folder holds this run's outputs (not "as it was"), and the folder is there,
+    holding the new run (its manifest lists its outputs)."""
+    import signal
+
+    fleet, out = small_fleet(tmp_path / "f.xlsx"), tmp_path / "out"
+    assert fakes.invoke_run(fleet, "--out", out, "-q", "--no-cache").exit_code == 0
+    first = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+    _signal_at_first_rename(monkeypatch, signal.SIGTERM)
+    result = fakes.invoke_run(fleet, "--out", out, "-q", "--no-cache")
+    line = assert_user_error(result, "stopped by SIGTERM", f"{out} holds this run's complete outputs")
+    assert "is as it was" not in line
+    assert (out / "manifest.json").is_file() and (out / "report.xlsx").is_file()
+    now = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+    assert now["outputs"].keys() == first["outputs"].keys() and (out / "earlier-runs").is_dir()

@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from fleetrun.effects import parse_with
-from fleetrun.errors import InputError, interruption, unknown_name_error
+from fleetrun.errors import InputError, interrupted_outputs, interruption, unknown_name_error
 from fleetrun.fileio import refuse_replacing_inputs
 from fleetrun.reports.changes import KEEP_RUNS
 from fleetrun.run import batch
@@ -129,8 +129,8 @@ def command(ctx, workbook, out, scenarios, engine, scheduler, config, physics, m
     try:
         code, errors, written = batch.run_plan(plan, quiet=quiet)
     except KeyboardInterrupt as stop:   # Ctrl-C or SIGTERM: said here with the log that records it
-        click.echo(f"Error: {interruption(stop)}; nothing more was written and the output folder being "
-                   "written is as it was" + (f" (logged in {plan.log})" if plan.log else ""), err=True)
+        click.echo(f"Error: {interruption(stop)}; {interrupted_outputs(stop, 'the output folder being written')}"
+                   + (f" (logged in {plan.log})" if plan.log else ""), err=True)
         ctx.exit(1)
     finally:
         batch.teardown_logging(handlers)

@@ -27,7 +27,7 @@ import click
 
 from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
-from fleetrun.errors import FleetrunError, InputError, interruption
+from fleetrun.errors import FleetrunError, InputError, interrupted_outputs, interruption
 from fleetrun.fileio import why_not_writable, write_error_log
 from fleetrun.reports.changes import KEEP_RUNS, EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
@@ -361,8 +361,8 @@ def run_plan(plan: RunPlan, *, quiet: bool = False) -> tuple[int, list[str], lis
             try:
                 written.append(run_one(plan, fleet_path, engine, progress_enabled=not quiet))
             except KeyboardInterrupt as stop:   # the log of a cron job says why it ends here
-                log.error("%s: %s; nothing more was written and %s is as it was", fleet_path, interruption(stop),
-                          plan.out_dir(fleet_path))
+                log.error("%s: %s; %s", fleet_path, interruption(stop),
+                          interrupted_outputs(stop, str(plan.out_dir(fleet_path))))
                 raise
             except FleetrunError as exc:
                 errors.append(str(exc) + _earlier_outputs_note(plan.out_dir(fleet_path)))
