@@ -282,32 +282,32 @@ def keep_earlier_run(out_dir: Path, staging: Path, earlier: EarlierRun, files) -
     return kept
 
 
-def _kept_run(folder: Path) -> dict | None:
+def _kept_run(folder: Path, schema: str) -> dict | None:
     """The manifest of an earlier run fleetrun kept in ``folder`` (its name as
-    :func:`keep_earlier_run` gives it, a fleetrun run manifest inside); None for anything else."""
-    from fleetrun.reports.manifest import SCHEMA
-
+    :func:`keep_earlier_run` gives it, a manifest of ``schema``'s kind inside); None for
+    anything else."""
     if folder.is_symlink() or not folder.is_dir() or not KEPT_NAME.fullmatch(folder.name):
         return None
     try:
         data = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(data, dict) or str(data.get("schema", "")).split("/")[0] != SCHEMA.split("/")[0]:
+    if not isinstance(data, dict) or str(data.get("schema", "")).split("/")[0] != schema.split("/")[0]:
         return None
     return data
 
 
-def prune_earlier_runs(out_dir: Path, keep: int) -> list[Path]:
+def prune_earlier_runs(out_dir: Path, keep: int, schema: str) -> list[Path]:
     """Remove the oldest runs of ``out_dir/earlier-runs/`` beyond the newest ``keep`` (by the
-    manifest's creation time); the folders removed. Only runs fleetrun kept there are counted
+    manifest's creation time; ``schema``: the run manifest's, fleetrun.reports.manifest.SCHEMA);
+    the folders removed. Only runs fleetrun kept there are counted
     and only the files their manifest lists are deleted (``manifest.json`` last, so a removal
     cut short is finished by the next run); a folder left with other files stays."""
     root = Path(out_dir) / EARLIER_DIR
     if not root.is_dir():
         return []
     runs = [(str(data.get("created_utc") or ""), entry.name, entry, data)
-            for entry in root.iterdir() if (data := _kept_run(entry)) is not None]
+            for entry in root.iterdir() if (data := _kept_run(entry, schema)) is not None]
     runs.sort(key=lambda run: run[:2], reverse=True)
     removed = []
     for *_, folder, data in runs[keep:]:

@@ -235,5 +235,5 @@ def write_run_outputs(result, out_dir: Path, earlier: EarlierRun | None = None,
         write_summary_html(result, staging / "summary.html")
         digests = {name: file_sha256(staging / name) for name in OUTPUT_FILES[:-1]}
         write_manifest(result, staging / "manifest.json", digests)
-    prune_earlier_runs(out_dir, keep_runs)   # after the swap: the new folder holds them all
+    prune_earlier_runs(out_dir, keep_runs, SCHEMA)   # after the swap: the new folder holds them all
     return {name: out_dir / name for name in OUTPUT_FILES}
