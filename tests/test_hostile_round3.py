@@ -199,6 +199,20 @@ def _stop_during_simulation(monkeypatch, stop):
     monkeypatch.setattr(batch, "run_fleet", stopped)
 
 
+@pytest.fixture
+def signals_as_from_a_terminal():
+    """SIGTERM and SIGHUP at their default, as a command started from a terminal has them: under
+    `nohup` (a CI job may run so) SIGHUP is ignored, and the command rightly leaves an ignored
+    signal ignored (test_nohup_still_outlives_the_terminal), so this test would not see it."""
+    ignored = [n for n in (signal.SIGTERM, signal.SIGHUP) if signal.getsignal(n) is signal.SIG_IGN]
+    for number in ignored:
+        signal.signal(number, signal.SIG_DFL)
+    yield
+    for number in ignored:
+        signal.signal(number, signal.SIG_IGN)
+
+
+@pytest.mark.usefixtures("signals_as_from_a_terminal")
 @pytest.mark.parametrize("how, said", [
     (lambda: os.kill(os.getpid(), signal.SIGTERM), "stopped by SIGTERM"),
     (lambda: os.kill(os.getpid(), signal.SIGHUP), "stopped by SIGHUP"),
