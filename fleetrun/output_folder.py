@@ -65,17 +65,29 @@ HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SI
 
 @contextlib.contextmanager
 def _signals_held() -> Iterator[None]:
-    """Block Ctrl-C, SIGTERM and SIGHUP in the block (the main thread's signal mask: Python runs
-    signal handlers there); one that arrives meanwhile is delivered when the block ends. Where
-    masks are not available (Windows) or off the main thread, the block runs as it is."""
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+    """Hold Ctrl-C, SIGTERM and SIGHUP back in the block; one that arrives meanwhile is raised
+    again when the block ends. Python runs every signal handler in the main thread, whichever
+    thread the system handed the signal to, so the held signals get a handler that only notes
+    them (a thread's signal mask would not do: the system gives a process's signal to any thread
+    that does not block it, a pyarrow worker for one). An ignored signal stays ignored; off the
+    main thread, where handlers cannot be set, the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, HELD_SIGNALS)
+    noted: list[int] = []
+
+    def note(signum, _frame):
+        noted.append(signum)
+
+    previous = {number: signal.signal(number, note) for number in HELD_SIGNALS
+                if signal.getsignal(number) not in (signal.SIG_IGN, None)}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        for number in dict.fromkeys(noted):
+            signal.raise_signal(number)
 
 
 def _sibling(target: Path, kind: str) -> Path:

@@ -9,6 +9,7 @@ traceback (docs/interface.md).
 from __future__ import annotations
 
 import json
+import threading
 from pathlib import Path
 
 import pytest
@@ -209,8 +210,9 @@ def test_summary_shows_one_range_per_total_and_says_what_the_row_ranges_are(tmp_
 
 # --- a signal between the two renames of the output folder's swap ---------------------------------
 
-def _signal_at_first_rename(monkeypatch, signum):
-    """os.rename sends ``signum`` to this process right after its first call (target -> old)."""
+def _signal_at_first_rename(monkeypatch, signum, send=None):
+    """os.rename sends ``signum`` to this process (or calls ``send(signum)``) right after its
+    first call (target -> old)."""
     import os
 
     from fleetrun import output_folder
@@ -221,13 +223,13 @@ def _signal_at_first_rename(monkeypatch, signum):
         real(source, destination)
         calls.append(Path(destination).name)
         if len(calls) == 1:
-            os.kill(os.getpid(), signum)
+            (send or (lambda number: os.kill(os.getpid(), number)))(signum)
 
     monkeypatch.setattr(output_folder.os, "rename", rename)
     return calls
 
 
-@pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signal masks")
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
 @pytest.mark.parametrize("name", ["SIGTERM", "SIGINT", "SIGHUP"])
 def test_signal_within_the_swap_waits_until_the_folder_is_in_place(tmp_path, monkeypatch, name):
     """Before: a signal arriving between `out -> .out-old-*` and `staging -> out` stopped the run
@@ -244,7 +246,13 @@ def test_signal_within_the_swap_waits_until_the_folder_is_in_place(tmp_path, mon
     (target / "notes.txt").write_text("mine\n")
     staging.mkdir()
     (staging / "results.csv").write_text("new\n")
-    calls = _signal_at_first_rename(monkeypatch, signum)
+    # a second thread, as pyarrow's workers in a run: the system may hand the process's signal
+    # to it, and Python then runs the handler in the main thread at once (a signal mask of the
+    # main thread alone let it run between the renames); here the signal goes to that thread
+    release = threading.Event()
+    worker = threading.Thread(target=release.wait)
+    worker.start()
+    calls = _signal_at_first_rename(monkeypatch, signum, lambda number: signal.pthread_kill(worker.ident, number))
 
     def stop(number, frame):
         raise KeyboardInterrupt(number)
@@ -253,14 +261,17 @@ def test_signal_within_the_swap_waits_until_the_folder_is_in_place(tmp_path, mon
     try:
         with pytest.raises(KeyboardInterrupt):
             swap_in(staging, target, replaces=["results.csv"])
+        after = signal.getsignal(signum)
     finally:
         signal.signal(signum, previous)
+        release.set()
+        worker.join()
     assert len(calls) == 2 and calls[1] == "out"          # both renames ran before the signal's handler
     assert (target / "results.csv").read_text() == "new\n" and (target / "notes.txt").read_text() == "mine\n"
-    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == set()   # nothing left blocked
+    assert after is stop                                  # the caller's handler is back
 
 
-@pytest.mark.skipif(not hasattr(__import__("signal"), "pthread_sigmask"), reason="POSIX signal masks")
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
 def test_sigterm_within_the_swap_of_a_run_leaves_the_output_folder(tmp_path, monkeypatch, fake_simulation):
     """The same through `fleetrun run`: SIGTERM during the swap is exit 1 `stopped by SIGTERM`
     saying the folder holds this run's outputs (not "as it was"), and the folder is there,
@@ -277,3 +288,31 @@ def test_sigterm_within_the_swap_of_a_run_leaves_the_output_folder(tmp_path, mon
     assert (out / "manifest.json").is_file() and (out / "report.xlsx").is_file()
     now = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     assert now["outputs"].keys() == first["outputs"].keys() and (out / "earlier-runs").is_dir()
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
+def test_a_signal_another_thread_receives_is_held_as_well():
+    """The system hands a process's signal to any thread that does not block it (a pyarrow
+    worker in a run), and Python runs the handler in the main thread soon after: holding the
+    signals must not rest on the main thread's signal mask alone."""
+    import signal
+    import time
+
+    from fleetrun.output_folder import _signals_held
+
+    seen = []
+    release = threading.Event()
+    worker = threading.Thread(target=release.wait)
+    worker.start()
+    previous = signal.signal(signal.SIGTERM, lambda number, frame: seen.append(number))
+    try:
+        with _signals_held():
+            signal.pthread_kill(worker.ident, signal.SIGTERM)
+            time.sleep(0.3)        # time enough for Python to run a handler it was given
+            held = list(seen)
+        after = list(seen)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        release.set()
+        worker.join()
+    assert held == [] and after == [signal.SIGTERM]
