@@ -77,6 +77,21 @@ def test_thousands_separators_typed_as_text_are_the_number_shown(tmp_path):
     assert [r["count"] for r in typed.registrations] == [r["count"] for r in plain.registrations] == [2524145, 5397]
 
 
+def test_a_comma_that_could_be_a_decimal_comma_is_a_warning_naming_the_cell(tmp_path):
+    """'150,250' is 150250 with a US thousands separator, 150.25 with a European decimal comma,
+    and both lie in base_year_vmt_million's usual range (schema.py: 100 to 4 million): read as
+    shown in the US, but said, naming the cell. An unambiguous grouping (2,524,145) or a count
+    (never 5.397 vehicles) is no warning."""
+    fleet = read_fleet(registrations(tmp_path / "t.xlsx", [("automobile", "2,524,145"), ("bus", "5,397")],
+                                     scenario_changes={"base_year_vmt_million": "150,250"}))
+    assert fleet.scenarios[0].base_year_vmt_million == 150250
+    assert [w for w in fleet.warnings if "comma" in w] == [
+        "Scenarios!K2 base_year_vmt_million: '150,250' is read as 150250, the comma a thousands separator; "
+        "if it is a decimal comma, type 150.25"]
+    result = invoke("validate", tmp_path / "t.xlsx")
+    assert result.exit_code == 0 and "Scenarios!K2" in result.output, result.output
+
+
 @pytest.mark.parametrize("column, typed, where, hint", [
     ("fiscal_year_start_month", "Sept", "Scenarios!L2 fiscal_year_start_month: 'Sept'", "(September = 9)"),
     ("state_tax_gasoline_usd_per_gal", "$0.20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '$0.20'",

@@ -117,6 +117,15 @@ def parse_number(value) -> float:
 # decimal comma has no three-digit groups after a non-zero lead (0,115 and 4,2 do not match)
 _THOUSANDS = re.compile(r"[+-]?[1-9]\d{0,2}(,\d{3})+(\.\d+)?")
 THOUSANDS_PATTERN = _THOUSANDS.pattern   # the same rule for a CSV column (registrations.extract)
+_ONE_GROUP = re.compile(r"[+-]?[1-9]\d{0,2},\d{3}")   # 1,500: 1500, or 1.5 written with a decimal comma
+
+
+def decimal_comma_reading(text: str) -> float | None:
+    """The other reading of a text cell that :func:`parse_number` takes as thousands
+    (``1,500`` as 1500): the number with its comma as a decimal comma (1.5), when that reading
+    exists (one three-digit group and no decimal point; ``1,234,567`` and ``1,234.5`` have none)."""
+    text = str(text).strip()
+    return float(text.replace(",", ".")) if _ONE_GROUP.fullmatch(text) else None
 _GROUPED = re.compile(r"[+-]?\d{1,3}([ .'\u00a0\u202f]\d{3})+(,\d+)?")   # 2 524 145, 2.524.145, 2'524'145
 _MONTHS = ("january", "february", "march", "april", "may", "june", "july", "august", "september",
            "october", "november", "december")

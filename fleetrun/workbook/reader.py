@@ -408,6 +408,8 @@ def _parse_row(table: _Table, schema, row_number: int, values: tuple, problems: 
             if raw.is_integer():   # an integer column's whole number (what rows.parse_value gives it)
                 parsed[column.name] = int(raw)
                 continue
+        if type(raw) is str and (comma := rows.comma_reading(column, raw)):   # 1,500: 1500 or 1.5?
+            problems.warn(comma, table.sheet, row_number, index, column.name)
         value = known.get(raw, _UNSEEN) if type(raw) is str else _UNSEEN   # a text seen before in this column
         if value is not _UNSEEN and not isinstance(value, CellProblem):
             parsed[column.name] = value

@@ -134,6 +134,23 @@ def _out_of_range(column: Column, number: float) -> str | None:
     return None
 
 
+def comma_reading(column: Column, raw) -> str | None:
+    """A warning for a text cell that :func:`parse_value` read with its comma as a thousands
+    separator (``1,500`` as 1500) when the comma could as well be a decimal comma (1.5) giving
+    a value the column takes as usual: within its range and its usual range, and whole for a
+    count. None otherwise (``1,234,567``, ``1,234.5``, or a decimal reading out of place)."""
+    if column.kind != "number" or type(raw) is not str or "," not in raw:
+        return None
+    decimal = cells.decimal_comma_reading(raw)
+    if decimal is None or _out_of_range(column, decimal) or (column.name == "count" and not decimal.is_integer()):
+        return None
+    usual = column.plausible.values() if isinstance(column.plausible, dict) else [column.plausible or (decimal, decimal)]
+    if not min(low for low, _ in usual) <= decimal <= max(high for _, high in usual):
+        return None
+    return (f"{cells.show(raw)} is read as {cells.parse_number(raw):g}, the comma a thousands separator; if it is a "
+            f"decimal comma, type {decimal:g}")
+
+
 def _canonical_configuration(raw) -> str:
     text = cells.parse_text(raw)
     try:
@@ -183,6 +200,9 @@ def parse_fields(columns, raw_of: Callable[[Column], object], report: Report) ->
             report(column.name, str(problem))
             parsed[column.name] = None
             ok = False
+            continue
+        if comma := comma_reading(column, raw):
+            report(column.name, comma, warning=True)
     return parsed, ok
 
 
