@@ -295,6 +295,18 @@ def test_import_registrations_reads_what_excel_exports(tmp_path):
                       "line 3: vehicle_class 'total' looks like a total row")
 
 
+@pytest.mark.parametrize("count, read", [("2.524", "2524"), ("2,524", "2524")])
+def test_a_semicolon_export_count_a_thousand_times_apart_is_refused(tmp_path, count, read):
+    """In a semicolon-separated export (a locale whose decimal mark is a comma and thousands
+    separator a point) '2.524' is 2524 vehicles; it was read as 2.524, silently (and '2,524'
+    as 2524, though there the comma is the decimal mark): refused, naming the file's line."""
+    extract = tmp_path / "dmv.csv"
+    extract.write_text(f"vehicle_class;count\nbus;12\nautomobile;{count}\n", encoding="utf-8")
+    assert_user_error(invoke("import-registrations", extract, "-o", tmp_path / "f.xlsx"), str(extract),
+                      f"line 3: count '{count}' could be {read} (a thousands separator) or 2.524 (a decimal mark)",
+                      "without thousands separators")
+
+
 @pytest.mark.parametrize("out", [".", ".."])
 def test_out_naming_the_working_folder_keeps_the_shell_in_a_live_folder(tmp_path, monkeypatch, out):
     """Before: `fleetrun run fleet.xlsx --out .` renamed the working folder aside and removed

@@ -75,6 +75,8 @@ def _check(chunk: pd.DataFrame, first_row: int, path: Path, sep: str) -> None:
             line = _file_line(path, sep, first_row + where)
             raise InputError(f"line {line}: {name} {values.iloc[where]!r} {what}", file=path,
                              hint="Fix the extract (docs/registrations.md)")
+    if sep == ";" and "count" in chunk:
+        _refuse_one_group(chunk["count"], first_row, path, sep)
     for name, low, high in (("model_year", 1900, 2200), ("count", 0, MAX_COUNT)):
         if name not in chunk:
             continue
@@ -87,6 +89,24 @@ def _check(chunk: pd.DataFrame, first_row: int, path: Path, sep: str) -> None:
             raise InputError(f"line {line}: {name} {chunk[name].iloc[where]!r} is not a number "
                              f"from {low} to {high:g}", file=path, hint="Fix the extract (docs/registrations.md)")
         chunk[name] = numbers
+
+
+# 2.524 or 2,524: in a semicolon-separated export (Excel's in locales whose decimal mark is a
+# comma and whose thousands separator a point) either mark may be either
+_ONE_GROUP = r"[+-]?[1-9]\d{0,2}[.,]\d{3}"
+
+
+def _refuse_one_group(counts: pd.Series, first_row: int, path: Path, sep: str) -> None:
+    """InputError for a count of a semicolon-separated export that reads as two numbers a
+    thousand times apart (``2.524``: 2524 vehicles, or 2.524 read with a decimal point)."""
+    ambiguous = counts.str.fullmatch(_ONE_GROUP, na=False)
+    if ambiguous.any():
+        where = int(np.flatnonzero(ambiguous.to_numpy())[0])
+        raise InputError(f"line {_file_line(path, sep, first_row + where)}: count {counts.iloc[where]!r} could be "
+                         f"{counts.iloc[where].replace(',', '').replace('.', '')} (a thousands separator) or "
+                         f"{counts.iloc[where].replace(',', '.')} (a decimal mark) in a semicolon-separated export",
+                         file=path, hint="Export the counts without thousands separators (Number format, no "
+                                         "1000 separator) and try again")
 
 
 def read_extract(path, chunk_rows: int = CHUNK_ROWS) -> pd.DataFrame:
