@@ -64,9 +64,11 @@ HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SI
 
 
 @contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
+def _signals_held(done: Path | None = None) -> Iterator[None]:
     """Hold Ctrl-C, SIGTERM and SIGHUP back in the block; one that arrives meanwhile is raised
-    again when the block ends. Python runs every signal handler in the main thread, whichever
+    again when the block ends (its KeyboardInterrupt carrying ``outputs_in_place = done`` when
+    the block ended normally, so the message says the new outputs are in ``done``; a block that
+    failed, such as a rename undone, did not put them there). Python runs every signal handler in the main thread, whichever
     thread the system handed the signal to, so the held signals get a handler that only notes
     them (a thread's signal mask would not do: the system gives a process's signal to any thread
     that does not block it, a pyarrow worker for one). An ignored signal stays ignored; off the
@@ -81,13 +83,20 @@ def _signals_held() -> Iterator[None]:
 
     previous = {number: signal.signal(number, note) for number in HELD_SIGNALS
                 if signal.getsignal(number) not in (signal.SIG_IGN, None)}
+    completed = False
     try:
         yield
+        completed = True
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
-        for number in dict.fromkeys(noted):
-            signal.raise_signal(number)
+        try:
+            for number in dict.fromkeys(noted):
+                signal.raise_signal(number)
+        except KeyboardInterrupt as stop:
+            if completed and done is not None:
+                stop.outputs_in_place = str(done)
+            raise
 
 
 def _sibling(target: Path, kind: str) -> Path:
@@ -315,7 +324,7 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
     """
     staging, target = Path(staging), _resolve_target(target)
     if _holds_working_folder(target):
-        with _signals_held():
+        with _signals_held(done=target):
             _replace_in_place(staging, target, set(replaces))
         return
     try:
@@ -326,14 +335,10 @@ def swap_in(staging: Path, target: Path, replaces: Iterable[str] = ()) -> None:
         raise _error(target, "cannot prepare the new output folder", exc) from None
     old = _sibling(target, OLD)
     had_old = target.exists()
-    try:
-        with _signals_held():   # a signal between the renames would leave no target until the next run
-            _rename_pair(staging, target, old if had_old else None)
-            if had_old:
-                _rescue(old, target, set(replaces))
-    except KeyboardInterrupt as stop:   # held until here: the new folder is in place
-        stop.outputs_in_place = str(target)
-        raise
+    with _signals_held(done=target):   # a signal between the renames would leave no target until the next run
+        _rename_pair(staging, target, old if had_old else None)
+        if had_old:
+            _rescue(old, target, set(replaces))
     if had_old:
         _remove_tree(old)   # a locked leftover (or a signal now): the next run removes it
 

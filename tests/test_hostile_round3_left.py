@@ -316,3 +316,73 @@ def test_a_signal_another_thread_receives_is_held_as_well():
         release.set()
         worker.join()
     assert held == [] and after == [signal.SIGTERM]
+
+
+def _swap_folders(tmp_path):
+    target, staging = tmp_path / "out", tmp_path / ".out-staging-1-ab"
+    target.mkdir()
+    (target / "results.csv").write_text("old\n")
+    staging.mkdir()
+    (staging / "results.csv").write_text("new\n")
+    return target, staging
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
+def test_a_held_signal_after_a_failed_swap_does_not_claim_the_new_outputs(tmp_path, monkeypatch):
+    """Review: a signal held over the swap whose second rename failed (and was undone) said
+    "<out> holds this run's complete outputs", while <out> held the earlier run's: only a swap
+    that ended puts the outputs in place (output_folder._signals_held)."""
+    import os
+    import signal
+
+    from fleetrun import output_folder
+
+    target, staging = _swap_folders(tmp_path)
+    real, calls = os.rename, []
+
+    def rename(source, destination):
+        calls.append(Path(destination).name)
+        if len(calls) == 2:       # staging -> out fails (a full disk, a virus scanner)
+            raise OSError(28, "No space left on device")
+        real(source, destination)
+        if len(calls) == 1:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(output_folder.os, "rename", rename)
+    previous = signal.signal(signal.SIGTERM, lambda number, frame: (_ for _ in ()).throw(KeyboardInterrupt()))
+    try:
+        with pytest.raises(KeyboardInterrupt) as stopped:
+            output_folder.swap_in(staging, target, replaces=["results.csv"])
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert getattr(stopped.value, "outputs_in_place", None) is None
+    assert (target / "results.csv").read_text() == "old\n"      # the rename undone: as it was
+
+
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
+def test_a_held_signal_while_outputs_move_into_the_working_folder_says_they_are_in(tmp_path, monkeypatch):
+    """Review: `--out .` moves each output in by one rename (output_folder._replace_in_place),
+    with the signals held as for a swap; a signal then said "is as it was", though the new
+    outputs were in place."""
+    import os
+    import signal
+
+    from fleetrun import output_folder
+
+    target, staging = _swap_folders(tmp_path)
+    monkeypatch.chdir(target)
+    real = os.replace
+
+    def replace(source, destination):
+        real(source, destination)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(output_folder.os, "replace", replace)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt) as stopped:
+            output_folder.swap_in(staging, target, replaces=["results.csv"])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert stopped.value.outputs_in_place == str(target.resolve())
+    assert (target / "results.csv").read_text() == "new\n"
