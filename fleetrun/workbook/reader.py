@@ -795,7 +795,9 @@ def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Proble
     seen: dict[tuple, int] = {}   # a row's values -> the first row holding them
     for row_number, values in table.rows:
         parsed, ok = _parse_row(table, REGISTRATION_COLUMNS, row_number, values, problems)
-        same = seen.setdefault(tuple(v for k, v in parsed.items() if k != "_extra"), row_number)
+        # every cell, the extra columns' too (two counties' rows may hold the same class and count)
+        same = seen.setdefault((*(v for k, v in parsed.items() if k != "_extra"),
+                                *sorted(parsed["_extra"].items())), row_number)
         if same != row_number:   # a pasted block twice: every vehicle of it counted twice
             problems.warn(f"repeats row {same} exactly; both are counted (delete one if it is a copy)",
                           table.sheet, row_number)
