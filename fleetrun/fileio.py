@@ -42,6 +42,17 @@ def why_not_writable(path: Path, exc: OSError) -> str:
     return f"{blocking} is a file, not a folder" if blocking else str(exc.strerror or exc)
 
 
+REPLACE_WORKBOOK_HELP = "Replace an existing workbook (its Scenarios sheet, tax rates and VMT included)."
+
+
+def refuse_replacing_workbook(output: Path, force: bool) -> None:
+    """InputError if the workbook ``output`` an import would write exists and ``force`` is not
+    given: its Scenarios sheet may hold what the analyst typed since (docs/interface.md)."""
+    if Path(output).exists() and not force:
+        raise InputError(f"'{output}' exists (its Scenarios sheet may hold your tax rates and VMT)",
+                         hint="Choose another name, or add --force to replace it")
+
+
 def is_same_file(path: Path, other: Path) -> bool:
     """True when ``path`` and ``other`` both exist and are one file (by any name or link)."""
     return Path(path).exists() and Path(other).exists() and os.path.samefile(path, other)

@@ -257,17 +257,22 @@ def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monke
 
 # --- import-registrations: a DMV extract ------------------------------------------------------
 
+def assert_import_replaces_only_with_force(command: str, source: Path, workbook: Path) -> None:
+    """A second ``command source -o workbook`` is exit 1 saying so and leaves it; with --force
+    it replaces it."""
+    assert invoke(command, source, "-o", workbook).exit_code == 0
+    edited = workbook.read_bytes()
+    assert_user_error(invoke(command, source, "-o", workbook), f"'{workbook}' exists", "--force")
+    assert workbook.read_bytes() == edited
+    assert invoke(command, source, "-o", workbook, "--force").exit_code == 0
+
+
 def test_import_registrations_never_replaces_an_edited_workbook(tmp_path):
     """Before: next month's import over last month's fleet.xlsx silently replaced it, and with
     it the tax rates and VMT the analyst had typed into its Scenarios sheet."""
     extract = tmp_path / "dmv.csv"
     extract.write_text("vehicle_class,count\nautomobile,100\n", encoding="utf-8")
-    workbook = tmp_path / "fleet.xlsx"
-    assert invoke("import-registrations", extract, "-o", workbook).exit_code == 0
-    edited = workbook.read_bytes()
-    assert_user_error(invoke("import-registrations", extract, "-o", workbook), f"'{workbook}' exists", "--force")
-    assert workbook.read_bytes() == edited
-    assert invoke("import-registrations", extract, "-o", workbook, "--force").exit_code == 0
+    assert_import_replaces_only_with_force("import-registrations", extract, tmp_path / "fleet.xlsx")
 
 
 @pytest.mark.parametrize("content, said", [

@@ -19,6 +19,7 @@ import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from test_epa_import import epa_row, write_list
 from test_fleet_fakes import small_fleet
+from test_hostile_round3 import assert_import_replaces_only_with_force
 
 
 def invoke(*args):
@@ -49,12 +50,7 @@ def test_import_epa_never_replaces_an_existing_workbook_without_force(tmp_path):
     the tax rates and VMT the analyst had typed into its Scenarios sheet), exit 0;
     import-registrations already refused without --force."""
     listed = write_list(tmp_path / "list.csv", [epa_row()])
-    workbook = tmp_path / "fleet.xlsx"
-    assert invoke("import-epa", listed, "-o", workbook).exit_code == 0
-    edited = workbook.read_bytes()
-    assert_user_error(invoke("import-epa", listed, "-o", workbook), f"'{workbook}' exists", "--force")
-    assert workbook.read_bytes() == edited
-    assert invoke("import-epa", listed, "-o", workbook, "--force").exit_code == 0
+    assert_import_replaces_only_with_force("import-epa", listed, tmp_path / "fleet.xlsx")
 
 
 # --- import-registrations: the file's line, not the data row -------------------------------------

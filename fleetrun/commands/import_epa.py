@@ -8,7 +8,7 @@ import click
 from fleetrun.epa import import_test_car_list
 from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
 from fleetrun.errors import InputError
-from fleetrun.fileio import refuse_replacing_inputs
+from fleetrun.fileio import REPLACE_WORKBOOK_HELP, refuse_replacing_inputs, refuse_replacing_workbook
 from fleetrun.workbook.reader import file_sha256
 
 
@@ -22,7 +22,7 @@ from fleetrun.workbook.reader import file_sha256
               help="Only this model year (repeatable).")
 @click.option("--make", "makes", multiple=True,
               help="Only this make or manufacturer, case-insensitive (repeatable).")
-@click.option("--force", is_flag=True, help="Replace an existing workbook (its Scenarios sheet included).")
+@click.option("--force", is_flag=True, help=REPLACE_WORKBOOK_HELP)
 def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, makes, force):
     """Write a fleet workbook from an EPA Test Car List CSV: one Vehicles row per test vehicle
     and configuration, with Measured, Derived and Excluded sheets (docs/epa-import.md)."""
@@ -32,9 +32,7 @@ def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, 
     if not tstcar.is_file():
         raise InputError("does not exist", file=tstcar, hint="Check the path of the EPA Test Car List CSV")
     refuse_replacing_inputs(output, [tstcar], "-o")
-    if output.exists() and not force:   # a workbook whose Scenarios the analyst has filled in since
-        raise InputError(f"'{output}' exists (its Scenarios sheet may hold your tax rates and VMT)",
-                         hint="Choose another name, or add --force to replace it")
+    refuse_replacing_workbook(output, force)
     if measured_out is not None:
         refuse_replacing_inputs(measured_out, [tstcar, output], "--measured-out")
         if measured_out.resolve() == output.resolve():
