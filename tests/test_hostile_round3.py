@@ -117,9 +117,11 @@ def test_percent_typed_as_text_in_a_percent_column_is_the_percentage_shown(tmp_p
     assert fleet.scenarios[0].vmt_growth_pct_per_year == 1.5
 
 
-@pytest.mark.parametrize("label", ["Total", "TOTAL", "Grand total"])
+@pytest.mark.parametrize("label", ["Total", "TOTAL", "Grand total", "All vehicles", "Total Vehicles"])
 def test_a_total_row_is_named_as_such(tmp_path, label):
-    """Before: "'Total' is not one of automobile, ..." without saying to delete the row."""
+    """Before: "'Total' is not one of automobile, ..." without saying to delete the row (and,
+    in review, 'All vehicles': the class cell's spaces became '_' before the total words, which
+    held spaces, were looked up)."""
     path = registrations(tmp_path / "f.xlsx", MV1 + [(label, 5366844)])
     assert_user_error(invoke("validate", path), f"Registrations!A6 vehicle_class: '{label}' looks like a total row",
                       "delete the row")

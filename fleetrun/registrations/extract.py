@@ -10,14 +10,13 @@ extract of a state's 50,000 make/model/year combinations needs a few megabytes).
 from __future__ import annotations
 
 import csv
-import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from fleetrun.errors import InputError
-from fleetrun.workbook.cells import THOUSANDS_PATTERN, TOTAL_ROW, is_total_label
+from fleetrun.workbook.cells import NAME_SPACING, THOUSANDS_PATTERN, TOTAL_ROW, as_name, is_total_label
 from fleetrun.workbook.schema import FUELS, REGISTRATION_CLASSES
 
 KEYS = ("vehicle_class", "fuel", "make", "model", "model_year")
@@ -27,7 +26,7 @@ MAX_COUNT = 1e9
 
 def _name(header) -> str:
     """A header as the sheet's column names are spelt (``Vehicle Class`` is vehicle_class)."""
-    return re.sub(r"[\s-]+", "_", str(header).strip().lower())
+    return as_name(header)
 
 
 def _columns(path: Path) -> tuple[list[str], str]:
@@ -132,7 +131,7 @@ def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
         chunk.columns = [_name(c) for c in chunk.columns]
         for name in ("vehicle_class", "fuel"):
             if name in chunk:
-                chunk[name] = chunk[name].str.strip().str.lower().str.replace(r"[\s-]+", "_", regex=True)
+                chunk[name] = chunk[name].str.strip().str.lower().str.replace(NAME_SPACING, "_", regex=True)
         _check(chunk, row, path, sep)
         row += len(chunk)
         if "count" not in chunk:

@@ -165,7 +165,7 @@ def parse_choice(value, choices) -> str:
         return "yes" if value else "no"
     text = parse_text(value)
     lower = {c.lower(): c for c in choices}
-    key = re.sub(r"[\s-]+", "_", text.lower())   # light-truck, Light Truck: light_truck
+    key = as_name(text)   # light-truck, Light Truck: light_truck
     for candidate in (text.lower(), key):
         if candidate in lower:
             return lower[candidate]
@@ -177,14 +177,22 @@ def parse_choice(value, choices) -> str:
     raise CellProblem(f"{show(value)} is not one of {', '.join(choices)}")
 
 
-_TOTAL_WORDS = {"total", "totals", "grand total", "grand_total", "sum", "all", "all vehicles", "total vehicles"}
+NAME_SPACING = r"[\s-]+"   # spaces and hyphens in a typed name: Light Truck, light-truck are light_truck
+
+
+def as_name(text) -> str:
+    """A header or choice as fleetrun spells its names: lower case, spaces and hyphens as ``_``."""
+    return re.sub(NAME_SPACING, "_", str(text).strip().lower())
+
+
+_TOTAL_WORDS = {"total", "totals", "grand_total", "sum", "all", "all_vehicles", "total_vehicles"}
 TOTAL_ROW = ("looks like a total row; delete the row (fleetrun adds the rows up itself, so a total row "
              "would count them twice)")
 
 
 def is_total_label(text: str) -> bool:
     """Whether a class cell reads like the label of a total row (``Total``, ``Grand total``)."""
-    return str(text).strip(" :").lower().replace("-", "_") in _TOTAL_WORDS
+    return as_name(str(text).strip(" :")) in _TOTAL_WORDS
 
 
 def parse_onroad(value):

@@ -328,7 +328,7 @@ def _read_table(book, info, schema: tuple[Column, ...], problems: Problems, allo
         if cells.is_blank(value):
             continue
         text = str(value).strip()
-        name = known.get(text.lower()) or known.get(re.sub(r"[\s-]+", "_", text.lower()))   # "Vehicle Class"
+        name = known.get(text.lower()) or known.get(cells.as_name(text))   # "Vehicle Class"
         if name is None and known.get(cells.skeleton(text).lower()):
             mistyped.add(known[cells.skeleton(text).lower()])
             problems.error(f"header {cells.show(text)} looks like {known[cells.skeleton(text).lower()]} but has "
