@@ -18,6 +18,7 @@ from fleetrun.errors import InputError
 from fleetrun.registrations import library as lib
 from fleetrun.registrations import turnover
 from fleetrun.vehicle import VehicleSpec
+from fleetrun.workbook.reader import own_year1_miles
 
 CHOICE_COLUMNS = ["registration_row", "vehicle_class", "fhwa_class", "fuel", "count", "model_year",
                   "vehicle", "matched_on", "assumed"]
@@ -352,7 +353,7 @@ class FleetYears:
             g = scenario.vmt_growth_pct_per_year / 100.0
             own = np.array([v.count * v.annual_miles for v in self.fleet_vehicles], dtype=float)
             growth = (1.0 + g) ** np.arange(scenario.budget_years)
-            cohorts = self.expansion.year_miles(scenario, float(own.sum()))
+            cohorts = self.expansion.year_miles(scenario, own_year1_miles(self.fleet_vehicles))
             self._miles[scenario.scenario_id] = np.vstack([own[:, None] * growth[None, :], cohorts])
         return self._miles[scenario.scenario_id]
 

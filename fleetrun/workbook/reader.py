@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
 from python_calamine import CalamineError
 from xlsxwriter.utility import xl_col_to_name
 
@@ -757,12 +758,18 @@ def _check_something_to_forecast(vehicles, registrations, table: _Table, problem
                    "fleet's counts (or a Vehicles row for its electric vehicles)", table.sheet)
 
 
+def own_year1_miles(vehicles) -> float:
+    """The Vehicles rows' own first-year miles, sum of count x annual_miles: the part of
+    ``base_year_vmt_million`` the registrations do not drive (registrations.expand.FleetYears)."""
+    return float(np.array([v.count * v.annual_miles for v in vehicles], dtype=float).sum())
+
+
 def _check_base_vmt(scenarios, scenario_rows, vehicles, table: _Table, problems: Problems) -> None:
     """``base_year_vmt_million`` is the whole fleet's first-year miles, Vehicles rows included:
     the registrations drive what is left (registrations.expand.Expansion.year_miles), so it
     must exceed the Vehicles rows' own (count x annual_miles), or their miles and gallons would
     come out negative."""
-    own = math.fsum(v.count * v.annual_miles for v in vehicles)
+    own = own_year1_miles(vehicles)
     for s in scenarios:
         if s.base_year_vmt_million is not None and s.base_year_vmt_million * 1e6 <= own:
             problems.error(f"{s.base_year_vmt_million:,.6g} million is not more than the Vehicles rows' own first-year "
