@@ -101,6 +101,10 @@ def test_a_comma_that_could_be_a_decimal_comma_is_a_warning_naming_the_cell(tmp_
     ("state_tax_gasoline_usd_per_gal", "0,20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '0,20'",
      "decimal point as a point (0.20)"),
     ("first_fiscal_year", "FY2027", "Scenarios!J2 first_fiscal_year: 'FY2027'", "type the number alone"),
+    ("state_tax_gasoline_usd_per_gal", "-$0.20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '-$0.20'",
+     "without the currency sign"),
+    # review: a one-character text ('-' for none in a pasted table) was told to drop a currency sign
+    ("vmt_growth_pct_per_year", "-", "Scenarios!E2 vmt_growth_pct_per_year: '-'", "; type a number"),
 ])
 def test_a_cell_that_is_not_a_number_says_what_to_type(tmp_path, column, typed, where, hint):
     """Before: "'Sept' is not a number" and nothing on what to type instead."""

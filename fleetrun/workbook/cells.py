@@ -140,7 +140,7 @@ def _number_hint(text: str) -> str:
         return f"give the month as a number 1-12 ({_MONTHS[months[0] - 1].capitalize()} = {months[0]})"
     if text.startswith("#"):   # #DIV/0!, #N/A, #REF! as text
         return "an Excel error; fix the formula or type the value"
-    if text[:1] in "$€£" or text[1:2] in "$€£":
+    if re.match(r"[+-]?[$€£]", text):   # $0.20, -$5 (a one-letter text's empty slice is in every string)
         return "type the number without the currency sign"
     if text.endswith("%"):
         return "type the number without the % sign (1.5 for 1.5 %), or format the cell as Percentage"
