@@ -19,7 +19,7 @@ import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from test_epa_import import epa_row, write_list
 from test_fleet_fakes import small_fleet
-from test_hostile_round3 import assert_import_replaces_only_with_force
+from test_hostile_round3 import assert_import_replaces_only_with_force, signals_as_from_a_terminal  # noqa: F401 (a fixture)
 
 
 def invoke(*args):
@@ -268,6 +268,7 @@ def test_signal_within_the_swap_waits_until_the_folder_is_in_place(tmp_path, mon
 
 
 @pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="POSIX signals")
+@pytest.mark.usefixtures("signals_as_from_a_terminal")   # SIGTERM ignored by the caller stays ignored
 def test_sigterm_within_the_swap_of_a_run_leaves_the_output_folder(tmp_path, monkeypatch, fake_simulation):
     """The same through `fleetrun run`: SIGTERM during the swap is exit 1 `stopped by SIGTERM`
     saying the folder holds this run's outputs (not "as it was"), and the folder is there,
