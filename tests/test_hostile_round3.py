@@ -238,17 +238,22 @@ def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monke
 
 # --- import-registrations: a DMV extract ------------------------------------------------------
 
-def test_import_registrations_never_replaces_an_edited_workbook(tmp_path):
+def test_import_registrations_keeps_the_workbook_it_replaces(tmp_path):
     """Before: next month's import over last month's fleet.xlsx silently replaced it, and with
-    it the tax rates and VMT the analyst had typed into its Scenarios sheet."""
+    it the tax rates and VMT the analyst had typed into its Scenarios sheet. Now the earlier
+    workbook is kept in earlier-imports/ and the message says where (exit 0: the command still
+    does what it is asked); --force replaces without keeping."""
     extract = tmp_path / "dmv.csv"
     extract.write_text("vehicle_class,count\nautomobile,100\n", encoding="utf-8")
     workbook = tmp_path / "fleet.xlsx"
     assert invoke("import-registrations", extract, "-o", workbook).exit_code == 0
     edited = workbook.read_bytes()
-    assert_user_error(invoke("import-registrations", extract, "-o", workbook), f"'{workbook}' exists", "--force")
-    assert workbook.read_bytes() == edited
+    again = invoke("import-registrations", extract, "-o", workbook)
+    assert again.exit_code == 0, again.output
+    kept = list((tmp_path / "earlier-imports").glob("fleet-*.xlsx"))
+    assert len(kept) == 1 and kept[0].read_bytes() == edited and str(kept[0]) in again.output
     assert invoke("import-registrations", extract, "-o", workbook, "--force").exit_code == 0
+    assert len(list((tmp_path / "earlier-imports").iterdir())) == 1      # --force keeps nothing more
 
 
 @pytest.mark.parametrize("content, said", [

@@ -44,17 +44,25 @@ def fake_simulation():
 
 # --- import-epa -o over an existing workbook -----------------------------------------------------
 
-def test_import_epa_never_replaces_an_existing_workbook_without_force(tmp_path):
+def test_import_epa_keeps_the_workbook_it_replaces(tmp_path):
     """Before: a second `import-epa list.csv -o fleet.xlsx` silently replaced fleet.xlsx (and
-    the tax rates and VMT the analyst had typed into its Scenarios sheet), exit 0;
-    import-registrations already refused without --force."""
+    the tax rates and VMT the analyst had typed into its Scenarios sheet). Now the earlier
+    workbook is kept in earlier-imports/ beside it and the message says where; the command still
+    writes the workbook and exits 0 (docs/interface.md); --force keeps nothing; a failed import
+    leaves the workbook and keeps nothing."""
     listed = write_list(tmp_path / "list.csv", [epa_row()])
     workbook = tmp_path / "fleet.xlsx"
     assert invoke("import-epa", listed, "-o", workbook).exit_code == 0
     edited = workbook.read_bytes()
-    assert_user_error(invoke("import-epa", listed, "-o", workbook), f"'{workbook}' exists", "--force")
-    assert workbook.read_bytes() == edited
+    again = invoke("import-epa", listed, "-o", workbook)
+    assert again.exit_code == 0, again.output
+    kept = list((tmp_path / "earlier-imports").glob("fleet-*.xlsx"))
+    assert len(kept) == 1 and kept[0].read_bytes() == edited and str(kept[0]) in again.output
     assert invoke("import-epa", listed, "-o", workbook, "--force").exit_code == 0
+    assert len(list((tmp_path / "earlier-imports").iterdir())) == 1
+    before = workbook.read_bytes()
+    assert invoke("import-epa", listed, "-o", workbook, "--make", "NoSuchMake").exit_code == 1
+    assert workbook.read_bytes() == before and len(list((tmp_path / "earlier-imports").iterdir())) == 1
 
 
 # --- import-registrations: the file's line, not the data row -------------------------------------
@@ -316,3 +324,32 @@ def test_a_signal_another_thread_receives_is_held_as_well():
         release.set()
         worker.join()
     assert held == [] and after == [signal.SIGTERM]
+
+
+def test_a_failed_import_write_keeps_no_copy(tmp_path):
+    """The earlier workbook is linked aside before the import writes; if the write fails the
+    workbook is as it was (atomic write) and the link is removed, so earlier-imports/ holds only
+    workbooks that were replaced."""
+    from fleetrun.fileio import replacing_import
+
+    workbook = tmp_path / "fleet.xlsx"
+    workbook.write_bytes(b"the analyst's workbook")
+    with pytest.raises(RuntimeError), replacing_import(workbook, force=False) as kept:
+        assert kept.read_bytes() == b"the analyst's workbook"
+        raise RuntimeError("disk full")
+    assert not kept.exists() and workbook.read_bytes() == b"the analyst's workbook"
+
+
+def test_a_batch_glob_skips_the_workbooks_an_import_kept(tmp_path):
+    """inputs = ["regions/*/*.xlsx"] with an import re-run in regions/north: the kept
+    regions/north/earlier-imports/fleet-<time>.xlsx is no fleet of tonight's batch."""
+    from fleetrun.run.batch import read_config
+
+    for region in ("north", "south"):
+        (tmp_path / "regions" / region).mkdir(parents=True)
+        small_fleet(tmp_path / "regions" / region / "fleet.xlsx")
+    (tmp_path / "regions" / "earlier-imports").mkdir()
+    small_fleet(tmp_path / "regions" / "earlier-imports" / "fleet-20261125T160000Z.xlsx")
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["regions/*/*.xlsx"]\nout = "out"\n', encoding="utf-8")
+    assert [p.parent.name for p in read_config(config).inputs] == ["north", "south"]
