@@ -13,6 +13,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -40,17 +41,6 @@ def why_not_writable(path: Path, exc: OSError) -> str:
     path should be (``results`` a file, ``--out results/may``), else the system's reason."""
     blocking = next((p for p in Path(path).parents if p.exists() and not p.is_dir()), None)
     return f"{blocking} is a file, not a folder" if blocking else str(exc.strerror or exc)
-
-
-REPLACE_WORKBOOK_HELP = "Replace an existing workbook (its Scenarios sheet, tax rates and VMT included)."
-
-
-def refuse_replacing_workbook(output: Path, force: bool) -> None:
-    """InputError if the workbook ``output`` an import would write exists and ``force`` is not
-    given: its Scenarios sheet may hold what the analyst typed since (docs/interface.md)."""
-    if Path(output).exists() and not force:
-        raise InputError(f"'{output}' exists (its Scenarios sheet may hold your tax rates and VMT)",
-                         hint="Choose another name, or add --force to replace it")
 
 
 def is_same_file(path: Path, other: Path) -> bool:
@@ -131,6 +121,50 @@ def link_or_copy(source, target) -> None:
         os.link(source, target)
     except OSError:
         shutil.copy2(source, target)
+
+
+EARLIER_IMPORTS = "earlier-imports"   # beside an import's workbook: the workbooks it replaced
+FORCE_IMPORT_HELP = f"Replace an existing workbook without keeping it in {EARLIER_IMPORTS}/."   # both imports' --force
+
+
+def keep_earlier_import(path: Path) -> Path | None:
+    """Before an import command replaces the workbook ``path`` (whose Scenarios sheet the
+    analyst may have filled in since): a hard link of it (a copy where the file system has none)
+    as ``earlier-imports/<stem>-<UTC time><suffix>`` beside it; None when there is no such file.
+    The import then writes ``path`` anew (atomically, a new file), so the link keeps the earlier
+    bytes. A folder of its own keeps the kept workbooks out of a batch's ``*.xlsx``."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    folder = path.parent / EARLIER_IMPORTS
+    folder.mkdir(exist_ok=True)
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    kept, n = folder / f"{path.stem}-{stamp}{path.suffix}", 1
+    while os.path.lexists(kept):
+        n += 1
+        kept = folder / f"{path.stem}-{stamp}-{n}{path.suffix}"
+    link_or_copy(path, kept)
+    return kept
+
+
+@contextlib.contextmanager
+def replacing_import(path: Path, force: bool) -> Iterator[Path | None]:
+    """Around an import's write of ``path``: unless ``force``, the earlier workbook is kept
+    first (:func:`keep_earlier_import`, yielded); if the write fails, ``path`` is as it was and
+    the kept link is removed again."""
+    kept = None if force else keep_earlier_import(path)
+    try:
+        yield kept
+    except BaseException:
+        if kept is not None:
+            kept.unlink(missing_ok=True)
+        raise
+
+
+def kept_note(kept: Path | None) -> str:
+    """The sentence an import adds when it kept the workbook it replaced."""
+    return (f" The earlier workbook it replaced is kept as {kept} (its Scenarios sheet too: copy back what "
+            "you had typed there).") if kept is not None else ""
 
 
 def write_error_log(text: str, log_file: Path | None = None) -> Path:

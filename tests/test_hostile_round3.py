@@ -263,22 +263,27 @@ def test_an_interrupted_run_is_logged_and_leaves_the_earlier_run(tmp_path, monke
 
 # --- import-registrations: a DMV extract ------------------------------------------------------
 
-def assert_import_replaces_only_with_force(command: str, source: Path, workbook: Path) -> None:
-    """A second ``command source -o workbook`` is exit 1 saying so and leaves it; with --force
-    it replaces it."""
+def assert_import_keeps_the_workbook_it_replaces(command: str, source: Path, workbook: Path) -> None:
+    """A second ``command source -o workbook`` keeps the earlier workbook in earlier-imports/
+    and names it (exit 0); --force keeps nothing more."""
     assert invoke(command, source, "-o", workbook).exit_code == 0
     edited = workbook.read_bytes()
-    assert_user_error(invoke(command, source, "-o", workbook), f"'{workbook}' exists", "--force")
-    assert workbook.read_bytes() == edited
+    again = invoke(command, source, "-o", workbook)
+    assert again.exit_code == 0, again.output
+    kept = list((workbook.parent / "earlier-imports").glob(f"{workbook.stem}-*.xlsx"))
+    assert len(kept) == 1 and kept[0].read_bytes() == edited and str(kept[0]) in again.output
     assert invoke(command, source, "-o", workbook, "--force").exit_code == 0
+    assert len(list((workbook.parent / "earlier-imports").iterdir())) == 1      # --force keeps nothing more
 
 
-def test_import_registrations_never_replaces_an_edited_workbook(tmp_path):
+def test_import_registrations_keeps_the_workbook_it_replaces(tmp_path):
     """Before: next month's import over last month's fleet.xlsx silently replaced it, and with
-    it the tax rates and VMT the analyst had typed into its Scenarios sheet."""
+    it the tax rates and VMT the analyst had typed into its Scenarios sheet. Now the earlier
+    workbook is kept in earlier-imports/ and the message says where (exit 0: the command still
+    does what it is asked); --force replaces without keeping."""
     extract = tmp_path / "dmv.csv"
     extract.write_text("vehicle_class,count\nautomobile,100\n", encoding="utf-8")
-    assert_import_replaces_only_with_force("import-registrations", extract, tmp_path / "fleet.xlsx")
+    assert_import_keeps_the_workbook_it_replaces("import-registrations", extract, tmp_path / "fleet.xlsx")
 
 
 @pytest.mark.parametrize("content, said", [

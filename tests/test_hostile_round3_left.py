@@ -19,7 +19,7 @@ import test_fleet_fakes as fakes
 from fleetrun.cli import cli
 from test_epa_import import epa_row, write_list
 from test_fleet_fakes import small_fleet
-from test_hostile_round3 import assert_import_replaces_only_with_force, signals_as_from_a_terminal  # noqa: F401 (a fixture)
+from test_hostile_round3 import assert_import_keeps_the_workbook_it_replaces, signals_as_from_a_terminal  # noqa: F401 (a fixture)
 
 
 def invoke(*args):
@@ -45,12 +45,18 @@ def fake_simulation():
 
 # --- import-epa -o over an existing workbook -----------------------------------------------------
 
-def test_import_epa_never_replaces_an_existing_workbook_without_force(tmp_path):
+def test_import_epa_keeps_the_workbook_it_replaces(tmp_path):
     """Before: a second `import-epa list.csv -o fleet.xlsx` silently replaced fleet.xlsx (and
-    the tax rates and VMT the analyst had typed into its Scenarios sheet), exit 0;
-    import-registrations already refused without --force."""
+    the tax rates and VMT the analyst had typed into its Scenarios sheet). Now the earlier
+    workbook is kept in earlier-imports/ beside it and the message says where; the command still
+    writes the workbook and exits 0 (docs/interface.md); --force keeps nothing; a failed import
+    leaves the workbook and keeps nothing."""
     listed = write_list(tmp_path / "list.csv", [epa_row()])
-    assert_import_replaces_only_with_force("import-epa", listed, tmp_path / "fleet.xlsx")
+    assert_import_keeps_the_workbook_it_replaces("import-epa", listed, tmp_path / "fleet.xlsx")
+    workbook = tmp_path / "fleet.xlsx"
+    before = workbook.read_bytes()
+    assert invoke("import-epa", listed, "-o", workbook, "--make", "NoSuchMake").exit_code == 1
+    assert workbook.read_bytes() == before and len(list((tmp_path / "earlier-imports").iterdir())) == 1
 
 
 # --- import-registrations: the file's line, not the data row -------------------------------------
@@ -383,3 +389,32 @@ def test_a_held_signal_while_outputs_move_into_the_working_folder_says_they_are_
         signal.signal(signal.SIGINT, previous)
     assert stopped.value.outputs_in_place == str(target.resolve())
     assert (target / "results.csv").read_text() == "new\n"
+
+
+def test_a_failed_import_write_keeps_no_copy(tmp_path):
+    """The earlier workbook is linked aside before the import writes; if the write fails the
+    workbook is as it was (atomic write) and the link is removed, so earlier-imports/ holds only
+    workbooks that were replaced."""
+    from fleetrun.fileio import replacing_import
+
+    workbook = tmp_path / "fleet.xlsx"
+    workbook.write_bytes(b"the analyst's workbook")
+    with pytest.raises(RuntimeError), replacing_import(workbook, force=False) as kept:
+        assert kept.read_bytes() == b"the analyst's workbook"
+        raise RuntimeError("disk full")
+    assert not kept.exists() and workbook.read_bytes() == b"the analyst's workbook"
+
+
+def test_a_batch_glob_skips_the_workbooks_an_import_kept(tmp_path):
+    """inputs = ["regions/*/*.xlsx"] with an import re-run in regions/north: the kept
+    regions/north/earlier-imports/fleet-<time>.xlsx is no fleet of tonight's batch."""
+    from fleetrun.run.batch import read_config
+
+    for region in ("north", "south"):
+        (tmp_path / "regions" / region).mkdir(parents=True)
+        small_fleet(tmp_path / "regions" / region / "fleet.xlsx")
+    (tmp_path / "regions" / "earlier-imports").mkdir()
+    small_fleet(tmp_path / "regions" / "earlier-imports" / "fleet-20261125T160000Z.xlsx")
+    config = tmp_path / "batch.toml"
+    config.write_text('inputs = ["regions/*/*.xlsx"]\nout = "out"\n', encoding="utf-8")
+    assert [p.parent.name for p in read_config(config).inputs] == ["north", "south"]

@@ -8,7 +8,7 @@ import click
 from fleetrun.epa import import_test_car_list
 from fleetrun.epa.writer import write_fleet_workbook, write_measured_csv
 from fleetrun.errors import InputError
-from fleetrun.fileio import REPLACE_WORKBOOK_HELP, refuse_replacing_inputs, refuse_replacing_workbook
+from fleetrun.fileio import FORCE_IMPORT_HELP, kept_note, refuse_replacing_inputs, replacing_import
 from fleetrun.workbook.reader import file_sha256
 
 
@@ -22,7 +22,7 @@ from fleetrun.workbook.reader import file_sha256
               help="Only this model year (repeatable).")
 @click.option("--make", "makes", multiple=True,
               help="Only this make or manufacturer, case-insensitive (repeatable).")
-@click.option("--force", is_flag=True, help=REPLACE_WORKBOOK_HELP)
+@click.option("--force", is_flag=True, help=FORCE_IMPORT_HELP)
 def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, makes, force):
     """Write a fleet workbook from an EPA Test Car List CSV: one Vehicles row per test vehicle
     and configuration, with Measured, Derived and Excluded sheets (docs/epa-import.md)."""
@@ -32,7 +32,6 @@ def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, 
     if not tstcar.is_file():
         raise InputError("does not exist", file=tstcar, hint="Check the path of the EPA Test Car List CSV")
     refuse_replacing_inputs(output, [tstcar], "-o")
-    refuse_replacing_workbook(output, force)
     if measured_out is not None:
         refuse_replacing_inputs(measured_out, [tstcar, output], "--measured-out")
         if measured_out.resolve() == output.resolve():
@@ -44,9 +43,11 @@ def command(tstcar: Path, output: Path, measured_out: Path | None, model_years, 
         raise InputError(f"no vehicle{picked} can be modelled ({len(result.excluded)} excluded; "
                          f"{result.rows_read} test rows read)", file=tstcar,
                          hint="Check --model-year / --make, or the Excluded reasons with fewer filters")
-    write_fleet_workbook(result, output, source=str(tstcar), sha256=file_sha256(tstcar))
+    with replacing_import(output, force) as kept:   # the analyst's edits of an earlier import stay
+        write_fleet_workbook(result, output, source=str(tstcar), sha256=file_sha256(tstcar))
     if measured_out is not None:
         write_measured_csv(result, measured_out)
     click.echo(f"Wrote {output}: {len(result.vehicles)} vehicles modelled, {len(result.excluded)} excluded "
                f"(sheet Excluded), {len(result.measured)} measured results"
-               + (f" (also {measured_out})" if measured_out else "") + f". Next: `fleetrun run {output}`.")
+               + (f" (also {measured_out})" if measured_out else "") + f". Next: `fleetrun run {output}`."
+               + kept_note(kept))

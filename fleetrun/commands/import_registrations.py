@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from fleetrun.errors import InputError
-from fleetrun.fileio import REPLACE_WORKBOOK_HELP, refuse_replacing_inputs, refuse_replacing_workbook
+from fleetrun.fileio import FORCE_IMPORT_HELP, kept_note, refuse_replacing_inputs, replacing_import
 
 
 @click.command("import-registrations")
@@ -20,7 +20,7 @@ from fleetrun.fileio import REPLACE_WORKBOOK_HELP, refuse_replacing_inputs, refu
 @click.option("--base-year-vmt-share-pct", default=None,
               help="Percent of those miles by FHWA class, e.g. 'combination_truck:9.1,single_unit_truck:4.6' "
                    "(your VM-4 / HPMS; docs/registrations.md, \"Miles by class\").")
-@click.option("--force", is_flag=True, help=REPLACE_WORKBOOK_HELP)
+@click.option("--force", is_flag=True, help=FORCE_IMPORT_HELP)
 def command(extract: Path, output: Path, first_fiscal_year, base_year_vmt_million, base_year_vmt_share_pct, force):
     """Aggregate a registration extract (one line per vehicle, or counts per make, model and
     model year; read in chunks) into the Registrations sheet of a new fleet workbook."""
@@ -32,11 +32,11 @@ def command(extract: Path, output: Path, first_fiscal_year, base_year_vmt_millio
     if output.suffix.lower() != ".xlsx":
         raise InputError(f"'{output}' must end in .xlsx", hint="Give a name like fleet.xlsx")
     refuse_replacing_inputs(output, [extract], "-o")
-    refuse_replacing_workbook(output, force)
     frame = read_extract(extract)
-    write_registrations_workbook(frame, output, first_fiscal_year, base_year_vmt_million, base_year_vmt_share_pct)
+    with replacing_import(output, force) as kept:   # the analyst's Scenarios of an earlier import stay
+        write_registrations_workbook(frame, output, first_fiscal_year, base_year_vmt_million, base_year_vmt_share_pct)
     click.echo(f"Wrote {output}: {len(frame):,} registration rows ({frame['count'].sum():,.0f} vehicles). "
-               f"Next: check the Scenarios sheet (tax rates, VMT), then `fleetrun run {output}`.")
+               f"Next: check the Scenarios sheet (tax rates, VMT), then `fleetrun run {output}`." + kept_note(kept))
 
 
 def _check_shares(text: str) -> None:

@@ -28,8 +28,8 @@ import click
 from fleetrun.budget.result import RunResult
 from fleetrun.effects import parse_with
 from fleetrun.errors import FleetrunError, InputError, interrupted_outputs, interruption
-from fleetrun.fileio import why_not_writable, write_error_log
-from fleetrun.reports.changes import KEEP_RUNS, EarlierRun, compare, describe, read_earlier, scenario_totals_dict
+from fleetrun.fileio import EARLIER_IMPORTS, why_not_writable, write_error_log
+from fleetrun.reports.changes import EARLIER_DIR, KEEP_RUNS, EarlierRun, compare, describe, read_earlier, scenario_totals_dict
 from fleetrun.reports.manifest import manifest_dict
 from fleetrun.run.engines import make_engine
 from fleetrun.output_folder import folder_lock
@@ -134,9 +134,11 @@ class FleetWritten:
 
 
 def _not_a_fleet(path: Path) -> bool:
-    """A file a glob of workbooks meets that is no fleet: an Office lock file, or a run's own
-    report.xlsx (beside the manifest.json that lists it)."""
-    return is_office_lock_file(path) or (path.name == "report.xlsx" and (path.parent / "manifest.json").is_file())
+    """A file a glob of workbooks meets that is no fleet: an Office lock file, a run's own
+    report.xlsx (beside the manifest.json that lists it), or a copy fleetrun kept (a workbook an
+    import replaced, an earlier run's outputs)."""
+    return (is_office_lock_file(path) or (path.name == "report.xlsx" and (path.parent / "manifest.json").is_file())
+            or bool({EARLIER_IMPORTS, EARLIER_DIR} & set(path.parts[:-1])))
 
 
 def read_config(path: Path) -> BatchConfig:
