@@ -92,6 +92,15 @@ def test_a_comma_that_could_be_a_decimal_comma_is_a_warning_naming_the_cell(tmp_
     assert result.exit_code == 0 and "Scenarios!K2" in result.output, result.output
 
 
+def test_a_registration_count_with_three_decimals_is_a_warning(tmp_path):
+    """Review: '2.524' typed as text (a locale whose thousands separator is a point: 2524 vehicles)
+    was read as 2.524 vehicles, silently; a Vehicles row's fractional count was already warned about."""
+    fleet = read_fleet(registrations(tmp_path / "t.xlsx", [("automobile", "2.524"), ("bus", 12)]))
+    assert fleet.registrations[0]["count"] == 2.524
+    assert fleet.warnings == ["Registrations!B2 count: 2.524 vehicles is not a whole number; totals use it as given "
+                              "(if the point is a thousands separator, type 2524)"]
+
+
 @pytest.mark.parametrize("column, typed, where, hint", [
     ("fiscal_year_start_month", "Sept", "Scenarios!L2 fiscal_year_start_month: 'Sept'", "(September = 9)"),
     ("state_tax_gasoline_usd_per_gal", "$0.20", "Scenarios!F2 state_tax_gasoline_usd_per_gal: '$0.20'",

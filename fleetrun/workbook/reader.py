@@ -808,6 +808,8 @@ def _registrations(table: _Table, vehicle_rows: dict[str, int], problems: Proble
         if same != row_number:   # a pasted block twice: every vehicle of it counted twice
             problems.warn(f"repeats row {same} exactly; both are counted (delete one if it is a copy)",
                           table.sheet, row_number)
+        if note := rows.fractional_count(parsed.get("count")):
+            problems.warn(note, table.sheet, row_number, table.columns.get("count"), "count")
         vid = parsed.get("vehicle_id")
         if vid and vid not in vehicle_rows:
             problems.error(f"{cells.show(vid)} is not a vehicle_id of the Vehicles sheet", table.sheet, row_number,

@@ -242,6 +242,18 @@ def _label_pair(p: dict, report: Report) -> None:
                "give both, or the combined figure in label_combined_mpg)", warning=True)
 
 
+def fractional_count(count) -> str | None:
+    """The warning for a count of vehicles that is not a whole number (a Vehicles or
+    Registrations row); None for a whole one. Three decimals may be a point typed as a
+    thousands separator (2.524 for 2524 where the decimal mark is a comma)."""
+    if count is None or count == int(count):
+        return None
+    thousandths = count * 1000
+    grouped = 1 <= count < 1000 and abs(thousandths - round(thousandths)) < 1e-6 and round(thousandths) % 10 != 0
+    return (f"{count:g} vehicles is not a whole number; totals use it as given"
+            + (f" (if the point is a thousands separator, type {round(count * 1000)})" if grouped else ""))
+
+
 def _vehicle_plausible(p: dict, report: Report) -> None:
     duty = p.get("duty_class")
     if duty is not None:
@@ -254,8 +266,8 @@ def _vehicle_plausible(p: dict, report: Report) -> None:
                 report(name, f"{value:g} is unusual for a {duty} vehicle (expected {low:g} to "
                        f"{high:g}); check the units", warning=True)
     count, miles = p.get("count"), p.get("annual_miles")
-    if count is not None and count != int(count):
-        report("count", f"{count:g} vehicles is not a whole number; totals use it as given", warning=True)
+    if note := fractional_count(count):
+        report("count", note, warning=True)
     if count == 0:
         report("count", "0 vehicles: this row adds nothing", warning=True)
     if miles == 0:
