@@ -13,20 +13,18 @@ recolour it or move the cursor) are shown as ``\x1b`` and never reach a terminal
 """
 from __future__ import annotations
 
-import contextlib
 import gc
 import importlib
 import re
 import signal
 import sys
-import threading
 import traceback
 from pathlib import Path
 
 import click
 
 from fleetrun import __version__
-from fleetrun.errors import FleetrunError, Terminated, interruption
+from fleetrun.errors import FleetrunError, Terminated, interruption, signal_handlers
 from fleetrun.fileio import write_error_log
 
 EXIT_INTERNAL = 4
@@ -101,27 +99,15 @@ class FleetrunGroup(click.Group):
             _internal_error(ctx)
 
 
-@contextlib.contextmanager
+def _stop(signum, _frame):
+    raise Terminated(signal.Signals(signum).name)
+
+
 def _sigterm_as_interrupt():
     """SIGTERM and SIGHUP raise :class:`Terminated` (a KeyboardInterrupt) while a command runs, so
-    a scheduler's kill or a closed ssh session stops it as Ctrl-C does: an ``Error:`` line, exit 1, the log told, the
-    staging folder and lock removed. Only in the main thread (where Python runs handlers)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def stop(signum, _frame):
-        raise Terminated(signal.Signals(signum).name)
-
-    # a signal the caller ignores stays ignored (`nohup fleetrun run ...` must outlive the terminal)
-    stopping = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
-                if hasattr(signal, name) and signal.getsignal(getattr(signal, name)) is not signal.SIG_IGN]
-    previous = {number: signal.signal(number, stop) for number in stopping}
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+    a scheduler's kill or a closed ssh session stops it as Ctrl-C does: an ``Error:`` line, exit 1,
+    the log told, the staging folder and lock removed (errors.signal_handlers: not where ignored)."""
+    return signal_handlers([getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)], _stop)
 
 
 # C0 and C1 control characters but tab, newline and carriage return (the progress bar's), DEL,

@@ -5,7 +5,11 @@ into one ``Error: ...`` line on stderr and exit code 1, never a traceback.
 """
 from __future__ import annotations
 
+import contextlib
 import difflib
+import signal
+import threading
+from collections.abc import Iterable, Iterator
 
 
 class FleetrunError(Exception):
@@ -109,3 +113,21 @@ def interrupted_outputs(exc: KeyboardInterrupt, folder: str) -> str:
     if done:
         return f"it came as the outputs were moved in: {done} holds this run's complete outputs; nothing more was written"
     return f"nothing more was written and {folder} is as it was"
+
+
+@contextlib.contextmanager
+def signal_handlers(numbers: Iterable[int], handler) -> Iterator[None]:
+    """``handler`` for the signals ``numbers`` in the block, the earlier handlers back after it.
+    A signal the caller ignores stays ignored (`nohup fleetrun run ...` must outlive the
+    terminal), as does one whose handler Python did not set; off the main thread, where Python
+    cannot set handlers, the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {number: signal.signal(number, handler) for number in numbers
+                if signal.getsignal(number) not in (signal.SIG_IGN, None)}
+    try:
+        yield
+    finally:
+        for number, earlier in previous.items():
+            signal.signal(number, earlier)

@@ -44,13 +44,12 @@ import os
 import secrets
 import shutil
 import signal
-import threading
 import sys
 import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from fleetrun.errors import InputError
+from fleetrun.errors import InputError, signal_handlers
 from fleetrun.fileio import link_or_copy, why_not_writable
 
 STAGING = "staging"
@@ -73,23 +72,13 @@ def _signals_held(done: Path | None = None) -> Iterator[None]:
     them (a thread's signal mask would not do: the system gives a process's signal to any thread
     that does not block it, a pyarrow worker for one). An ignored signal stays ignored; off the
     main thread, where handlers cannot be set, the block runs as it is."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
     noted: list[int] = []
-
-    def note(signum, _frame):
-        noted.append(signum)
-
-    previous = {number: signal.signal(number, note) for number in HELD_SIGNALS
-                if signal.getsignal(number) not in (signal.SIG_IGN, None)}
     completed = False
     try:
-        yield
+        with signal_handlers(HELD_SIGNALS, lambda signum, _frame: noted.append(signum)):
+            yield
         completed = True
     finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
         try:
             for number in dict.fromkeys(noted):
                 signal.raise_signal(number)
