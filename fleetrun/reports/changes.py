@@ -163,17 +163,33 @@ class EarlierRun:
         return earlier_run_name(self.manifest)
 
 
+def read_manifest(manifest: Path) -> tuple[object, str]:
+    """``manifest.json``'s data (None when there is none) and what is wrong with it ('' if
+    nothing)."""
+    if not manifest.is_file():
+        return None, ""
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+    except OSError as exc:
+        return None, f"cannot be read: {exc.strerror or exc}"
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except ValueError as exc:
+        return None, "empty" if not manifest.stat().st_size else f"not JSON: {exc}"
+    return data, "" if isinstance(data, dict) else "not a JSON object"
+
+
+def same_schema(data, schema: str) -> bool:
+    """Whether ``data`` (a manifest read by :func:`read_manifest`) is a document of ``schema``'s
+    kind, any version (``fleetrun.run/1`` and a later ``fleetrun.run/2`` are one kind)."""
+    return isinstance(data, dict) and str(data.get("schema", "")).split("/")[0] == schema.split("/")[0]
+
+
 def read_earlier(out_dir: Path) -> EarlierRun | None:
     """The earlier run in ``out_dir``: its manifest with ``totals`` filled in; None if none
     (or its manifest cannot be read: then there is nothing to compare, said in the log)."""
-    manifest = Path(out_dir) / "manifest.json"
-    if not manifest.is_file():
-        return None
-    try:
-        data = json.loads(manifest.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(data, dict):
+    data, damage = read_manifest(Path(out_dir) / "manifest.json")
+    if damage or data is None:
         return None
     if not isinstance(data.get("totals"), dict):
         classes = Path(out_dir) / "class_summary.csv"
@@ -288,13 +304,8 @@ def _kept_run(folder: Path, schema: str) -> dict | None:
     anything else."""
     if folder.is_symlink() or not folder.is_dir() or not KEPT_NAME.fullmatch(folder.name):
         return None
-    try:
-        data = json.loads((folder / "manifest.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(data, dict) or str(data.get("schema", "")).split("/")[0] != schema.split("/")[0]:
-        return None
-    return data
+    data, _ = read_manifest(folder / "manifest.json")
+    return data if same_schema(data, schema) else None
 
 
 def prune_earlier_runs(out_dir: Path, keep: int, schema: str) -> list[Path]:

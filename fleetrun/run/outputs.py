@@ -5,7 +5,6 @@ assembled in a staging folder and swapped in as one step (:mod:`fleetrun.output_
 """
 from __future__ import annotations
 
-import json
 import csv
 import io
 import math
@@ -20,7 +19,8 @@ import pyarrow.compute as pc
 from fleetrun.errors import InputError
 from fleetrun.fileio import is_same_file
 from fleetrun.output_folder import new_output_folder
-from fleetrun.reports.changes import KEEP_RUNS, EarlierRun, keep_earlier_run, prune_earlier_runs
+from fleetrun.reports.changes import (KEEP_RUNS, EarlierRun, keep_earlier_run, prune_earlier_runs, read_manifest,
+                                      same_schema)
 from fleetrun.reports.html import write_summary_html
 from fleetrun.reports.manifest import SCHEMA, write_manifest
 from fleetrun.reports.xlsx import write_report_xlsx
@@ -167,22 +167,6 @@ def refuse_overwriting_inputs(out_dir: Path, inputs, outputs=OUTPUT_FILES) -> No
                                  hint="Choose another output folder (--out)")
 
 
-def _read_manifest(manifest: Path) -> tuple[object, str]:
-    """``manifest.json``'s data (None when there is none) and what is wrong with it ('' if
-    nothing)."""
-    if not manifest.is_file():
-        return None, ""
-    try:
-        data = json.loads(manifest.read_text(encoding="utf-8"))
-    except OSError as exc:
-        return None, f"cannot be read: {exc.strerror or exc}"
-    except UnicodeDecodeError:
-        return None, "not UTF-8 text"
-    except ValueError as exc:
-        return None, "empty" if not manifest.stat().st_size else f"not JSON: {exc}"
-    return data, "" if isinstance(data, dict) else "not a JSON object"
-
-
 def refuse_foreign_outputs(out_dir: Path) -> None:
     """InputError if ``out_dir`` holds a file with an output's name that fleetrun did not write
     (no fleetrun ``manifest.json`` beside it listing it): a run moves or deletes only its own
@@ -192,8 +176,8 @@ def refuse_foreign_outputs(out_dir: Path) -> None:
     if not present:
         return
     manifest = out_dir / "manifest.json"
-    data, damage = _read_manifest(manifest)
-    ours = isinstance(data, dict) and str(data.get("schema", "")).split("/")[0] == SCHEMA.split("/")[0]
+    data, damage = read_manifest(manifest)
+    ours = same_schema(data, SCHEMA)
     if ours and not isinstance(data.get("outputs"), dict):
         damage = "has no list of the outputs"
     if damage:   # a crash, a full disk or a hand edit: the files may well be fleetrun's own
