@@ -24,11 +24,6 @@ CHUNK_ROWS = 200_000
 MAX_COUNT = 1e9
 
 
-def _name(header) -> str:
-    """A header as the sheet's column names are spelt (``Vehicle Class`` is vehicle_class)."""
-    return as_name(header)
-
-
 def _columns(path: Path) -> tuple[list[str], str]:
     """The extract's columns to read and its separator: a comma, or the semicolon or tab that
     Excel writes in locales whose decimal mark is a comma."""
@@ -36,7 +31,7 @@ def _columns(path: Path) -> tuple[list[str], str]:
         raise InputError("is empty (0 bytes)", file=path, hint="Export the extract again")
     for sep in (",", ";", "\t"):
         header = pd.read_csv(path, nrows=0, encoding="utf-8-sig", sep=sep)
-        names = {_name(c): c for c in header.columns}
+        names = {as_name(c): c for c in header.columns}
         if "vehicle_class" in names:
             return [names[k] for k in (*KEYS, "count") if k in names], sep
     header = pd.read_csv(path, nrows=0, encoding="utf-8-sig")
@@ -128,7 +123,7 @@ def _aggregate(path: Path, chunk_rows: int) -> pd.DataFrame:
     reader = pd.read_csv(path, usecols=usecols, chunksize=chunk_rows, dtype=str, encoding="utf-8-sig",
                          keep_default_na=False, na_values=[""], sep=sep)
     for chunk in reader:
-        chunk.columns = [_name(c) for c in chunk.columns]
+        chunk.columns = [as_name(c) for c in chunk.columns]
         for name in ("vehicle_class", "fuel"):
             if name in chunk:
                 chunk[name] = chunk[name].str.strip().str.lower().str.replace(NAME_SPACING, "_", regex=True)

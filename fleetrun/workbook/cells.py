@@ -126,6 +126,8 @@ def decimal_comma_reading(text: str) -> float | None:
     exists (one three-digit group and no decimal point; ``1,234,567`` and ``1,234.5`` have none)."""
     text = str(text).strip()
     return float(text.replace(",", ".")) if _ONE_GROUP.fullmatch(text) else None
+
+
 _GROUPED = re.compile(r"[+-]?\d{1,3}([ .'\u00a0\u202f]\d{3})+(,\d+)?")   # 2 524 145, 2.524.145, 2'524'145
 _MONTHS = ("january", "february", "march", "april", "may", "june", "july", "august", "september",
            "october", "november", "december")
